@@ -1,0 +1,286 @@
+//! The network IR: what every part of samara (simulation, training, verification,
+//! reachability) reads.
+//!
+//! A [`Network`] is an optional input normalisation (an affine map, usually diagonal:
+//! `(x - c) / s`), a body of layers, and an optional output denormalisation (an affine
+//! map, e.g. `ex = 0.181 + 0.012 * out`). Keeping the two as distinguished layers lets
+//! the same network be used in raw units ([`Network::eval`]) or in normalised units
+//! ([`Network::eval_normalised`]).
+
+use samara_num::Scalar;
+
+/// A dense affine map `y = W x + b`, `W` stored row-major (`out x inp`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Affine {
+    /// Number of inputs.
+    pub inp: usize,
+    /// Number of outputs.
+    pub out: usize,
+    /// Row-major weights, `out * inp` entries: `w[i * inp + j]` maps input j to output i.
+    pub w: Vec<f64>,
+    /// Biases, `out` entries.
+    pub b: Vec<f64>,
+}
+
+impl Affine {
+    /// A new affine map; `w.len() == out * inp` and `b.len() == out` are checked by
+    /// [`Network::validate`].
+    pub fn new(inp: usize, out: usize, w: Vec<f64>, b: Vec<f64>) -> Self {
+        Affine { inp, out, w, b }
+    }
+
+    /// The diagonal map `y_i = (x_i - c_i) / s_i` (min-max normalisation).
+    pub fn normalise(c: &[f64], s: &[f64]) -> Self {
+        let n = c.len();
+        let mut w = vec![0.0; n * n];
+        let mut b = vec![0.0; n];
+        for i in 0..n {
+            w[i * n + i] = 1.0 / s[i];
+            b[i] = -c[i] / s[i];
+        }
+        Affine::new(n, n, w, b)
+    }
+
+    /// The diagonal map `y_i = c_i + s_i * x_i` (denormalisation).
+    pub fn denormalise(c: &[f64], s: &[f64]) -> Self {
+        let n = c.len();
+        let mut w = vec![0.0; n * n];
+        for i in 0..n {
+            w[i * n + i] = s[i];
+        }
+        Affine::new(n, n, w, c.to_vec())
+    }
+
+    /// Weight from input `j` to output `i`.
+    #[inline]
+    pub fn weight(&self, i: usize, j: usize) -> f64 {
+        self.w[i * self.inp + j]
+    }
+
+    /// Apply to a vector of any scalar type. Zero weights are skipped, so a diagonal
+    /// normalisation does not couple the dependencies of set-valued inputs.
+    pub fn apply<S: Scalar>(&self, x: &[S]) -> Vec<S> {
+        (0..self.out)
+            .map(|i| {
+                let row = &self.w[i * self.inp..(i + 1) * self.inp];
+                let mut acc = S::cst(self.b[i]);
+                for (wij, xj) in row.iter().zip(x) {
+                    if *wij != 0.0 {
+                        acc += xj.clone() * *wij;
+                    }
+                }
+                acc
+            })
+            .collect()
+    }
+
+    /// Apply to an f64 vector, writing into `y` (no allocation).
+    #[inline]
+    pub fn apply_f64(&self, x: &[f64], y: &mut [f64]) {
+        for i in 0..self.out {
+            let row = &self.w[i * self.inp..(i + 1) * self.inp];
+            let mut acc = self.b[i];
+            for (wij, xj) in row.iter().zip(x) {
+                acc += wij * xj;
+            }
+            y[i] = acc;
+        }
+    }
+}
+
+/// An elementwise activation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Activation {
+    /// `max(x, 0)`.
+    Relu,
+    /// `1 / (1 + exp(-x))`.
+    Sigmoid,
+    /// `tanh(x)`.
+    Tanh,
+    /// `min(max(x, lo), hi)`.
+    Clamp {
+        /// Lower bound (may be `-inf`).
+        lo: f64,
+        /// Upper bound (may be `+inf`).
+        hi: f64,
+    },
+}
+
+impl Activation {
+    /// Apply to one number of any scalar type.
+    pub fn apply<S: Scalar>(&self, x: &S) -> S {
+        match *self {
+            Activation::Relu => x.relu(),
+            Activation::Sigmoid => x.sigmoid(),
+            Activation::Tanh => x.tanh(),
+            Activation::Clamp { lo, hi } => x.clamp_to(lo, hi),
+        }
+    }
+
+    /// Apply to one f64.
+    #[inline]
+    pub fn apply_f64(&self, x: f64) -> f64 {
+        match *self {
+            Activation::Relu => x.max(0.0),
+            Activation::Sigmoid => 1.0 / (1.0 + (-x).exp()),
+            Activation::Tanh => x.tanh(),
+            Activation::Clamp { lo, hi } => x.max(lo).min(hi),
+        }
+    }
+
+    /// Whether the activation is piecewise linear (exact MILP/LP encodings exist).
+    pub fn is_piecewise_linear(&self) -> bool {
+        matches!(self, Activation::Relu | Activation::Clamp { .. })
+    }
+}
+
+/// One layer of the body.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Layer {
+    /// A dense affine map.
+    Affine(Affine),
+    /// An elementwise activation.
+    Act(Activation),
+}
+
+/// A feed-forward network with named inputs and outputs and optional
+/// normalisation/denormalisation affine layers around its body.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Network {
+    /// Names of the inputs, in order (e.g. `v_xp, v_yp, omega, theta, x, y`).
+    pub input_names: Vec<String>,
+    /// Names of the outputs, in order (e.g. `ex`).
+    pub output_names: Vec<String>,
+    /// Raw -> normalised input map, if the network carries one.
+    pub input_norm: Option<Affine>,
+    /// The body: normalised inputs -> normalised outputs.
+    pub layers: Vec<Layer>,
+    /// Normalised -> raw output map, if the network carries one.
+    pub output_denorm: Option<Affine>,
+}
+
+impl Network {
+    /// Number of inputs.
+    pub fn n_inputs(&self) -> usize {
+        self.input_names.len()
+    }
+
+    /// Number of outputs.
+    pub fn n_outputs(&self) -> usize {
+        self.output_names.len()
+    }
+
+    /// Evaluate in raw units: normalisation, body, denormalisation.
+    pub fn eval<S: Scalar>(&self, x: &[S]) -> Vec<S> {
+        let z = match &self.input_norm {
+            Some(a) => a.apply(x),
+            None => x.to_vec(),
+        };
+        let y = self.eval_normalised(&z);
+        match &self.output_denorm {
+            Some(a) => a.apply(&y),
+            None => y,
+        }
+    }
+
+    /// Evaluate the body only (normalised inputs to normalised outputs).
+    pub fn eval_normalised<S: Scalar>(&self, x: &[S]) -> Vec<S> {
+        let mut z = x.to_vec();
+        for l in &self.layers {
+            z = match l {
+                Layer::Affine(a) => a.apply(&z),
+                Layer::Act(act) => z.iter().map(|v| act.apply(v)).collect(),
+            };
+        }
+        z
+    }
+
+    /// Evaluate in raw units in f64 (the reference evaluator verdicts are checked with).
+    pub fn eval_f64(&self, x: &[f64]) -> Vec<f64> {
+        let mut z = x.to_vec();
+        let mut tmp = Vec::new();
+        let affines = self
+            .input_norm
+            .iter()
+            .map(Layer::Affine)
+            .chain(self.layers.iter().cloned())
+            .chain(self.output_denorm.iter().cloned().map(Layer::Affine));
+        for l in affines {
+            match l {
+                Layer::Affine(a) => {
+                    tmp.resize(a.out, 0.0);
+                    a.apply_f64(&z, &mut tmp);
+                    std::mem::swap(&mut z, &mut tmp);
+                }
+                Layer::Act(act) => z.iter_mut().for_each(|v| *v = act.apply_f64(*v)),
+            }
+        }
+        z
+    }
+
+    /// All layers in raw units, normalisation folded in as ordinary affine layers.
+    pub fn raw_layers(&self) -> Vec<Layer> {
+        let mut v = Vec::new();
+        if let Some(a) = &self.input_norm {
+            v.push(Layer::Affine(a.clone()));
+        }
+        v.extend(self.layers.iter().cloned());
+        if let Some(a) = &self.output_denorm {
+            v.push(Layer::Affine(a.clone()));
+        }
+        v
+    }
+
+    /// Check dimensions chain, weights are finite, names match the dimensions.
+    pub fn validate(&self) -> Result<(), IrError> {
+        let mut dim = self.n_inputs();
+        let all = self.raw_layers();
+        for (k, l) in all.iter().enumerate() {
+            if let Layer::Affine(a) = l {
+                if a.inp != dim {
+                    return Err(IrError::Dimension { layer: k, expected: dim, found: a.inp });
+                }
+                if a.w.len() != a.inp * a.out || a.b.len() != a.out {
+                    return Err(IrError::Shape { layer: k });
+                }
+                if let Some(p) = a.w.iter().chain(&a.b).position(|v| !v.is_finite()) {
+                    return Err(IrError::NonFinite { layer: k, index: p });
+                }
+                dim = a.out;
+            }
+        }
+        if dim != self.n_outputs() {
+            return Err(IrError::Dimension { layer: all.len(), expected: self.n_outputs(), found: dim });
+        }
+        Ok(())
+    }
+}
+
+/// Structural errors of a network.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum IrError {
+    /// A layer's input size does not match the previous layer's output size.
+    #[error("layer {layer}: expects {found} inputs but receives {expected}")]
+    Dimension {
+        /// Layer index (normalisation counted as layer 0 if present).
+        layer: usize,
+        /// The size flowing in.
+        expected: usize,
+        /// The size the layer declares.
+        found: usize,
+    },
+    /// Weight or bias arrays of the wrong length.
+    #[error("layer {layer}: weight/bias arrays do not match the declared shape")]
+    Shape {
+        /// Layer index.
+        layer: usize,
+    },
+    /// A NaN or infinite weight or bias.
+    #[error("layer {layer}: parameter {index} is NaN or infinite; retrain or repair the network")]
+    NonFinite {
+        /// Layer index.
+        layer: usize,
+        /// Index into weights then biases.
+        index: usize,
+    },
+}

@@ -1,0 +1,17 @@
+//! Number types for samara.
+//!
+//! Every equation in samara (the plant, the network evaluator) is written once over
+//! [`Scalar`]. `f64` simulates, [`Dual`] differentiates (forward mode), and set-valued
+//! types (intervals, Taylor models) enclose. Because sets cannot honestly be ordered,
+//! [`Scalar`] has no `PartialOrd`: comparisons are three-way through [`Scalar::sign`],
+//! and a piecewise function whose branch is undecided takes the [`Scalar::hull`] of both
+//! branches.
+//!
+//! The layout follows the blanket-float trait of Clarabel.rs (`src/algebra/floats.rs`):
+//! one trait with the required operations and a constant helper.
+
+mod dual;
+mod scalar;
+
+pub use dual::Dual;
+pub use scalar::{Scalar, Sign};
