@@ -199,12 +199,7 @@ impl Network {
     pub fn eval_f64(&self, x: &[f64]) -> Vec<f64> {
         let mut z = x.to_vec();
         let mut tmp = Vec::new();
-        let affines = self
-            .input_norm
-            .iter()
-            .map(Layer::Affine)
-            .chain(self.layers.iter().cloned())
-            .chain(self.output_denorm.iter().cloned().map(Layer::Affine));
+        let affines = self.raw_layers();
         for l in affines {
             match l {
                 Layer::Affine(a) => {
