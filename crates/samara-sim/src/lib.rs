@@ -1,1 +1,25 @@
-//! placeholder
+//! Simulation for samara: integrators, controllers and the sample-and-hold closed loop.
+//!
+//! - [`ode45`]: a clone of MATLAB's `ode45` step control (Dormand-Prince 5(4), Shampine &
+//!   Reichelt 1997), exactly as `docs/MODEL.md` section 5, so the published data are
+//!   regenerated bit-faithfully.
+//! - [`dopri`]: tight-tolerance Dormand-Prince integration with standard (Hairer,
+//!   Norsett & Wanner, *Solving ODEs I*, II.4) error control.
+//! - [`rk4`]: classical fixed-step Runge-Kutta.
+//! - [`control`]: the [`Controller`] trait, the published PID law, constant and network
+//!   controllers.
+//! - [`closed_loop`]: the sample-and-hold loop and the data-generation protocol.
+
+pub mod closed_loop;
+pub mod control;
+pub mod dopri;
+pub mod ode45;
+pub mod rk4;
+
+pub use closed_loop::{
+    fly, initial_state, minmax, published_starts, training_rows, Flight, Integrator, LoopSettings, SimError, StepRecord,
+};
+pub use control::{ConstantController, Controller, NetworkController, PidController};
+
+/// Largest state dimension handled by the fixed-size integrator buffers.
+pub const MAX_DIM: usize = 8;

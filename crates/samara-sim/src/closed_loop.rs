@@ -1,0 +1,255 @@
+//! The sample-and-hold closed loop (MODEL.md section 4): at each control instant the
+//! controller reads the state, its output is held for one period while the plant is
+//! integrated, and (published protocol) the filter state E restarts at 0 every period.
+
+use crate::control::Controller;
+use crate::dopri::{self, Tolerances};
+use crate::ode45::{self, Ode45Options, Stats};
+use samara_plant::Plant;
+
+/// Which integrator advances the plant over one period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Integrator {
+    /// MATLAB-ode45 clone with default tolerances (reproduces the published data).
+    Ode45,
+    /// Dormand-Prince 5(4) at tight tolerances.
+    Tight(Tolerances),
+    /// Fixed-step RK4 with the given step.
+    Rk4(f64),
+}
+
+impl Integrator {
+    /// Parse a CLI name (`ode45`, `tight`, `rk4`).
+    pub fn from_name(s: &str) -> Option<Integrator> {
+        match s {
+            "ode45" => Some(Integrator::Ode45),
+            "tight" => Some(Integrator::Tight(Tolerances::default())),
+            "rk4" => Some(Integrator::Rk4(1e-3)),
+            _ => None,
+        }
+    }
+}
+
+/// Settings of a closed-loop flight. Defaults: the published protocol.
+#[derive(Clone, Debug)]
+pub struct LoopSettings {
+    /// Control period (0.5).
+    pub period: f64,
+    /// Horizon (20); must be a positive multiple of the period.
+    pub horizon: f64,
+    /// Integrator (ode45 clone).
+    pub integrator: Integrator,
+    /// Restart the filter state E at 0 every period (true, as the published code).
+    pub reset_filter: bool,
+    /// Output spacing inside each period for trajectories (0.01, as `0:0.01:0.5`);
+    /// `None` records control instants only.
+    pub output_step: Option<f64>,
+}
+
+impl Default for LoopSettings {
+    fn default() -> Self {
+        LoopSettings {
+            period: 0.5,
+            horizon: 20.0,
+            integrator: Integrator::Ode45,
+            reset_filter: true,
+            output_step: Some(0.01),
+        }
+    }
+}
+
+/// Invalid settings or states.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum SimError {
+    /// The period is not a positive finite number.
+    #[error("the control period must be a positive number, got {0}; pass e.g. --period 0.5")]
+    Period(f64),
+    /// The horizon is not positive or not a multiple of the period.
+    #[error("the horizon must be a positive multiple of the period ({period}), got {horizon}; pass e.g. --horizon 20")]
+    Horizon {
+        /// Horizon given.
+        horizon: f64,
+        /// Period given.
+        period: f64,
+    },
+    /// The output step does not divide the period.
+    #[error("the output step {0} must be positive and divide the period")]
+    OutputStep(f64),
+    /// State of the wrong size.
+    #[error("the initial state has {found} components but model `{model}` has {expected}")]
+    StateDim {
+        /// Model name.
+        model: &'static str,
+        /// Expected.
+        expected: usize,
+        /// Found.
+        found: usize,
+    },
+}
+
+impl LoopSettings {
+    /// Number of control steps; validates the settings.
+    pub fn steps(&self) -> Result<usize, SimError> {
+        if !(self.period.is_finite() && self.period > 0.0) {
+            return Err(SimError::Period(self.period));
+        }
+        let r = self.horizon / self.period;
+        let steps = r.round();
+        if !(self.horizon.is_finite() && self.horizon > 0.0) || (r - steps).abs() > 1e-9 * r.max(1.0) {
+            return Err(SimError::Horizon { horizon: self.horizon, period: self.period });
+        }
+        if let Some(o) = self.output_step {
+            let q = self.period / o;
+            if !(o > 0.0) || (q - q.round()).abs() > 1e-9 * q.max(1.0) {
+                return Err(SimError::OutputStep(o));
+            }
+        }
+        Ok(steps as usize)
+    }
+}
+
+/// One control step of a flight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StepRecord {
+    /// Time at the end of the period.
+    pub t_end: f64,
+    /// State at the end of the period.
+    pub state_end: Vec<f64>,
+    /// Control input held during the period.
+    pub ex: f64,
+}
+
+/// A simulated flight.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Flight {
+    /// Initial state.
+    pub initial: Vec<f64>,
+    /// One record per control step.
+    pub steps: Vec<StepRecord>,
+    /// Dense output `(t, state, ex)` at the output times (including t = 0).
+    pub dense: Vec<(f64, Vec<f64>, f64)>,
+    /// Integration statistics summed over the flight.
+    pub evals: usize,
+}
+
+/// Fly `plant` under `controller` from `initial` with the given settings.
+pub fn fly(
+    plant: &Plant,
+    controller: &mut dyn Controller,
+    initial: &[f64],
+    settings: &LoopSettings,
+) -> Result<Flight, SimError> {
+    let n_steps = settings.steps()?;
+    let dim = plant.dim();
+    if initial.len() != dim {
+        return Err(SimError::StateDim { model: plant.model.name(), expected: dim, found: initial.len() });
+    }
+    controller.reset();
+    let mut s = initial.to_vec();
+    let mut steps = Vec::with_capacity(n_steps);
+    let mut dense = Vec::new();
+    let mut evals = 0usize;
+    let period = settings.period;
+    let n_out = settings.output_step.map(|o| (period / o).round() as usize);
+    // Output times within a period, as MATLAB's 0:0.01:0.5 (t = i * 0.01).
+    let out_times: Vec<f64> = match (n_out, settings.output_step) {
+        (Some(m), Some(o)) => (0..=m).map(|i| if i == m { period } else { i as f64 * o }).collect(),
+        _ => vec![0.0, period],
+    };
+    let mut buf: Vec<(f64, Vec<f64>)> = Vec::new();
+    for k in 0..n_steps {
+        let ex = controller.act(&s);
+        if k == 0 && settings.output_step.is_some() {
+            dense.push((0.0, s.clone(), ex));
+        }
+        if settings.reset_filter && plant.model.has_filter() {
+            s[6] = 0.0;
+        }
+        let rhs = |y: &[f64], d: &mut [f64]| plant.rhs(y, &ex, d);
+        buf.clear();
+        let want = settings.output_step.is_some();
+        let stats: Stats = match settings.integrator {
+            Integrator::Ode45 => ode45::integrate(
+                rhs,
+                &mut s,
+                &out_times,
+                &Ode45Options::default(),
+                if want { Some(&mut buf) } else { None },
+            ),
+            Integrator::Tight(tol) => dopri::integrate(
+                rhs,
+                &mut s,
+                0.0,
+                period,
+                tol,
+                &out_times,
+                if want { Some(&mut buf) } else { None },
+            ),
+            Integrator::Rk4(h) => {
+                let mut st = Stats::default();
+                let mut t = 0.0;
+                for &to in &out_times[1..] {
+                    st.evals += 4 * crate::rk4::integrate(rhs, &mut s, t, to, h);
+                    t = to;
+                    if want {
+                        buf.push((to, s.clone()));
+                    }
+                }
+                st
+            }
+        };
+        evals += stats.evals;
+        let t0 = k as f64 * period;
+        for (t, y) in buf.drain(..) {
+            dense.push((t0 + t, y, ex));
+        }
+        steps.push(StepRecord { t_end: (k + 1) as f64 * period, state_end: s.clone(), ex });
+    }
+    Ok(Flight { initial: initial.to_vec(), steps, dense, evals })
+}
+
+/// The published starts: y0 = n / 0.07 for n = 0.1:0.025:0.3 (nine values). MATLAB's
+/// colon operator computes `0.1 + i * 0.025`.
+pub fn published_starts() -> Vec<f64> {
+    (0..9).map(|i| (0.1 + i as f64 * 0.025) / 0.07).collect()
+}
+
+/// The initial state (1, 0, 0, 0, 0, y0 [, 0]) of a flight.
+pub fn initial_state(plant: &Plant, y0: f64) -> Vec<f64> {
+    let mut s = vec![1.0, 0.0, 0.0, 0.0, 0.0, y0];
+    if plant.model.has_filter() {
+        s.push(0.0);
+    }
+    s
+}
+
+/// Training rows `(v_xp, v_yp, omega, theta, x, y, ex)`: one per control step, state at
+/// the END of the step and the input applied during it (the published row layout).
+pub fn training_rows(flights: &[Flight]) -> Vec<[f64; 7]> {
+    flights
+        .iter()
+        .flat_map(|f| {
+            f.steps.iter().map(|r| {
+                let s = &r.state_end;
+                [s[0], s[1], s[2], s[3], s[4], s[5], r.ex]
+            })
+        })
+        .collect()
+}
+
+/// Min-max normalisation constants of rows: `(min, range)` per column.
+pub fn minmax(rows: &[[f64; 7]]) -> ([f64; 7], [f64; 7]) {
+    let mut lo = [f64::INFINITY; 7];
+    let mut hi = [f64::NEG_INFINITY; 7];
+    for r in rows {
+        for j in 0..7 {
+            lo[j] = lo[j].min(r[j]);
+            hi[j] = hi[j].max(r[j]);
+        }
+    }
+    let mut range = [0.0; 7];
+    for j in 0..7 {
+        range[j] = hi[j] - lo[j];
+    }
+    (lo, range)
+}
