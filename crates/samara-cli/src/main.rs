@@ -1,1 +1,51 @@
-fn main() {}
+//! `samara`: the command-line shell over the samara libraries. Every subcommand parses
+//! its flags into the library's settings and calls the library; nothing else lives here.
+//!
+//! Exit codes (as ripgrep): 0 success, 1 a property was violated or a check failed,
+//! 2 a usage or input error.
+
+mod nnload;
+mod simulate;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// samara: from data to proof for neural-network controllers of the Alsomitra glider.
+#[derive(Parser)]
+#[command(name = "samara", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Simulate the closed loop (plant + PID, constant or network controller); write
+    /// trajectories, the training data set, its normalisation constants and figures.
+    Simulate(simulate::SimulateArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = match Cli::try_parse() {
+        Ok(c) => c,
+        Err(e) => {
+            let _ = e.print();
+            return match e.kind() {
+                clap::error::ErrorKind::DisplayHelp | clap::error::ErrorKind::DisplayVersion => {
+                    ExitCode::SUCCESS
+                }
+                _ => ExitCode::from(2),
+            };
+        }
+    };
+    let result = match &cli.command {
+        Command::Simulate(a) => simulate::run(a),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}

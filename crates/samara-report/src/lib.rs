@@ -29,7 +29,10 @@ pub enum ReportError {
 
 /// Write `bytes` to `path` atomically (temporary sibling + rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ReportError> {
-    let io = |source| ReportError::Io { path: path.to_path_buf(), source };
+    let io = |source| ReportError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     let tmp = tmp_sibling(path);
     let res = (|| {
         let mut f = std::fs::File::create(&tmp)?;
@@ -44,7 +47,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), ReportError> {
 }
 
 fn tmp_sibling(path: &Path) -> PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
 }
 
@@ -75,7 +81,13 @@ pub struct TrajectoryFigure {
 impl TrajectoryFigure {
     /// A figure with the given title and curves.
     pub fn new(title: impl Into<String>, curves: Vec<Curve>) -> Self {
-        TrajectoryFigure { title: title.into(), curves, band: None, boxes: Vec::new(), legend: true }
+        TrajectoryFigure {
+            title: title.into(),
+            curves,
+            band: None,
+            boxes: Vec::new(),
+            legend: true,
+        }
     }
 
     /// Render to PNG and SVG (paths given), both atomically.
@@ -83,11 +95,25 @@ impl TrajectoryFigure {
         let tmp_png = tmp_sibling(png).with_extension("png");
         let tmp_svg = tmp_sibling(svg).with_extension("svg");
         let r = self
-            .draw(BitMapBackend::new(&tmp_png, (1000, 1000)).into_drawing_area(), &tmp_png)
-            .and_then(|_| self.draw(SVGBackend::new(&tmp_svg, (1000, 1000)).into_drawing_area(), &tmp_svg))
+            .draw(
+                BitMapBackend::new(&tmp_png, (1000, 1000)).into_drawing_area(),
+                &tmp_png,
+            )
             .and_then(|_| {
-                std::fs::rename(&tmp_png, png).map_err(|source| ReportError::Io { path: png.into(), source })?;
-                std::fs::rename(&tmp_svg, svg).map_err(|source| ReportError::Io { path: svg.into(), source })
+                self.draw(
+                    SVGBackend::new(&tmp_svg, (1000, 1000)).into_drawing_area(),
+                    &tmp_svg,
+                )
+            })
+            .and_then(|_| {
+                std::fs::rename(&tmp_png, png).map_err(|source| ReportError::Io {
+                    path: png.into(),
+                    source,
+                })?;
+                std::fs::rename(&tmp_svg, svg).map_err(|source| ReportError::Io {
+                    path: svg.into(),
+                    source,
+                })
             });
         if r.is_err() {
             let _ = std::fs::remove_file(&tmp_png);
@@ -114,14 +140,26 @@ impl TrajectoryFigure {
         let span = (xs.1 - xs.0).max(ys.1 - ys.0).max(1e-9) * 1.08;
         let cx = 0.5 * (xs.0 + xs.1);
         let cy = 0.5 * (ys.0 + ys.1);
-        (cx - span / 2.0, cx + span / 2.0, cy - span / 2.0, cy + span / 2.0)
+        (
+            cx - span / 2.0,
+            cx + span / 2.0,
+            cy - span / 2.0,
+            cy + span / 2.0,
+        )
     }
 
-    fn draw<DB: DrawingBackend>(&self, area: DrawingArea<DB, plotters::coord::Shift>, path: &Path) -> Result<(), ReportError>
+    fn draw<DB: DrawingBackend>(
+        &self,
+        area: DrawingArea<DB, plotters::coord::Shift>,
+        path: &Path,
+    ) -> Result<(), ReportError>
     where
         DB::ErrorType: 'static,
     {
-        let err = |e: &dyn std::fmt::Display| ReportError::Draw { path: path.to_path_buf(), message: e.to_string() };
+        let err = |e: &dyn std::fmt::Display| ReportError::Draw {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        };
         area.fill(&WHITE).map_err(|e| err(&e))?;
         let (x0, x1, y0, y1) = self.bounds();
         let mut chart = ChartBuilder::on(&area)
@@ -140,38 +178,70 @@ impl TrajectoryFigure {
             .draw()
             .map_err(|e| err(&e))?;
         if let Some(w) = self.band {
-            let poly = vec![(x0, -x0 + w), (x1, -x1 + w), (x1, -x1 - w), (x0, -x0 - w)];
+            let big = 4.0 * (x1 - x0 + y1 - y0).abs() + 1.0;
+            let (a, b) = (x0 - big, x1 + big);
+            let poly = clip_polygon(
+                &[(a, -a + w), (b, -b + w), (b, -b - w), (a, -a - w)],
+                (x0, x1, y0, y1),
+            );
             chart
-                .draw_series(std::iter::once(Polygon::new(poly, RGBColor(120, 200, 120).mix(0.25))))
+                .draw_series(std::iter::once(Polygon::new(
+                    poly,
+                    RGBColor(120, 200, 120).mix(0.25),
+                )))
                 .map_err(|e| err(&e))?
                 .label(format!("band |x + y| <= {w}"))
-                .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], RGBColor(120, 200, 120).mix(0.4).filled()));
+                .legend(|(x, y)| {
+                    Rectangle::new(
+                        [(x, y - 5), (x + 20, y + 5)],
+                        RGBColor(120, 200, 120).mix(0.4).filled(),
+                    )
+                });
         }
         if !self.boxes.is_empty() {
             chart
                 .draw_series(self.boxes.iter().map(|b| {
-                    Rectangle::new([(b.0, b.2), (b.1, b.3)], RGBColor(90, 120, 220).mix(0.35).filled())
+                    Rectangle::new(
+                        [(b.0, b.2), (b.1, b.3)],
+                        RGBColor(90, 120, 220).mix(0.35).filled(),
+                    )
                 }))
                 .map_err(|e| err(&e))?
                 .label("reachable set")
-                .legend(|(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], RGBColor(90, 120, 220).mix(0.5).filled()));
+                .legend(|(x, y)| {
+                    Rectangle::new(
+                        [(x, y - 5), (x + 20, y + 5)],
+                        RGBColor(90, 120, 220).mix(0.5).filled(),
+                    )
+                });
         }
         chart
-            .draw_series(LineSeries::new(vec![(x0, -x0), (x1, -x1)], BLACK.stroke_width(2)))
+            .draw_series(LineSeries::new(
+                vec![(x0.max(-y1), -x0.max(-y1)), (x1.min(-y0), -x1.min(-y0))],
+                BLACK.stroke_width(2),
+            ))
             .map_err(|e| err(&e))?
             .label("target y = -x")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(2)));
         let n = self.curves.len().max(1);
         for (i, c) in self.curves.iter().enumerate() {
             let color = Palette99::pick(i).to_rgba();
-            let color = if self.legend { color } else { RGBAColor(200, 60, 40, 0.35) };
+            let color = if self.legend {
+                color
+            } else {
+                RGBAColor(200, 60, 40, 0.35)
+            };
             let _ = n;
             let s = chart
-                .draw_series(LineSeries::new(c.points.iter().copied(), color.stroke_width(2)))
+                .draw_series(LineSeries::new(
+                    c.points.iter().copied(),
+                    color.stroke_width(2),
+                ))
                 .map_err(|e| err(&e))?;
             if self.legend {
-                s.label(c.label.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2)));
+                s.label(c.label.clone()).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
+                });
             }
         }
         chart
@@ -185,6 +255,50 @@ impl TrajectoryFigure {
         area.present().map_err(|e| err(&e))?;
         Ok(())
     }
+}
+
+/// Clip a convex polygon to the box `(x0, x1, y0, y1)` (Sutherland-Hodgman), so
+/// plotters does not distort shapes that leave the chart area.
+pub fn clip_polygon(poly: &[(f64, f64)], bx: (f64, f64, f64, f64)) -> Vec<(f64, f64)> {
+    let (x0, x1, y0, y1) = bx;
+    // Each edge: inside test and intersection.
+    type Inside = fn(&(f64, f64), f64) -> bool;
+    let edges: [(Inside, f64, bool); 4] = [
+        (|p, c| p.0 >= c, x0, true),
+        (|p, c| p.0 <= c, x1, true),
+        (|p, c| p.1 >= c, y0, false),
+        (|p, c| p.1 <= c, y1, false),
+    ];
+    let mut out = poly.to_vec();
+    for (inside, c, vertical) in edges {
+        let input = std::mem::take(&mut out);
+        if input.is_empty() {
+            break;
+        }
+        for i in 0..input.len() {
+            let p = input[i];
+            let q = input[(i + 1) % input.len()];
+            let cross = |p: (f64, f64), q: (f64, f64)| {
+                if vertical {
+                    let t = (c - p.0) / (q.0 - p.0);
+                    (c, p.1 + t * (q.1 - p.1))
+                } else {
+                    let t = (c - p.1) / (q.1 - p.1);
+                    (p.0 + t * (q.0 - p.0), c)
+                }
+            };
+            match (inside(&p, c), inside(&q, c)) {
+                (true, true) => out.push(q),
+                (true, false) => out.push(cross(p, q)),
+                (false, true) => {
+                    out.push(cross(p, q));
+                    out.push(q);
+                }
+                (false, false) => {}
+            }
+        }
+    }
+    out
 }
 
 /// Format a float so it parses back to the same value (shortest round-trip form).
@@ -213,7 +327,10 @@ mod tests {
     fn figure_renders_png_and_svg() {
         let dir = std::env::temp_dir().join(format!("samara-fig-test-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let c = Curve { label: "y0 = 1".into(), points: (0..50).map(|i| (i as f64, 1.0 - i as f64 * 0.9)).collect() };
+        let c = Curve {
+            label: "y0 = 1".into(),
+            points: (0..50).map(|i| (i as f64, 1.0 - i as f64 * 0.9)).collect(),
+        };
         let mut fig = TrajectoryFigure::new("test", vec![c]);
         fig.band = Some(2.0);
         fig.render(&dir.join("t.png"), &dir.join("t.svg")).unwrap();
