@@ -33,7 +33,7 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub y0: Option<String>,
     /// Integrator: `ode45` (MATLAB clone, reproduces the published data), `tight`
-    /// (Dormand-Prince, rtol 1e-10, atol 1e-12) or `rk4` (fixed step 1e-3).
+    /// (DOP853, rtol 1e-10, atol 1e-12), `dp5` (Dormand-Prince 5(4) at the same tolerances) or `rk4` (fixed step 1e-3).
     #[arg(long, default_value = "ode45")]
     pub integrator: String,
     /// Horizon (a positive multiple of the period).
@@ -147,7 +147,7 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
     })?;
     let integrator = Integrator::from_name(&a.integrator).ok_or_else(|| {
         anyhow!(
-            "--integrator {:?}: unknown integrator; choose ode45, tight or rk4",
+            "--integrator {:?}: unknown integrator; choose ode45, tight, dp5 or rk4",
             a.integrator
         )
     })?;

@@ -73,7 +73,7 @@ pub trait Scalar:
         let mut k = n;
         while k > 0 {
             if k & 1 == 1 {
-                acc = acc * base.clone();
+                acc *= base.clone();
             }
             k >>= 1;
             if k > 0 {

@@ -148,7 +148,12 @@ impl Derived {
         let m_prime = 4.0 * p.m / (PI * p.rho_f * p.l * p.l * p.s);
         let gamma = p.rho_f / (rho_s - p.rho_f);
         let i0 = p.m * (p.a * p.a + p.b * p.b) / (p.rho_f * p.l.powi(4)) + 1.0 / 32.0;
-        Derived { rho_s, m_prime, gamma, i0 }
+        Derived {
+            rho_s,
+            m_prime,
+            gamma,
+            i0,
+        }
     }
 }
 
@@ -179,7 +184,11 @@ impl Plant {
     /// A plant with given parameters.
     pub fn with_params(model: Model, params: Params) -> Self {
         let derived = Derived::new(&params);
-        Plant { model, params, derived }
+        Plant {
+            model,
+            params,
+            derived,
+        }
     }
 
     /// Number of states.
@@ -227,8 +236,8 @@ impl Plant {
             + one_minus_f.clone() * p.c_l2 * (g.clone() * 2.0).sin();
         let cd = f.clone() * (g.sqr().sin() * p.c_d1 + p.c_d0)
             + one_minus_f.clone() * p.c_d_pi2 * sin_g.sqr();
-        let cp = f * (-g.sqr() * p.c_cp1 + p.c_cp0)
-            + one_minus_f * p.c_cp2 * (-(g / FRAC_PI_2) + 1.0);
+        let cp =
+            f * (-g.sqr() * p.c_cp1 + p.c_cp0) + one_minus_f * p.c_cp2 * (-(g / FRAC_PI_2) + 1.0);
         (cl, cd, cp)
     }
 
@@ -272,9 +281,19 @@ impl Plant {
         let in_le_p = le(hi);
         let in_lt_p = lt(hi);
         // C_L masks: [-pi,-pi/2], (-pi/2,0], (0,pi/2], (pi/2,pi]
-        let cl_m = [in_le_m, and(not(in_le_m), in_le_0), and(not(in_le_0), in_le_p), not(in_le_p)];
+        let cl_m = [
+            in_le_m,
+            and(not(in_le_m), in_le_0),
+            and(not(in_le_0), in_le_p),
+            not(in_le_p),
+        ];
         // C_D masks: [-pi,-pi/2), [-pi/2,0), [0,pi/2), [pi/2,pi]
-        let cd_m = [in_lt_m, and(not(in_lt_m), in_lt_0), and(not(in_lt_0), in_lt_p), not(in_lt_p)];
+        let cd_m = [
+            in_lt_m,
+            and(not(in_lt_m), in_lt_0),
+            and(not(in_lt_0), in_lt_p),
+            not(in_lt_p),
+        ];
         // eps masks (closed): [-pi,-pi/2], [-pi/2,0], [0,pi/2], [pi/2,pi]
         let cp_m = [
             in_le_m,
@@ -373,9 +392,10 @@ impl Plant {
             - e.clone() * d.gamma * cos_t.clone())
             / inertia;
         let mp = d.m_prime;
-        let dvx = ((w.clone() * vy.clone()) * (mp + 1.0) - e.clone() * w.sqr() + (lt_x + lr_x) + d_x
-            - sin_t.clone())
-            / mp;
+        let dvx =
+            ((w.clone() * vy.clone()) * (mp + 1.0) - e.clone() * w.sqr() + (lt_x + lr_x) + d_x
+                - sin_t.clone())
+                / mp;
         let dvy = (-(w.clone() * vx.clone()) * mp + e.clone() * dw.clone() + (lt_y + lr_y) + d_y
             - cos_t.clone())
             / (mp + 1.0);
@@ -385,7 +405,8 @@ impl Plant {
             let x = &state[4];
             let y = &state[5];
             let ee = &state[6];
-            out[6] = (y.clone() + dy.clone()) * p.filter_gain + (x.clone() + dx.clone()) * p.filter_gain
+            out[6] = (y.clone() + dy.clone()) * p.filter_gain
+                + (x.clone() + dx.clone()) * p.filter_gain
                 - ee.clone();
         }
         out[0] = dvx;
@@ -401,7 +422,11 @@ impl Plant {
     pub fn jacobian(&self, state: &[f64], ex: f64) -> (Vec<f64>, Vec<f64>) {
         use samara_num::Dual;
         let n = self.dim();
-        let s: Vec<Dual<8>> = state.iter().enumerate().map(|(i, &v)| Dual::var(v, i)).collect();
+        let s: Vec<Dual<8>> = state
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| Dual::var(v, i))
+            .collect();
         let e = Dual::<8>::var(ex, 7);
         let mut out = vec![Dual::<8>::constant(0.0); n];
         self.rhs(&s, &e, &mut out);

@@ -12,8 +12,10 @@ use samara_plant::Plant;
 pub enum Integrator {
     /// MATLAB-ode45 clone with default tolerances (reproduces the published data).
     Ode45,
-    /// Dormand-Prince 5(4) at tight tolerances.
+    /// DOP853 at tight tolerances (the default tight mode).
     Tight(Tolerances),
+    /// Dormand-Prince 5(4) at tight tolerances.
+    Dp5(Tolerances),
     /// Fixed-step RK4 with the given step.
     Rk4(f64),
 }
@@ -24,6 +26,7 @@ impl Integrator {
         match s {
             "ode45" => Some(Integrator::Ode45),
             "tight" => Some(Integrator::Tight(Tolerances::default())),
+            "dp5" => Some(Integrator::Dp5(Tolerances::default())),
             "rk4" => Some(Integrator::Rk4(1e-3)),
             _ => None,
         }
@@ -95,8 +98,13 @@ impl LoopSettings {
         }
         let r = self.horizon / self.period;
         let steps = r.round();
-        if !(self.horizon.is_finite() && self.horizon > 0.0) || (r - steps).abs() > 1e-9 * r.max(1.0) {
-            return Err(SimError::Horizon { horizon: self.horizon, period: self.period });
+        if !(self.horizon.is_finite() && self.horizon > 0.0)
+            || (r - steps).abs() > 1e-9 * r.max(1.0)
+        {
+            return Err(SimError::Horizon {
+                horizon: self.horizon,
+                period: self.period,
+            });
         }
         if let Some(o) = self.output_step {
             let q = self.period / o;
@@ -142,7 +150,11 @@ pub fn fly(
     let n_steps = settings.steps()?;
     let dim = plant.dim();
     if initial.len() != dim {
-        return Err(SimError::StateDim { model: plant.model.name(), expected: dim, found: initial.len() });
+        return Err(SimError::StateDim {
+            model: plant.model.name(),
+            expected: dim,
+            found: initial.len(),
+        });
     }
     controller.reset();
     let mut s = initial.to_vec();
@@ -153,10 +165,13 @@ pub fn fly(
     let n_out = settings.output_step.map(|o| (period / o).round() as usize);
     // Output times within a period, as MATLAB's 0:0.01:0.5 (t = i * 0.01).
     let out_times: Vec<f64> = match (n_out, settings.output_step) {
-        (Some(m), Some(o)) => (0..=m).map(|i| if i == m { period } else { i as f64 * o }).collect(),
+        (Some(m), Some(o)) => (0..=m)
+            .map(|i| if i == m { period } else { i as f64 * o })
+            .collect(),
         _ => vec![0.0, period],
     };
     let mut buf: Vec<(f64, Vec<f64>)> = Vec::new();
+    let mut h_next = 0.0f64;
     for k in 0..n_steps {
         let ex = controller.act(&s);
         if k == 0 && settings.output_step.is_some() {
@@ -176,7 +191,17 @@ pub fn fly(
                 &Ode45Options::default(),
                 if want { Some(&mut buf) } else { None },
             ),
-            Integrator::Tight(tol) => dopri::integrate(
+            Integrator::Tight(tol) => crate::dop853::integrate_from(
+                rhs,
+                &mut s,
+                0.0,
+                period,
+                tol,
+                (h_next > 0.0).then_some(h_next),
+                &out_times,
+                if want { Some(&mut buf) } else { None },
+            ),
+            Integrator::Dp5(tol) => dopri::integrate(
                 rhs,
                 &mut s,
                 0.0,
@@ -199,13 +224,23 @@ pub fn fly(
             }
         };
         evals += stats.evals;
+        h_next = stats.h_next;
         let t0 = k as f64 * period;
         for (t, y) in buf.drain(..) {
             dense.push((t0 + t, y, ex));
         }
-        steps.push(StepRecord { t_end: (k + 1) as f64 * period, state_end: s.clone(), ex });
+        steps.push(StepRecord {
+            t_end: (k + 1) as f64 * period,
+            state_end: s.clone(),
+            ex,
+        });
     }
-    Ok(Flight { initial: initial.to_vec(), steps, dense, evals })
+    Ok(Flight {
+        initial: initial.to_vec(),
+        steps,
+        dense,
+        evals,
+    })
 }
 
 /// The published starts: y0 = n / 0.07 for n = 0.1:0.025:0.3 (nine values). MATLAB's

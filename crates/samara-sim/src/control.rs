@@ -39,7 +39,15 @@ pub struct PidController {
 
 impl Default for PidController {
     fn default() -> Self {
-        PidController { offset: 0.19, kp: 0.05, kd: -0.5, ki: 0.0, clip: EX_RANGE, e_prev: 0.0, sum: 0.0 }
+        PidController {
+            offset: 0.19,
+            kp: 0.05,
+            kd: -0.5,
+            ki: 0.0,
+            clip: EX_RANGE,
+            e_prev: 0.0,
+            sum: 0.0,
+        }
     }
 }
 
@@ -93,7 +101,11 @@ pub struct NetworkController {
 impl NetworkController {
     /// Wrap a network; the caller has checked it has 6 inputs and 1 output.
     pub fn new(net: Network, clip: Option<(f64, f64)>, label: impl Into<String>) -> Self {
-        NetworkController { net, clip, label: label.into() }
+        NetworkController {
+            net,
+            clip,
+            label: label.into(),
+        }
     }
 }
 

@@ -18,7 +18,10 @@ pub struct Tolerances {
 impl Default for Tolerances {
     /// rtol 1e-10, atol 1e-12: the published reference tolerances of the scipy peer.
     fn default() -> Self {
-        Tolerances { rtol: 1e-10, atol: 1e-12 }
+        Tolerances {
+            rtol: 1e-10,
+            atol: 1e-12,
+        }
     }
 }
 
@@ -53,12 +56,19 @@ where
         d1 += (k[0][i] / sc).powi(2);
     }
     let (d0, d1) = ((d0 / n as f64).sqrt(), (d1 / n as f64).sqrt());
-    let mut h = if d0 < 1e-5 || d1 < 1e-5 { 1e-6 } else { 0.01 * d0 / d1 };
+    let mut h = if d0 < 1e-5 || d1 < 1e-5 {
+        1e-6
+    } else {
+        0.01 * d0 / d1
+    };
     h = h.min(span.abs()) * span.signum();
     let mut t = t0;
     let mut ys = [0.0f64; MAX_DIM];
     let mut ynew = [0.0f64; MAX_DIM];
-    let mut next_out = out_times.iter().position(|&to| to > t0).unwrap_or(out_times.len());
+    let mut next_out = out_times
+        .iter()
+        .position(|&to| to > t0)
+        .unwrap_or(out_times.len());
     let mut last_rejected = false;
     loop {
         let last = (t + h - tf) * span.signum() >= 0.0;
@@ -100,7 +110,11 @@ where
         let err = (err / n as f64).sqrt();
         if !(err <= 1.0) {
             stats.rejected += 1;
-            let fac = if err.is_finite() { (0.9 * err.powf(-0.2)).max(0.2) } else { 0.2 };
+            let fac = if err.is_finite() {
+                (0.9 * err.powf(-0.2)).max(0.2)
+            } else {
+                0.2
+            };
             h *= fac;
             last_rejected = true;
             continue;
@@ -133,7 +147,11 @@ where
         if last {
             break;
         }
-        let mut fac = if err == 0.0 { 10.0 } else { 0.9 * err.powf(-0.2) };
+        let mut fac = if err == 0.0 {
+            10.0
+        } else {
+            0.9 * err.powf(-0.2)
+        };
         fac = fac.clamp(0.2, 10.0);
         if last_rejected {
             fac = fac.min(1.0);
@@ -152,10 +170,18 @@ mod tests {
     fn harmonic_oscillator_to_tight_tolerance() {
         let mut y = [1.0, 0.0];
         let tf = 10.0;
-        integrate(|y, d| {
-            d[0] = y[1];
-            d[1] = -y[0];
-        }, &mut y, 0.0, tf, Tolerances::default(), &[], None);
+        integrate(
+            |y, d| {
+                d[0] = y[1];
+                d[1] = -y[0];
+            },
+            &mut y,
+            0.0,
+            tf,
+            Tolerances::default(),
+            &[],
+            None,
+        );
         assert!((y[0] - tf.cos()).abs() < 1e-8);
         assert!((y[1] + tf.sin()).abs() < 1e-8);
     }

@@ -12,9 +12,30 @@ pub(crate) const A: [[f64; 6]; 6] = [
     [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
     [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
     [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
-    [19372.0 / 6561.0, -25360.0 / 2187.0, 64448.0 / 6561.0, -212.0 / 729.0, 0.0, 0.0],
-    [9017.0 / 3168.0, -355.0 / 33.0, 46732.0 / 5247.0, 49.0 / 176.0, -5103.0 / 18656.0, 0.0],
-    [35.0 / 384.0, 0.0, 500.0 / 1113.0, 125.0 / 192.0, -2187.0 / 6784.0, 11.0 / 84.0],
+    [
+        19372.0 / 6561.0,
+        -25360.0 / 2187.0,
+        64448.0 / 6561.0,
+        -212.0 / 729.0,
+        0.0,
+        0.0,
+    ],
+    [
+        9017.0 / 3168.0,
+        -355.0 / 33.0,
+        46732.0 / 5247.0,
+        49.0 / 176.0,
+        -5103.0 / 18656.0,
+        0.0,
+    ],
+    [
+        35.0 / 384.0,
+        0.0,
+        500.0 / 1113.0,
+        125.0 / 192.0,
+        -2187.0 / 6784.0,
+        11.0 / 84.0,
+    ],
 ];
 
 /// Error weights E (5th minus 4th order).
@@ -60,12 +81,15 @@ pub struct Ode45Options {
 
 impl Default for Ode45Options {
     fn default() -> Self {
-        Ode45Options { rel_tol: 1e-3, abs_tol: 1e-6 }
+        Ode45Options {
+            rel_tol: 1e-3,
+            abs_tol: 1e-6,
+        }
     }
 }
 
 /// Statistics of one integration.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Stats {
     /// Accepted steps.
     pub accepted: usize,
@@ -73,6 +97,8 @@ pub struct Stats {
     pub rejected: usize,
     /// Right-hand-side evaluations.
     pub evals: usize,
+    /// Step size proposed for a continuation (0 if not provided by the method).
+    pub h_next: f64,
 }
 
 /// Integrate `y' = f(y)` (autonomous) from `t0` to `tf` with MATLAB's `ode45` rules, as
@@ -185,7 +211,11 @@ where
                 }
                 if nofailed {
                     nofailed = false;
-                    let r = if err.is_nan() { 0.1 } else { 0.1f64.max(0.8 * (rtol / err).powf(pow)) };
+                    let r = if err.is_nan() {
+                        0.1
+                    } else {
+                        0.1f64.max(0.8 * (rtol / err).powf(pow))
+                    };
                     absh = hmin.max(absh * r);
                 } else {
                     absh = hmin.max(0.5 * absh);
@@ -219,7 +249,10 @@ where
                         .map(|i| {
                             let mut acc = 0.0;
                             for (j, kj) in k.iter().enumerate() {
-                                let c = BI[j][0] * pw[0] + BI[j][1] * pw[1] + BI[j][2] * pw[2] + BI[j][3] * pw[3];
+                                let c = BI[j][0] * pw[0]
+                                    + BI[j][1] * pw[1]
+                                    + BI[j][2] * pw[2]
+                                    + BI[j][3] * pw[3];
                                 acc += kj[i] * c;
                             }
                             y[i] + h * acc
@@ -254,7 +287,13 @@ mod tests {
         let times: Vec<f64> = (0..=50).map(|i| i as f64 * 0.01).collect();
         let mut y = [1.0];
         let mut out = Vec::new();
-        integrate(|y, d| d[0] = -y[0], &mut y, &times, &Ode45Options::default(), Some(&mut out));
+        integrate(
+            |y, d| d[0] = -y[0],
+            &mut y,
+            &times,
+            &Ode45Options::default(),
+            Some(&mut out),
+        );
         assert_eq!(out.len(), 50);
         for (t, v) in &out {
             assert!((v[0] - (-t).exp()).abs() < 1e-5, "t={t}");
