@@ -5,6 +5,7 @@
 //! 2 a usage or input error.
 
 mod nnload;
+mod reproduce;
 mod simulate;
 
 use clap::{Parser, Subcommand};
@@ -23,6 +24,9 @@ enum Command {
     /// Simulate the closed loop (plant + PID, constant or network controller); write
     /// trajectories, the training data set, its normalisation constants and figures.
     Simulate(simulate::SimulateArgs),
+    /// Reproduce the whole case study (data, controllers, proofs, reachable sets,
+    /// figures, report) in one command.
+    Reproduce(reproduce::ReproduceArgs),
 }
 
 fn main() -> ExitCode {
@@ -40,6 +44,7 @@ fn main() -> ExitCode {
     };
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
+        Command::Reproduce(a) => reproduce::run(a),
     };
     match result {
         Ok(code) => code,

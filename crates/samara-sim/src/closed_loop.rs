@@ -162,14 +162,14 @@ pub fn fly(
     let mut dense = Vec::new();
     let mut evals = 0usize;
     let period = settings.period;
-    let n_out = settings.output_step.map(|o| (period / o).round() as usize);
-    // Output times within a period, as MATLAB's 0:0.01:0.5 (t = i * 0.01).
-    let out_times: Vec<f64> = match (n_out, settings.output_step) {
-        (Some(m), Some(o)) => (0..=m)
-            .map(|i| if i == m { period } else { i as f64 * o })
-            .collect(),
-        _ => vec![0.0, period],
-    };
+    // Output times within a period, as MATLAB's tspan 0:0.01:0.5 (t = i * 0.01). The
+    // ode45 clone reads its first step from tspan(2) - tspan(1), so the grid is passed
+    // even when nothing is recorded.
+    let grid = settings.output_step.unwrap_or(0.01);
+    let m = ((period / grid).round() as usize).max(1);
+    let out_times: Vec<f64> = (0..=m)
+        .map(|i| if i == m { period } else { i as f64 * grid })
+        .collect();
     let mut buf: Vec<(f64, Vec<f64>)> = Vec::new();
     let mut h_next = 0.0f64;
     for k in 0..n_steps {

@@ -1,0 +1,237 @@
+//! The stages of the reproduction and the report built from their JSON results (so a
+//! cached run renders the same report).
+
+use crate::doc::{Block, Document};
+use crate::{new_report, table, Ctx, ReproError, ReproduceOptions, StageFn, StageOutput};
+use samara_plant::{Model, Plant};
+use samara_report::{write_atomic, Curve, TrajectoryFigure};
+use samara_sim::{
+    fly, initial_state, minmax, published_starts, training_rows, Flight, LoopSettings,
+    PidController,
+};
+use serde_json::{json, Value};
+use std::fmt::Write as _;
+
+/// Every stage, in order.
+pub fn all() -> Vec<(&'static str, StageFn)> {
+    vec![("data", data as StageFn)]
+}
+
+fn stage_err(stage: &str, e: impl std::fmt::Display) -> ReproError {
+    ReproError::Stage {
+        stage: stage.into(),
+        message: e.to_string(),
+    }
+}
+
+fn csv_rows(rows: &[[f64; 7]]) -> String {
+    let mut s = String::from("v_xp,v_yp,omega,theta,x,y,ex\n");
+    for r in rows {
+        let line: Vec<String> = r.iter().map(|v| format!("{v:?}")).collect();
+        let _ = writeln!(s, "{}", line.join(","));
+    }
+    s
+}
+
+fn read_plain_csv(path: &std::path::Path) -> Result<Vec<Vec<f64>>, String> {
+    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| {
+            l.split(',')
+                .map(|v| {
+                    v.trim()
+                        .parse::<f64>()
+                        .map_err(|_| format!("{}:{}: not a number: {v:?}", path.display(), i + 1))
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Figure of flights.
+pub fn flights_figure(title: &str, flights: &[Flight], band: Option<f64>) -> TrajectoryFigure {
+    let curves = flights
+        .iter()
+        .map(|f| Curve {
+            label: format!("y0 = {:.4}", f.initial[5]),
+            points: std::iter::once((f.initial[4], f.initial[5]))
+                .chain(f.dense.iter().map(|(_, s, _)| (s[4], s[5])))
+                .collect(),
+        })
+        .collect();
+    let mut fig = TrajectoryFigure::new(title, curves);
+    fig.band = band;
+    fig
+}
+
+/// Stage 1: the PID data set (published protocol), its constants and the figure.
+fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
+    let plant = Plant::new(Model::Plate6);
+    let settings = LoopSettings::default();
+    let starts = published_starts();
+    let pb = ctx.bar(starts.len() as u64, "PID flights (ode45)");
+    let mut flights = Vec::new();
+    for &y0 in &starts {
+        let f = fly(
+            &plant,
+            &mut PidController::default(),
+            &initial_state(&plant, y0),
+            &settings,
+        )
+        .map_err(|e| stage_err("data", e))?;
+        flights.push(f);
+        pb.inc(1);
+    }
+    pb.finish_and_clear();
+    let rows = training_rows(&flights);
+    let (lo, range) = minmax(&rows);
+    write_atomic(
+        &ctx.path("data/training_data.csv"),
+        csv_rows(&rows).as_bytes(),
+    )
+    .map_err(|e| stage_err("data", e))?;
+    let mut nc = String::from("v_xp,v_yp,omega,theta,x,y,ex\n");
+    let _ = writeln!(
+        nc,
+        "{}",
+        lo.iter()
+            .map(|v| format!("{v:?}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    );
+    let _ = writeln!(
+        nc,
+        "{}",
+        range
+            .iter()
+            .map(|v| format!("{v:?}"))
+            .collect::<Vec<_>>()
+            .join(",")
+    );
+    write_atomic(&ctx.path("data/normalisation.csv"), nc.as_bytes())
+        .map_err(|e| stage_err("data", e))?;
+    flights_figure(
+        "PID flights (plate6 model, published protocol)",
+        &flights,
+        None,
+    )
+    .render(
+        &ctx.path("figures/pid_trajectories.png"),
+        &ctx.path("figures/pid_trajectories.svg"),
+    )
+    .map_err(|e| stage_err("data", e))?;
+    let finals: Vec<Value> = flights
+        .iter()
+        .map(|f| {
+            let s = &f
+                .steps
+                .last()
+                .map(|r| r.state_end.clone())
+                .unwrap_or_default();
+            json!({"y0": f.initial[5], "x_plus_y": s[4] + s[5]})
+        })
+        .collect();
+    let mut result = json!({
+        "rows": rows.len(),
+        "final": finals,
+        "normalisation_min": lo.to_vec(),
+        "normalisation_range": range.to_vec(),
+    });
+    if let Some(p) = &ctx.opts.published {
+        let refr =
+            read_plain_csv(&p.join("Training_Data.csv")).map_err(|e| stage_err("data", e))?;
+        let dev = rows
+            .iter()
+            .zip(&refr)
+            .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
+            .fold(0.0f64, f64::max);
+        result["published_max_abs_deviation"] = json!(dev);
+        result["published_rows"] = json!(refr.len());
+        if let Ok(nc) = read_plain_csv(&p.join("Normalisation_Constants.csv")) {
+            if nc.len() >= 2 && nc[0].len() >= 7 {
+                // Does the published constants file describe the published data set?
+                let mut worst = 0.0f64;
+                for j in 0..6 {
+                    worst = worst.max((nc[0][j] - lo[j]).abs().max((nc[1][j] - range[j]).abs()));
+                }
+                result["published_constants_vs_data_max_abs"] = json!(worst);
+                result["published_constants"] = json!(nc[..2]);
+            }
+        }
+    }
+    Ok(StageOutput {
+        result,
+        files: vec![
+            "data/training_data.csv".into(),
+            "data/normalisation.csv".into(),
+            "figures/pid_trajectories.png".into(),
+            "figures/pid_trajectories.svg".into(),
+        ],
+    })
+}
+
+fn f4(v: &Value) -> String {
+    v.as_f64()
+        .map(|x| format!("{x:.4}"))
+        .unwrap_or_else(|| "-".into())
+}
+
+/// Build the report from the run's JSON.
+pub fn report(full: &Value, _opts: &ReproduceOptions) -> Document {
+    let mut d = new_report(full);
+    let st = &full["stages"];
+    let mut findings: Vec<String> = Vec::new();
+
+    if let Some(data) = st.get("data") {
+        d.push(Block::Heading(
+            1,
+            "1. Data generation (PID, published protocol)".into(),
+        ));
+        d.push(Block::Para(format!(
+            "Nine PID flights of the plate6 model (y0 = n/0.07, n = 0.1:0.025:0.3; 40 control steps of 0.5; MATLAB-ode45-compatible integration) give {} training rows (`data/training_data.csv`) and their min-max constants (`data/normalisation.csv`).",
+            data["rows"]
+        )));
+        d.push(Block::Image {
+            path: "figures/pid_trajectories.png".into(),
+            caption: "PID flights and the target line y = -x (equal axes)".into(),
+        });
+        let rows = data["final"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .map(|f| vec![f4(&f["y0"]), f4(&f["x_plus_y"])])
+                    .collect()
+            })
+            .unwrap_or_default();
+        d.push(table(&["y0", "x + y at t = 20"], rows));
+        if let Some(dev) = data
+            .get("published_max_abs_deviation")
+            .and_then(Value::as_f64)
+        {
+            findings.push(format!(
+                "samara's simulator regenerates the published `Training_Data.csv` to a maximum absolute deviation of {dev:.2e} over all {} numbers, so the published data come from the plate6 model with the filter state reset every control step.",
+                data["rows"].as_u64().unwrap_or(0) * 7
+            ));
+        }
+        if let Some(w) = data
+            .get("published_constants_vs_data_max_abs")
+            .and_then(Value::as_f64)
+        {
+            findings.push(format!(
+                "The published `Normalisation_Constants.csv` does not describe the published `Training_Data.csv`: its minima/ranges differ from the data's by up to {w:.3} (raw units). The networks were trained on an older data set, so their normalisation does not match the data the paper publishes."
+            ));
+        }
+    }
+
+    d.push(Block::Heading(1, "Findings".into()));
+    if findings.is_empty() {
+        d.push(Block::Para(
+            "Run with `--published DIR` to compare with the published files.".into(),
+        ));
+    } else {
+        d.push(Block::List(findings));
+    }
+    d
+}
