@@ -2,7 +2,8 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use samara_plant::{Model, Plant, EX_RANGE, STATE_NAMES};
-use samara_report::{write_atomic, Curve, TrajectoryFigure};
+use samara_report::write_atomic;
+use samara_sim::dataset::{normalisation_csv, training_csv};
 use samara_sim::{
     fly, initial_state, minmax, published_starts, training_rows, ConstantController, Controller,
     Flight, Integrator, LoopSettings, NetworkController, PidController,
@@ -257,51 +258,25 @@ fn write_outputs(a: &SimulateArgs, plan: &Plan, flights: &[Flight], cname: Strin
     write_atomic(&a.out.join("trajectories.csv"), traj.as_bytes())?;
 
     let rows = training_rows(flights);
-    let mut td = String::from("v_xp,v_yp,omega,theta,x,y,ex\n");
-    for r in &rows {
-        let line: Vec<String> = r.iter().map(|v| format!("{v:?}")).collect();
-        let _ = writeln!(td, "{}", line.join(","));
-    }
-    write_atomic(&a.out.join("training_data.csv"), td.as_bytes())?;
-
+    write_atomic(
+        &a.out.join("training_data.csv"),
+        training_csv(&rows).as_bytes(),
+    )?;
     let (lo, range) = minmax(&rows);
-    let mut nc = String::from("v_xp,v_yp,omega,theta,x,y,ex\n");
-    let _ = writeln!(
-        nc,
-        "{}",
-        lo.iter()
-            .map(|v| format!("{v:?}"))
-            .collect::<Vec<_>>()
-            .join(",")
-    );
-    let _ = writeln!(
-        nc,
-        "{}",
-        range
-            .iter()
-            .map(|v| format!("{v:?}"))
-            .collect::<Vec<_>>()
-            .join(",")
-    );
-    write_atomic(&a.out.join("normalisation.csv"), nc.as_bytes())?;
+    write_atomic(
+        &a.out.join("normalisation.csv"),
+        normalisation_csv(&lo, &range).as_bytes(),
+    )?;
 
     if !a.no_plot {
-        let curves: Vec<Curve> = flights
-            .iter()
-            .map(|f| Curve {
-                label: format!("y0 = {:.4}", f.initial[5]),
-                points: std::iter::once((f.initial[4], f.initial[5]))
-                    .chain(f.dense.iter().map(|(_, s, _)| (s[4], s[5])))
-                    .collect(),
-            })
-            .collect();
-        let mut fig = TrajectoryFigure::new(
-            format!(
+        let mut fig = samara_repro::stages::flights_figure(
+            &format!(
                 "Alsomitra glider, {} model, {} controller",
                 plan.plant.model.name(),
                 cname
             ),
-            curves,
+            flights,
+            None,
         );
         fig.legend = flights.len() <= 12;
         fig.render(

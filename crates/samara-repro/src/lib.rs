@@ -6,7 +6,7 @@
 
 pub mod cache;
 pub mod doc;
-mod stages;
+pub mod stages;
 
 use cache::Cache;
 use doc::{Block, Document};

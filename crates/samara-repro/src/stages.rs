@@ -5,12 +5,12 @@ use crate::doc::{Block, Document};
 use crate::{new_report, table, Ctx, ReproError, ReproduceOptions, StageFn, StageOutput};
 use samara_plant::{Model, Plant};
 use samara_report::{write_atomic, Curve, TrajectoryFigure};
+use samara_sim::dataset::{normalisation_csv, training_csv};
 use samara_sim::{
     fly, initial_state, minmax, published_starts, training_rows, Flight, LoopSettings,
     PidController,
 };
 use serde_json::{json, Value};
-use std::fmt::Write as _;
 
 /// Every stage, in order.
 pub fn all() -> Vec<(&'static str, StageFn)> {
@@ -22,15 +22,6 @@ fn stage_err(stage: &str, e: impl std::fmt::Display) -> ReproError {
         stage: stage.into(),
         message: e.to_string(),
     }
-}
-
-fn csv_rows(rows: &[[f64; 7]]) -> String {
-    let mut s = String::from("v_xp,v_yp,omega,theta,x,y,ex\n");
-    for r in rows {
-        let line: Vec<String> = r.iter().map(|v| format!("{v:?}")).collect();
-        let _ = writeln!(s, "{}", line.join(","));
-    }
-    s
 }
 
 fn read_plain_csv(path: &std::path::Path) -> Result<Vec<Vec<f64>>, String> {
@@ -89,29 +80,14 @@ fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
     let (lo, range) = minmax(&rows);
     write_atomic(
         &ctx.path("data/training_data.csv"),
-        csv_rows(&rows).as_bytes(),
+        training_csv(&rows).as_bytes(),
     )
     .map_err(|e| stage_err("data", e))?;
-    let mut nc = String::from("v_xp,v_yp,omega,theta,x,y,ex\n");
-    let _ = writeln!(
-        nc,
-        "{}",
-        lo.iter()
-            .map(|v| format!("{v:?}"))
-            .collect::<Vec<_>>()
-            .join(",")
-    );
-    let _ = writeln!(
-        nc,
-        "{}",
-        range
-            .iter()
-            .map(|v| format!("{v:?}"))
-            .collect::<Vec<_>>()
-            .join(",")
-    );
-    write_atomic(&ctx.path("data/normalisation.csv"), nc.as_bytes())
-        .map_err(|e| stage_err("data", e))?;
+    write_atomic(
+        &ctx.path("data/normalisation.csv"),
+        normalisation_csv(&lo, &range).as_bytes(),
+    )
+    .map_err(|e| stage_err("data", e))?;
     flights_figure(
         "PID flights (plate6 model, published protocol)",
         &flights,

@@ -52,19 +52,7 @@ where
     let mut fnew = [0.0f64; MAX_DIM];
     f(&y[..n], &mut k[0][..n]);
     stats.evals += 1;
-    // Initial step: Hairer's heuristic h = 0.01 ||y|| / ||f|| (scaled norms), capped.
-    let (mut d0, mut d1) = (0.0, 0.0);
-    for i in 0..n {
-        let sc = tol.atol + tol.rtol * y[i].abs();
-        d0 += (y[i] / sc).powi(2);
-        d1 += (k[0][i] / sc).powi(2);
-    }
-    let (d0, d1) = ((d0 / n as f64).sqrt(), (d1 / n as f64).sqrt());
-    let mut h = if d0 < 1e-5 || d1 < 1e-5 {
-        1e-6
-    } else {
-        0.01 * d0 / d1
-    };
+    let mut h = crate::common::initial_step(&y[..n], &k[0][..n], tol);
     if let Some(hi) = h_init.filter(|v| v.is_finite() && *v > 0.0) {
         h = hi;
     }
@@ -118,12 +106,7 @@ where
         };
         if !(err <= 1.0) {
             stats.rejected += 1;
-            let fac = if err.is_finite() {
-                (0.9 * err.powf(-0.125)).max(0.2)
-            } else {
-                0.2
-            };
-            h *= fac;
+            h *= crate::common::reject_factor(err, 0.125);
             last_rejected = true;
             continue;
         }
@@ -132,37 +115,22 @@ where
         stats.evals += 1;
         let tnew = if last { tf } else { t + h };
         if let Some(o) = out.as_deref_mut() {
-            while next_out < out_times.len() && out_times[next_out] <= tnew {
-                let to = out_times[next_out];
-                if to == tnew {
-                    o.push((to, ynew[..n].to_vec()));
-                } else {
-                    let s = (to - t) / h;
-                    let (s2, s3) = (s * s, s * s * s);
-                    let h00 = 2.0 * s3 - 3.0 * s2 + 1.0;
-                    let h10 = s3 - 2.0 * s2 + s;
-                    let h01 = -2.0 * s3 + 3.0 * s2;
-                    let h11 = s3 - s2;
-                    let yi = (0..n)
-                        .map(|i| h00 * y[i] + h10 * h * k[0][i] + h01 * ynew[i] + h11 * h * fnew[i])
-                        .collect();
-                    o.push((to, yi));
-                }
-                next_out += 1;
-            }
+            crate::common::hermite_outputs(
+                o,
+                out_times,
+                &mut next_out,
+                t,
+                tnew,
+                &y[..n],
+                &k[0][..n],
+                &ynew[..n],
+                &fnew[..n],
+            );
         }
         t = tnew;
         y[..n].copy_from_slice(&ynew[..n]);
         k[0] = fnew;
-        let mut fac = if err == 0.0 {
-            10.0
-        } else {
-            0.9 * err.powf(-0.125)
-        };
-        fac = fac.clamp(0.2, 10.0);
-        if last_rejected {
-            fac = fac.min(1.0);
-        }
+        let fac = crate::common::accept_factor(err, 0.125, last_rejected);
         last_rejected = false;
         if last {
             // The final step was shortened to land on tf: propose what the controller

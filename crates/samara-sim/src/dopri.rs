@@ -3,7 +3,7 @@
 //! `atol + rtol * max(|y|, |ynew|)` scaling, safety 0.9, factor limits 0.2..10), the
 //! FSAL property and a cubic Hermite interpolant for output points.
 
-use crate::ode45::{Stats, A, E};
+use crate::ode45::{Stats, E};
 use crate::MAX_DIM;
 
 /// Tolerances of the tight mode.
@@ -47,23 +47,9 @@ where
     f(&y[..n], &mut k[0][..n]);
     stats.evals += 1;
     let span = tf - t0;
-    // Initial step (Hairer's heuristic, simplified): h = 0.01 * ||y|| / ||f||.
-    let mut d0 = 0.0;
-    let mut d1 = 0.0;
-    for i in 0..n {
-        let sc = tol.atol + tol.rtol * y[i].abs();
-        d0 += (y[i] / sc).powi(2);
-        d1 += (k[0][i] / sc).powi(2);
-    }
-    let (d0, d1) = ((d0 / n as f64).sqrt(), (d1 / n as f64).sqrt());
-    let mut h = if d0 < 1e-5 || d1 < 1e-5 {
-        1e-6
-    } else {
-        0.01 * d0 / d1
-    };
+    let mut h = crate::common::initial_step(&y[..n], &k[0][..n], tol);
     h = h.min(span.abs()) * span.signum();
     let mut t = t0;
-    let mut ys = [0.0f64; MAX_DIM];
     let mut ynew = [0.0f64; MAX_DIM];
     let mut next_out = out_times
         .iter()
@@ -75,28 +61,8 @@ where
         if last {
             h = tf - t;
         }
-        for s in 0..5 {
-            for i in 0..n {
-                let mut acc = 0.0;
-                for (j, kj) in k.iter().enumerate().take(s + 1) {
-                    acc += A[s][j] * kj[i];
-                }
-                ys[i] = y[i] + h * acc;
-            }
-            let (_, tail) = k.split_at_mut(s + 1);
-            f(&ys[..n], &mut tail[0][..n]);
-        }
-        for i in 0..n {
-            let mut acc = 0.0;
-            for (j, kj) in k.iter().enumerate().take(6) {
-                acc += A[5][j] * kj[i];
-            }
-            ynew[i] = y[i] + h * acc;
-        }
-        {
-            let (_, tail) = k.split_at_mut(6);
-            f(&ynew[..n], &mut tail[0][..n]);
-        }
+        crate::common::dp5_stages(&mut f, &y[..n], &mut k, h);
+        crate::common::dp5_solution(&mut f, &y[..n], &mut k, h, &mut ynew);
         stats.evals += 6;
         let mut err = 0.0;
         for i in 0..n {
@@ -110,36 +76,24 @@ where
         let err = (err / n as f64).sqrt();
         if !(err <= 1.0) {
             stats.rejected += 1;
-            let fac = if err.is_finite() {
-                (0.9 * err.powf(-0.2)).max(0.2)
-            } else {
-                0.2
-            };
-            h *= fac;
+            h *= crate::common::reject_factor(err, 0.2);
             last_rejected = true;
             continue;
         }
         stats.accepted += 1;
         let tnew = if last { tf } else { t + h };
         if let Some(o) = out.as_deref_mut() {
-            while next_out < out_times.len() && out_times[next_out] <= tnew {
-                let to = out_times[next_out];
-                if to == tnew {
-                    o.push((to, ynew[..n].to_vec()));
-                } else {
-                    // Cubic Hermite on [t, tnew] with end slopes k[0], k[6].
-                    let s = (to - t) / h;
-                    let h00 = 2.0 * s * s * s - 3.0 * s * s + 1.0;
-                    let h10 = s * s * s - 2.0 * s * s + s;
-                    let h01 = -2.0 * s * s * s + 3.0 * s * s;
-                    let h11 = s * s * s - s * s;
-                    let yi = (0..n)
-                        .map(|i| h00 * y[i] + h10 * h * k[0][i] + h01 * ynew[i] + h11 * h * k[6][i])
-                        .collect();
-                    o.push((to, yi));
-                }
-                next_out += 1;
-            }
+            crate::common::hermite_outputs(
+                o,
+                out_times,
+                &mut next_out,
+                t,
+                tnew,
+                &y[..n],
+                &k[0][..n],
+                &ynew[..n],
+                &k[6][..n],
+            );
         }
         t = tnew;
         y[..n].copy_from_slice(&ynew[..n]);
@@ -147,15 +101,7 @@ where
         if last {
             break;
         }
-        let mut fac = if err == 0.0 {
-            10.0
-        } else {
-            0.9 * err.powf(-0.2)
-        };
-        fac = fac.clamp(0.2, 10.0);
-        if last_rejected {
-            fac = fac.min(1.0);
-        }
+        let fac = crate::common::accept_factor(err, 0.2, last_rejected);
         last_rejected = false;
         h *= fac;
     }

@@ -16,7 +16,9 @@
 #![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 pub mod closed_loop;
+mod common;
 pub mod control;
+pub mod dataset;
 pub mod dop853;
 mod dop853_tableau;
 pub mod dopri;

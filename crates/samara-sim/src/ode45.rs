@@ -147,7 +147,6 @@ where
 
     let mut next_out = 1usize;
     let mut ynew = [0.0f64; MAX_DIM];
-    let mut ys = [0.0f64; MAX_DIM];
     let mut done = false;
     while !done {
         hmin = 16.0 * eps_of(t);
@@ -161,36 +160,14 @@ where
         let mut nofailed = true;
         let tnew;
         loop {
-            for s in 0..5 {
-                for i in 0..n {
-                    let mut acc = 0.0;
-                    for (j, kj) in k.iter().enumerate().take(s + 1) {
-                        acc += A[s][j] * kj[i];
-                    }
-                    ys[i] = y[i] + h * acc;
-                }
-                let (head, tail) = k.split_at_mut(s + 1);
-                let _ = head;
-                f(&ys[..n], &mut tail[0][..n]);
-            }
+            crate::common::dp5_stages(&mut f, &y[..n], &mut k, h);
             stats.evals += 5;
             let mut tn = t + h;
             if done {
                 tn = tf;
             }
             h = tn - t;
-            for i in 0..n {
-                let mut acc = 0.0;
-                for (j, kj) in k.iter().enumerate().take(6) {
-                    acc += A[5][j] * kj[i];
-                }
-                ynew[i] = y[i] + h * acc;
-            }
-            {
-                let (head, tail) = k.split_at_mut(6);
-                let _ = head;
-                f(&ynew[..n], &mut tail[0][..n]);
-            }
+            crate::common::dp5_solution(&mut f, &y[..n], &mut k, h, &mut ynew);
             stats.evals += 1;
             let mut err = 0.0f64;
             for i in 0..n {
