@@ -44,13 +44,24 @@ fn check(model: Model, s: Vec<f64>, ex: f64) -> Result<(), TestCaseError> {
     for (a, f) in ja.iter().chain(&ea).zip(jf.iter().chain(&ef)) {
         // 1e-7 relative to the Jacobian's scale (central differences are O(h^2) ~ 1e-12
         // plus rounding ~ 1e-10 here).
-        prop_assert!((a - f).abs() <= 1e-7 * scale, "{model:?}: AD {a} vs FD {f} at {s:?}, ex {ex}");
+        prop_assert!(
+            (a - f).abs() <= 1e-7 * scale,
+            "{model:?}: AD {a} vs FD {f} at {s:?}, ex {ex}"
+        );
     }
     Ok(())
 }
 
 fn state() -> impl Strategy<Value = Vec<f64>> {
-    (0.8f64..1.5, -0.6f64..0.3, -0.5f64..0.5, -1.2f64..0.3, 0.0f64..40.0, -40.0f64..5.0, -0.2f64..0.2)
+    (
+        0.8f64..1.5,
+        -0.6f64..0.3,
+        -0.5f64..0.5,
+        -1.2f64..0.3,
+        0.0f64..40.0,
+        -40.0f64..5.0,
+        -0.2f64..0.2,
+    )
         .prop_map(|(a, b, c, d, e, f, g)| vec![a, b, c, d, e, f, g])
 }
 
