@@ -77,13 +77,12 @@ impl Affine {
     /// Apply to an f64 vector, writing into `y` (no allocation).
     #[inline]
     pub fn apply_f64(&self, x: &[f64], y: &mut [f64]) {
-        for i in 0..self.out {
-            let row = &self.w[i * self.inp..(i + 1) * self.inp];
-            let mut acc = self.b[i];
+        for ((yi, row), bi) in y.iter_mut().zip(self.w.chunks_exact(self.inp)).zip(&self.b) {
+            let mut acc = *bi;
             for (wij, xj) in row.iter().zip(x) {
                 acc += wij * xj;
             }
-            y[i] = acc;
+            *yi = acc;
         }
     }
 }
@@ -233,7 +232,11 @@ impl Network {
         for (k, l) in all.iter().enumerate() {
             if let Layer::Affine(a) = l {
                 if a.inp != dim {
-                    return Err(IrError::Dimension { layer: k, expected: dim, found: a.inp });
+                    return Err(IrError::Dimension {
+                        layer: k,
+                        expected: dim,
+                        found: a.inp,
+                    });
                 }
                 if a.w.len() != a.inp * a.out || a.b.len() != a.out {
                     return Err(IrError::Shape { layer: k });
@@ -245,7 +248,11 @@ impl Network {
             }
         }
         if dim != self.n_outputs() {
-            return Err(IrError::Dimension { layer: all.len(), expected: self.n_outputs(), found: dim });
+            return Err(IrError::Dimension {
+                layer: all.len(),
+                expected: self.n_outputs(),
+                found: dim,
+            });
         }
         Ok(())
     }

@@ -55,7 +55,10 @@ impl LinExpr {
             }
         }
         out.retain(|(_, c)| *c != 0.0);
-        LinExpr { terms: out, constant: self.constant }
+        LinExpr {
+            terms: out,
+            constant: self.constant,
+        }
     }
 
     /// Evaluate given a value for every variable.
