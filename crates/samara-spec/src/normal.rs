@@ -46,7 +46,7 @@ pub struct LinExpr {
 impl LinExpr {
     /// Merge repeated variables and drop zero coefficients; sort by variable.
     pub fn normalised(mut self) -> Self {
-        self.terms.sort_by(|a, b| a.0.cmp(&b.0));
+        self.terms.sort_by_key(|t| t.0);
         let mut out: Vec<(Var, f64)> = Vec::with_capacity(self.terms.len());
         for (v, c) in self.terms {
             match out.last_mut() {
