@@ -109,6 +109,12 @@ pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>>
     }
     let path = Path::new(spec);
     if path.extension().and_then(|e| e.to_str()) == Some("onnx") || path.exists() {
+        if !path.exists() {
+            bail!(
+                "--controller {}: no such file; give the path of an .onnx network",
+                path.display()
+            );
+        }
         let net = crate_nn_load(path)?;
         if net.n_inputs() != 6 || net.n_outputs() != 1 {
             bail!(

@@ -133,3 +133,65 @@ fn unwritable_output_directory_is_a_usage_error() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("writable --out"));
 }
+
+fn reference(name: &str) -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference")
+        .join(name)
+}
+
+#[test]
+fn network_controller_flies_and_clips() {
+    let dir = tempfile::tempdir().unwrap();
+    let net = reference("base_model_denorm.onnx");
+    let out = samara()
+        .args(["simulate", "--controller"])
+        .arg(&net)
+        .arg("--out")
+        .arg(dir.path())
+        .arg("--json")
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let rows = written_rows(dir.path());
+    assert_eq!(rows.len(), 360);
+    // Every applied ex is inside the clip range, and the naive network saturates at 0.193
+    // within its first steps (MODEL.md section 6): the clip binds there.
+    assert!(rows.iter().all(|r| (0.181..=0.193).contains(&r[6])));
+    assert!((0..9).any(|k| rows[k * 40..k * 40 + 4].iter().any(|r| r[6] == 0.193)));
+    // Unclipped, the same network can leave the range.
+    let dir2 = tempfile::tempdir().unwrap();
+    let out = samara()
+        .args(["simulate", "--no-clip", "--controller"])
+        .arg(&net)
+        .arg("--out")
+        .arg(dir2.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let raw = written_rows(dir2.path());
+    assert!(
+        raw.iter().any(|r| r[6] > 0.193),
+        "the unclipped network never exceeds 0.193"
+    );
+}
+
+#[test]
+fn wrong_network_shape_and_missing_file_exit_2() {
+    assert_usage_error(
+        &[
+            "simulate",
+            "--controller",
+            reference("merged_model_base.onnx").to_str().unwrap(),
+        ],
+        "12 inputs",
+    );
+    assert_usage_error(
+        &["simulate", "--controller", "/nonexistent/net.onnx"],
+        "no such file",
+    );
+}

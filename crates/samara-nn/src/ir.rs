@@ -198,18 +198,48 @@ impl Network {
     pub fn eval_f64(&self, x: &[f64]) -> Vec<f64> {
         let mut z = x.to_vec();
         let mut tmp = Vec::new();
-        let affines = self.raw_layers();
-        for l in affines {
+        let mut affine = |a: &Affine, z: &mut Vec<f64>| {
+            tmp.resize(a.out, 0.0);
+            a.apply_f64(z, &mut tmp);
+            std::mem::swap(z, &mut tmp);
+        };
+        if let Some(a) = &self.input_norm {
+            affine(a, &mut z);
+        }
+        for l in &self.layers {
             match l {
-                Layer::Affine(a) => {
-                    tmp.resize(a.out, 0.0);
-                    a.apply_f64(&z, &mut tmp);
-                    std::mem::swap(&mut z, &mut tmp);
-                }
+                Layer::Affine(a) => affine(a, &mut z),
                 Layer::Act(act) => z.iter_mut().for_each(|v| *v = act.apply_f64(*v)),
             }
         }
+        if let Some(a) = &self.output_denorm {
+            affine(a, &mut z);
+        }
         z
+    }
+
+    /// Evaluate a batch in f64: `xs` holds `n` rows of [`Network::n_inputs`] values
+    /// (row-major); returns `n` rows of outputs.
+    pub fn eval_batch_f64(&self, xs: &[f64], n: usize) -> Vec<f64> {
+        let d = self.n_inputs();
+        (0..n)
+            .flat_map(|r| self.eval_f64(&xs[r * d..(r + 1) * d]))
+            .collect()
+    }
+
+    /// The same network with new input and output names (lengths must match).
+    pub fn with_names(mut self, inputs: &[&str], outputs: &[&str]) -> Result<Self, IrError> {
+        if inputs.len() != self.n_inputs() || outputs.len() != self.n_outputs() {
+            return Err(IrError::Names {
+                inputs: self.n_inputs(),
+                outputs: self.n_outputs(),
+                given_inputs: inputs.len(),
+                given_outputs: outputs.len(),
+            });
+        }
+        self.input_names = inputs.iter().map(|s| s.to_string()).collect();
+        self.output_names = outputs.iter().map(|s| s.to_string()).collect();
+        Ok(self)
     }
 
     /// All layers in raw units, normalisation folded in as ordinary affine layers.
@@ -276,6 +306,18 @@ pub enum IrError {
     Shape {
         /// Layer index.
         layer: usize,
+    },
+    /// Names given do not match the dimensions.
+    #[error("the network has {inputs} inputs and {outputs} outputs, but {given_inputs} input names and {given_outputs} output names were given")]
+    Names {
+        /// Inputs of the network.
+        inputs: usize,
+        /// Outputs of the network.
+        outputs: usize,
+        /// Input names given.
+        given_inputs: usize,
+        /// Output names given.
+        given_outputs: usize,
     },
     /// A NaN or infinite weight or bias.
     #[error("layer {layer}: parameter {index} is NaN or infinite; retrain or repair the network")]

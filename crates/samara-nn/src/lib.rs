@@ -1,7 +1,11 @@
 //! Neural networks for samara: an intermediate representation (a sequence of layers with
-//! named inputs and outputs), evaluation generic over [`samara_num::Scalar`], and (in
-//! other modules) ONNX import and export.
+//! named inputs and outputs), evaluation generic over [`samara_num::Scalar`], and ONNX
+//! import and export ([`onnx`]).
 
 pub mod ir;
+pub mod onnx;
 
 pub use ir::{Activation, Affine, Layer, Network};
+
+/// The case study's input names, in order.
+pub const STATE_INPUTS: [&str; 6] = ["v_xp", "v_yp", "omega", "theta", "x", "y"];
