@@ -7,6 +7,7 @@
 mod nnload;
 mod reproduce;
 mod simulate;
+mod train;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -24,6 +25,9 @@ enum Command {
     /// Simulate the closed loop (plant + PID, constant or network controller); write
     /// trajectories, the training data set, its normalisation constants and figures.
     Simulate(simulate::SimulateArgs),
+    /// Train a controller network (plain, adversarial, lipschitz, dl2, goedel) and
+    /// export it to ONNX.
+    Train(train::TrainArgs),
     /// Reproduce the whole case study (data, controllers, proofs, reachable sets,
     /// figures, report) in one command.
     Reproduce(reproduce::ReproduceArgs),
@@ -45,6 +49,7 @@ fn main() -> ExitCode {
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
         Command::Reproduce(a) => reproduce::run(a),
+        Command::Train(a) => train::run(a),
     };
     match result {
         Ok(code) => code,
