@@ -253,7 +253,7 @@ fn write_outputs(a: &SimulateArgs, plan: &Plan, flights: &[Flight], cname: Strin
     let dim = plan.plant.dim();
     let mut traj = format!("start,y0,t,{},ex\n", state_header(dim));
     for (i, f) in flights.iter().enumerate() {
-        for (t, s, ex) in &f.dense {
+        for (t, s, ex) in f.dense.iter() {
             let _ = write!(traj, "{},{:?},{:?}", i + 1, f.initial[5], t);
             for v in s {
                 let _ = write!(traj, ",{v:?}");

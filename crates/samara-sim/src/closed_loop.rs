@@ -127,6 +127,42 @@ pub struct StepRecord {
     pub ex: f64,
 }
 
+/// Dense output of a flight, stored flat (one allocation per flight): rows of
+/// `t, ex, state...`.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Dense {
+    /// State dimension.
+    pub dim: usize,
+    /// Flat rows.
+    pub data: Vec<f64>,
+}
+
+impl Dense {
+    /// Append a row.
+    pub fn push(&mut self, t: f64, state: &[f64], ex: f64) {
+        self.data.push(t);
+        self.data.push(ex);
+        self.data.extend_from_slice(state);
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.data.len() / (self.dim + 2)
+    }
+
+    /// Whether there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.data.is_empty()
+    }
+
+    /// Rows as `(t, state, ex)`.
+    pub fn iter(&self) -> impl Iterator<Item = (f64, &[f64], f64)> {
+        self.data
+            .chunks_exact(self.dim + 2)
+            .map(|r| (r[0], &r[2..], r[1]))
+    }
+}
+
 /// A simulated flight.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Flight {
@@ -134,8 +170,8 @@ pub struct Flight {
     pub initial: Vec<f64>,
     /// One record per control step.
     pub steps: Vec<StepRecord>,
-    /// Dense output `(t, state, ex)` at the output times (including t = 0).
-    pub dense: Vec<(f64, Vec<f64>, f64)>,
+    /// Dense output at the output times (including t = 0).
+    pub dense: Dense,
     /// Integration statistics summed over the flight.
     pub evals: usize,
 }
@@ -159,7 +195,10 @@ pub fn fly(
     controller.reset();
     let mut s = initial.to_vec();
     let mut steps = Vec::with_capacity(n_steps);
-    let mut dense = Vec::new();
+    let mut dense = Dense {
+        dim,
+        data: Vec::new(),
+    };
     let mut evals = 0usize;
     let period = settings.period;
     // Output times within a period, as MATLAB's tspan 0:0.01:0.5 (t = i * 0.01). The
@@ -170,12 +209,12 @@ pub fn fly(
     let out_times: Vec<f64> = (0..=m)
         .map(|i| if i == m { period } else { i as f64 * grid })
         .collect();
-    let mut buf: Vec<(f64, Vec<f64>)> = Vec::new();
+    let mut buf: Vec<f64> = Vec::new();
     let mut h_next = 0.0f64;
     for k in 0..n_steps {
         let ex = controller.act(&s);
         if k == 0 && settings.output_step.is_some() {
-            dense.push((0.0, s.clone(), ex));
+            dense.push(0.0, &s, ex);
         }
         if settings.reset_filter && plant.model.has_filter() {
             s[6] = 0.0;
@@ -217,7 +256,8 @@ pub fn fly(
                     st.evals += 4 * crate::rk4::integrate(rhs, &mut s, t, to, h);
                     t = to;
                     if want {
-                        buf.push((to, s.clone()));
+                        buf.push(to);
+                        buf.extend_from_slice(&s);
                     }
                 }
                 st
@@ -226,8 +266,8 @@ pub fn fly(
         evals += stats.evals;
         h_next = stats.h_next;
         let t0 = k as f64 * period;
-        for (t, y) in buf.drain(..) {
-            dense.push((t0 + t, y, ex));
+        for row in buf.chunks_exact(dim + 1) {
+            dense.push(t0 + row[0], &row[1..], ex);
         }
         steps.push(StepRecord {
             t_end: (k + 1) as f64 * period,

@@ -70,7 +70,7 @@ pub(crate) fn initial_step(y: &[f64], f0: &[f64], tol: Tolerances) -> f64 {
 /// exact at `tnew`), advancing `next_out`.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn hermite_outputs(
-    out: &mut Vec<(f64, Vec<f64>)>,
+    out: &mut Vec<f64>,
     out_times: &[f64],
     next_out: &mut usize,
     t: f64,
@@ -84,7 +84,8 @@ pub(crate) fn hermite_outputs(
     while *next_out < out_times.len() && out_times[*next_out] <= tnew {
         let to = out_times[*next_out];
         if to == tnew {
-            out.push((to, ynew.to_vec()));
+            out.push(to);
+            out.extend_from_slice(ynew);
         } else {
             let s = (to - t) / h;
             let (s2, s3) = (s * s, s * s * s);
@@ -92,10 +93,11 @@ pub(crate) fn hermite_outputs(
             let h10 = s3 - 2.0 * s2 + s;
             let h01 = -2.0 * s3 + 3.0 * s2;
             let h11 = s3 - s2;
-            let yi = (0..y.len())
-                .map(|i| h00 * y[i] + h10 * h * f0[i] + h01 * ynew[i] + h11 * h * f1[i])
-                .collect();
-            out.push((to, yi));
+            out.push(to);
+            out.extend(
+                (0..y.len())
+                    .map(|i| h00 * y[i] + h10 * h * f0[i] + h01 * ynew[i] + h11 * h * f1[i]),
+            );
         }
         *next_out += 1;
     }
@@ -145,8 +147,9 @@ mod tests {
             &[8.0],
             &[12.0],
         );
-        assert!((out[0].1[0] - 3.375).abs() < 1e-14);
-        assert_eq!(out[1].1[0], 8.0);
+        assert_eq!(out.len(), 4); // rows (t, y)
+        assert!((out[1] - 3.375).abs() < 1e-14);
+        assert_eq!((out[2], out[3]), (2.0, 8.0));
         assert_eq!(next, 2);
     }
 }

@@ -21,7 +21,7 @@ pub fn integrate<F>(
     tf: f64,
     tol: Tolerances,
     out_times: &[f64],
-    out: Option<&mut Vec<(f64, Vec<f64>)>>,
+    out: Option<&mut Vec<f64>>,
 ) -> Stats
 where
     F: FnMut(&[f64], &mut [f64]),
@@ -40,7 +40,7 @@ pub fn integrate_from<F>(
     tol: Tolerances,
     h_init: Option<f64>,
     out_times: &[f64],
-    mut out: Option<&mut Vec<(f64, Vec<f64>)>>,
+    mut out: Option<&mut Vec<f64>>,
 ) -> Stats
 where
     F: FnMut(&[f64], &mut [f64]),

@@ -35,7 +35,7 @@ pub fn integrate<F>(
     tf: f64,
     tol: Tolerances,
     out_times: &[f64],
-    mut out: Option<&mut Vec<(f64, Vec<f64>)>>,
+    mut out: Option<&mut Vec<f64>>,
 ) -> Stats
 where
     F: FnMut(&[f64], &mut [f64]),

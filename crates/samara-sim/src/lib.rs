@@ -26,8 +26,8 @@ pub mod ode45;
 pub mod rk4;
 
 pub use closed_loop::{
-    fly, initial_state, minmax, published_starts, training_rows, Flight, Integrator, LoopSettings,
-    SimError, StepRecord,
+    fly, initial_state, minmax, published_starts, training_rows, Dense, Flight, Integrator,
+    LoopSettings, SimError, StepRecord,
 };
 pub use control::{ConstantController, Controller, NetworkController, PidController};
 

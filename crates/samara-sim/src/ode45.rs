@@ -105,14 +105,14 @@ pub struct Stats {
 /// if called with `tspan = out_times` (`out_times[0] = t0`, last = `tf`, at least two
 /// entries). Returns the end state in `y` and, if `out` is given, pushes the state at
 /// every entry of `out_times` after the first (interpolated by `ntrp45`, the last one
-/// exact). `hmax` = 0.1 |tf - t0| and the first step uses `|tspan(2) - tspan(1)|`
+/// exact) as flat rows `t, y...`. `hmax` = 0.1 |tf - t0| and the first step uses `|tspan(2) - tspan(1)|`
 /// exactly as MATLAB.
 pub fn integrate<F>(
     mut f: F,
     y: &mut [f64],
     out_times: &[f64],
     opts: &Ode45Options,
-    mut out: Option<&mut Vec<(f64, Vec<f64>)>>,
+    mut out: Option<&mut Vec<f64>>,
 ) -> Stats
 where
     F: FnMut(&[f64], &mut [f64]),
@@ -218,24 +218,23 @@ where
             while next_out < out_times.len() && out_times[next_out] <= tnew {
                 let to = out_times[next_out];
                 if to == tnew {
-                    o.push((to, ynew[..n].to_vec()));
+                    o.push(to);
+                    o.extend_from_slice(&ynew[..n]);
                 } else {
                     let s = (to - t) / h;
                     let pw = [s, s * s, s * s * s, s * s * s * s];
-                    let yi = (0..n)
-                        .map(|i| {
-                            let mut acc = 0.0;
-                            for (j, kj) in k.iter().enumerate() {
-                                let c = BI[j][0] * pw[0]
-                                    + BI[j][1] * pw[1]
-                                    + BI[j][2] * pw[2]
-                                    + BI[j][3] * pw[3];
-                                acc += kj[i] * c;
-                            }
-                            y[i] + h * acc
-                        })
-                        .collect();
-                    o.push((to, yi));
+                    o.push(to);
+                    o.extend((0..n).map(|i| {
+                        let mut acc = 0.0;
+                        for (j, kj) in k.iter().enumerate() {
+                            let c = BI[j][0] * pw[0]
+                                + BI[j][1] * pw[1]
+                                + BI[j][2] * pw[2]
+                                + BI[j][3] * pw[3];
+                            acc += kj[i] * c;
+                        }
+                        y[i] + h * acc
+                    }));
                 }
                 next_out += 1;
             }
@@ -271,9 +270,10 @@ mod tests {
             &Ode45Options::default(),
             Some(&mut out),
         );
-        assert_eq!(out.len(), 50);
-        for (t, v) in &out {
-            assert!((v[0] - (-t).exp()).abs() < 1e-5, "t={t}");
+        assert_eq!(out.len(), 100);
+        for row in out.chunks_exact(2) {
+            let (t, v) = (row[0], row[1]);
+            assert!((v - (-t).exp()).abs() < 1e-5, "t={t}");
         }
         assert!((y[0] - (-0.5f64).exp()).abs() < 1e-6);
     }
