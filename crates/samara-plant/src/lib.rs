@@ -196,10 +196,13 @@ impl Plant {
         self.model.dim()
     }
 
-    /// F(alpha) = [1 - tanh((-alpha - alpha0)/delta)] / 2 (attachment function).
+    /// F = [1 - tanh((g - alpha0)/delta)] / 2 (attachment function, g = -alpha), computed
+    /// as the equal logistic form 1 / (1 + exp(2 (g - alpha0) / delta)): one `exp`
+    /// instead of `tanh` (about 20% of the right-hand side's time).
     fn attach<S: Scalar>(&self, g: S) -> S {
         let p = &self.params;
-        (-((g - p.alpha0) / p.delta).tanh() + 1.0) / 2.0
+        let e = ((g - p.alpha0) * (2.0 / p.delta)).exp();
+        S::cst(1.0) / (e + 1.0)
     }
 
     fn coefficients<S: Scalar>(&self, alpha: &S) -> Coefficients<S> {
