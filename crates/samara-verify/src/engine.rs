@@ -1,0 +1,682 @@
+//! Branch and bound over ReLU phases with sound LP bounds (the exact engine).
+//!
+//! A node fixes some ReLUs active or inactive; the others get the triangle relaxation
+//! (Ehlers 2017, "Formal verification of piece-wise linear feed-forward neural
+//! networks") over sound interval bounds. Each node's LP gives a sound upper bound
+//! (see [`crate::lp`]) and a primal point that is re-evaluated through the network: if
+//! it satisfies the region it is a concrete witness. Nodes whose bound cannot beat the
+//! best witness are pruned; a node with every ReLU fixed is a linear region, where the
+//! LP is exact. The result is therefore exact up to the LP tolerance, and every number
+//! reported as attained comes from a concrete, re-evaluated point.
+
+use crate::lp::{Lp, LpResult, Row};
+use crate::net::{affine_bounds, PwlNet};
+use samara_nn::Network;
+use samara_spec::normal::{Cmp, Constraint, LinExpr, Var};
+use std::collections::BinaryHeap;
+use std::time::Instant;
+
+/// Where each application's variables live in the LP.
+struct AppVars {
+    x: usize,
+    /// Per map: offset of z, and offset of a if a ReLU follows.
+    maps: Vec<(usize, Option<usize>)>,
+    out: usize,
+}
+
+/// The problem: applications of networks, input boxes, one conjunction of constraints,
+/// an objective (maximised).
+pub struct Problem<'a> {
+    /// Networks by application.
+    pub nets: Vec<&'a PwlNet>,
+    /// The plain networks (for concrete re-evaluation).
+    pub plain: Vec<&'a Network>,
+    /// Input box per application.
+    pub boxes: Vec<Vec<(f64, f64)>>,
+    /// Free variables' bounds.
+    pub free: Vec<(f64, f64)>,
+    /// The conjunction.
+    pub constraints: Vec<Constraint>,
+    /// Objective to maximise.
+    pub objective: Option<LinExpr>,
+    /// Nodes whose sound bound is below this are pruned (default `-inf`).
+    pub floor: f64,
+    /// Stop as soon as a witness satisfies these constraints with objective value
+    /// `>= floor` (used by `prove`: the original, unslacked region).
+    pub stop_when: Option<Vec<Constraint>>,
+}
+
+/// A node's phase decisions: per application, per ReLU map, per neuron: 0 free,
+/// 1 active, -1 inactive.
+#[derive(Clone, Debug)]
+struct Node {
+    phases: Vec<Vec<Vec<i8>>>,
+    upper: f64,
+}
+
+impl PartialEq for Node {
+    fn eq(&self, o: &Self) -> bool {
+        self.upper == o.upper
+    }
+}
+impl Eq for Node {}
+impl PartialOrd for Node {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Node {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.upper.total_cmp(&o.upper)
+    }
+}
+
+/// A concrete point: inputs per application, outputs per application, free values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    /// Inputs per application (raw units of the network).
+    pub inputs: Vec<Vec<f64>>,
+    /// Outputs per application, evaluated by the plain f64 evaluator.
+    pub outputs: Vec<Vec<f64>>,
+    /// Values of the free variables.
+    pub free: Vec<f64>,
+}
+
+impl Point {
+    /// Value of a variable.
+    pub fn value(&self, v: Var) -> f64 {
+        match v {
+            Var::Input { app, index } => self.inputs[app][index],
+            Var::Output { app, index } => self.outputs[app][index],
+            Var::Free(k) => self.free[k],
+        }
+    }
+
+    /// Worst violation of the constraints (<= 0 means all hold, strict ones strictly).
+    pub fn margin(&self, cs: &[Constraint]) -> f64 {
+        cs.iter()
+            .map(|c| {
+                let e = c.expr.eval(|v| self.value(v));
+                match c.cmp {
+                    Cmp::Le => e,
+                    Cmp::Lt => {
+                        if e < 0.0 {
+                            e
+                        } else {
+                            e.max(f64::MIN_POSITIVE)
+                        }
+                    }
+                    Cmp::Eq => e.abs(),
+                }
+            })
+            .fold(f64::NEG_INFINITY, f64::max)
+    }
+
+    /// Whether every constraint holds exactly in f64.
+    pub fn satisfies(&self, cs: &[Constraint]) -> bool {
+        cs.iter().all(|c| c.holds(|v| self.value(v), 0.0))
+    }
+}
+
+/// Outcome of a branch and bound.
+#[derive(Clone, Debug)]
+pub struct BabResult {
+    /// Best concrete witness (satisfies every constraint) and its objective value.
+    pub best: Option<(Point, f64)>,
+    /// Sound upper bound of the objective over the region (`-inf` if empty).
+    pub upper: f64,
+    /// Whether the search finished (else a time or node limit stopped it).
+    pub complete: bool,
+    /// Nodes explored.
+    pub nodes: usize,
+    /// Leaves whose LP was feasible but whose point could not be made concrete
+    /// (regions thinner than the tolerance).
+    pub thin_leaves: usize,
+}
+
+/// Limits of a search.
+#[derive(Clone, Copy, Debug)]
+pub struct Limits {
+    /// Wall-clock limit.
+    pub seconds: f64,
+    /// Node limit.
+    pub nodes: usize,
+    /// Stop once the gap `upper - best` is below this (absolute).
+    pub gap: f64,
+}
+
+impl Default for Limits {
+    fn default() -> Self {
+        Limits {
+            seconds: 60.0,
+            nodes: 200_000,
+            gap: 1e-9,
+        }
+    }
+}
+
+impl<'a> Problem<'a> {
+    fn layout(&self) -> (Vec<AppVars>, usize) {
+        let mut n = 0usize;
+        let mut apps = Vec::new();
+        for net in &self.nets {
+            let x = n;
+            n += net.n_inputs();
+            let mut maps = Vec::new();
+            for (m, relu) in &net.maps {
+                let z = n;
+                n += m.out;
+                let a = if *relu {
+                    let a = n;
+                    n += m.out;
+                    Some(a)
+                } else {
+                    None
+                };
+                maps.push((z, a));
+            }
+            let last = maps.last().expect("at least one map");
+            let out = last.1.unwrap_or(last.0);
+            apps.push(AppVars { x, maps, out });
+        }
+        (apps, n)
+    }
+
+    fn var_index(&self, apps: &[AppVars], n_net: usize, v: Var) -> usize {
+        match v {
+            Var::Input { app, index } => apps[app].x + index,
+            Var::Output { app, index } => apps[app].out + index,
+            Var::Free(k) => n_net + k,
+        }
+    }
+
+    /// Input boxes tightened by single-variable constraints.
+    fn tightened_boxes(&self) -> Vec<Vec<(f64, f64)>> {
+        tighten(&self.boxes, &self.constraints)
+    }
+}
+
+/// Input boxes tightened by the constraints on a single input (`a x_k + c cmp 0`).
+pub fn tighten(boxes: &[Vec<(f64, f64)>], constraints: &[Constraint]) -> Vec<Vec<(f64, f64)>> {
+    {
+        let mut b = boxes.to_vec();
+        for c in constraints {
+            if let [(Var::Input { app, index }, coef)] = c.expr.terms.as_slice() {
+                let t = -c.expr.constant / coef;
+                let r = &mut b[*app][*index];
+                match (c.cmp, *coef > 0.0) {
+                    (Cmp::Eq, _) => {
+                        r.0 = r.0.max(t);
+                        r.1 = r.1.min(t);
+                    }
+                    (_, true) => r.1 = r.1.min(crate::net::up(t)),
+                    (_, false) => r.0 = r.0.max(crate::net::down(t)),
+                }
+            }
+        }
+        b
+    }
+}
+
+impl Problem<'_> {
+    /// Interval bounds of every variable under a node's phases; `None` if contradictory.
+    fn bounds(
+        &self,
+        apps: &[AppVars],
+        n: usize,
+        boxes: &[Vec<(f64, f64)>],
+        phases: &[Vec<Vec<i8>>],
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
+        let n_net = n;
+        let mut lo = vec![0.0; n_net + self.free.len()];
+        let mut hi = vec![0.0; n_net + self.free.len()];
+        for (ai, (net, av)) in self.nets.iter().zip(apps).enumerate() {
+            let mut alo: Vec<f64> = boxes[ai].iter().map(|b| b.0).collect();
+            let mut ahi: Vec<f64> = boxes[ai].iter().map(|b| b.1).collect();
+            if alo.iter().zip(&ahi).any(|(l, h)| l > h) {
+                return None;
+            }
+            lo[av.x..av.x + alo.len()].copy_from_slice(&alo);
+            hi[av.x..av.x + ahi.len()].copy_from_slice(&ahi);
+            let mut relu_k = 0;
+            for (k, (m, relu)) in net.maps.iter().enumerate() {
+                let (mut zl, mut zh) = affine_bounds(m, &alo, &ahi);
+                let (zo, ao) = av.maps[k];
+                if *relu {
+                    let ph = &phases[ai][relu_k];
+                    relu_k += 1;
+                    for i in 0..m.out {
+                        match ph[i] {
+                            1 => zl[i] = zl[i].max(0.0),
+                            -1 => zh[i] = zh[i].min(0.0),
+                            _ => {}
+                        }
+                        if zl[i] > zh[i] {
+                            return None;
+                        }
+                    }
+                    lo[zo..zo + m.out].copy_from_slice(&zl);
+                    hi[zo..zo + m.out].copy_from_slice(&zh);
+                    alo = zl.iter().map(|v| v.max(0.0)).collect();
+                    ahi = zh.iter().map(|v| v.max(0.0)).collect();
+                    let a = ao.expect("relu var");
+                    lo[a..a + m.out].copy_from_slice(&alo);
+                    hi[a..a + m.out].copy_from_slice(&ahi);
+                } else {
+                    lo[zo..zo + m.out].copy_from_slice(&zl);
+                    hi[zo..zo + m.out].copy_from_slice(&zh);
+                    alo = zl;
+                    ahi = zh;
+                }
+            }
+        }
+        for (k, f) in self.free.iter().enumerate() {
+            lo[n_net + k] = f.0;
+            hi[n_net + k] = f.1;
+        }
+        Some((lo, hi))
+    }
+
+    /// Finite bounds for free variables from constraints with exactly one free variable.
+    fn bound_free(&mut self, apps: &[AppVars], n_net: usize, lo: &[f64], hi: &[f64]) {
+        for _ in 0..2 {
+            for c in &self.constraints {
+                let frees: Vec<(usize, f64)> = c
+                    .expr
+                    .terms
+                    .iter()
+                    .filter_map(|(v, a)| {
+                        if let Var::Free(k) = v {
+                            Some((*k, *a))
+                        } else {
+                            None
+                        }
+                    })
+                    .collect();
+                if frees.len() != 1 || c.cmp == Cmp::Eq {
+                    continue;
+                }
+                let (k, a) = frees[0];
+                // a t + rest <= 0; rest in [rmin, rmax].
+                let (mut rmin, mut rmax) = (c.expr.constant, c.expr.constant);
+                for (v, coef) in &c.expr.terms {
+                    if matches!(v, Var::Free(_)) {
+                        continue;
+                    }
+                    let j = self.var_index(apps, n_net, *v);
+                    let (p, q) = (coef * lo[j], coef * hi[j]);
+                    rmin += p.min(q);
+                    rmax += p.max(q);
+                }
+                let fr = &mut self.free[k];
+                if a > 0.0 {
+                    fr.1 = fr.1.min(crate::net::up(crate::net::up(-rmin) / a));
+                } else {
+                    fr.0 = fr.0.max(crate::net::down(crate::net::down(-rmin) / a));
+                }
+                let _ = rmax;
+            }
+        }
+    }
+
+    /// Build the node LP.
+    fn lp(
+        &self,
+        apps: &[AppVars],
+        n_net: usize,
+        phases: &[Vec<Vec<i8>>],
+        lo: &[f64],
+        hi: &[f64],
+        shrink: f64,
+    ) -> Lp {
+        let n = n_net + self.free.len();
+        let mut lp = Lp {
+            n,
+            lo: lo.to_vec(),
+            hi: hi.to_vec(),
+            c: vec![0.0; n],
+            ..Default::default()
+        };
+        for (ai, (net, av)) in self.nets.iter().zip(apps).enumerate() {
+            let mut prev = av.x;
+            let mut relu_k = 0;
+            for (k, (m, relu)) in net.maps.iter().enumerate() {
+                let (zo, ao) = av.maps[k];
+                for i in 0..m.out {
+                    // z_i - W_i a = b_i
+                    let mut row: Row = vec![(zo + i, 1.0)];
+                    for j in 0..m.inp {
+                        let w = m.w[i * m.inp + j];
+                        if w != 0.0 {
+                            row.push((prev + j, -w));
+                        }
+                    }
+                    lp.eq.push((row, m.b[i]));
+                }
+                if *relu {
+                    let a = ao.expect("relu var");
+                    let ph = &phases[ai][relu_k];
+                    relu_k += 1;
+                    for i in 0..m.out {
+                        let (zl, zh) = (lo[zo + i], hi[zo + i]);
+                        if ph[i] == 1 || zl >= 0.0 {
+                            lp.eq.push((vec![(a + i, 1.0), (zo + i, -1.0)], 0.0));
+                        } else if ph[i] == -1 || zh <= 0.0 {
+                            lp.eq.push((vec![(a + i, 1.0)], 0.0));
+                        } else {
+                            // a >= z (a >= 0 is in the box); a <= s (z - zl) + margin.
+                            lp.le.push((vec![(zo + i, 1.0), (a + i, -1.0)], 0.0));
+                            let s = zh / (zh - zl);
+                            let margin = 1e-12 * (1.0 + zh.abs() + zl.abs());
+                            lp.le
+                                .push((vec![(a + i, 1.0), (zo + i, -s)], -s * zl + margin));
+                        }
+                    }
+                    prev = a;
+                } else {
+                    prev = zo;
+                }
+            }
+        }
+        for c in &self.constraints {
+            let row: Row = c
+                .expr
+                .terms
+                .iter()
+                .map(|(v, a)| (self.var_index(apps, n_net, *v), *a))
+                .collect();
+            match c.cmp {
+                Cmp::Eq => lp.eq.push((row, -c.expr.constant)),
+                Cmp::Le | Cmp::Lt => lp.le.push((row, -c.expr.constant - shrink)),
+            }
+        }
+        if let Some(obj) = &self.objective {
+            for (v, a) in &obj.terms {
+                lp.c[self.var_index(apps, n_net, *v)] += a;
+            }
+        }
+        lp
+    }
+
+    /// The concrete point behind an LP primal: inputs clamped into their boxes, outputs
+    /// evaluated by the plain network, free variables repaired to their best value.
+    fn concretise(
+        &self,
+        apps: &[AppVars],
+        n_net: usize,
+        boxes: &[Vec<(f64, f64)>],
+        x: &[f64],
+    ) -> Point {
+        let inputs: Vec<Vec<f64>> = apps
+            .iter()
+            .zip(boxes)
+            .map(|(av, b)| {
+                b.iter()
+                    .enumerate()
+                    .map(|(j, (l, h))| x[av.x + j].clamp(*l, *h))
+                    .collect()
+            })
+            .collect();
+        let outputs = inputs
+            .iter()
+            .zip(&self.plain)
+            .map(|(i, net)| net.eval_f64(i))
+            .collect();
+        let mut p = Point {
+            inputs,
+            outputs,
+            free: x[n_net..].to_vec(),
+        };
+        // Repair free variables: the objective's direction, limited by the constraints.
+        for k in 0..self.free.len() {
+            let dir = self
+                .objective
+                .as_ref()
+                .and_then(|o| {
+                    o.terms
+                        .iter()
+                        .find(|(v, _)| *v == Var::Free(k))
+                        .map(|t| t.1.signum())
+                })
+                .unwrap_or(0.0);
+            let (mut l, mut h) = self.free[k];
+            for c in &self.constraints {
+                let Some(a) = c
+                    .expr
+                    .terms
+                    .iter()
+                    .find(|(v, _)| *v == Var::Free(k))
+                    .map(|t| t.1)
+                else {
+                    continue;
+                };
+                let mut q = p.clone();
+                q.free[k] = 0.0;
+                let rest = c.expr.eval(|v| q.value(v));
+                // a t + rest <= 0
+                if a > 0.0 {
+                    h = h.min(-rest / a);
+                } else {
+                    l = l.max(-rest / a);
+                }
+            }
+            p.free[k] = if dir > 0.0 {
+                h
+            } else if dir < 0.0 {
+                l
+            } else {
+                p.free[k].clamp(l, h)
+            };
+        }
+        p
+    }
+
+    fn stop_reached(&self, best: &Option<(Point, f64)>) -> bool {
+        match (&self.stop_when, best) {
+            (Some(cs), Some((p, v))) => *v >= self.floor && p.satisfies(cs),
+            _ => false,
+        }
+    }
+
+    fn objective_value(&self, p: &Point) -> f64 {
+        self.objective
+            .as_ref()
+            .map(|o| o.eval(|v| p.value(v)))
+            .unwrap_or(0.0)
+    }
+
+    /// Run the branch and bound. With no objective, stops at the first witness.
+    pub fn solve(mut self, limits: Limits) -> BabResult {
+        let t0 = Instant::now();
+        let (apps, n_net) = self.layout();
+        let boxes = self.tightened_boxes();
+        let phases0: Vec<Vec<Vec<i8>>> = self
+            .nets
+            .iter()
+            .map(|net| {
+                net.maps
+                    .iter()
+                    .filter(|m| m.1)
+                    .map(|m| vec![0i8; m.0.out])
+                    .collect()
+            })
+            .collect();
+        let Some((lo0, hi0)) = self.bounds(&apps, n_net, &boxes, &phases0) else {
+            return BabResult {
+                best: None,
+                upper: f64::NEG_INFINITY,
+                complete: true,
+                nodes: 0,
+                thin_leaves: 0,
+            };
+        };
+        self.bound_free(&apps, n_net, &lo0, &hi0);
+        if self
+            .free
+            .iter()
+            .any(|f| !f.0.is_finite() || !f.1.is_finite() || f.0 > f.1)
+        {
+            if self.free.iter().any(|f| f.0 > f.1) {
+                return BabResult {
+                    best: None,
+                    upper: f64::NEG_INFINITY,
+                    complete: true,
+                    nodes: 0,
+                    thin_leaves: 0,
+                };
+            }
+            return BabResult {
+                best: None,
+                upper: f64::INFINITY,
+                complete: false,
+                nodes: 0,
+                thin_leaves: 0,
+            };
+        }
+        let mut best: Option<(Point, f64)> = None;
+        let mut closed_upper = f64::NEG_INFINITY;
+        let mut heap = BinaryHeap::new();
+        heap.push(Node {
+            phases: phases0,
+            upper: f64::INFINITY,
+        });
+        let mut nodes = 0usize;
+        let mut thin = 0usize;
+        let mut complete = true;
+        while let Some(node) = heap.pop() {
+            let incumbent = best.as_ref().map(|b| b.1).unwrap_or(f64::NEG_INFINITY);
+            if node.upper < self.floor {
+                continue;
+            }
+            if node.upper <= incumbent + limits.gap {
+                closed_upper = closed_upper.max(node.upper);
+                continue;
+            }
+            if nodes >= limits.nodes || t0.elapsed().as_secs_f64() > limits.seconds {
+                complete = false;
+                closed_upper = closed_upper.max(node.upper);
+                for n in heap.drain() {
+                    closed_upper = closed_upper.max(n.upper);
+                }
+                break;
+            }
+            nodes += 1;
+            let Some((lo, hi)) = self.bounds(&apps, n_net, &boxes, &node.phases) else {
+                continue;
+            };
+            let lp = self.lp(&apps, n_net, &node.phases, &lo, &hi, 0.0);
+            // The LP maximises the objective's linear part; add its constant soundly.
+            let k0 = self.objective.as_ref().map(|o| o.constant).unwrap_or(0.0);
+            let (upper, x) = match lp.solve() {
+                LpResult::Infeasible => continue,
+                LpResult::Bound { upper, x } => (crate::net::up(upper + k0), Some(x)),
+                LpResult::Failed { upper } => (crate::net::up(upper + k0), None),
+            };
+            let incumbent = best.as_ref().map(|b| b.1).unwrap_or(f64::NEG_INFINITY);
+            if upper < self.floor {
+                continue;
+            }
+            if upper <= incumbent + limits.gap {
+                closed_upper = closed_upper.max(upper);
+                continue;
+            }
+            // Concrete witness from the primal.
+            let mut found = false;
+            if let Some(x) = &x {
+                let p = self.concretise(&apps, n_net, &boxes, x);
+                if p.satisfies(&self.constraints) {
+                    let v = self.objective_value(&p);
+                    if best.as_ref().is_none_or(|b| v > b.1) {
+                        best = Some((p, v));
+                    }
+                    found = true;
+                }
+            }
+            if found && self.stop_reached(&best) {
+                return BabResult {
+                    best,
+                    upper: f64::INFINITY,
+                    complete: true,
+                    nodes,
+                    thin_leaves: thin,
+                };
+            }
+            // Branch on the unstable neuron whose relaxation is most violated at x.
+            let mut pick: Option<(usize, usize, usize, f64)> = None;
+            for (ai, av) in apps.iter().enumerate() {
+                let mut rk = 0;
+                for (k, (m, relu)) in self.nets[ai].maps.iter().enumerate() {
+                    if !*relu {
+                        continue;
+                    }
+                    let (zo, ao) = av.maps[k];
+                    let a = ao.expect("relu var");
+                    for i in 0..m.out {
+                        if node.phases[ai][rk][i] != 0 || lo[zo + i] >= 0.0 || hi[zo + i] <= 0.0 {
+                            continue;
+                        }
+                        let score = match &x {
+                            Some(x) => {
+                                (x[a + i] - x[zo + i].max(0.0)).abs()
+                                    + 1e-12 * (hi[zo + i] - lo[zo + i])
+                            }
+                            None => hi[zo + i] - lo[zo + i],
+                        };
+                        if pick.is_none_or(|p| score > p.3) {
+                            pick = Some((ai, rk, i, score));
+                        }
+                    }
+                    rk += 1;
+                }
+            }
+            match pick {
+                Some((ai, rk, i, _)) => {
+                    for s in [1i8, -1] {
+                        let mut ph = node.phases.clone();
+                        ph[ai][rk][i] = s;
+                        heap.push(Node { phases: ph, upper });
+                    }
+                }
+                None => {
+                    // A linear region: the LP is exact here. Make the point concrete if it
+                    // was not (tolerance): shrink the region constraints slightly.
+                    if !found {
+                        let shrunk = self.lp(&apps, n_net, &node.phases, &lo, &hi, 1e-9);
+                        let mut ok = false;
+                        if let LpResult::Bound { x, .. } = shrunk.solve() {
+                            let p = self.concretise(&apps, n_net, &boxes, &x);
+                            if p.satisfies(&self.constraints) {
+                                let v = self.objective_value(&p);
+                                if best.as_ref().is_none_or(|b| v > b.1) {
+                                    best = Some((p, v));
+                                }
+                                ok = true;
+                                if self.stop_reached(&best) {
+                                    return BabResult {
+                                        best,
+                                        upper: f64::INFINITY,
+                                        complete: true,
+                                        nodes,
+                                        thin_leaves: thin,
+                                    };
+                                }
+                            }
+                        }
+                        if !ok {
+                            thin += 1;
+                        }
+                    }
+                    closed_upper = closed_upper.max(upper);
+                }
+            }
+        }
+        let upper = closed_upper.max(best.as_ref().map(|b| b.1).unwrap_or(f64::NEG_INFINITY));
+        BabResult {
+            best,
+            upper,
+            complete,
+            nodes,
+            thin_leaves: thin,
+        }
+    }
+}
