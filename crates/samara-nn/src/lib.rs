@@ -2,6 +2,7 @@
 //! named inputs and outputs), evaluation generic over [`samara_num::Scalar`], and ONNX
 //! import and export ([`onnx`]).
 
+pub mod data;
 pub mod ir;
 pub mod onnx;
 

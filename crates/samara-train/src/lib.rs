@@ -7,7 +7,9 @@
 // Numeric kernels index parameter, gradient and cache arrays by the same index.
 #![allow(clippy::needless_range_loop)]
 
-pub mod data;
+/// Data sets (CSV, IDX), min-max constants and splits; they live in `samara-nn` so the
+/// specification language can read data sets too.
+pub use samara_nn::data;
 pub mod mlp;
 pub mod property;
 pub mod region;
