@@ -8,6 +8,7 @@ mod nnload;
 mod reproduce;
 mod simulate;
 mod train;
+mod verify;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -28,6 +29,16 @@ enum Command {
     /// Train a controller network (plain, adversarial, lipschitz, dl2, goedel) and
     /// export it to ONNX.
     Train(train::TrainArgs),
+    /// Parse and type-check a specification; summarise its properties.
+    Check(verify::CheckArgs),
+    /// Prove or refute the properties of a specification exactly.
+    Verify(verify::VerifyArgs),
+    /// The exact critical value of a parameter for which a property holds.
+    Critical(verify::CriticalArgs),
+    /// Local-robustness tables (P5) over a data set.
+    Robustness(verify::RobustnessArgs),
+    /// Write each property instance as a VNN-LIB 1.0 file.
+    ExportVnnlib(verify::ExportArgs),
     /// Reproduce the whole case study (data, controllers, proofs, reachable sets,
     /// figures, report) in one command.
     Reproduce(reproduce::ReproduceArgs),
@@ -50,6 +61,11 @@ fn main() -> ExitCode {
         Command::Simulate(a) => simulate::run(a),
         Command::Reproduce(a) => reproduce::run(a),
         Command::Train(a) => train::run(a),
+        Command::Check(a) => verify::run_check(a),
+        Command::Verify(a) => verify::run_verify(a),
+        Command::Critical(a) => verify::run_critical(a),
+        Command::Robustness(a) => verify::run_robustness(a),
+        Command::ExportVnnlib(a) => verify::run_export(a),
     };
     match result {
         Ok(code) => code,

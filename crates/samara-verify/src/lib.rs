@@ -30,6 +30,7 @@ pub mod case_study;
 pub mod engine;
 pub mod lp;
 pub mod net;
+pub mod robustness;
 
 use engine::{Limits, Point, Problem};
 use net::PwlNet;

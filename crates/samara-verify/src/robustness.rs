@@ -1,0 +1,295 @@
+//! Local robustness sweeps over a data set (the case study's P5), computing each point's
+//! exact extreme outputs over each eps-ball once and deriving every (eps, L) cell.
+//!
+//! - Published form: `|f(x') - ref| <= L / eps` for all x' in the ball, with `ref` the
+//!   data label or `f(x)`. Per point: `dev = max(|max f - ref|, |min f - ref|)` over the
+//!   ball, exact (branch and bound, or a closed form when every ReLU is stable on the
+//!   ball).
+//! - Intended (Lipschitz) form: `|f(x') - f(x)| <= L ||x' - x||_inf`. Per point: a sound
+//!   upper bound of the local Lipschitz constant (the largest gradient 1-norm over the
+//!   activation patterns the ball allows; Jordan & Dimakis, "Exactly computing the local
+//!   Lipschitz constant of ReLU networks", NeurIPS 2020, for the underlying fact) and a
+//!   lower bound (the gradient 1-norm of the region containing x when x is interior, which
+//!   secants from x approach). A cell is proved when the upper bound is <= L, violated
+//!   when the lower bound is > L, unknown in between.
+
+use crate::engine::Limits;
+use crate::net::{affine_bounds, PwlNet};
+use crate::{optimise, Prepared, Settings};
+use rayon::prelude::*;
+use samara_nn::Network;
+use samara_spec::normal::{Application, Goal, LinExpr, Query, Sense, Var};
+use std::collections::HashMap;
+
+/// Which reference the published form compares with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reference {
+    /// The data set's label (the column after the inputs).
+    Label,
+    /// The network's own output at the data point.
+    Network,
+}
+
+/// Per-point, per-eps results.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointBall {
+    /// Data row.
+    pub index: usize,
+    /// Radius.
+    pub eps: f64,
+    /// Exact minimum of the output over the ball.
+    pub f_min: f64,
+    /// Exact maximum of the output over the ball.
+    pub f_max: f64,
+    /// Reference value.
+    pub reference: f64,
+    /// Largest deviation from the reference.
+    pub max_deviation: f64,
+    /// Sound upper bound of the local Lipschitz constant (infinity-norm inputs).
+    pub lipschitz_upper: f64,
+    /// Lower bound of it.
+    pub lipschitz_lower: f64,
+}
+
+/// Outcome of one table cell.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cell {
+    /// Points proved.
+    pub proved: usize,
+    /// Points violated.
+    pub violated: usize,
+    /// Points unknown.
+    pub unknown: usize,
+}
+
+fn gradient_bounds(net: &PwlNet, lo: &[f64], hi: &[f64], x: &[f64]) -> (f64, f64) {
+    // Interval bounds per ReLU layer over the ball; enumerate the unstable neurons'
+    // phases (capped); the gradient 1-norm of each pattern's linear map.
+    let mut a_lo = lo.to_vec();
+    let mut a_hi = hi.to_vec();
+    let mut unstable: Vec<(usize, usize)> = Vec::new();
+    let mut phases: Vec<Vec<i8>> = Vec::new();
+    for (k, (m, relu)) in net.maps.iter().enumerate() {
+        let (zl, zh) = affine_bounds(m, &a_lo, &a_hi);
+        if *relu {
+            let ph: Vec<i8> = zl
+                .iter()
+                .zip(&zh)
+                .map(|(l, h)| {
+                    if *l >= 0.0 {
+                        1
+                    } else if *h <= 0.0 {
+                        -1
+                    } else {
+                        0
+                    }
+                })
+                .collect();
+            for (i, p) in ph.iter().enumerate() {
+                if *p == 0 {
+                    unstable.push((phases.len(), i));
+                }
+            }
+            phases.push(ph);
+            a_lo = zl.iter().map(|v| v.max(0.0)).collect();
+            a_hi = zh.iter().map(|v| v.max(0.0)).collect();
+        } else {
+            a_lo = zl;
+            a_hi = zh;
+        }
+        let _ = k;
+    }
+    let grad_of = |ph: &[Vec<i8>]| -> f64 {
+        // Row vector g = W_L D ... D W_1 for output 0.
+        let mut rows: Vec<Vec<f64>> = Vec::new();
+        let n0 = net.n_inputs();
+        let mut jac: Vec<Vec<f64>> = (0..n0)
+            .map(|i| (0..n0).map(|j| if i == j { 1.0 } else { 0.0 }).collect())
+            .collect();
+        let mut r = 0;
+        for (m, relu) in &net.maps {
+            let mut next = vec![vec![0.0; n0]; m.out];
+            for i in 0..m.out {
+                for j in 0..m.inp {
+                    let w = m.w[i * m.inp + j];
+                    if w != 0.0 {
+                        for c in 0..n0 {
+                            next[i][c] += w * jac[j][c];
+                        }
+                    }
+                }
+            }
+            if *relu {
+                for (i, row) in next.iter_mut().enumerate() {
+                    if ph[r][i] < 0 {
+                        row.iter_mut().for_each(|v| *v = 0.0);
+                    }
+                }
+                r += 1;
+            }
+            jac = next;
+        }
+        rows.push(jac[0].clone());
+        rows[0].iter().map(|v| v.abs()).sum()
+    };
+    // Lower bound: the region containing x (phases from the point itself; ties count as
+    // unknown and give no lower bound).
+    let mut here: Vec<Vec<i8>> = Vec::new();
+    let mut a = x.to_vec();
+    let mut interior = true;
+    for (m, relu) in &net.maps {
+        let mut z = vec![0.0; m.out];
+        m.apply_f64(&a, &mut z);
+        if *relu {
+            here.push(z.iter().map(|v| if *v > 0.0 { 1 } else { -1 }).collect());
+            interior &= z.iter().all(|v| *v != 0.0);
+            z.iter_mut().for_each(|v| *v = v.max(0.0));
+        }
+        a = z;
+    }
+    let lower = if interior { grad_of(&here) } else { 0.0 };
+    if unstable.len() > 14 {
+        return (lower, f64::INFINITY);
+    }
+    let mut upper = 0.0f64;
+    for mask in 0..(1u32 << unstable.len()) {
+        let mut ph = phases.clone();
+        for (b, (l, i)) in unstable.iter().enumerate() {
+            ph[*l][*i] = if mask >> b & 1 == 1 { 1 } else { -1 };
+        }
+        upper = upper.max(grad_of(&ph));
+    }
+    // Relative safety margin for the rounding of the products above.
+    (lower, upper * (1.0 + 1e-12) + 1e-300)
+}
+
+/// Per-point extremes over every ball. `data` rows: inputs (network units) then the
+/// label.
+pub fn sweep(
+    net: &Network,
+    rows: &[Vec<f64>],
+    eps: &[f64],
+    reference: Reference,
+    domain: Option<&[(f64, f64)]>,
+) -> Result<Vec<PointBall>, String> {
+    let pwl = PwlNet::from_network(net).map_err(|e| e.to_string())?;
+    if net.n_outputs() != 1 {
+        return Err(format!(
+            "robustness needs a single-output network; this one has {}",
+            net.n_outputs()
+        ));
+    }
+    let n = net.n_inputs();
+    let mut nets = HashMap::new();
+    nets.insert("f".to_string(), net.clone());
+    let prep = Prepared::new(&nets);
+    let tasks: Vec<(usize, f64)> = (0..rows.len())
+        .flat_map(|i| eps.iter().map(move |e| (i, *e)))
+        .collect();
+    let out: Vec<Result<PointBall, String>> = tasks
+        .par_iter()
+        .map(|&(i, e)| {
+            let x = &rows[i][..n];
+            let refv = match reference {
+                Reference::Label => *rows[i]
+                    .get(n)
+                    .ok_or_else(|| format!("row {i} has no label column"))?,
+                Reference::Network => net.eval_f64(x)[0],
+            };
+            let input_box: Vec<(f64, f64)> = x
+                .iter()
+                .enumerate()
+                .map(|(k, v)| {
+                    let (l, h) = (v - e, v + e);
+                    match domain {
+                        Some(d) => (l.max(d[k].0), h.min(d[k].1)),
+                        None => (l, h),
+                    }
+                })
+                .collect();
+            let mut q = Query {
+                name: format!("p5[{i}]"),
+                applications: vec![Application {
+                    network: "f".into(),
+                    n_inputs: n,
+                    n_outputs: 1,
+                    input_box: input_box.clone(),
+                }],
+                free_vars: vec![],
+                region: vec![vec![]],
+                goal: Goal::Optimise {
+                    objective: LinExpr {
+                        terms: vec![(Var::Output { app: 0, index: 0 }, 1.0)],
+                        constant: 0.0,
+                    },
+                    sense: Sense::Max,
+                    label: "f".into(),
+                },
+            };
+            let s = Settings {
+                timeout: 30.0,
+                ..Default::default()
+            };
+            let hi = optimise(&q, &prep, &s).map_err(|e| e.to_string())?;
+            if let Goal::Optimise { sense, .. } = &mut q.goal {
+                *sense = Sense::Min;
+            }
+            let lo = optimise(&q, &prep, &s).map_err(|e| e.to_string())?;
+            // Sound extremes: the bounds (upper for max, lower for min).
+            let (f_max, f_min) = (hi.bound, lo.bound);
+            if !hi.complete || !lo.complete {
+                return Err(format!("point {i}, eps {e}: the search did not finish"));
+            }
+            let (bl, bh): (Vec<f64>, Vec<f64>) = input_box.iter().copied().unzip();
+            let (ll, lu) = gradient_bounds(&pwl, &bl, &bh, x);
+            Ok(PointBall {
+                index: i,
+                eps: e,
+                f_min,
+                f_max,
+                reference: refv,
+                max_deviation: (f_max - refv).abs().max((refv - f_min).abs()),
+                lipschitz_upper: lu,
+                lipschitz_lower: ll,
+            })
+        })
+        .collect();
+    let _ = Limits::default();
+    out.into_iter().collect()
+}
+
+/// The published-form cell: `dev <= L / eps`.
+pub fn published_cell(points: &[PointBall], eps: f64, l: f64) -> Cell {
+    let mut c = Cell {
+        proved: 0,
+        violated: 0,
+        unknown: 0,
+    };
+    for p in points.iter().filter(|p| p.eps == eps) {
+        if p.max_deviation <= l / eps {
+            c.proved += 1;
+        } else {
+            c.violated += 1;
+        }
+    }
+    c
+}
+
+/// The intended-form cell: local Lipschitz constant `<= L`.
+pub fn lipschitz_cell(points: &[PointBall], eps: f64, l: f64) -> Cell {
+    let mut c = Cell {
+        proved: 0,
+        violated: 0,
+        unknown: 0,
+    };
+    for p in points.iter().filter(|p| p.eps == eps) {
+        if p.lipschitz_upper <= l {
+            c.proved += 1;
+        } else if p.lipschitz_lower > l {
+            c.violated += 1;
+        } else {
+            c.unknown += 1;
+        }
+    }
+    c
+}
