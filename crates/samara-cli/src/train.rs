@@ -50,9 +50,19 @@ pub struct TrainArgs {
     /// Weight of the Lipschitz or property term.
     #[arg(long)]
     pub weight: Option<f64>,
-    /// ystar of the case-study properties P1-P4 used by dl2/goedel.
+    /// ystar of the built-in case-study properties P1-P4 used by dl2/goedel.
     #[arg(long, default_value_t = 2.0)]
     pub ystar: f64,
+    /// Take the dl2/goedel properties from a specification instead of the built-in P1-P4.
+    #[arg(long)]
+    pub spec: Option<PathBuf>,
+    /// Properties of --spec to train for (comma-separated; default: every property
+    /// without data-set quantifiers).
+    #[arg(long)]
+    pub properties: Option<String>,
+    /// Parameter bindings for --spec (repeatable): --param ystar=2.
+    #[arg(long = "param", value_name = "NAME=VALUE")]
+    pub params: Vec<String>,
     /// Output network (ONNX, raw units with its normalisation layers).
     #[arg(long)]
     pub out: PathBuf,
@@ -62,6 +72,68 @@ pub struct TrainArgs {
     /// Print the metrics as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Properties from a spec, moved into the units of the network being trained.
+fn spec_properties(
+    path: &std::path::Path,
+    a: &TrainArgs,
+    mm: &MinMax,
+) -> Result<Vec<samara_train::Property>> {
+    let spec = samara_spec::Spec::read(path).map_err(|e| anyhow!("{e}"))?;
+    let mut b = samara_spec::Bindings::default();
+    for s in &a.params {
+        let (k, v) = s
+            .split_once('=')
+            .ok_or_else(|| anyhow!("--param {s:?}: expected NAME=VALUE"))?;
+        b.params.insert(
+            k.trim().into(),
+            v.trim()
+                .parse()
+                .map_err(|_| anyhow!("--param {s:?}: not a number"))?,
+        );
+    }
+    let names: Vec<String> = match &a.properties {
+        Some(p) => p.split(',').map(|s| s.trim().to_string()).collect(),
+        None => spec
+            .properties
+            .iter()
+            .filter(|p| p.binders.is_empty())
+            .map(|p| p.name.clone())
+            .collect(),
+    };
+    let decl = spec
+        .networks
+        .first()
+        .ok_or_else(|| anyhow!("the spec declares no network"))?;
+    let n = decl.inputs.len();
+    if n + decl.outputs.len() != mm.min.len().min(n + decl.outputs.len()) || mm.min.len() < n + 1 {
+        bail!(
+            "--spec: the network `{}` has {n} inputs; the data must have them and one output",
+            decl.name
+        );
+    }
+    // spec units -> raw -> trainer units: old = a * new + b.
+    let inputs: Vec<(f64, f64)> = (0..n)
+        .map(|k| {
+            let (c, s) = decl.input_map(k);
+            (mm.range[k] / s, (mm.min[k] - c) / s)
+        })
+        .collect();
+    let (oc, os) = decl.output_map(0);
+    let outputs = vec![(mm.range[n] / os, (mm.min[n] - oc) / os)];
+    let mut props = Vec::new();
+    for name in names {
+        let inst = spec.lower_prove(&name, &b).map_err(|e| anyhow!("{e}"))?;
+        for i in inst {
+            let q = samara_train::rescale_query(&i.query, &inputs, &outputs);
+            props.extend(samara_train::from_query(&q)?);
+        }
+    }
+    if props.is_empty() {
+        bail!("--spec: no property to train for");
+    }
+    Ok(props)
 }
 
 /// Run `samara train`.
@@ -112,9 +184,13 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
             } else {
                 Logic::Goedel
             };
+            let props = match &a.spec {
+                None => case_study(&units, &lo, &hi, a.ystar),
+                Some(path) => spec_properties(path, a, &mm)?,
+            };
             Method::Properties {
                 logic,
-                props: case_study(&units, &lo, &hi, a.ystar),
+                props,
                 weight: a.weight.unwrap_or(1.0),
             }
         }

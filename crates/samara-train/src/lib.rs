@@ -16,6 +16,8 @@ pub mod region;
 pub mod train;
 
 pub use data::{read_table, DataError, MinMax, Table};
-pub use property::{case_study, Formula, Logic, Property, Units};
+pub use property::{
+    case_study, from_query, rescale_query, Formula, FromQueryError, Logic, Property, Units,
+};
 pub use region::Region;
 pub use train::{train, Attack, LogRow, Method, Metrics, TrainError, TrainOptions, TrainOutcome};

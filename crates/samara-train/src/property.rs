@@ -285,3 +285,151 @@ mod tests {
         assert!(!u.ex_ge(0.187).holds(0.49) && !u.ex_le(0.187).holds(0.51));
     }
 }
+
+/// Why a normal-form query cannot drive property-driven training.
+#[derive(Debug, thiserror::Error, PartialEq)]
+#[error("property `{0}` cannot be used for training: {1}")]
+pub struct FromQueryError(pub String, pub String);
+
+/// Properties for DL2/Goedel training from a lowered `Prove` query of the property
+/// language (network units). Each disjunct of the counterexample region becomes one
+/// property: its input constraints are the precondition (single-input bounds plus at
+/// most one general linear constraint, or two with opposite normals forming a band),
+/// its output atoms `a_i(out) <= 0` (or `< 0`) are what a counterexample satisfies, so
+/// the property asks for `or_i a_i(out) > 0`, written as the atoms `-a_i <= 0`.
+pub fn from_query(q: &samara_spec::normal::Query) -> Result<Vec<Property>, FromQueryError> {
+    use samara_spec::normal::{Cmp, Goal, Var};
+    let err = |m: &str| FromQueryError(q.name.clone(), m.into());
+    if q.applications.len() != 1 || !q.free_vars.is_empty() || q.goal != Goal::Prove {
+        return Err(err(
+            "only single-network properties with every parameter bound can be trained",
+        ));
+    }
+    let app = &q.applications[0];
+    if app.n_outputs != 1 {
+        return Err(err("the trainer handles single-output networks"));
+    }
+    let mut out = Vec::new();
+    for (d, conj) in q.region.iter().enumerate() {
+        let mut lo: Vec<f64> = app.input_box.iter().map(|b| b.0).collect();
+        let mut hi: Vec<f64> = app.input_box.iter().map(|b| b.1).collect();
+        let mut general: Vec<(Vec<f64>, f64)> = Vec::new(); // a.x <= b
+        let mut atoms = Vec::new();
+        for c in conj {
+            let has_out = c
+                .expr
+                .terms
+                .iter()
+                .any(|(v, _)| matches!(v, Var::Output { .. }));
+            let has_in = c
+                .expr
+                .terms
+                .iter()
+                .any(|(v, _)| matches!(v, Var::Input { .. }));
+            if c.cmp == Cmp::Eq {
+                return Err(err("equality constraints are not supported"));
+            }
+            match (has_in, has_out) {
+                (_, false) => {
+                    let mut a = vec![0.0; app.n_inputs];
+                    for (v, k) in &c.expr.terms {
+                        if let Var::Input { index, .. } = v {
+                            a[*index] += k;
+                        }
+                    }
+                    let b = -c.expr.constant;
+                    let nz: Vec<usize> = (0..a.len()).filter(|k| a[*k] != 0.0).collect();
+                    if nz.len() == 1 {
+                        let k = nz[0];
+                        if a[k] > 0.0 {
+                            hi[k] = hi[k].min(b / a[k]);
+                        } else {
+                            lo[k] = lo[k].max(b / a[k]);
+                        }
+                    } else if !nz.is_empty() {
+                        general.push((a, b));
+                    }
+                }
+                (false, true) => {
+                    let coef: f64 = c.expr.terms.iter().map(|(_, k)| k).sum();
+                    // Counterexample atom coef*out + c <= 0; the property wants its negation.
+                    atoms.push(Formula::Atom {
+                        coef: -coef,
+                        constant: -c.expr.constant,
+                    });
+                }
+                (true, true) => {
+                    return Err(err(
+                        "constraints mixing inputs and outputs are not supported",
+                    ))
+                }
+            }
+        }
+        let band = match general.len() {
+            0 => None,
+            1 => Some((general[0].0.clone(), f64::NEG_INFINITY, general[0].1)),
+            2 => {
+                let (a1, b1) = &general[0];
+                let (a2, b2) = &general[1];
+                if a1
+                    .iter()
+                    .zip(a2)
+                    .all(|(x, y)| (x + y).abs() <= 1e-12 * (x.abs() + 1.0))
+                {
+                    Some((a1.clone(), -b2, *b1))
+                } else {
+                    return Err(err("more than one general input constraint"));
+                }
+            }
+            _ => return Err(err("more than one general input constraint")),
+        };
+        if atoms.is_empty() {
+            return Err(err("a disjunct without output constraints (the precondition alone is a counterexample)"));
+        }
+        out.push(Property {
+            name: format!("{}#{d}", q.name),
+            region: Region { lo, hi, band },
+            formula: if atoms.len() == 1 {
+                atoms.pop().expect("one")
+            } else {
+                Formula::Or(atoms)
+            },
+        });
+    }
+    Ok(out)
+}
+
+/// Re-express a query's network variables in new units: `old = a * new + b` per input
+/// (`inputs[k] = (a, b)`) and per output (`outputs[k]`). Used to move a property stated
+/// for a network with one normalisation onto a network trained with another.
+pub fn rescale_query(
+    q: &samara_spec::normal::Query,
+    inputs: &[(f64, f64)],
+    outputs: &[(f64, f64)],
+) -> samara_spec::normal::Query {
+    use samara_spec::normal::Var;
+    let mut q = q.clone();
+    for app in &mut q.applications {
+        for (k, b) in app.input_box.iter_mut().enumerate() {
+            let (a, c) = inputs[k];
+            let (x, y) = ((b.0 - c) / a, (b.1 - c) / a);
+            *b = (x.min(y), x.max(y));
+        }
+    }
+    for conj in &mut q.region {
+        for c in conj.iter_mut() {
+            let mut extra = 0.0;
+            for (v, k) in c.expr.terms.iter_mut() {
+                let (a, b) = match v {
+                    Var::Input { index, .. } => inputs[*index],
+                    Var::Output { index, .. } => outputs[*index],
+                    Var::Free(_) => (1.0, 0.0),
+                };
+                extra += *k * b;
+                *k *= a;
+            }
+            c.expr.constant += extra;
+        }
+    }
+    q
+}
