@@ -1,0 +1,890 @@
+//! Lexer, syntax tree and parser of the samara property language (see docs/spec.md).
+
+use std::fmt;
+
+/// A position in the source (1-based line and column).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Pos {
+    /// Line.
+    pub line: usize,
+    /// Column.
+    pub col: usize,
+}
+
+/// A spec error: where, what was expected, and how to fix it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SpecError {
+    /// File name.
+    pub file: String,
+    /// Position.
+    pub pos: Pos,
+    /// What is wrong.
+    pub message: String,
+    /// How to fix it (may be empty).
+    pub hint: String,
+    /// The offending source line.
+    pub source_line: String,
+}
+
+impl fmt::Display for SpecError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{}:{}:{}: {}",
+            self.file, self.pos.line, self.pos.col, self.message
+        )?;
+        if !self.source_line.is_empty() {
+            writeln!(f, "  | {}", self.source_line)?;
+            writeln!(f, "  | {}^", " ".repeat(self.pos.col.saturating_sub(1)))?;
+        }
+        if !self.hint.is_empty() {
+            write!(f, "  = help: {}", self.hint)?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for SpecError {}
+
+/// Tokens.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Tok {
+    /// Identifier (may contain `'` and `_`).
+    Id(String),
+    /// Number.
+    Num(f64),
+    /// String literal.
+    Str(String),
+    /// Punctuation or operator.
+    Sym(&'static str),
+    /// End of line (statements are line-based, `\` continues a line).
+    Newline,
+    /// End of input.
+    Eof,
+}
+
+/// A token with its position.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Token {
+    /// The token.
+    pub tok: Tok,
+    /// Where it starts.
+    pub pos: Pos,
+}
+
+const SYMS: &[&str] = &[
+    "=>", "<=", ">=", "==", "->", "<", ">", "=", "+", "-", "*", "/", "(", ")", "[", "]", ",", ":",
+    "|", ".",
+];
+
+/// Split source text into tokens.
+pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
+    let mut out = Vec::new();
+    let lines: Vec<&str> = src.lines().collect();
+    for (li, line) in lines.iter().enumerate() {
+        let chars: Vec<char> = line.chars().collect();
+        let mut i = 0;
+        let mut continued = false;
+        while i < chars.len() {
+            let c = chars[i];
+            let pos = Pos {
+                line: li + 1,
+                col: i + 1,
+            };
+            if c == '#' {
+                break;
+            }
+            if c.is_whitespace() {
+                i += 1;
+                continue;
+            }
+            if c == '\\' && chars[i + 1..].iter().all(|c| c.is_whitespace()) {
+                continued = true;
+                break;
+            }
+            if c.is_ascii_digit()
+                || (c == '.' && chars.get(i + 1).is_some_and(|d| d.is_ascii_digit()))
+            {
+                let start = i;
+                while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
+                    i += 1;
+                }
+                if i < chars.len() && (chars[i] == 'e' || chars[i] == 'E') {
+                    let save = i;
+                    i += 1;
+                    if i < chars.len() && (chars[i] == '+' || chars[i] == '-') {
+                        i += 1;
+                    }
+                    if i < chars.len() && chars[i].is_ascii_digit() {
+                        while i < chars.len() && chars[i].is_ascii_digit() {
+                            i += 1;
+                        }
+                    } else {
+                        i = save;
+                    }
+                }
+                let text: String = chars[start..i].iter().collect();
+                let v: f64 = text.parse().map_err(|_| SpecError {
+                    file: file.into(),
+                    pos,
+                    message: format!("`{text}` is not a number"),
+                    hint: "write numbers like 0.187, -41.68 or 1e-3".into(),
+                    source_line: line.to_string(),
+                })?;
+                out.push(Token {
+                    tok: Tok::Num(v),
+                    pos,
+                });
+                continue;
+            }
+            if c.is_alphabetic() || c == '_' {
+                let start = i;
+                while i < chars.len()
+                    && (chars[i].is_alphanumeric() || chars[i] == '_' || chars[i] == '\'')
+                {
+                    i += 1;
+                }
+                out.push(Token {
+                    tok: Tok::Id(chars[start..i].iter().collect()),
+                    pos,
+                });
+                continue;
+            }
+            if c == '"' {
+                let start = i + 1;
+                i += 1;
+                while i < chars.len() && chars[i] != '"' {
+                    i += 1;
+                }
+                if i >= chars.len() {
+                    return Err(SpecError {
+                        file: file.into(),
+                        pos,
+                        message: "unterminated string".into(),
+                        hint: "close the string with \"".into(),
+                        source_line: line.to_string(),
+                    });
+                }
+                out.push(Token {
+                    tok: Tok::Str(chars[start..i].iter().collect()),
+                    pos,
+                });
+                i += 1;
+                continue;
+            }
+            let rest: String = chars[i..].iter().take(2).collect();
+            if let Some(s) = SYMS.iter().find(|s| rest.starts_with(**s)) {
+                out.push(Token {
+                    tok: Tok::Sym(s),
+                    pos,
+                });
+                i += s.len();
+                continue;
+            }
+            return Err(SpecError {
+                file: file.into(),
+                pos,
+                message: format!("unexpected character `{c}`"),
+                hint: "operators are + - * / <= >= < > == => and, or, not; comments start with #"
+                    .into(),
+                source_line: line.to_string(),
+            });
+        }
+        if !continued {
+            out.push(Token {
+                tok: Tok::Newline,
+                pos: Pos {
+                    line: li + 1,
+                    col: chars.len() + 1,
+                },
+            });
+        }
+    }
+    out.push(Token {
+        tok: Tok::Eof,
+        pos: Pos {
+            line: lines.len() + 1,
+            col: 1,
+        },
+    });
+    Ok(out)
+}
+
+/// A numeric or symbolic expression.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Expr {
+    /// Number.
+    Num(f64),
+    /// A bare name (input/output of the implicit point, parameter) or `point.component`.
+    Name(Option<String>, String, Pos),
+    /// `net(point)` or `net(point).output`.
+    Call(String, String, Option<String>, Pos),
+    /// Sum.
+    Add(Box<Expr>, Box<Expr>),
+    /// Difference.
+    Sub(Box<Expr>, Box<Expr>),
+    /// Product.
+    Mul(Box<Expr>, Box<Expr>, Pos),
+    /// Quotient.
+    Div(Box<Expr>, Box<Expr>, Pos),
+    /// Negation.
+    Neg(Box<Expr>),
+    /// `|e|`.
+    Abs(Box<Expr>),
+    /// `norm(p - q)`: infinity norm of the difference of two points' inputs.
+    Norm(String, String, Pos),
+}
+
+/// Comparison operators.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rel {
+    /// `<=`.
+    Le,
+    /// `<`.
+    Lt,
+    /// `>=`.
+    Ge,
+    /// `>`.
+    Gt,
+    /// `==`.
+    Eq,
+}
+
+/// A formula.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Formula {
+    /// A chain `e0 r0 e1 r1 e2 ...` (a conjunction of comparisons).
+    Chain(Vec<Expr>, Vec<Rel>, Pos),
+    /// Conjunction.
+    And(Vec<Formula>),
+    /// Disjunction.
+    Or(Vec<Formula>),
+    /// Negation.
+    Not(Box<Formula>),
+    /// Implication.
+    Implies(Box<Formula>, Box<Formula>),
+}
+
+/// A binder `for p in ...`.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Binder {
+    /// `for p in data NAME`.
+    Data {
+        /// Point name.
+        point: String,
+        /// Data set name.
+        dataset: String,
+        /// Position.
+        pos: Pos,
+    },
+    /// `for p in ball(q, r)` (r in the network's input units, infinity norm).
+    Ball {
+        /// Point name.
+        point: String,
+        /// Centre point.
+        centre: String,
+        /// Radius.
+        radius: Expr,
+        /// Position.
+        pos: Pos,
+    },
+}
+
+/// A statement.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Stmt {
+    /// `network f(in, ...) -> (out, ...)`.
+    Network {
+        /// Name.
+        name: String,
+        /// Input names.
+        inputs: Vec<String>,
+        /// Output names.
+        outputs: Vec<String>,
+        /// Position.
+        pos: Pos,
+    },
+    /// `normalise f input min [..] range [..]`.
+    NormInput {
+        /// Network.
+        net: String,
+        /// Minimum C.
+        min: Vec<f64>,
+        /// Range S.
+        range: Vec<f64>,
+        /// Position.
+        pos: Pos,
+    },
+    /// `normalise f output offset a scale b`.
+    NormOutput {
+        /// Network.
+        net: String,
+        /// Offsets per output.
+        offset: Vec<f64>,
+        /// Scales per output.
+        scale: Vec<f64>,
+        /// Position.
+        pos: Pos,
+    },
+    /// `domain f: v in [a, b], ...`.
+    Domain {
+        /// Network.
+        net: String,
+        /// Intervals by input name.
+        bounds: Vec<(String, f64, f64, Pos)>,
+        /// Position.
+        pos: Pos,
+    },
+    /// `domain f from data NAME`.
+    DomainFrom {
+        /// Network.
+        net: String,
+        /// Data set name.
+        dataset: String,
+        /// Position.
+        pos: Pos,
+    },
+    /// `dataset NAME = "file" [normalised]`.
+    Dataset {
+        /// Name.
+        name: String,
+        /// Default path (relative to the spec file).
+        path: String,
+        /// Rows are in the first network's units (normalised) rather than raw.
+        normalised: bool,
+        /// Position.
+        pos: Pos,
+    },
+    /// `param NAME [in [a, b]] [= v]`.
+    Param {
+        /// Name.
+        name: String,
+        /// Range for critical queries.
+        range: Option<(f64, f64)>,
+        /// Default value.
+        default: Option<f64>,
+        /// Position.
+        pos: Pos,
+    },
+    /// `property NAME: binders formula`.
+    Property {
+        /// Name.
+        name: String,
+        /// Binders.
+        binders: Vec<Binder>,
+        /// Formula.
+        formula: Formula,
+        /// Position.
+        pos: Pos,
+    },
+}
+
+/// Parser state.
+pub struct Parser<'a> {
+    toks: Vec<Token>,
+    i: usize,
+    file: &'a str,
+    lines: Vec<&'a str>,
+}
+
+/// Parse a whole spec.
+pub fn parse(src: &str, file: &str) -> Result<Vec<Stmt>, SpecError> {
+    let toks = lex(src, file)?;
+    let mut p = Parser {
+        toks,
+        i: 0,
+        file,
+        lines: src.lines().collect(),
+    };
+    let mut out = Vec::new();
+    loop {
+        while p.peek() == &Tok::Newline {
+            p.i += 1;
+        }
+        if p.peek() == &Tok::Eof {
+            break;
+        }
+        out.push(p.stmt()?);
+        match p.peek() {
+            Tok::Newline | Tok::Eof => {}
+            _ => {
+                return Err(p.err(
+                    "expected the end of the statement",
+                    "put each statement on its own line",
+                ))
+            }
+        }
+    }
+    Ok(out)
+}
+
+impl Parser<'_> {
+    fn peek(&self) -> &Tok {
+        &self.toks[self.i].tok
+    }
+
+    fn pos(&self) -> Pos {
+        self.toks[self.i].pos
+    }
+
+    /// An error at the current token.
+    pub fn err(&self, message: &str, hint: &str) -> SpecError {
+        let pos = self.pos();
+        let found = match self.peek() {
+            Tok::Id(s) => format!("`{s}`"),
+            Tok::Num(v) => format!("number {v}"),
+            Tok::Str(s) => format!("\"{s}\""),
+            Tok::Sym(s) => format!("`{s}`"),
+            Tok::Newline => "the end of the line".into(),
+            Tok::Eof => "the end of the file".into(),
+        };
+        SpecError {
+            file: self.file.into(),
+            pos,
+            message: format!("{message}, found {found}"),
+            hint: hint.into(),
+            source_line: self
+                .lines
+                .get(pos.line.wrapping_sub(1))
+                .copied()
+                .unwrap_or("")
+                .to_string(),
+        }
+    }
+
+    fn sym(&mut self, s: &str) -> bool {
+        if matches!(self.peek(), Tok::Sym(t) if *t == s) {
+            self.i += 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn expect_sym(&mut self, s: &str, hint: &str) -> Result<(), SpecError> {
+        if self.sym(s) {
+            Ok(())
+        } else {
+            Err(self.err(&format!("expected `{s}`"), hint))
+        }
+    }
+
+    fn kw(&mut self, k: &str) -> bool {
+        if matches!(self.peek(), Tok::Id(t) if t == k) {
+            self.i += 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn ident(&mut self, what: &str) -> Result<String, SpecError> {
+        match self.peek().clone() {
+            Tok::Id(s) if !["and", "or", "not", "for", "in"].contains(&s.as_str()) => {
+                self.i += 1;
+                Ok(s)
+            }
+            _ => Err(self.err(
+                &format!("expected {what}"),
+                "names start with a letter or _",
+            )),
+        }
+    }
+
+    fn number(&mut self) -> Result<f64, SpecError> {
+        let neg = self.sym("-");
+        match self.peek().clone() {
+            Tok::Num(v) => {
+                self.i += 1;
+                Ok(if neg { -v } else { v })
+            }
+            _ => Err(self.err("expected a number", "e.g. 0.187 or -41.68")),
+        }
+    }
+
+    fn vector(&mut self) -> Result<Vec<f64>, SpecError> {
+        self.expect_sym("[", "vectors are written [a, b, c]")?;
+        let mut v = vec![self.number()?];
+        while self.sym(",") {
+            v.push(self.number()?);
+        }
+        self.expect_sym("]", "close the vector with ]")?;
+        Ok(v)
+    }
+
+    fn interval(&mut self) -> Result<(f64, f64), SpecError> {
+        self.expect_sym("[", "intervals are written [lo, hi]")?;
+        let a = self.number()?;
+        self.expect_sym(",", "intervals are written [lo, hi]")?;
+        let b = self.number()?;
+        self.expect_sym("]", "intervals are written [lo, hi]")?;
+        Ok((a, b))
+    }
+
+    fn names(&mut self) -> Result<Vec<String>, SpecError> {
+        self.expect_sym("(", "name lists are written (a, b, c)")?;
+        let mut v = vec![self.ident("a name")?];
+        while self.sym(",") {
+            v.push(self.ident("a name")?);
+        }
+        self.expect_sym(")", "close the list with )")?;
+        Ok(v)
+    }
+
+    fn stmt(&mut self) -> Result<Stmt, SpecError> {
+        let pos = self.pos();
+        if self.kw("network") {
+            let name = self.ident("the network's name")?;
+            let inputs = self.names()?;
+            self.expect_sym(
+                "->",
+                "declare outputs after ->, e.g. network f(a, b) -> (y)",
+            )?;
+            let outputs = self.names()?;
+            return Ok(Stmt::Network {
+                name,
+                inputs,
+                outputs,
+                pos,
+            });
+        }
+        if self.kw("normalise") || self.kw("normalize") {
+            let net = self.ident("a network name")?;
+            if self.kw("input") {
+                if !self.kw("min") {
+                    return Err(self.err("expected `min`", "normalise f input min [..] range [..]"));
+                }
+                let min = self.vector()?;
+                if !self.kw("range") {
+                    return Err(
+                        self.err("expected `range`", "normalise f input min [..] range [..]")
+                    );
+                }
+                let range = self.vector()?;
+                return Ok(Stmt::NormInput {
+                    net,
+                    min,
+                    range,
+                    pos,
+                });
+            }
+            if self.kw("output") {
+                if !self.kw("offset") {
+                    return Err(self.err(
+                        "expected `offset`",
+                        "normalise f output offset 0.181 scale 0.012",
+                    ));
+                }
+                let offset = if matches!(self.peek(), Tok::Sym("[")) {
+                    self.vector()?
+                } else {
+                    vec![self.number()?]
+                };
+                if !self.kw("scale") {
+                    return Err(self.err(
+                        "expected `scale`",
+                        "normalise f output offset 0.181 scale 0.012",
+                    ));
+                }
+                let scale = if matches!(self.peek(), Tok::Sym("[")) {
+                    self.vector()?
+                } else {
+                    vec![self.number()?]
+                };
+                return Ok(Stmt::NormOutput {
+                    net,
+                    offset,
+                    scale,
+                    pos,
+                });
+            }
+            return Err(self.err(
+                "expected `input` or `output`",
+                "normalise f input min [..] range [..]",
+            ));
+        }
+        if self.kw("domain") {
+            let net = self.ident("a network name")?;
+            if self.kw("from") {
+                if !self.kw("data") {
+                    return Err(self.err("expected `data`", "domain f from data NAME"));
+                }
+                let dataset = self.ident("a data set name")?;
+                return Ok(Stmt::DomainFrom { net, dataset, pos });
+            }
+            self.expect_sym(":", "domain f: name in [lo, hi], ...")?;
+            let mut bounds = Vec::new();
+            loop {
+                let p = self.pos();
+                let n = self.ident("an input name")?;
+                if !self.kw("in") {
+                    return Err(self.err("expected `in`", "domain f: name in [lo, hi], ..."));
+                }
+                let (a, b) = self.interval()?;
+                bounds.push((n, a, b, p));
+                if !self.sym(",") {
+                    break;
+                }
+            }
+            return Ok(Stmt::Domain { net, bounds, pos });
+        }
+        if self.kw("dataset") {
+            let name = self.ident("a data set name")?;
+            self.expect_sym("=", "dataset NAME = \"file.csv\"")?;
+            let path = match self.peek().clone() {
+                Tok::Str(s) => {
+                    self.i += 1;
+                    s
+                }
+                _ => {
+                    return Err(self.err(
+                        "expected a file name in quotes",
+                        "dataset NAME = \"file.csv\"",
+                    ))
+                }
+            };
+            let normalised = self.kw("normalised") || self.kw("normalized");
+            return Ok(Stmt::Dataset {
+                name,
+                path,
+                normalised,
+                pos,
+            });
+        }
+        if self.kw("param") {
+            let name = self.ident("a parameter name")?;
+            let range = if self.kw("in") {
+                Some(self.interval()?)
+            } else {
+                None
+            };
+            let default = if self.sym("=") {
+                Some(self.number()?)
+            } else {
+                None
+            };
+            return Ok(Stmt::Param {
+                name,
+                range,
+                default,
+                pos,
+            });
+        }
+        if self.kw("property") {
+            let name = self.ident("the property's name")?;
+            self.expect_sym(":", "property NAME: formula")?;
+            let mut binders = Vec::new();
+            while self.kw("for") {
+                let bpos = self.pos();
+                let point = self.ident("a point name")?;
+                if !self.kw("in") {
+                    return Err(self.err(
+                        "expected `in`",
+                        "for p in data NAME, or for p in ball(q, eps)",
+                    ));
+                }
+                if self.kw("data") {
+                    let dataset = self.ident("a data set name")?;
+                    binders.push(Binder::Data {
+                        point,
+                        dataset,
+                        pos: bpos,
+                    });
+                } else if self.kw("ball") {
+                    self.expect_sym("(", "ball(centre, radius)")?;
+                    let centre = self.ident("a point name")?;
+                    self.expect_sym(",", "ball(centre, radius)")?;
+                    let radius = self.expr()?;
+                    self.expect_sym(")", "ball(centre, radius)")?;
+                    binders.push(Binder::Ball {
+                        point,
+                        centre,
+                        radius,
+                        pos: bpos,
+                    });
+                } else {
+                    return Err(self.err(
+                        "expected `data` or `ball`",
+                        "for p in data NAME, or for p in ball(q, eps)",
+                    ));
+                }
+                self.expect_sym(",", "separate binders from the formula with a comma")?;
+            }
+            let formula = self.formula()?;
+            return Ok(Stmt::Property {
+                name,
+                binders,
+                formula,
+                pos,
+            });
+        }
+        Err(self.err(
+            "expected a statement",
+            "statements start with network, normalise, domain, dataset, param or property",
+        ))
+    }
+
+    /// formula := or ('=>' formula)?
+    pub fn formula(&mut self) -> Result<Formula, SpecError> {
+        let lhs = self.or()?;
+        if self.sym("=>") {
+            let rhs = self.formula()?;
+            return Ok(Formula::Implies(Box::new(lhs), Box::new(rhs)));
+        }
+        Ok(lhs)
+    }
+
+    fn or(&mut self) -> Result<Formula, SpecError> {
+        let mut v = vec![self.and()?];
+        while self.kw("or") {
+            v.push(self.and()?);
+        }
+        Ok(if v.len() == 1 {
+            v.pop().expect("one")
+        } else {
+            Formula::Or(v)
+        })
+    }
+
+    fn and(&mut self) -> Result<Formula, SpecError> {
+        let mut v = vec![self.unary()?];
+        while self.kw("and") {
+            v.push(self.unary()?);
+        }
+        Ok(if v.len() == 1 {
+            v.pop().expect("one")
+        } else {
+            Formula::And(v)
+        })
+    }
+
+    fn unary(&mut self) -> Result<Formula, SpecError> {
+        if self.kw("not") {
+            return Ok(Formula::Not(Box::new(self.unary()?)));
+        }
+        // A parenthesised formula, or an expression starting with '('.
+        if matches!(self.peek(), Tok::Sym("(")) {
+            let save = self.i;
+            self.i += 1;
+            if let Ok(f) = self.formula() {
+                if self.sym(")")
+                    && !matches!(
+                        self.peek(),
+                        Tok::Sym("<=" | ">=" | "<" | ">" | "==" | "+" | "-" | "*" | "/")
+                    )
+                {
+                    return Ok(f);
+                }
+            }
+            self.i = save;
+        }
+        let pos = self.pos();
+        let mut es = vec![self.expr()?];
+        let mut rs = Vec::new();
+        loop {
+            let r = match self.peek() {
+                Tok::Sym("<=") => Rel::Le,
+                Tok::Sym("<") => Rel::Lt,
+                Tok::Sym(">=") => Rel::Ge,
+                Tok::Sym(">") => Rel::Gt,
+                Tok::Sym("==") => Rel::Eq,
+                _ => break,
+            };
+            self.i += 1;
+            rs.push(r);
+            es.push(self.expr()?);
+        }
+        if rs.is_empty() {
+            return Err(self.err(
+                "expected a comparison (<=, <, >=, >, ==)",
+                "formulas compare expressions, e.g. ex >= 0.187",
+            ));
+        }
+        Ok(Formula::Chain(es, rs, pos))
+    }
+
+    /// expr := term (('+'|'-') term)*
+    pub fn expr(&mut self) -> Result<Expr, SpecError> {
+        let mut e = self.term()?;
+        loop {
+            if self.sym("+") {
+                e = Expr::Add(Box::new(e), Box::new(self.term()?));
+            } else if self.sym("-") {
+                e = Expr::Sub(Box::new(e), Box::new(self.term()?));
+            } else {
+                return Ok(e);
+            }
+        }
+    }
+
+    fn term(&mut self) -> Result<Expr, SpecError> {
+        let mut e = self.factor()?;
+        loop {
+            let pos = self.pos();
+            if self.sym("*") {
+                e = Expr::Mul(Box::new(e), Box::new(self.factor()?), pos);
+            } else if self.sym("/") {
+                e = Expr::Div(Box::new(e), Box::new(self.factor()?), pos);
+            } else {
+                return Ok(e);
+            }
+        }
+    }
+
+    fn factor(&mut self) -> Result<Expr, SpecError> {
+        let pos = self.pos();
+        if self.sym("-") {
+            return Ok(Expr::Neg(Box::new(self.factor()?)));
+        }
+        if self.sym("(") {
+            let e = self.expr()?;
+            self.expect_sym(")", "close the parenthesis")?;
+            return Ok(e);
+        }
+        if self.sym("|") {
+            let e = self.expr()?;
+            self.expect_sym("|", "close the absolute value with |")?;
+            return Ok(Expr::Abs(Box::new(e)));
+        }
+        match self.peek().clone() {
+            Tok::Num(v) => {
+                self.i += 1;
+                Ok(Expr::Num(v))
+            }
+            Tok::Id(name) if name == "norm" => {
+                self.i += 1;
+                self.expect_sym("(", "norm(p - q)")?;
+                let a = self.ident("a point name")?;
+                self.expect_sym(
+                    "-",
+                    "norm(p - q): the infinity norm of a difference of points",
+                )?;
+                let b = self.ident("a point name")?;
+                self.expect_sym(")", "norm(p - q)")?;
+                Ok(Expr::Norm(a, b, pos))
+            }
+            Tok::Id(_) => {
+                let name = self.ident("a name")?;
+                if self.sym("(") {
+                    let point = self.ident("a point name")?;
+                    self.expect_sym(")", "network applications are written f(p)")?;
+                    let out = if self.sym(".") {
+                        Some(self.ident("an output name")?)
+                    } else {
+                        None
+                    };
+                    return Ok(Expr::Call(name, point, out, pos));
+                }
+                if self.sym(".") {
+                    let comp = self.ident("a component name")?;
+                    return Ok(Expr::Name(Some(name), comp, pos));
+                }
+                Ok(Expr::Name(None, name, pos))
+            }
+            _ => Err(self.err(
+                "expected a number, a name, ( or |",
+                "e.g. -x + ystar, f(x1), |f(x1) - f(x0)|",
+            )),
+        }
+    }
+}
