@@ -6,6 +6,7 @@
 
 pub mod cache;
 pub mod doc;
+mod more;
 pub mod stages;
 
 use cache::Cache;

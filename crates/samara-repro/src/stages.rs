@@ -14,17 +14,22 @@ use serde_json::{json, Value};
 
 /// Every stage, in order.
 pub fn all() -> Vec<(&'static str, StageFn)> {
-    vec![("data", data as StageFn)]
+    vec![
+        ("data", data as StageFn),
+        ("train", crate::more::train as StageFn),
+        ("verify", crate::more::verify as StageFn),
+        ("closed_loop", crate::more::closed_loop as StageFn),
+    ]
 }
 
-fn stage_err(stage: &str, e: impl std::fmt::Display) -> ReproError {
+pub(crate) fn stage_err(stage: &str, e: impl std::fmt::Display) -> ReproError {
     ReproError::Stage {
         stage: stage.into(),
         message: e.to_string(),
     }
 }
 
-fn read_plain_csv(path: &std::path::Path) -> Result<Vec<Vec<f64>>, String> {
+pub(crate) fn read_plain_csv(path: &std::path::Path) -> Result<Vec<Vec<f64>>, String> {
     let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
     text.lines()
         .enumerate()
@@ -148,7 +153,7 @@ fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
     })
 }
 
-fn f4(v: &Value) -> String {
+pub(crate) fn f4(v: &Value) -> String {
     v.as_f64()
         .map(|x| format!("{x:.4}"))
         .unwrap_or_else(|| "-".into())
@@ -201,6 +206,7 @@ pub fn report(full: &Value, _opts: &ReproduceOptions) -> Document {
         }
     }
 
+    crate::more::report(st, &mut d, &mut findings);
     d.push(Block::Heading(1, "Findings".into()));
     if findings.is_empty() {
         d.push(Block::Para(
