@@ -626,13 +626,15 @@ impl Lowering<'_> {
             None => match self.spec.datasets.get(name) {
                 Some(p) if p.is_absolute() => p.clone(),
                 Some(p) => self.spec.dir.join(p),
-                None => return Err(self.err(
-                    pos,
-                    format!("unknown data set `{name}`"),
-                    format!(
+                None => {
+                    return Err(self.err(
+                        pos,
+                        format!("unknown data set `{name}`"),
+                        format!(
                         "declare it: dataset {name} = \"file.csv\", or pass --dataset {name}=FILE"
                     ),
-                )),
+                    ))
+                }
             },
         };
         let mut t = read_table(&path).map_err(|e| {
