@@ -31,6 +31,7 @@ pub mod engine;
 pub mod lp;
 pub mod net;
 pub mod robustness;
+pub mod smooth;
 
 use engine::{Limits, Point, Problem};
 use net::PwlNet;
@@ -232,7 +233,36 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
         // with s > 0 satisfies every constraint strictly.
         let mut p = match prep.problem(q, d, None) {
             Ok(p) => p,
-            Err(e) => return Ok(Verdict::Unknown(e)),
+            Err(e) => {
+                // Smooth activations: the interval prover with input splitting.
+                if !q.free_vars.is_empty() {
+                    return Ok(Verdict::Unknown(e));
+                }
+                let nets: Vec<&Network> = q
+                    .applications
+                    .iter()
+                    .map(|a| prep.plain[&a.network])
+                    .collect();
+                let boxes: Vec<Vec<(f64, f64)>> =
+                    q.applications.iter().map(|a| a.input_box.clone()).collect();
+                let boxes = engine::tighten(&boxes, &q.region[d]);
+                let left = (s.timeout - t0.elapsed().as_secs_f64()).max(0.0);
+                match smooth::search(&nets, &boxes, &q.region[d], left, 2_000_000) {
+                    smooth::SmoothResult::Empty => continue,
+                    smooth::SmoothResult::Witness(pt) => {
+                        let margin = pt.margin(&q.region[d]);
+                        return Ok(Verdict::Violated(Counterexample {
+                            point: pt,
+                            margin,
+                            disjunct: d,
+                        }));
+                    }
+                    smooth::SmoothResult::Unknown(r) => {
+                        unknown = Some(r);
+                        continue;
+                    }
+                }
+            }
         };
         let original = q.region[d].clone();
         // Only s >= 0 matters, where every inequality holds: tighten the boxes with them.

@@ -1,0 +1,260 @@
+//! Networks with smooth activations (sigmoid, tanh): a sound interval prover with input
+//! splitting. Each box of inputs is pushed through the network in interval arithmetic
+//! (outward rounding; sigmoid and tanh are monotone, so their images are the images of
+//! the end points, widened by a relative 4e-16 plus one ulp to cover the at most few-ulp
+//! error of the library `exp`/`tanh`); a box whose outputs certainly violate a region
+//! constraint holds no counterexample. Boxes are bisected along their widest input until
+//! a box's centre, evaluated concretely, is a counterexample (Violated), every box is
+//! pruned (Proved), or the budget runs out (Unknown, never Proved).
+
+use crate::engine::Point;
+use crate::net::{affine_bounds, down, up};
+use samara_nn::{Activation, Layer, Network};
+use samara_spec::normal::{Cmp, Constraint, Var};
+use std::time::Instant;
+
+fn widen(lo: f64, hi: f64) -> (f64, f64) {
+    (down(lo - 4e-16 * lo.abs()), up(hi + 4e-16 * hi.abs()))
+}
+
+/// Sound interval image of a box through a network (any of the IR's activations).
+pub fn interval_eval(net: &Network, lo: &[f64], hi: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let (mut l, mut h) = (lo.to_vec(), hi.to_vec());
+    for layer in net.raw_layers() {
+        match layer {
+            Layer::Affine(a) => {
+                let (nl, nh) = affine_bounds(&a, &l, &h);
+                l = nl;
+                h = nh;
+            }
+            Layer::Act(act) => {
+                for i in 0..l.len() {
+                    let (a, b) = match act {
+                        Activation::Relu => (l[i].max(0.0), h[i].max(0.0)),
+                        Activation::Clamp { lo, hi } => {
+                            (l[i].max(lo).min(hi), h[i].max(lo).min(hi))
+                        }
+                        Activation::Sigmoid => {
+                            widen(1.0 / (1.0 + (-l[i]).exp()), 1.0 / (1.0 + (-h[i]).exp()))
+                        }
+                        Activation::Tanh => widen(l[i].tanh(), h[i].tanh()),
+                    };
+                    l[i] = a;
+                    h[i] = b;
+                }
+            }
+        }
+    }
+    (l, h)
+}
+
+/// Total order on f64 for the priority queue.
+#[derive(PartialEq, PartialOrd, Clone, Copy)]
+struct OrdF(f64);
+impl Eq for OrdF {}
+impl Ord for OrdF {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&o.0)
+    }
+}
+
+/// A box in the best-first queue: smallest key first, then the most recent.
+struct Item {
+    key: OrdF,
+    id: u64,
+    b: Vec<(f64, f64)>,
+}
+impl PartialEq for Item {
+    fn eq(&self, o: &Self) -> bool {
+        self.key == o.key && self.id == o.id
+    }
+}
+impl Eq for Item {}
+impl PartialOrd for Item {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Item {
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        o.key.cmp(&self.key).then(self.id.cmp(&o.id))
+    }
+}
+
+fn lower_bound(c: &Constraint, bounds: &dyn Fn(Var) -> (f64, f64)) -> f64 {
+    let mut lo = c.expr.constant;
+    for (v, k) in &c.expr.terms {
+        let (a, b) = bounds(*v);
+        lo += (k * a).min(k * b);
+    }
+    lo
+}
+
+fn certainly_violated(c: &Constraint, bounds: &dyn Fn(Var) -> (f64, f64)) -> bool {
+    let mut lo = c.expr.constant;
+    for (v, k) in &c.expr.terms {
+        let (a, b) = bounds(*v);
+        lo = down(lo + down((k * a).min(k * b)));
+    }
+    match c.cmp {
+        Cmp::Le => lo > 0.0,
+        Cmp::Lt => lo >= 0.0,
+        Cmp::Eq => {
+            let mut hi = c.expr.constant;
+            for (v, k) in &c.expr.terms {
+                let (a, b) = bounds(*v);
+                hi = up(hi + up((k * a).max(k * b)));
+            }
+            lo > 0.0 || hi < 0.0
+        }
+    }
+}
+
+/// Outcome of the smooth prover for one conjunction.
+pub enum SmoothResult {
+    /// No counterexample in the domain.
+    Empty,
+    /// A concrete counterexample.
+    Witness(Point),
+    /// Budget exhausted.
+    Unknown(String),
+}
+
+/// Search one conjunction over the applications' boxes (single free of parameters).
+pub fn search(
+    nets: &[&Network],
+    boxes: &[Vec<(f64, f64)>],
+    cs: &[Constraint],
+    seconds: f64,
+    max_boxes: usize,
+) -> SmoothResult {
+    let t0 = Instant::now();
+    // The search space: all applications' inputs, concatenated.
+    let dims: Vec<usize> = boxes.iter().map(|b| b.len()).collect();
+    // Best-first: the box whose constraints look most satisfiable (smallest worst lower
+    // bound) first, so counterexamples are met early; a quick sampling pass goes first.
+    let mut heap: std::collections::BinaryHeap<Item> = std::collections::BinaryHeap::new();
+    let mut id = 0u64;
+    heap.push(Item {
+        key: OrdF(f64::NEG_INFINITY),
+        id,
+        b: boxes.iter().flatten().copied().collect(),
+    });
+    let split = |flat: &[(f64, f64)]| -> Vec<Vec<(f64, f64)>> {
+        let mut out = Vec::new();
+        let mut off = 0;
+        for d in &dims {
+            out.push(flat[off..off + d].to_vec());
+            off += d;
+        }
+        out
+    };
+    {
+        // Falsification by sampling (deterministic low-discrepancy points).
+        let flat: Vec<(f64, f64)> = boxes.iter().flatten().copied().collect();
+        for i in 0..2000u64 {
+            let x: Vec<f64> = flat
+                .iter()
+                .enumerate()
+                .map(|(k, (l, h))| {
+                    let u = ((i + 1) as f64
+                        * (0.5 + (k as f64 + 1.0).sqrt().fract() + 0.1 * k as f64))
+                        .fract();
+                    l + (h - l) * u
+                })
+                .collect();
+            let per = split(&x.iter().map(|v| (*v, *v)).collect::<Vec<_>>());
+            let inputs: Vec<Vec<f64>> = per
+                .iter()
+                .map(|b| b.iter().map(|p| p.0).collect())
+                .collect();
+            let outputs: Vec<Vec<f64>> = nets
+                .iter()
+                .zip(&inputs)
+                .map(|(net, x)| net.eval_f64(x))
+                .collect();
+            let p = Point {
+                inputs,
+                outputs,
+                free: vec![],
+            };
+            if p.satisfies(cs) {
+                return SmoothResult::Witness(p);
+            }
+        }
+    }
+    let mut n = 0usize;
+    while let Some(Item { b, .. }) = heap.pop() {
+        n += 1;
+        if n > max_boxes || t0.elapsed().as_secs_f64() > seconds {
+            return SmoothResult::Unknown(format!(
+                "smooth activations: {n} input boxes examined without settling the property"
+            ));
+        }
+        let per = split(&b);
+        let outs: Vec<(Vec<f64>, Vec<f64>)> = nets
+            .iter()
+            .zip(&per)
+            .map(|(net, bx)| {
+                let (l, h): (Vec<f64>, Vec<f64>) = bx.iter().copied().unzip();
+                interval_eval(net, &l, &h)
+            })
+            .collect();
+        let bounds = |v: Var| match v {
+            Var::Input { app, index } => per[app][index],
+            Var::Output { app, index } => (outs[app].0[index], outs[app].1[index]),
+            Var::Free(_) => (f64::NEG_INFINITY, f64::INFINITY),
+        };
+        if cs.iter().any(|c| certainly_violated(c, &bounds)) {
+            continue;
+        }
+        let score = cs
+            .iter()
+            .map(|c| lower_bound(c, &bounds))
+            .fold(f64::NEG_INFINITY, f64::max);
+        // Concrete check at the centre.
+        let inputs: Vec<Vec<f64>> = per
+            .iter()
+            .map(|bx| bx.iter().map(|(l, h)| 0.5 * (l + h)).collect())
+            .collect();
+        let outputs: Vec<Vec<f64>> = nets
+            .iter()
+            .zip(&inputs)
+            .map(|(net, x)| net.eval_f64(x))
+            .collect();
+        let p = Point {
+            inputs,
+            outputs,
+            free: vec![],
+        };
+        if p.satisfies(cs) {
+            return SmoothResult::Witness(p);
+        }
+        // Bisect the widest input (relative to nothing: inputs share units per network).
+        let (k, w) = b
+            .iter()
+            .enumerate()
+            .map(|(k, (l, h))| (k, h - l))
+            .fold((0, -1.0), |a, c| if c.1 > a.1 { c } else { a });
+        if w <= 0.0 {
+            continue;
+        }
+        let mid = 0.5 * (b[k].0 + b[k].1);
+        let mut left = b.clone();
+        left[k].1 = mid;
+        let mut right = b;
+        right[k].0 = mid;
+        id += 2;
+        heap.push(Item {
+            key: OrdF(score),
+            id,
+            b: left,
+        });
+        heap.push(Item {
+            key: OrdF(score),
+            id: id + 1,
+            b: right,
+        });
+    }
+    SmoothResult::Empty
+}
