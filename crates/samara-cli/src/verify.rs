@@ -110,6 +110,9 @@ pub struct ExportArgs {
     /// Output directory (one .vnnlib per property instance).
     #[arg(long)]
     pub out: PathBuf,
+    /// One file per disjunct of the counterexample region (for tools that cannot read `or`).
+    #[arg(long)]
+    pub split_disjuncts: bool,
 }
 
 fn kv(s: &str, flag: &str) -> Result<(String, String)> {
@@ -544,15 +547,41 @@ pub fn run_export(a: &ExportArgs) -> Result<ExitCode> {
             }
         };
         for i in inst {
-            match vnnlib::export(&i.query) {
-                Ok(text) => {
-                    let file = a
-                        .out
-                        .join(format!("{}.vnnlib", i.label.replace(['[', ']'], "_")));
-                    samara_report::write_atomic(&file, text.as_bytes())?;
-                    n += 1;
+            // Relational instances: rewrite over the stacked network and write its ONNX.
+            let mut q = i.query.clone();
+            if q.applications.len() > 1 {
+                let Some((sq, k)) = vnnlib::stack_applications(&q) else {
+                    eprintln!("skipped {}: it calls different networks", i.label);
+                    continue;
+                };
+                let base = &i.query.applications[0].network;
+                let Some(net) = l.nets.get(base) else {
+                    eprintln!("skipped {}: relational; pass --network {base}=FILE to write the {k}-fold stacked ONNX it needs", i.label);
+                    continue;
+                };
+                let onnx_path = a.out.join(format!("{}.onnx", sq.applications[0].network));
+                if !onnx_path.exists() {
+                    samara_nn::onnx::save(&net.stacked(k), &onnx_path, &Default::default())
+                        .with_context(|| format!("writing {}", onnx_path.display()))?;
                 }
-                Err(e) => eprintln!("skipped: {e}"),
+                q = sq;
+            }
+            let parts = if a.split_disjuncts {
+                vnnlib::split_disjuncts(&q)
+            } else {
+                vec![q]
+            };
+            for part in parts {
+                match vnnlib::export(&part) {
+                    Ok(text) => {
+                        let file = a
+                            .out
+                            .join(format!("{}.vnnlib", part.name.replace(['[', ']'], "_")));
+                        samara_report::write_atomic(&file, text.as_bytes())?;
+                        n += 1;
+                    }
+                    Err(e) => eprintln!("skipped: {e}"),
+                }
             }
         }
     }

@@ -246,6 +246,36 @@ fn check_and_export_vnnlib() {
     );
     let text = std::fs::read_to_string(dir.path().join("p1.vnnlib")).unwrap();
     assert!(text.contains("(declare-const X_5 Real)") && text.contains("(assert (or"));
+    // Relational P5 instances: written over the stacked (doubled) network, ONNX included.
+    let d2 = tempfile::tempdir().unwrap();
+    let out = samara()
+        .args([
+            "export-vnnlib",
+            SPEC,
+            "--split-disjuncts",
+            "--param",
+            "eps=0.001",
+            "--network",
+        ])
+        .arg(format!("f={}", reference("base_model_norm.onnx")))
+        .arg("--dataset")
+        .arg(format!(
+            "train={}",
+            reference("Training_Data_Normalised.csv")
+        ))
+        .arg("--out")
+        .arg(d2.path())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let stacked = samara_nn::onnx::load(d2.path().join("fx2.onnx")).unwrap();
+    assert_eq!((stacked.n_inputs(), stacked.n_outputs()), (12, 2));
+    assert!(d2.path().join("p5_lipschitz_0__0.vnnlib").exists());
+    assert!(d2.path().join("p1_0.vnnlib").exists());
     let bad = dir.path().join("bad.spec");
     std::fs::write(&bad, "network f(a) -> (b)\nproperty p: aa >= 1 => b >= 0\n").unwrap();
     let out = samara().arg("check").arg(&bad).output().unwrap();

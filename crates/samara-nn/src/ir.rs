@@ -328,3 +328,68 @@ pub enum IrError {
         index: usize,
     },
 }
+
+impl Network {
+    /// `k` copies of the network side by side (block-diagonal layers): inputs and outputs
+    /// are concatenated copy by copy. This is the "doubled" network a single-call verifier
+    /// needs for relational properties; samara's own verifier does not need it.
+    pub fn stacked(&self, k: usize) -> Network {
+        let block = |a: &Affine| {
+            let (inp, out) = (a.inp * k, a.out * k);
+            let mut w = vec![0.0; inp * out];
+            let mut b = Vec::with_capacity(out);
+            for c in 0..k {
+                for i in 0..a.out {
+                    for j in 0..a.inp {
+                        w[(c * a.out + i) * inp + c * a.inp + j] = a.weight(i, j);
+                    }
+                }
+                b.extend_from_slice(&a.b);
+            }
+            Affine::new(inp, out, w, b)
+        };
+        let names = |v: &[String]| {
+            (0..k)
+                .flat_map(|c| v.iter().map(move |n| format!("{n}#{c}")))
+                .collect()
+        };
+        Network {
+            input_names: names(&self.input_names),
+            output_names: names(&self.output_names),
+            input_norm: self.input_norm.as_ref().map(block),
+            layers: self
+                .layers
+                .iter()
+                .map(|l| match l {
+                    Layer::Affine(a) => Layer::Affine(block(a)),
+                    Layer::Act(x) => Layer::Act(*x),
+                })
+                .collect(),
+            output_denorm: self.output_denorm.as_ref().map(block),
+        }
+    }
+}
+
+#[cfg(test)]
+mod stacked_tests {
+    use super::*;
+
+    #[test]
+    fn stacked_network_evaluates_each_copy() {
+        let net = Network {
+            input_names: vec!["a".into(), "b".into()],
+            output_names: vec!["y".into()],
+            input_norm: Some(Affine::normalise(&[1.0, 2.0], &[2.0, 4.0])),
+            layers: vec![
+                Layer::Affine(Affine::new(2, 1, vec![0.5, -1.5], vec![0.25])),
+                Layer::Act(Activation::Tanh),
+            ],
+            output_denorm: Some(Affine::denormalise(&[0.181], &[0.012])),
+        };
+        let s = net.stacked(2);
+        let (x1, x2) = ([0.3, -0.7], [2.0, 5.0]);
+        let y = s.eval_f64(&[x1[0], x1[1], x2[0], x2[1]]);
+        assert_eq!(y, vec![net.eval_f64(&x1)[0], net.eval_f64(&x2)[0]]);
+        assert_eq!(s.input_names[3], "b#1");
+    }
+}

@@ -240,6 +240,45 @@ impl Spec {
                     }
                     spec.networks[k].in_norm = Some((min, range));
                 }
+                Stmt::NormFile { net, path, pos } => {
+                    let k = spec.net_index(&net, pos)?;
+                    let full = if Path::new(&path).is_absolute() {
+                        PathBuf::from(&path)
+                    } else {
+                        spec.dir.join(&path)
+                    };
+                    let t = samara_nn::data::read_csv(&full).map_err(|e| {
+                        spec.error(
+                            pos,
+                            format!("normalisation constants: {e}"),
+                            "give a CSV with two rows: minima, then ranges",
+                        )
+                    })?;
+                    let (ni, no) = (
+                        spec.networks[k].inputs.len(),
+                        spec.networks[k].outputs.len(),
+                    );
+                    if t.rows() != 2 || t.cols < ni {
+                        return Err(spec.error(
+                            pos,
+                            format!("dimension mismatch: {} has {} rows of {} columns; expected 2 rows (minima, ranges) of at least {ni} columns", full.display(), t.rows(), t.cols),
+                            format!("write the {ni} inputs' constants, then the {no} outputs'"),
+                        ));
+                    }
+                    let (min, range) = (t.row(0).to_vec(), t.row(1).to_vec());
+                    if range.contains(&0.0) {
+                        return Err(spec.error(
+                            pos,
+                            "a normalisation range is zero",
+                            "ranges must be non-zero",
+                        ));
+                    }
+                    spec.networks[k].in_norm = Some((min[..ni].to_vec(), range[..ni].to_vec()));
+                    if t.cols >= ni + no {
+                        spec.networks[k].out_norm =
+                            Some((min[ni..ni + no].to_vec(), range[ni..ni + no].to_vec()));
+                    }
+                }
                 Stmt::NormOutput {
                     net,
                     offset,

@@ -315,6 +315,16 @@ pub enum Stmt {
         /// Position.
         pos: Pos,
     },
+    /// `normalise f from "constants.csv"`: row 1 the minima C, row 2 the ranges S of the
+    /// inputs then the outputs (like the published `Normalisation_Constants.csv`).
+    NormFile {
+        /// Network.
+        net: String,
+        /// Path (relative to the spec).
+        path: String,
+        /// Position.
+        pos: Pos,
+    },
     /// `normalise f output offset a scale b`.
     NormOutput {
         /// Network.
@@ -550,6 +560,21 @@ impl Parser<'_> {
         }
         if self.kw("normalise") || self.kw("normalize") {
             let net = self.ident("a network name")?;
+            if self.kw("from") {
+                let path = match self.peek().clone() {
+                    Tok::Str(s) => {
+                        self.i += 1;
+                        s
+                    }
+                    _ => {
+                        return Err(self.err(
+                            "expected a file name in quotes",
+                            "normalise f from \"constants.csv\"",
+                        ))
+                    }
+                };
+                return Ok(Stmt::NormFile { net, path, pos });
+            }
             if self.kw("input") {
                 if !self.kw("min") {
                     return Err(self.err("expected `min`", "normalise f input min [..] range [..]"));
@@ -599,7 +624,7 @@ impl Parser<'_> {
                 });
             }
             return Err(self.err(
-                "expected `input` or `output`",
+                "expected `input`, `output` or `from`",
                 "normalise f input min [..] range [..]",
             ));
         }

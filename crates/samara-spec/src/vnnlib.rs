@@ -74,6 +74,64 @@ fn atom(c: &Constraint) -> String {
     format!("({op} {} 0.0)", term(&c.expr))
 }
 
+/// A relational query (several calls of one network) as a single-call query over the
+/// `k`-fold stacked network (`samara_nn::Network::stacked`): application `a`'s input `i`
+/// becomes input `a * n + i`, and likewise for outputs. Returns the rewritten query and
+/// `k`; `None` if the applications use different networks.
+pub fn stack_applications(q: &Query) -> Option<(Query, usize)> {
+    let k = q.applications.len();
+    let first = q.applications.first()?;
+    if q.applications.iter().any(|a| {
+        a.network != first.network || a.n_inputs != first.n_inputs || a.n_outputs != first.n_outputs
+    }) {
+        return None;
+    }
+    let (n, m) = (first.n_inputs, first.n_outputs);
+    let map = |v: Var| match v {
+        Var::Input { app, index } => Var::Input {
+            app: 0,
+            index: app * n + index,
+        },
+        Var::Output { app, index } => Var::Output {
+            app: 0,
+            index: app * m + index,
+        },
+        f => f,
+    };
+    let mut out = q.clone();
+    out.applications = vec![Application {
+        network: format!("{}x{k}", first.network),
+        n_inputs: n * k,
+        n_outputs: m * k,
+        input_box: q
+            .applications
+            .iter()
+            .flat_map(|a| a.input_box.iter().copied())
+            .collect(),
+    }];
+    for conj in &mut out.region {
+        for c in conj.iter_mut() {
+            for t in c.expr.terms.iter_mut() {
+                t.0 = map(t.0);
+            }
+        }
+    }
+    Some((out, k))
+}
+
+/// One query per disjunct, for verifiers that do not read `or`.
+pub fn split_disjuncts(q: &Query) -> Vec<Query> {
+    q.region
+        .iter()
+        .enumerate()
+        .map(|(d, conj)| Query {
+            name: format!("{}_{d}", q.name),
+            region: vec![conj.clone()],
+            ..q.clone()
+        })
+        .collect()
+}
+
 /// Write a query as VNN-LIB text.
 pub fn export(q: &Query) -> Result<String, VnnlibError> {
     if q.applications.len() != 1 {

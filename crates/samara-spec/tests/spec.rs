@@ -281,3 +281,134 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn constants_file_gives_the_same_normal_form_as_inline_constants() {
+    let consts = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference/Normalisation_Constants.csv");
+    let src = std::fs::read_to_string(spec_path()).unwrap();
+    // Replace the three normalise lines by one `normalise f from` line.
+    let mut out = Vec::new();
+    let mut skip = false;
+    for line in src.lines() {
+        if line.starts_with("normalise f input") {
+            out.push(format!("normalise f from \"{}\"", consts.display()));
+            skip = line.ends_with('\\');
+            continue;
+        }
+        if skip {
+            skip = line.ends_with('\\');
+            continue;
+        }
+        if line.starts_with("normalise f output") {
+            continue;
+        }
+        out.push(line.to_string());
+    }
+    let alt = Spec::parse(&out.join("\n"), "alt.spec", Path::new(".")).unwrap();
+    let mut b = Bindings::default();
+    b.params.insert("ystar".into(), 2.0);
+    for k in 1..=4 {
+        let a = alt
+            .lower_prove(&format!("p{k}"), &b)
+            .unwrap()
+            .remove(0)
+            .query;
+        let c = case_study()
+            .lower_prove(&format!("p{k}"), &b)
+            .unwrap()
+            .remove(0)
+            .query;
+        assert_eq!(sorted(&a), sorted(&c), "p{k}");
+    }
+    let e = Spec::parse(
+        "network f(a, b) -> (y)\nnormalise f from \"/nonexistent/c.csv\"\n",
+        "t.spec",
+        Path::new("."),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        e.contains("t.spec:2:1") && e.contains("normalisation constants"),
+        "{e}"
+    );
+}
+
+#[test]
+fn relational_queries_export_over_the_stacked_network() {
+    let spec = case_study();
+    let mut b = Bindings::default();
+    b.datasets.insert(
+        "train".into(),
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/reference/Training_Data_Normalised.csv"),
+    );
+    let q = spec
+        .lower_prove("p5_lipschitz", &b)
+        .unwrap()
+        .remove(3)
+        .query;
+    let (sq, k) = vnnlib::stack_applications(&q).unwrap();
+    assert_eq!(
+        (k, sq.applications[0].n_inputs, sq.applications[0].n_outputs),
+        (2, 12, 2)
+    );
+    let net = samara_nn::onnx::load(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../../shared/reference/base_model_norm.onnx"),
+    )
+    .unwrap();
+    let stacked = net.stacked(2);
+    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(8);
+    let mut inside = 0;
+    for _ in 0..3000 {
+        let x: Vec<Vec<f64>> = q
+            .applications
+            .iter()
+            .map(|a| {
+                a.input_box
+                    .iter()
+                    .map(|(l, h)| if l == h { *l } else { r.gen_range(*l..*h) })
+                    .collect()
+            })
+            .collect();
+        let y: Vec<Vec<f64>> = x.iter().map(|xi| net.eval_f64(xi)).collect();
+        let flat: Vec<f64> = x.concat();
+        let ys = stacked.eval_f64(&flat);
+        let orig = q.region.iter().any(|c| {
+            c.iter().all(|k| {
+                k.holds(
+                    |v| match v {
+                        Var::Input { app, index } => x[app][index],
+                        Var::Output { app, index } => y[app][index],
+                        Var::Free(_) => 0.0,
+                    },
+                    0.0,
+                )
+            })
+        });
+        let st = sq.region.iter().any(|c| {
+            c.iter().all(|k| {
+                k.holds(
+                    |v| match v {
+                        Var::Input { index, .. } => flat[index],
+                        Var::Output { index, .. } => ys[index],
+                        Var::Free(_) => 0.0,
+                    },
+                    0.0,
+                )
+            })
+        });
+        assert_eq!(orig, st);
+        inside += usize::from(orig);
+    }
+    assert!(
+        inside > 0,
+        "no sample inside the region: the test would be vacuous"
+    );
+    let text = vnnlib::export(&sq).unwrap();
+    assert!(
+        text.contains("(declare-const X_11 Real)") && text.contains("(declare-const Y_1 Real)")
+    );
+    assert_eq!(vnnlib::split_disjuncts(&sq).len(), sq.region.len());
+}
