@@ -37,6 +37,8 @@ enum Command {
     Critical(verify::CriticalArgs),
     /// Local-robustness tables (P5) over a data set.
     Robustness(verify::RobustnessArgs),
+    /// Check one VNN-LIB 1.0 property on one network (VNN-COMP style: sat/unsat/unknown).
+    VerifyVnnlib(verify::VerifyVnnlibArgs),
     /// Write each property instance as a VNN-LIB 1.0 file.
     ExportVnnlib(verify::ExportArgs),
     /// Reproduce the whole case study (data, controllers, proofs, reachable sets,
@@ -66,6 +68,7 @@ fn main() -> ExitCode {
         Command::Critical(a) => verify::run_critical(a),
         Command::Robustness(a) => verify::run_robustness(a),
         Command::ExportVnnlib(a) => verify::run_export(a),
+        Command::VerifyVnnlib(a) => verify::run_verify_vnnlib(a),
     };
     match result {
         Ok(code) => code,

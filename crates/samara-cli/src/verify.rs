@@ -101,6 +101,77 @@ pub struct RobustnessArgs {
     pub json: bool,
 }
 
+/// Flags of `samara verify-vnnlib`.
+#[derive(clap::Args, Debug)]
+pub struct VerifyVnnlibArgs {
+    /// The network (ONNX).
+    #[arg(long)]
+    pub network: PathBuf,
+    /// The property (VNN-LIB 1.0): a satisfying point is a counterexample.
+    #[arg(long)]
+    pub property: PathBuf,
+    /// Time limit in seconds.
+    #[arg(long, default_value_t = 60.0)]
+    pub timeout: f64,
+    /// JSON output.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run `samara verify-vnnlib`: prints `unsat` (proved), `sat` (violated, with the
+/// counterexample) or `unknown`, as VNN-COMP tools do.
+pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
+    let net = samara_nn::onnx::load(&a.network)?;
+    let text = std::fs::read_to_string(&a.property)
+        .with_context(|| format!("cannot read {}", a.property.display()))?;
+    let q = vnnlib::import(&text, &a.property.display().to_string(), "f", "property")?;
+    let app = &q.applications[0];
+    if app.n_inputs != net.n_inputs() || app.n_outputs != net.n_outputs() {
+        bail!(
+            "dimension mismatch: {} declares {} inputs and {} outputs, the network has {} and {}",
+            a.property.display(),
+            app.n_inputs,
+            app.n_outputs,
+            net.n_inputs(),
+            net.n_outputs()
+        );
+    }
+    let mut nets = HashMap::new();
+    nets.insert("f".to_string(), net);
+    let prep = Prepared::new(&nets);
+    let t0 = Instant::now();
+    let v = prove(
+        &q,
+        &prep,
+        &Settings {
+            timeout: a.timeout,
+            ..Default::default()
+        },
+    )?;
+    let secs = t0.elapsed().as_secs_f64();
+    let (tag, cx) = match &v {
+        Verdict::Proved => ("unsat", Value::Null),
+        Verdict::Violated(c) => (
+            "sat",
+            json!({"inputs": c.point.inputs[0], "outputs": c.point.outputs[0], "margin": c.margin}),
+        ),
+        Verdict::Unknown(r) => ("unknown", json!(r)),
+    };
+    if a.json {
+        println!(
+            "{}",
+            json!({"result": tag, "counterexample": cx, "seconds": secs})
+        );
+    } else {
+        println!("{tag}");
+    }
+    Ok(if tag == "unsat" {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
 /// Flags of `samara export-vnnlib`.
 #[derive(clap::Args, Debug)]
 pub struct ExportArgs {
