@@ -29,6 +29,8 @@
 pub mod case_study;
 pub mod engine;
 pub mod lp;
+#[cfg(feature = "highs")]
+pub mod milp;
 pub mod net;
 pub mod robustness;
 pub mod smooth;

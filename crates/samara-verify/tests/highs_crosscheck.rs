@@ -1,0 +1,134 @@
+//! With `--features highs`: samara's exact critical values agree with a big-M MILP solved
+//! by HiGHS on the case-study queries (all four published ReLU networks) and on random
+//! networks.
+#![cfg(feature = "highs")]
+
+use rand::{Rng, SeedableRng};
+use samara_nn::{Activation, Affine, Layer, Network};
+use samara_spec::normal::{Application, Goal, LinExpr, Query, Sense, Var};
+use samara_verify::case_study::{p1_to_p4, Units};
+use samara_verify::milp::optimise_milp;
+use samara_verify::net::PwlNet;
+use samara_verify::{optimise, Prepared, Settings};
+use std::collections::HashMap;
+
+fn check(q: &Query, nets: &HashMap<String, Network>) {
+    let prep = Prepared::new(nets);
+    let pwl: HashMap<String, PwlNet> = nets
+        .iter()
+        .map(|(k, v)| (k.clone(), PwlNet::from_network(v).unwrap()))
+        .collect();
+    let ours = optimise(q, &prep, &Settings::default()).unwrap();
+    let theirs = optimise_milp(q, &pwl).unwrap();
+    match (ours.value, theirs) {
+        (Some(a), Some(b)) => assert!(
+            (a - b).abs() <= 1e-5 * (1.0 + b.abs())
+                && (ours.bound - b).abs() <= 1e-5 * (1.0 + b.abs()),
+            "{}: samara {a} (bound {}) vs HiGHS {b}",
+            q.name,
+            ours.bound
+        ),
+        (None, None) => {}
+        (a, b) => panic!("{}: samara {a:?} vs HiGHS {b:?}", q.name),
+    }
+}
+
+#[test]
+fn case_study_critical_values_agree_with_highs() {
+    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference");
+    let c = vec![
+        0.967568147,
+        -0.607397104,
+        -0.356972794,
+        -0.96847853,
+        0.482420778,
+        -41.68140527,
+    ];
+    let s = vec![
+        2.522324921,
+        0.564375713,
+        0.406153017,
+        0.900476013,
+        41.23229622,
+        45.87863879,
+    ];
+    let hi: Vec<f64> = c.iter().zip(&s).map(|(a, b)| a + b).collect();
+    for f in [
+        "base_model_norm",
+        "adversarial_model_norm",
+        "base_model_denorm",
+        "adversarial_model_denorm",
+    ] {
+        let mut nets = HashMap::new();
+        nets.insert(
+            "f".to_string(),
+            samara_nn::onnx::load(dir.join(format!("{f}.onnx"))).unwrap(),
+        );
+        let u = if f.contains("denorm") {
+            Units::raw()
+        } else {
+            Units {
+                c: c.clone(),
+                s: s.clone(),
+                c_out: 0.181,
+                s_out: 0.012,
+            }
+        };
+        for q in p1_to_p4("f", &u, &c, &hi) {
+            check(&q, &nets);
+        }
+    }
+}
+
+#[test]
+fn random_networks_agree_with_highs() {
+    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(4);
+    for case in 0..30 {
+        let dims = [4, 10, 8, 1];
+        let mut layers = Vec::new();
+        for (k, w) in dims.windows(2).enumerate() {
+            layers.push(Layer::Affine(Affine::new(
+                w[0],
+                w[1],
+                (0..w[0] * w[1]).map(|_| r.gen_range(-1.0..1.0)).collect(),
+                (0..w[1]).map(|_| r.gen_range(-0.3..0.3)).collect(),
+            )));
+            if k < 2 {
+                layers.push(Layer::Act(Activation::Relu));
+            }
+        }
+        let net = Network {
+            input_names: (0..4).map(|i| format!("x{i}")).collect(),
+            output_names: vec!["y".into()],
+            input_norm: None,
+            layers,
+            output_denorm: None,
+        };
+        let mut nets = HashMap::new();
+        nets.insert("f".to_string(), net);
+        let q = Query {
+            name: format!("r{case}"),
+            applications: vec![Application {
+                network: "f".into(),
+                n_inputs: 4,
+                n_outputs: 1,
+                input_box: vec![(-1.0, 1.0); 4],
+            }],
+            free_vars: vec![],
+            region: vec![vec![]],
+            goal: Goal::Optimise {
+                objective: LinExpr {
+                    terms: vec![(Var::Output { app: 0, index: 0 }, 1.0)],
+                    constant: 0.0,
+                },
+                sense: if case % 2 == 0 {
+                    Sense::Max
+                } else {
+                    Sense::Min
+                },
+                label: "y".into(),
+            },
+        };
+        check(&q, &nets);
+    }
+}
