@@ -153,7 +153,7 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
         Verdict::Proved => ("unsat", Value::Null),
         Verdict::Violated(c) => (
             "sat",
-            json!({"inputs": c.point.inputs[0], "outputs": c.point.outputs[0], "margin": c.margin}),
+            json!({"inputs": c.point.inputs[0], "outputs": c.point.outputs[0], "margin": c.margin, "exact_check": c.exact}),
         ),
         Verdict::Unknown(r) => ("unknown", json!(r)),
     };
@@ -370,7 +370,7 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
                     v += 1;
                     (
                         "violated",
-                        json!({"point": named_point(&l.spec, q, &c.point), "margin": c.margin}),
+                        json!({"point": named_point(&l.spec, q, &c.point), "margin": c.margin, "exact_check": c.exact}),
                     )
                 }
                 Verdict::Unknown(r) => {

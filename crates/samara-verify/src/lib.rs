@@ -12,7 +12,10 @@
 //! Tolerance policy (stated and tested):
 //! - A `Violated` verdict always carries a point that violates the property when its
 //!   outputs are recomputed by the plain f64 evaluator (`Network::eval_f64`), strict
-//!   inequalities strictly. Its margin is reported.
+//!   inequalities strictly. Its margin is reported. When the margin is within 1e-6 of
+//!   the boundary (and the networks are piecewise linear) the point is re-checked in
+//!   exact rational arithmetic ([`exact`]); if exact arithmetic disagrees with f64 the
+//!   verdict is `Unknown`, not `Violated`.
 //! - `Proved` means, for every disjunct, a sound upper bound below 0 of the largest
 //!   slack `s` with which all its inequalities hold (`e_i + s <= 0`): the closure of the
 //!   region is empty. A region that touches its boundary only (the closure is not
@@ -28,6 +31,7 @@
 
 pub mod case_study;
 pub mod engine;
+pub mod exact;
 pub mod lp;
 #[cfg(feature = "highs")]
 pub mod milp;
@@ -104,6 +108,9 @@ pub struct Counterexample {
     pub point: Point,
     /// Worst constraint value at the point (< 0 strictly inside).
     pub margin: f64,
+    /// Re-checked in exact rational arithmetic (done when the margin is within 1e-6 of
+    /// the boundary and the networks are piecewise linear).
+    pub exact: Option<bool>,
     /// Which disjunct it satisfies.
     pub disjunct: usize,
 }
@@ -256,6 +263,7 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
                         return Ok(Verdict::Violated(Counterexample {
                             point: pt,
                             margin,
+                            exact: None,
                             disjunct: d,
                         }));
                     }
@@ -288,9 +296,27 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
             pt.free.truncate(k);
             if pt.satisfies(&original) {
                 let margin = pt.margin(&original);
+                let mut exact = None;
+                if margin > -1e-6 {
+                    let nets: Vec<&PwlNet> = q
+                        .applications
+                        .iter()
+                        .filter_map(|a| prep.pwl[&a.network].as_ref().ok())
+                        .collect();
+                    if nets.len() == q.applications.len() {
+                        exact = exact::exact_satisfies(&nets, &pt, &original);
+                    }
+                }
+                if exact == Some(false) {
+                    unknown = Some(format!(
+                        "a point violates the property in f64 (margin {margin:.3e}) but not in exact arithmetic: the property sits at the rounding level there"
+                    ));
+                    continue;
+                }
                 return Ok(Verdict::Violated(Counterexample {
                     point: pt,
                     margin,
+                    exact,
                     disjunct: d,
                 }));
             }

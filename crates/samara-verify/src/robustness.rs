@@ -5,13 +5,14 @@
 //!   data label or `f(x)`. Per point: `dev = max(|max f - ref|, |min f - ref|)` over the
 //!   ball, exact (branch and bound, or a closed form when every ReLU is stable on the
 //!   ball).
-//! - Intended (Lipschitz) form: `|f(x') - f(x)| <= L ||x' - x||_inf`. Per point: a sound
-//!   upper bound of the local Lipschitz constant (the largest gradient 1-norm over the
-//!   activation patterns the ball allows; Jordan & Dimakis, "Exactly computing the local
-//!   Lipschitz constant of ReLU networks", NeurIPS 2020, for the underlying fact) and a
-//!   lower bound (the gradient 1-norm of the region containing x when x is interior, which
-//!   secants from x approach). A cell is proved when the upper bound is <= L, violated
-//!   when the lower bound is > L, unknown in between.
+//! - Intended (Lipschitz) form: `|f(x') - f(x)| <= L ||x' - x||_inf`. Per point: the
+//!   local Lipschitz certificate, the largest gradient 1-norm (the dual of the infinity
+//!   norm) over the activation regions that meet the ball, each region's presence decided
+//!   by an LP with its phases fixed (Jordan & Dimakis, "Exactly computing the local
+//!   Lipschitz constant of ReLU networks", NeurIPS 2020), and a lower bound (the gradient
+//!   1-norm of the region containing x when x is interior, which secants from x approach).
+//!   A cell is proved when the certificate is <= L, violated when the lower bound is > L,
+//!   unknown in between (the secant from x need not reach the steepest region's slope).
 
 use crate::engine::Limits;
 use crate::net::{affine_bounds, PwlNet};
@@ -157,10 +158,74 @@ fn gradient_bounds(net: &PwlNet, lo: &[f64], hi: &[f64], x: &[f64]) -> (f64, f64
         for (b, (l, i)) in unstable.iter().enumerate() {
             ph[*l][*i] = if mask >> b & 1 == 1 { 1 } else { -1 };
         }
-        upper = upper.max(grad_of(&ph));
+        let g = grad_of(&ph);
+        // Only activation regions that meet the ball count; a pattern is dropped only when
+        // its LP is certified infeasible, so the maximum stays an upper bound.
+        if g > upper && pattern_meets_box(net, lo, hi, &ph) {
+            upper = g;
+        }
     }
     // Relative safety margin for the rounding of the products above.
     (lower, upper * (1.0 + 1e-12) + 1e-300)
+}
+
+/// Whether the activation pattern `ph` (one sign per ReLU) can occur for inputs in the
+/// box: an LP over the box with every ReLU's phase fixed; `false` only when the LP is
+/// certified infeasible.
+fn pattern_meets_box(net: &PwlNet, lo: &[f64], hi: &[f64], ph: &[Vec<i8>]) -> bool {
+    use crate::lp::{Lp, LpResult};
+    let n = lo.len();
+    let mut lp = Lp {
+        n,
+        lo: lo.to_vec(),
+        hi: hi.to_vec(),
+        ..Default::default()
+    };
+    let (mut alo, mut ahi) = (lo.to_vec(), hi.to_vec());
+    let mut prev: Vec<usize> = (0..n).collect();
+    let mut r = 0;
+    for (m, relu) in &net.maps {
+        let (zl, zh) = affine_bounds(m, &alo, &ahi);
+        let zs: Vec<usize> = (0..m.out).map(|i| lp.n + i).collect();
+        lp.n += m.out;
+        lp.lo.extend_from_slice(&zl);
+        lp.hi.extend_from_slice(&zh);
+        for i in 0..m.out {
+            let mut row = vec![(zs[i], 1.0)];
+            for j in 0..m.inp {
+                let w = m.w[i * m.inp + j];
+                if w != 0.0 {
+                    row.push((prev[j], -w));
+                }
+            }
+            lp.eq.push((row, m.b[i]));
+        }
+        if *relu {
+            let az: Vec<usize> = (0..m.out).map(|i| lp.n + i).collect();
+            lp.n += m.out;
+            for i in 0..m.out {
+                lp.lo.push(0.0);
+                lp.hi.push(zh[i].max(0.0));
+                if ph[r][i] > 0 {
+                    lp.eq.push((vec![(az[i], 1.0), (zs[i], -1.0)], 0.0));
+                    lp.le.push((vec![(zs[i], -1.0)], 0.0));
+                } else {
+                    lp.eq.push((vec![(az[i], 1.0)], 0.0));
+                    lp.le.push((vec![(zs[i], 1.0)], 0.0));
+                }
+            }
+            r += 1;
+            alo = zl.iter().map(|v| v.max(0.0)).collect();
+            ahi = zh.iter().map(|v| v.max(0.0)).collect();
+            prev = az;
+        } else {
+            alo = zl;
+            ahi = zh;
+            prev = zs;
+        }
+    }
+    lp.c = vec![0.0; lp.n];
+    !matches!(lp.solve(), LpResult::Infeasible)
 }
 
 /// Per-point extremes over every ball. `data` rows: inputs (network units) then the
