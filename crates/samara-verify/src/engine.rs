@@ -231,17 +231,20 @@ impl Problem<'_> {
         let mut lo = vec![0.0; n_net + self.free.len()];
         let mut hi = vec![0.0; n_net + self.free.len()];
         for (ai, (net, av)) in self.nets.iter().zip(apps).enumerate() {
-            let mut alo: Vec<f64> = boxes[ai].iter().map(|b| b.0).collect();
-            let mut ahi: Vec<f64> = boxes[ai].iter().map(|b| b.1).collect();
-            if alo.iter().zip(&ahi).any(|(l, h)| l > h) {
+            let xl: Vec<f64> = boxes[ai].iter().map(|b| b.0).collect();
+            let xh: Vec<f64> = boxes[ai].iter().map(|b| b.1).collect();
+            if xl.iter().zip(&xh).any(|(l, h)| l > h) {
                 return None;
             }
-            lo[av.x..av.x + alo.len()].copy_from_slice(&alo);
-            hi[av.x..av.x + ahi.len()].copy_from_slice(&ahi);
+            lo[av.x..av.x + xl.len()].copy_from_slice(&xl);
+            hi[av.x..av.x + xh.len()].copy_from_slice(&xh);
+            // Interval pass (with the node's phases), then symbolic back-substitution.
+            let mut zlo: Vec<Vec<f64>> = Vec::new();
+            let mut zhi: Vec<Vec<f64>> = Vec::new();
+            let (mut alo, mut ahi) = (xl.clone(), xh.clone());
             let mut relu_k = 0;
-            for (k, (m, relu)) in net.maps.iter().enumerate() {
+            for (m, relu) in &net.maps {
                 let (mut zl, mut zh) = affine_bounds(m, &alo, &ahi);
-                let (zo, ao) = av.maps[k];
                 if *relu {
                     let ph = &phases[ai][relu_k];
                     relu_k += 1;
@@ -255,19 +258,45 @@ impl Problem<'_> {
                             return None;
                         }
                     }
-                    lo[zo..zo + m.out].copy_from_slice(&zl);
-                    hi[zo..zo + m.out].copy_from_slice(&zh);
                     alo = zl.iter().map(|v| v.max(0.0)).collect();
                     ahi = zh.iter().map(|v| v.max(0.0)).collect();
-                    let a = ao.expect("relu var");
-                    lo[a..a + m.out].copy_from_slice(&alo);
-                    hi[a..a + m.out].copy_from_slice(&ahi);
                 } else {
-                    lo[zo..zo + m.out].copy_from_slice(&zl);
-                    hi[zo..zo + m.out].copy_from_slice(&zh);
-                    alo = zl;
-                    ahi = zh;
+                    alo = zl.clone();
+                    ahi = zh.clone();
                 }
+                zlo.push(zl);
+                zhi.push(zh);
+            }
+            if net.maps.len() > 1 {
+                crate::net::deeppoly(net, &xl, &xh, &phases[ai], &mut zlo, &mut zhi);
+            }
+            let mut relu_k = 0;
+            for (k, (m, relu)) in net.maps.iter().enumerate() {
+                let (zo, ao) = av.maps[k];
+                let (zl, zh) = (&mut zlo[k], &mut zhi[k]);
+                if *relu {
+                    let ph = &phases[ai][relu_k];
+                    relu_k += 1;
+                    for i in 0..m.out {
+                        match ph[i] {
+                            1 => zl[i] = zl[i].max(0.0),
+                            -1 => zh[i] = zh[i].min(0.0),
+                            _ => {}
+                        }
+                        if zl[i] > zh[i] {
+                            return None;
+                        }
+                    }
+                    let a = ao.expect("relu var");
+                    for i in 0..m.out {
+                        lo[a + i] = zl[i].max(0.0);
+                        hi[a + i] = zh[i].max(0.0);
+                    }
+                } else if zl.iter().zip(zh.iter()).any(|(l, h)| l > h) {
+                    return None;
+                }
+                lo[zo..zo + m.out].copy_from_slice(zl);
+                hi[zo..zo + m.out].copy_from_slice(zh);
             }
         }
         for (k, f) in self.free.iter().enumerate() {

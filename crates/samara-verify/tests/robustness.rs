@@ -69,3 +69,88 @@ fn extremes_and_lipschitz_certificates_bound_samples() {
         }
     }
 }
+
+/// DeepPoly bounds contain every sampled pre-activation and are no looser than intervals.
+#[test]
+fn deeppoly_bounds_contain_samples() {
+    use samara_verify::net::{affine_bounds, deeppoly, PwlNet};
+    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+    for _ in 0..20 {
+        let dims = [4, 12, 10, 3];
+        let mut layers = Vec::new();
+        for (k, w) in dims.windows(2).enumerate() {
+            layers.push(Layer::Affine(Affine::new(
+                w[0],
+                w[1],
+                (0..w[0] * w[1]).map(|_| r.gen_range(-1.0..1.0)).collect(),
+                (0..w[1]).map(|_| r.gen_range(-0.3..0.3)).collect(),
+            )));
+            if k < 2 {
+                layers.push(Layer::Act(Activation::Relu));
+            }
+        }
+        let net = Network {
+            input_names: (0..4).map(|i| format!("x{i}")).collect(),
+            output_names: (0..3).map(|i| format!("y{i}")).collect(),
+            input_norm: None,
+            layers,
+            output_denorm: None,
+        };
+        let p = PwlNet::from_network(&net).unwrap();
+        let xl: Vec<f64> = (0..4).map(|_| r.gen_range(-1.0..0.0)).collect();
+        let xh: Vec<f64> = xl.iter().map(|l| l + r.gen_range(0.1..1.0)).collect();
+        // Interval bounds first (as the engine does), then DeepPoly.
+        let (mut lo, mut hi) = (Vec::new(), Vec::new());
+        let (mut al, mut ah) = (xl.clone(), xh.clone());
+        for (m, relu) in &p.maps {
+            let (l, h) = affine_bounds(m, &al, &ah);
+            al = if *relu {
+                l.iter().map(|v| v.max(0.0)).collect()
+            } else {
+                l.clone()
+            };
+            ah = if *relu {
+                h.iter().map(|v| v.max(0.0)).collect()
+            } else {
+                h.clone()
+            };
+            lo.push(l);
+            hi.push(h);
+        }
+        let (ilo, ihi) = (lo.clone(), hi.clone());
+        let fixed: Vec<Vec<i8>> = p
+            .maps
+            .iter()
+            .filter(|m| m.1)
+            .map(|m| vec![0; m.0.out])
+            .collect();
+        deeppoly(&p, &xl, &xh, &fixed, &mut lo, &mut hi);
+        for _ in 0..2000 {
+            let x: Vec<f64> = xl
+                .iter()
+                .zip(&xh)
+                .map(|(l, h)| r.gen_range(*l..=*h))
+                .collect();
+            let mut a = x.clone();
+            for (k, (m, relu)) in p.maps.iter().enumerate() {
+                let mut z = vec![0.0; m.out];
+                m.apply_f64(&a, &mut z);
+                for i in 0..m.out {
+                    assert!(
+                        lo[k][i] <= z[i] && z[i] <= hi[k][i],
+                        "map {k} neuron {i}: {} not in [{}, {}]",
+                        z[i],
+                        lo[k][i],
+                        hi[k][i]
+                    );
+                    assert!(lo[k][i] >= ilo[k][i] && hi[k][i] <= ihi[k][i]);
+                }
+                a = if *relu {
+                    z.iter().map(|v| v.max(0.0)).collect()
+                } else {
+                    z
+                };
+            }
+        }
+    }
+}
