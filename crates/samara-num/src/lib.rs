@@ -11,7 +11,9 @@
 //! one trait with the required operations and a constant helper.
 
 mod dual;
+mod interval;
 mod scalar;
 
 pub use dual::Dual;
+pub use interval::Interval;
 pub use scalar::{Scalar, Sign};

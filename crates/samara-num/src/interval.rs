@@ -1,0 +1,386 @@
+//! Intervals with outward rounding: the first set-valued [`Scalar`].
+//!
+//! `+ - * /` are computed in round-to-nearest and widened by one ulp outward
+//! (`next_down`/`next_up`), which contains the exact result because IEEE 754 arithmetic
+//! is correctly rounded. `sqrt` is correctly rounded too (one ulp). `exp`, `tanh`,
+//! `atan`, `sin`, `cos` come from the platform's libm, whose documented error is below
+//! 1 ulp for these functions on glibc; they are widened by 4 ulps. Monotone functions take
+//! the images of the end points; `sin`/`cos` add +-1 when an extremum lies inside the
+//! interval, with a 1e-9 margin around the extremum positions so that the rounding of
+//! pi never misplaces one. Division by an interval containing 0 gives the whole line.
+
+use crate::scalar::{Scalar, Sign};
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
+
+/// A closed interval `[lo, hi]` (possibly unbounded).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Interval {
+    /// Lower end.
+    pub lo: f64,
+    /// Upper end.
+    pub hi: f64,
+}
+
+fn dn(x: f64) -> f64 {
+    if x.is_nan() {
+        f64::NEG_INFINITY
+    } else {
+        x.next_down()
+    }
+}
+
+fn up(x: f64) -> f64 {
+    if x.is_nan() {
+        f64::INFINITY
+    } else {
+        x.next_up()
+    }
+}
+
+fn dn4(x: f64) -> f64 {
+    dn(dn(dn(dn(x))))
+}
+
+fn up4(x: f64) -> f64 {
+    up(up(up(up(x))))
+}
+
+impl Interval {
+    /// `[lo, hi]`; the ends are swapped if given in the wrong order.
+    pub fn new(lo: f64, hi: f64) -> Self {
+        if lo <= hi {
+            Interval { lo, hi }
+        } else {
+            Interval { lo: hi, hi: lo }
+        }
+    }
+
+    /// The degenerate interval `[v, v]`.
+    pub fn point(v: f64) -> Self {
+        Interval { lo: v, hi: v }
+    }
+
+    /// The whole real line.
+    pub fn entire() -> Self {
+        Interval {
+            lo: f64::NEG_INFINITY,
+            hi: f64::INFINITY,
+        }
+    }
+
+    /// Width `hi - lo` (rounded up).
+    pub fn width(&self) -> f64 {
+        up(self.hi - self.lo)
+    }
+
+    /// Whether `x` lies in the interval.
+    pub fn contains(&self, x: f64) -> bool {
+        self.lo <= x && x <= self.hi
+    }
+
+    fn mono(&self, f: impl Fn(f64) -> f64) -> Self {
+        Interval {
+            lo: dn4(f(self.lo)),
+            hi: up4(f(self.hi)),
+        }
+    }
+
+    /// Whether `[lo, hi]` contains a point `c + 2 k pi` (with a 1e-9 margin).
+    fn hits(&self, c: f64) -> bool {
+        let k = ((self.lo - c) / (2.0 * PI)).ceil();
+        let p = c + k * 2.0 * PI;
+        p <= self.hi + 1e-9 || (p - 2.0 * PI) >= self.lo - 1e-9 && (p - 2.0 * PI) <= self.hi + 1e-9
+    }
+}
+
+impl Add for Interval {
+    type Output = Self;
+    fn add(self, o: Self) -> Self {
+        Interval {
+            lo: dn(self.lo + o.lo),
+            hi: up(self.hi + o.hi),
+        }
+    }
+}
+impl Sub for Interval {
+    type Output = Self;
+    fn sub(self, o: Self) -> Self {
+        Interval {
+            lo: dn(self.lo - o.hi),
+            hi: up(self.hi - o.lo),
+        }
+    }
+}
+impl Mul for Interval {
+    type Output = Self;
+    fn mul(self, o: Self) -> Self {
+        let p = [
+            self.lo * o.lo,
+            self.lo * o.hi,
+            self.hi * o.lo,
+            self.hi * o.hi,
+        ];
+        // 0 * inf is NaN: the product of a zero and an unbounded end contributes 0.
+        let p = p.map(|v| if v.is_nan() { 0.0 } else { v });
+        let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        Interval {
+            lo: dn(lo),
+            hi: up(hi),
+        }
+    }
+}
+impl Div for Interval {
+    type Output = Self;
+    fn div(self, o: Self) -> Self {
+        if o.lo <= 0.0 && o.hi >= 0.0 {
+            return Interval::entire();
+        }
+        let p = [
+            self.lo / o.lo,
+            self.lo / o.hi,
+            self.hi / o.lo,
+            self.hi / o.hi,
+        ];
+        let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        Interval {
+            lo: dn(lo),
+            hi: up(hi),
+        }
+    }
+}
+impl Neg for Interval {
+    type Output = Self;
+    fn neg(self) -> Self {
+        Interval {
+            lo: -self.hi,
+            hi: -self.lo,
+        }
+    }
+}
+impl Add<f64> for Interval {
+    type Output = Self;
+    fn add(self, o: f64) -> Self {
+        self + Interval::point(o)
+    }
+}
+impl Sub<f64> for Interval {
+    type Output = Self;
+    fn sub(self, o: f64) -> Self {
+        self - Interval::point(o)
+    }
+}
+impl Mul<f64> for Interval {
+    type Output = Self;
+    fn mul(self, o: f64) -> Self {
+        self * Interval::point(o)
+    }
+}
+impl Div<f64> for Interval {
+    type Output = Self;
+    fn div(self, o: f64) -> Self {
+        self / Interval::point(o)
+    }
+}
+impl AddAssign for Interval {
+    fn add_assign(&mut self, o: Self) {
+        *self = *self + o;
+    }
+}
+impl SubAssign for Interval {
+    fn sub_assign(&mut self, o: Self) {
+        *self = *self - o;
+    }
+}
+impl MulAssign for Interval {
+    fn mul_assign(&mut self, o: Self) {
+        *self = *self * o;
+    }
+}
+
+impl Scalar for Interval {
+    fn cst(c: f64) -> Self {
+        Interval::point(c)
+    }
+    fn value(&self) -> f64 {
+        0.5 * (self.lo + self.hi)
+    }
+    fn sin(&self) -> Self {
+        if self.width() >= 2.0 * PI || !self.lo.is_finite() || !self.hi.is_finite() {
+            return Interval { lo: -1.0, hi: 1.0 };
+        }
+        let (a, b) = (self.lo.sin(), self.hi.sin());
+        let mut lo = dn4(a.min(b));
+        let mut hi = up4(a.max(b));
+        if self.hits(FRAC_PI_2) {
+            hi = 1.0;
+        }
+        if self.hits(-FRAC_PI_2) {
+            lo = -1.0;
+        }
+        Interval {
+            lo: lo.max(-1.0),
+            hi: hi.min(1.0),
+        }
+    }
+    fn cos(&self) -> Self {
+        if self.width() >= 2.0 * PI || !self.lo.is_finite() || !self.hi.is_finite() {
+            return Interval { lo: -1.0, hi: 1.0 };
+        }
+        let (a, b) = (self.lo.cos(), self.hi.cos());
+        let mut lo = dn4(a.min(b));
+        let mut hi = up4(a.max(b));
+        if self.hits(0.0) {
+            hi = 1.0;
+        }
+        if self.hits(PI) {
+            lo = -1.0;
+        }
+        Interval {
+            lo: lo.max(-1.0),
+            hi: hi.min(1.0),
+        }
+    }
+    fn tanh(&self) -> Self {
+        let r = self.mono(f64::tanh);
+        Interval {
+            lo: r.lo.max(-1.0),
+            hi: r.hi.min(1.0),
+        }
+    }
+    fn atan(&self) -> Self {
+        let r = self.mono(f64::atan);
+        Interval {
+            lo: r.lo.max(-FRAC_PI_2.next_up()),
+            hi: r.hi.min(FRAC_PI_2.next_up()),
+        }
+    }
+    fn sqrt(&self) -> Self {
+        if self.hi < 0.0 {
+            return Interval {
+                lo: f64::NAN,
+                hi: f64::NAN,
+            };
+        }
+        Interval {
+            lo: dn(self.lo.max(0.0).sqrt()).max(0.0),
+            hi: up(self.hi.sqrt()),
+        }
+    }
+    fn exp(&self) -> Self {
+        let r = self.mono(f64::exp);
+        Interval {
+            lo: r.lo.max(0.0),
+            hi: r.hi,
+        }
+    }
+    fn abs(&self) -> Self {
+        if self.lo >= 0.0 {
+            *self
+        } else if self.hi <= 0.0 {
+            -*self
+        } else {
+            Interval {
+                lo: 0.0,
+                hi: self.hi.max(-self.lo),
+            }
+        }
+    }
+    fn sqr(&self) -> Self {
+        let a = self.abs();
+        Interval {
+            lo: dn(a.lo * a.lo).max(0.0),
+            hi: up(a.hi * a.hi),
+        }
+    }
+    fn sign(&self) -> Sign {
+        if self.lo > 0.0 {
+            Sign::Positive
+        } else if self.hi < 0.0 {
+            Sign::Negative
+        } else if self.lo == 0.0 && self.hi == 0.0 {
+            Sign::Zero
+        } else if self.lo >= 0.0 {
+            Sign::NonNegative
+        } else if self.hi <= 0.0 {
+            Sign::NonPositive
+        } else {
+            Sign::Mixed
+        }
+    }
+    fn hull(&self, o: &Self) -> Self {
+        Interval {
+            lo: self.lo.min(o.lo),
+            hi: self.hi.max(o.hi),
+        }
+    }
+    fn relu(&self) -> Self {
+        Interval {
+            lo: self.lo.max(0.0),
+            hi: self.hi.max(0.0),
+        }
+    }
+    fn clamp_to(&self, lo: f64, hi: f64) -> Self {
+        Interval {
+            lo: self.lo.max(lo).min(hi),
+            hi: self.hi.max(lo).min(hi),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn sample(i: &Interval, t: f64) -> f64 {
+        i.lo + (i.hi - i.lo) * t
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #[test]
+        fn every_operation_contains_its_point_results(
+            a in -50.0f64..50.0, wa in 0.0f64..3.0, b in -50.0f64..50.0, wb in 0.0f64..3.0,
+            s in 0.0f64..=1.0, t in 0.0f64..=1.0,
+        ) {
+            let (x, y) = (Interval::new(a, a + wa), Interval::new(b, b + wb));
+            let (u, v) = (sample(&x, s), sample(&y, t));
+            prop_assert!((x + y).contains(u + v));
+            prop_assert!((x - y).contains(u - v));
+            prop_assert!((x * y).contains(u * v));
+            if !(y.lo <= 0.0 && y.hi >= 0.0) {
+                prop_assert!((x / y).contains(u / v));
+            }
+            prop_assert!(x.sin().contains(u.sin()), "sin {x:?} at {u}");
+            prop_assert!(x.cos().contains(u.cos()), "cos {x:?} at {u}");
+            prop_assert!(x.tanh().contains(u.tanh()));
+            prop_assert!(x.atan().contains(u.atan()));
+            prop_assert!((x * 0.1).exp().contains((u * 0.1).exp()));
+            prop_assert!(x.abs().contains(u.abs()));
+            prop_assert!(x.sqr().contains(u * u));
+            let p = Interval::new(a.abs(), a.abs() + wa);
+            prop_assert!(p.sqrt().contains(sample(&p, s).sqrt()));
+        }
+    }
+
+    #[test]
+    fn trigonometric_extrema_and_signs() {
+        let i = Interval::new(1.0, 2.0); // contains pi/2
+        assert_eq!(i.sin().hi, 1.0);
+        let j = Interval::new(3.0, 3.5); // contains pi
+        assert_eq!(j.cos().lo, -1.0);
+        assert_eq!(Interval::new(-1.0, 1.0).sign(), Sign::Mixed);
+        assert_eq!(Interval::new(0.0, 1.0).sign(), Sign::NonNegative);
+        assert_eq!(Interval::new(-1.0, 1.0).relu(), Interval::new(0.0, 1.0));
+        assert_eq!(
+            Interval::new(0.1, 0.3).clamp_to(0.181, 0.193),
+            Interval::new(0.181, 0.193)
+        );
+        // Outward rounding: 0.1 + 0.2 is not representable; the interval brackets it.
+        let s = Interval::point(0.1) + Interval::point(0.2);
+        assert!(s.lo < 0.30000000000000004 && s.hi > 0.3);
+    }
+}
