@@ -393,3 +393,36 @@ mod stacked_tests {
         assert_eq!(s.input_names[3], "b#1");
     }
 }
+
+impl Network {
+    /// A dense network with uniform random weights in `[-w, w]` and biases in
+    /// `[-b, b]`, activation `act` between layers (none after the last): the random
+    /// networks of samara's soundness tests and benchmarks.
+    pub fn random_mlp(
+        dims: &[usize],
+        act: Activation,
+        w: f64,
+        b: f64,
+        rng: &mut impl rand::Rng,
+    ) -> Network {
+        let mut layers = Vec::new();
+        for (k, d) in dims.windows(2).enumerate() {
+            layers.push(Layer::Affine(Affine::new(
+                d[0],
+                d[1],
+                (0..d[0] * d[1]).map(|_| rng.gen_range(-w..=w)).collect(),
+                (0..d[1]).map(|_| rng.gen_range(-b..=b)).collect(),
+            )));
+            if k + 2 < dims.len() {
+                layers.push(Layer::Act(act));
+            }
+        }
+        Network {
+            input_names: (0..dims[0]).map(|i| format!("x{i}")).collect(),
+            output_names: (0..dims[dims.len() - 1]).map(|i| format!("y{i}")).collect(),
+            input_norm: None,
+            layers,
+            output_denorm: None,
+        }
+    }
+}

@@ -3,8 +3,8 @@
 //! networks.
 #![cfg(feature = "highs")]
 
-use rand::{Rng, SeedableRng};
-use samara_nn::{Activation, Affine, Layer, Network};
+use rand::SeedableRng;
+use samara_nn::{Activation, Network};
 use samara_spec::normal::{Application, Goal, LinExpr, Query, Sense, Var};
 use samara_verify::case_study::{p1_to_p4, Units};
 use samara_verify::milp::optimise_milp;
@@ -84,26 +84,7 @@ fn case_study_critical_values_agree_with_highs() {
 fn random_networks_agree_with_highs() {
     let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(4);
     for case in 0..30 {
-        let dims = [4, 10, 8, 1];
-        let mut layers = Vec::new();
-        for (k, w) in dims.windows(2).enumerate() {
-            layers.push(Layer::Affine(Affine::new(
-                w[0],
-                w[1],
-                (0..w[0] * w[1]).map(|_| r.gen_range(-1.0..1.0)).collect(),
-                (0..w[1]).map(|_| r.gen_range(-0.3..0.3)).collect(),
-            )));
-            if k < 2 {
-                layers.push(Layer::Act(Activation::Relu));
-            }
-        }
-        let net = Network {
-            input_names: (0..4).map(|i| format!("x{i}")).collect(),
-            output_names: vec!["y".into()],
-            input_norm: None,
-            layers,
-            output_denorm: None,
-        };
+        let net = Network::random_mlp(&[4, 10, 8, 1], Activation::Relu, 1.0, 0.3, &mut r);
         let mut nets = HashMap::new();
         nets.insert("f".to_string(), net);
         let q = Query {

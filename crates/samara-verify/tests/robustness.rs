@@ -3,33 +3,14 @@
 //! Lipschitz certificate is never below a sampled secant slope.
 
 use rand::{Rng, SeedableRng};
-use samara_nn::{Activation, Affine, Layer, Network};
+use samara_nn::{Activation, Network};
 use samara_verify::robustness::{sweep, Reference};
 
 #[test]
 fn extremes_and_lipschitz_certificates_bound_samples() {
     let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(17);
     for case in 0..12 {
-        let dims = [3, 8, 6, 1];
-        let mut layers = Vec::new();
-        for (k, w) in dims.windows(2).enumerate() {
-            layers.push(Layer::Affine(Affine::new(
-                w[0],
-                w[1],
-                (0..w[0] * w[1]).map(|_| r.gen_range(-1.0..1.0)).collect(),
-                (0..w[1]).map(|_| r.gen_range(-0.3..0.3)).collect(),
-            )));
-            if k < 2 {
-                layers.push(Layer::Act(Activation::Relu));
-            }
-        }
-        let net = Network {
-            input_names: vec!["a".into(), "b".into(), "c".into()],
-            output_names: vec!["y".into()],
-            input_norm: None,
-            layers,
-            output_denorm: None,
-        };
+        let net = Network::random_mlp(&[3, 8, 6, 1], Activation::Relu, 1.0, 0.3, &mut r);
         let rows: Vec<Vec<f64>> = (0..5)
             .map(|_| (0..4).map(|_| r.gen_range(0.0..1.0)).collect())
             .collect();
@@ -76,26 +57,7 @@ fn deeppoly_bounds_contain_samples() {
     use samara_verify::net::{affine_bounds, deeppoly, PwlNet};
     let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(23);
     for _ in 0..20 {
-        let dims = [4, 12, 10, 3];
-        let mut layers = Vec::new();
-        for (k, w) in dims.windows(2).enumerate() {
-            layers.push(Layer::Affine(Affine::new(
-                w[0],
-                w[1],
-                (0..w[0] * w[1]).map(|_| r.gen_range(-1.0..1.0)).collect(),
-                (0..w[1]).map(|_| r.gen_range(-0.3..0.3)).collect(),
-            )));
-            if k < 2 {
-                layers.push(Layer::Act(Activation::Relu));
-            }
-        }
-        let net = Network {
-            input_names: (0..4).map(|i| format!("x{i}")).collect(),
-            output_names: (0..3).map(|i| format!("y{i}")).collect(),
-            input_norm: None,
-            layers,
-            output_denorm: None,
-        };
+        let net = Network::random_mlp(&[4, 12, 10, 3], Activation::Relu, 1.0, 0.3, &mut r);
         let p = PwlNet::from_network(&net).unwrap();
         let xl: Vec<f64> = (0..4).map(|_| r.gen_range(-1.0..0.0)).collect();
         let xh: Vec<f64> = xl.iter().map(|l| l + r.gen_range(0.1..1.0)).collect();
