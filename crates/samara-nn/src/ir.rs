@@ -370,30 +370,6 @@ impl Network {
     }
 }
 
-#[cfg(test)]
-mod stacked_tests {
-    use super::*;
-
-    #[test]
-    fn stacked_network_evaluates_each_copy() {
-        let net = Network {
-            input_names: vec!["a".into(), "b".into()],
-            output_names: vec!["y".into()],
-            input_norm: Some(Affine::normalise(&[1.0, 2.0], &[2.0, 4.0])),
-            layers: vec![
-                Layer::Affine(Affine::new(2, 1, vec![0.5, -1.5], vec![0.25])),
-                Layer::Act(Activation::Tanh),
-            ],
-            output_denorm: Some(Affine::denormalise(&[0.181], &[0.012])),
-        };
-        let s = net.stacked(2);
-        let (x1, x2) = ([0.3, -0.7], [2.0, 5.0]);
-        let y = s.eval_f64(&[x1[0], x1[1], x2[0], x2[1]]);
-        assert_eq!(y, vec![net.eval_f64(&x1)[0], net.eval_f64(&x2)[0]]);
-        assert_eq!(s.input_names[3], "b#1");
-    }
-}
-
 impl Network {
     /// A dense network with uniform random weights in `[-w, w]` and biases in
     /// `[-b, b]`, activation `act` between layers (none after the last): the random
@@ -424,5 +400,29 @@ impl Network {
             layers,
             output_denorm: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod stacked_tests {
+    use super::*;
+
+    #[test]
+    fn stacked_network_evaluates_each_copy() {
+        let net = Network {
+            input_names: vec!["a".into(), "b".into()],
+            output_names: vec!["y".into()],
+            input_norm: Some(Affine::normalise(&[1.0, 2.0], &[2.0, 4.0])),
+            layers: vec![
+                Layer::Affine(Affine::new(2, 1, vec![0.5, -1.5], vec![0.25])),
+                Layer::Act(Activation::Tanh),
+            ],
+            output_denorm: Some(Affine::denormalise(&[0.181], &[0.012])),
+        };
+        let s = net.stacked(2);
+        let (x1, x2) = ([0.3, -0.7], [2.0, 5.0]);
+        let y = s.eval_f64(&[x1[0], x1[1], x2[0], x2[1]]);
+        assert_eq!(y, vec![net.eval_f64(&x1)[0], net.eval_f64(&x2)[0]]);
+        assert_eq!(s.input_names[3], "b#1");
     }
 }
