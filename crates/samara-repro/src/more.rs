@@ -348,7 +348,7 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
             1,
             "3-4. Verification: critical values of P1-P4".into(),
         ));
-        d.push(Block::Para("P1 and P2 hold for ystar above the critical value, P3 and P4 below it. Each value is one exact optimisation (branch and bound with sound LP bounds), reported with a concrete witness; `vacuous` marks a threshold that equals the extreme of x + y over the input box, where the property's precondition is empty.".into()));
+        d.push(Block::Para("P1 and P2 hold for ystar above the critical value, P3 and P4 below it. Each value is one exact optimisation (branch and bound with sound LP bounds), reported with a concrete witness; `vacuous` marks a threshold that equals the extreme of x + y over the input box, where the property's precondition is empty; \"holds for every ystar\" means the counterexample region is empty for every value.".into()));
         let mut rows = Vec::new();
         let mut vac: Vec<String> = Vec::new();
         for n in v["networks"].as_array().into_iter().flatten() {
@@ -357,7 +357,7 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
                 let val = c["critical"]
                     .as_f64()
                     .map(|x| format!("{x:.4}"))
-                    .unwrap_or("none".into());
+                    .unwrap_or("holds for every ystar".into());
                 let v = c["vacuous"].as_bool() == Some(true);
                 if v {
                     vac.push(format!(
