@@ -115,6 +115,20 @@ fn certainly_violated(c: &Constraint, bounds: &dyn Fn(Var) -> (f64, f64)) -> boo
     }
 }
 
+/// The point with these inputs, its outputs evaluated by the plain f64 evaluator.
+fn concrete_point(nets: &[&Network], inputs: Vec<Vec<f64>>) -> Point {
+    let outputs = nets
+        .iter()
+        .zip(&inputs)
+        .map(|(net, x)| net.eval_f64(x))
+        .collect();
+    Point {
+        inputs,
+        outputs,
+        free: vec![],
+    }
+}
+
 /// Outcome of the smooth prover for one conjunction.
 pub enum SmoothResult {
     /// No counterexample in the domain.
@@ -173,16 +187,7 @@ pub fn search(
                 .iter()
                 .map(|b| b.iter().map(|p| p.0).collect())
                 .collect();
-            let outputs: Vec<Vec<f64>> = nets
-                .iter()
-                .zip(&inputs)
-                .map(|(net, x)| net.eval_f64(x))
-                .collect();
-            let p = Point {
-                inputs,
-                outputs,
-                free: vec![],
-            };
+            let p = concrete_point(nets, inputs);
             if p.satisfies(cs) {
                 return SmoothResult::Witness(p);
             }
@@ -222,16 +227,7 @@ pub fn search(
             .iter()
             .map(|bx| bx.iter().map(|(l, h)| 0.5 * (l + h)).collect())
             .collect();
-        let outputs: Vec<Vec<f64>> = nets
-            .iter()
-            .zip(&inputs)
-            .map(|(net, x)| net.eval_f64(x))
-            .collect();
-        let p = Point {
-            inputs,
-            outputs,
-            free: vec![],
-        };
+        let p = concrete_point(nets, inputs);
         if p.satisfies(cs) {
             return SmoothResult::Witness(p);
         }
