@@ -1,16 +1,48 @@
 //! P1-P4 critical values for networks with the case study's conventions:
-//! `cargo run --release -p samara-verify --example critical_table -- REFERENCE_DIR`.
+//! `cargo run --release -p samara-verify --example critical_table -- REFERENCE_DIR
+//! [--lp-tighten off|root|depth:N] [--raw NET.onnx ...] [--only-raw]`
+//! (`--raw`: more networks in raw units, e.g. a 6-64-32-1 one trained by samara).
 
 use samara_verify::case_study::{p1_to_p4, Units};
-use samara_verify::{optimise, Prepared, Settings};
+use samara_verify::{optimise, LpTighten, Prepared, Settings};
 use std::collections::HashMap;
 
 fn main() {
-    let dir = std::path::PathBuf::from(
-        std::env::args()
-            .nth(1)
-            .unwrap_or_else(|| "../shared/reference".into()),
-    );
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let mut dir = std::path::PathBuf::from("../shared/reference");
+    let mut tighten = LpTighten::Off;
+    let mut files: Vec<String> = [
+        "base_model_norm.onnx",
+        "adversarial_model_norm.onnx",
+        "base_model_denorm.onnx",
+        "adversarial_model_denorm.onnx",
+    ]
+    .iter()
+    .map(|f| f.to_string())
+    .collect();
+    let mut raw_extra = Vec::new();
+    let mut it = args.iter();
+    while let Some(a) = it.next() {
+        match a.as_str() {
+            "--lp-tighten" => {
+                tighten = match it.next().map(|s| s.as_str()) {
+                    Some("off") => LpTighten::Off,
+                    Some("root") => LpTighten::Root,
+                    Some(d) if d.starts_with("depth:") => LpTighten::Depth(d[6..].parse().unwrap()),
+                    o => panic!("--lp-tighten off|root|depth:N, not {o:?}"),
+                }
+            }
+            "--raw" => raw_extra.push(it.next().expect("--raw PATH").clone()),
+            "--only-raw" => files.clear(),
+            d => dir = d.into(),
+        }
+    }
+    files.extend(raw_extra);
+    let settings = Settings {
+        lp_tighten: tighten,
+        ..Default::default()
+    };
+    println!("lp_tighten: {tighten:?}");
     let text = std::fs::read_to_string(dir.join("Normalisation_Constants.csv")).unwrap();
     let rows: Vec<Vec<f64>> = text
         .lines()
@@ -19,14 +51,10 @@ fn main() {
     let (c, s) = (rows[0][..6].to_vec(), rows[1][..6].to_vec());
     let lo = c.clone();
     let hi: Vec<f64> = c.iter().zip(&s).map(|(a, b)| a + b).collect();
-    for file in [
-        "base_model_norm.onnx",
-        "adversarial_model_norm.onnx",
-        "base_model_denorm.onnx",
-        "adversarial_model_denorm.onnx",
-    ] {
+    let mut total = 0.0;
+    for file in &files {
         let net = samara_nn::onnx::load(dir.join(file)).unwrap();
-        let units = if file.contains("denorm") {
+        let units = if file.contains("denorm") || !file.contains("_norm") {
             Units::raw()
         } else {
             Units {
@@ -41,7 +69,7 @@ fn main() {
         let prep = Prepared::new(&nets);
         let t = std::time::Instant::now();
         for q in p1_to_p4("f", &units, &lo, &hi) {
-            let r = optimise(&q, &prep, &Settings::default()).unwrap();
+            let r = optimise(&q, &prep, &settings).unwrap();
             println!(
                 "{file:32} {}: critical {:>12} bound {:>12.6} attained {} vacuous {} domain {:>10} nodes {} {:.3}s",
                 q.name,
@@ -54,6 +82,9 @@ fn main() {
                 r.seconds
             );
         }
-        println!("{file}: table in {:.3} s", t.elapsed().as_secs_f64());
+        let secs = t.elapsed().as_secs_f64();
+        total += secs;
+        println!("{file}: table in {secs:.3} s");
     }
+    println!("all tables in {total:.3} s");
 }

@@ -11,9 +11,11 @@
 
 use crate::lp::{Lp, LpResult, Row};
 use crate::net::{affine_bounds, PwlNet};
+use crate::tighten::{lp_tighten, InputConstraint, LpTighten};
 use samara_nn::Network;
 use samara_spec::normal::{Cmp, Constraint, LinExpr, Var};
 use std::collections::BinaryHeap;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Where each application's variables live in the LP.
@@ -52,6 +54,9 @@ pub struct Problem<'a> {
 struct Node {
     phases: Vec<Vec<Vec<i8>>>,
     upper: f64,
+    /// LP-tightened bounds of an ancestor (flat `lo`, `hi` over the LP's variables),
+    /// valid in this node's subtree.
+    seed: Option<Arc<(Vec<f64>, Vec<f64>)>>,
 }
 
 impl PartialEq for Node {
@@ -143,6 +148,8 @@ pub struct Limits {
     pub nodes: usize,
     /// Stop once the gap `upper - best` is below this (absolute).
     pub gap: f64,
+    /// LP-based tightening of the pre-activation bounds ([`crate::tighten`]).
+    pub tighten: LpTighten,
 }
 
 impl Default for Limits {
@@ -151,6 +158,7 @@ impl Default for Limits {
             seconds: 60.0,
             nodes: 200_000,
             gap: 1e-9,
+            tighten: LpTighten::Off,
         }
     }
 }
@@ -226,6 +234,7 @@ impl Problem<'_> {
         n: usize,
         boxes: &[Vec<(f64, f64)>],
         phases: &[Vec<Vec<i8>>],
+        seed: Option<&(Vec<f64>, Vec<f64>)>,
     ) -> Option<(Vec<f64>, Vec<f64>)> {
         let n_net = n;
         let mut lo = vec![0.0; n_net + self.free.len()];
@@ -243,8 +252,15 @@ impl Problem<'_> {
             let mut zhi: Vec<Vec<f64>> = Vec::new();
             let (mut alo, mut ahi) = (xl.clone(), xh.clone());
             let mut relu_k = 0;
-            for (m, relu) in &net.maps {
+            for (k, (m, relu)) in net.maps.iter().enumerate() {
                 let (mut zl, mut zh) = affine_bounds(m, &alo, &ahi);
+                if let Some((sl, sh)) = seed {
+                    let zo = av.maps[k].0;
+                    for i in 0..m.out {
+                        zl[i] = zl[i].max(sl[zo + i]);
+                        zh[i] = zh[i].min(sh[zo + i]);
+                    }
+                }
                 if *relu {
                     let ph = &phases[ai][relu_k];
                     relu_k += 1;
@@ -346,6 +362,59 @@ impl Problem<'_> {
                 let _ = rmax;
             }
         }
+    }
+
+    /// LP-tightened bounds of every application's pre-activations under `phases`
+    /// (flat, over the LP's variables; only the `z` entries are meaningful), from the
+    /// node's bounds `lo`/`hi` and the query's constraints on one application's inputs.
+    /// `None` if an LP proves the node empty.
+    fn lp_tighten(
+        &self,
+        apps: &[AppVars],
+        lo: &[f64],
+        hi: &[f64],
+        phases: &[Vec<Vec<i8>>],
+    ) -> Option<(Vec<f64>, Vec<f64>)> {
+        let (mut tlo, mut thi) = (lo.to_vec(), hi.to_vec());
+        for (ai, (net, av)) in self.nets.iter().zip(apps).enumerate() {
+            let nx = net.n_inputs();
+            let inputs: Vec<InputConstraint> = self
+                .constraints
+                .iter()
+                .filter_map(|c| {
+                    let row: Option<Row> = c
+                        .expr
+                        .terms
+                        .iter()
+                        .map(|(v, a)| match v {
+                            Var::Input { app, index } if *app == ai => Some((*index, *a)),
+                            _ => None,
+                        })
+                        .collect();
+                    // Strict inequalities relaxed to their closure (sound for bounds).
+                    row.filter(|r| !r.is_empty()).map(|row| InputConstraint {
+                        row,
+                        rhs: -c.expr.constant,
+                        eq: c.cmp == Cmp::Eq,
+                    })
+                })
+                .collect();
+            let (xl, xh) = (&lo[av.x..av.x + nx], &hi[av.x..av.x + nx]);
+            let mut zlo: Vec<Vec<f64>> = Vec::new();
+            let mut zhi: Vec<Vec<f64>> = Vec::new();
+            for (k, (m, _)) in net.maps.iter().enumerate() {
+                let zo = av.maps[k].0;
+                zlo.push(lo[zo..zo + m.out].to_vec());
+                zhi.push(hi[zo..zo + m.out].to_vec());
+            }
+            lp_tighten(net, xl, xh, &inputs, &phases[ai], &mut zlo, &mut zhi, true)?;
+            for (k, (m, _)) in net.maps.iter().enumerate() {
+                let zo = av.maps[k].0;
+                tlo[zo..zo + m.out].copy_from_slice(&zlo[k]);
+                thi[zo..zo + m.out].copy_from_slice(&zhi[k]);
+            }
+        }
+        Some((tlo, thi))
     }
 
     /// Build the node LP.
@@ -530,7 +599,7 @@ impl Problem<'_> {
                     .collect()
             })
             .collect();
-        let Some((lo0, hi0)) = self.bounds(&apps, n_net, &boxes, &phases0) else {
+        let Some((lo0, hi0)) = self.bounds(&apps, n_net, &boxes, &phases0, None) else {
             return BabResult {
                 best: None,
                 upper: f64::NEG_INFINITY,
@@ -568,6 +637,7 @@ impl Problem<'_> {
         heap.push(Node {
             phases: phases0,
             upper: f64::INFINITY,
+            seed: None,
         });
         let mut nodes = 0usize;
         let mut thin = 0usize;
@@ -590,9 +660,29 @@ impl Problem<'_> {
                 break;
             }
             nodes += 1;
-            let Some((lo, hi)) = self.bounds(&apps, n_net, &boxes, &node.phases) else {
+            let Some((mut lo, mut hi)) =
+                self.bounds(&apps, n_net, &boxes, &node.phases, node.seed.as_deref())
+            else {
                 continue;
             };
+            let mut seed = node.seed.clone();
+            let depth: usize = node
+                .phases
+                .iter()
+                .flatten()
+                .flatten()
+                .map(|p| (*p != 0) as usize)
+                .sum();
+            if limits.tighten.at(depth) {
+                let Some(s) = self.lp_tighten(&apps, &lo, &hi, &node.phases) else {
+                    continue;
+                };
+                let Some(b) = self.bounds(&apps, n_net, &boxes, &node.phases, Some(&s)) else {
+                    continue;
+                };
+                (lo, hi) = b;
+                seed = Some(Arc::new(s));
+            }
             let lp = self.lp(&apps, n_net, &node.phases, &lo, &hi, 0.0);
             // The LP maximises the objective's linear part; add its constant soundly.
             let k0 = self.objective.as_ref().map(|o| o.constant).unwrap_or(0.0);
@@ -663,7 +753,11 @@ impl Problem<'_> {
                     for s in [1i8, -1] {
                         let mut ph = node.phases.clone();
                         ph[ai][rk][i] = s;
-                        heap.push(Node { phases: ph, upper });
+                        heap.push(Node {
+                            phases: ph,
+                            upper,
+                            seed: seed.clone(),
+                        });
                     }
                 }
                 None => {
