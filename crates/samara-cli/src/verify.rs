@@ -6,7 +6,7 @@ use samara_spec::normal::{Goal, Query, Sense};
 use samara_spec::{vnnlib, Bindings, Instance, Spec};
 use samara_verify::engine::Point;
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep, Reference};
-use samara_verify::{optimise, prove, Prepared, Settings, Verdict};
+use samara_verify::{optimise, prove, LpTighten, Prepared, Settings, Verdict};
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::path::PathBuf;
@@ -49,6 +49,10 @@ pub struct VerifyArgs {
     /// Time limit per query in seconds.
     #[arg(long, default_value_t = 60.0)]
     pub timeout: f64,
+    /// Tighten unstable neurons' bounds with LPs at the root of each search
+    /// (`samara_verify::tighten`; off by default).
+    #[arg(long)]
+    pub lp_tighten: bool,
     /// JSON output.
     #[arg(long)]
     pub json: bool,
@@ -67,6 +71,10 @@ pub struct CriticalArgs {
     /// Time limit in seconds.
     #[arg(long, default_value_t = 60.0)]
     pub timeout: f64,
+    /// Tighten unstable neurons' bounds with LPs at the root of each search
+    /// (`samara_verify::tighten`; off by default).
+    #[arg(long)]
+    pub lp_tighten: bool,
     /// JSON output.
     #[arg(long)]
     pub json: bool,
@@ -343,6 +351,7 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
     let prep = Prepared::new(&l.nets);
     let settings = Settings {
         timeout: a.timeout,
+        lp_tighten: tighten_mode(a.lp_tighten),
         ..Default::default()
     };
     let mut all_proved = true;
@@ -413,8 +422,21 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
     })
 }
 
+fn tighten_mode(on: bool) -> LpTighten {
+    if on {
+        LpTighten::Root
+    } else {
+        LpTighten::Off
+    }
+}
+
 /// The critical value of a parameter, both ends of the counterexample set.
-pub fn critical_value(l: &Loaded, property: &str, param: &str, timeout: f64) -> Result<Value> {
+pub fn critical_value(
+    l: &Loaded,
+    property: &str,
+    param: &str,
+    settings: &Settings,
+) -> Result<Value> {
     let inst = l
         .spec
         .lower_critical(property, param, &l.b)
@@ -424,18 +446,14 @@ pub fn critical_value(l: &Loaded, property: &str, param: &str, timeout: f64) -> 
     }
     require_networks(l, &inst.iter().collect::<Vec<_>>())?;
     let prep = Prepared::new(&l.nets);
-    let settings = Settings {
-        timeout,
-        ..Default::default()
-    };
     let t0 = Instant::now();
     let q_max = inst[0].query.clone();
     let mut q_min = q_max.clone();
     if let Goal::Optimise { sense, .. } = &mut q_min.goal {
         *sense = Sense::Min;
     }
-    let sup = optimise(&q_max, &prep, &settings)?;
-    let inf = optimise(&q_min, &prep, &settings)?;
+    let sup = optimise(&q_max, &prep, settings)?;
+    let inf = optimise(&q_min, &prep, settings)?;
     let (lo, hi) = l.spec.params[param]
         .range
         .expect("checked by lower_critical");
@@ -473,7 +491,16 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
         bail!("samara critical: name exactly one parameter to search with --param NAME (e.g. --param ystar); got {}", free.len());
     };
     let of = of.trim().to_string();
-    let v = critical_value(&l, &a.property, &of, a.timeout)?;
+    let v = critical_value(
+        &l,
+        &a.property,
+        &of,
+        &Settings {
+            timeout: a.timeout,
+            lp_tighten: tighten_mode(a.lp_tighten),
+            ..Default::default()
+        },
+    )?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {

@@ -71,11 +71,12 @@ fn main() {
         for q in p1_to_p4("f", &units, &lo, &hi) {
             let r = optimise(&q, &prep, &settings).unwrap();
             println!(
-                "{file:32} {}: critical {:>12} bound {:>12.6} attained {} vacuous {} domain {:>10} nodes {} {:.3}s",
+                "{file:32} {}: critical {:>12} bound {:>12.6} attained {} complete {} vacuous {} domain {:>10} nodes {} {:.3}s",
                 q.name,
                 r.value.map(|v| format!("{v:.6}")).unwrap_or("none".into()),
                 r.bound,
                 r.attained,
+                r.complete,
                 r.vacuous,
                 r.domain_extreme.map(|v| format!("{v:.4}")).unwrap_or("-".into()),
                 r.nodes,

@@ -642,7 +642,7 @@ impl Problem<'_> {
         let mut nodes = 0usize;
         let mut thin = 0usize;
         let mut complete = true;
-        while let Some(node) = heap.pop() {
+        'nodes: while let Some(node) = heap.pop() {
             let incumbent = best.as_ref().map(|b| b.1).unwrap_or(f64::NEG_INFINITY);
             if node.upper < self.floor {
                 continue;
@@ -673,81 +673,97 @@ impl Problem<'_> {
                 .flatten()
                 .map(|p| (*p != 0) as usize)
                 .sum();
-            if limits.tighten.at(depth) {
-                let Some(s) = self.lp_tighten(&apps, &lo, &hi, &node.phases) else {
-                    continue;
-                };
-                let Some(b) = self.bounds(&apps, n_net, &boxes, &node.phases, Some(&s)) else {
-                    continue;
-                };
-                (lo, hi) = b;
-                seed = Some(Arc::new(s));
-            }
-            let lp = self.lp(&apps, n_net, &node.phases, &lo, &hi, 0.0);
-            // The LP maximises the objective's linear part; add its constant soundly.
-            let k0 = self.objective.as_ref().map(|o| o.constant).unwrap_or(0.0);
-            let (upper, x) = match lp.solve() {
-                LpResult::Infeasible => continue,
-                LpResult::Bound { upper, x } => (crate::net::up(upper + k0), Some(x)),
-                LpResult::Failed { upper } => (crate::net::up(upper + k0), None),
-            };
-            let incumbent = best.as_ref().map(|b| b.1).unwrap_or(f64::NEG_INFINITY);
-            if upper < self.floor {
-                continue;
-            }
-            if upper <= incumbent + limits.gap {
-                closed_upper = closed_upper.max(upper);
-                continue;
-            }
-            // Concrete witness from the primal.
+            // LP tightening is lazy: only for a node that its LP neither prunes nor
+            // settles, i.e. one about to be branched on; then its LP is solved again.
+            let mut tighten = limits.tighten.at(depth);
             let mut found = false;
-            if let Some(x) = &x {
-                let p = self.concretise(&apps, n_net, &boxes, x);
-                if p.satisfies(&self.constraints) {
-                    let v = self.objective_value(&p);
-                    if best.as_ref().is_none_or(|b| v > b.1) {
-                        best = Some((p, v));
-                    }
-                    found = true;
-                }
-            }
-            if found && self.stop_reached(&best) {
-                return BabResult {
-                    best,
-                    upper: f64::INFINITY,
-                    complete: true,
-                    nodes,
-                    thin_leaves: thin,
+            // Both LPs' bounds are sound for the node: keep the smaller.
+            let mut cap = f64::INFINITY;
+            let (upper, pick) = loop {
+                let lp = self.lp(&apps, n_net, &node.phases, &lo, &hi, 0.0);
+                // The LP maximises the objective's linear part; add its constant soundly.
+                let k0 = self.objective.as_ref().map(|o| o.constant).unwrap_or(0.0);
+                let (upper, x) = match lp.solve() {
+                    LpResult::Infeasible => continue 'nodes,
+                    LpResult::Bound { upper, x } => (crate::net::up(upper + k0), Some(x)),
+                    LpResult::Failed { upper } => (crate::net::up(upper + k0), None),
                 };
-            }
-            // Branch on the unstable neuron whose relaxation is most violated at x.
-            let mut pick: Option<(usize, usize, usize, f64)> = None;
-            for (ai, av) in apps.iter().enumerate() {
-                let mut rk = 0;
-                for (k, (m, relu)) in self.nets[ai].maps.iter().enumerate() {
-                    if !*relu {
-                        continue;
+                let upper = upper.min(cap);
+                let incumbent = best.as_ref().map(|b| b.1).unwrap_or(f64::NEG_INFINITY);
+                if upper < self.floor {
+                    continue 'nodes;
+                }
+                if upper <= incumbent + limits.gap {
+                    closed_upper = closed_upper.max(upper);
+                    continue 'nodes;
+                }
+                // Concrete witness from the primal.
+                if let Some(x) = &x {
+                    let p = self.concretise(&apps, n_net, &boxes, x);
+                    if p.satisfies(&self.constraints) {
+                        let v = self.objective_value(&p);
+                        if best.as_ref().is_none_or(|b| v > b.1) {
+                            best = Some((p, v));
+                        }
+                        found = true;
                     }
-                    let (zo, ao) = av.maps[k];
-                    let a = ao.expect("relu var");
-                    for i in 0..m.out {
-                        if node.phases[ai][rk][i] != 0 || lo[zo + i] >= 0.0 || hi[zo + i] <= 0.0 {
+                }
+                if found && self.stop_reached(&best) {
+                    return BabResult {
+                        best,
+                        upper: f64::INFINITY,
+                        complete: true,
+                        nodes,
+                        thin_leaves: thin,
+                    };
+                }
+                // Branch on the unstable neuron whose relaxation is most violated at x.
+                let mut pick: Option<(usize, usize, usize, f64)> = None;
+                for (ai, av) in apps.iter().enumerate() {
+                    let mut rk = 0;
+                    for (k, (m, relu)) in self.nets[ai].maps.iter().enumerate() {
+                        if !*relu {
                             continue;
                         }
-                        let score = match &x {
-                            Some(x) => {
-                                (x[a + i] - x[zo + i].max(0.0)).abs()
-                                    + 1e-12 * (hi[zo + i] - lo[zo + i])
+                        let (zo, ao) = av.maps[k];
+                        let a = ao.expect("relu var");
+                        for i in 0..m.out {
+                            if node.phases[ai][rk][i] != 0 || lo[zo + i] >= 0.0 || hi[zo + i] <= 0.0
+                            {
+                                continue;
                             }
-                            None => hi[zo + i] - lo[zo + i],
-                        };
-                        if pick.is_none_or(|p| score > p.3) {
-                            pick = Some((ai, rk, i, score));
+                            let score = match &x {
+                                Some(x) => {
+                                    (x[a + i] - x[zo + i].max(0.0)).abs()
+                                        + 1e-12 * (hi[zo + i] - lo[zo + i])
+                                }
+                                None => hi[zo + i] - lo[zo + i],
+                            };
+                            if pick.is_none_or(|p| score > p.3) {
+                                pick = Some((ai, rk, i, score));
+                            }
                         }
+                        rk += 1;
                     }
-                    rk += 1;
                 }
-            }
+                // (Not when the witness just found settles the node.)
+                let settled = best.as_ref().is_some_and(|b| upper <= b.1 + limits.gap);
+                if pick.is_some() && tighten && !settled {
+                    tighten = false;
+                    let s = self.lp_tighten(&apps, &lo, &hi, &node.phases);
+                    let Some(s) = s else {
+                        continue 'nodes;
+                    };
+                    let Some(b) = self.bounds(&apps, n_net, &boxes, &node.phases, Some(&s)) else {
+                        continue 'nodes;
+                    };
+                    (lo, hi) = b;
+                    seed = Some(Arc::new(s));
+                    cap = upper;
+                    continue;
+                }
+                break (upper, pick);
+            };
             match pick {
                 Some((ai, rk, i, _)) => {
                     for s in [1i8, -1] {
