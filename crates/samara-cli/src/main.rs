@@ -5,6 +5,7 @@
 //! 2 a usage or input error.
 
 mod nnload;
+mod reach;
 mod reproduce;
 mod simulate;
 mod train;
@@ -41,6 +42,9 @@ enum Command {
     VerifyVnnlib(verify::VerifyVnnlibArgs),
     /// Write each property instance as a VNN-LIB 1.0 file.
     ExportVnnlib(verify::ExportArgs),
+    /// Sound reachable sets of the closed loop (plant + network) from an initial box,
+    /// with a goal |x + y| <= Y decided: proved, violated or unknown.
+    Reach(reach::ReachArgs),
     /// Reproduce the whole case study (data, controllers, proofs, reachable sets,
     /// figures, report) in one command.
     Reproduce(reproduce::ReproduceArgs),
@@ -61,6 +65,7 @@ fn main() -> ExitCode {
     };
     let result = match &cli.command {
         Command::Simulate(a) => simulate::run(a),
+        Command::Reach(a) => reach::run(a),
         Command::Reproduce(a) => reproduce::run(a),
         Command::Train(a) => train::run(a),
         Command::Check(a) => verify::run_check(a),

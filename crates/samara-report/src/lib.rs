@@ -76,6 +76,9 @@ pub struct TrajectoryFigure {
     pub boxes: Vec<(f64, f64, f64, f64)>,
     /// Whether to draw a legend entry per curve (turn off for thousands of samples).
     pub legend: bool,
+    /// With `legend` off: one legend entry for all curves together (e.g. "sampled
+    /// trajectories"), if set.
+    pub group_label: Option<String>,
 }
 
 impl TrajectoryFigure {
@@ -87,6 +90,7 @@ impl TrajectoryFigure {
             band: None,
             boxes: Vec::new(),
             legend: true,
+            group_label: None,
         }
     }
 
@@ -238,8 +242,15 @@ impl TrajectoryFigure {
                     color.stroke_width(2),
                 ))
                 .map_err(|e| err(&e))?;
-            if self.legend {
-                s.label(c.label.clone()).legend(move |(x, y)| {
+            let label = if self.legend {
+                Some(c.label.clone())
+            } else if i == 0 {
+                self.group_label.clone()
+            } else {
+                None
+            };
+            if let Some(label) = label {
+                s.label(label).legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
                 });
             }
@@ -337,6 +348,13 @@ mod tests {
         assert!(std::fs::metadata(dir.join("t.png")).unwrap().len() > 1000);
         let svg = std::fs::read_to_string(dir.join("t.svg")).unwrap();
         assert!(svg.contains("<svg") && svg.contains("target y = -x"));
+        // One legend entry for a group of unlabelled curves.
+        fig.legend = false;
+        fig.group_label = Some("sampled trajectories".into());
+        fig.boxes = vec![(0.0, 1.0, 0.0, 1.0)];
+        fig.render(&dir.join("t.png"), &dir.join("t.svg")).unwrap();
+        let svg = std::fs::read_to_string(dir.join("t.svg")).unwrap();
+        assert!(svg.contains("sampled trajectories") && !svg.contains("y0 = 1"));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
