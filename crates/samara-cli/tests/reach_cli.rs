@@ -1,0 +1,313 @@
+//! `samara reach` end to end: bad inputs rejected with exit code 2, a message and no
+//! files; a small real run on the published raw-unit network proved, with its JSON
+//! summary, `reach.json` and the figures checked here.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn samara() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_samara"))
+}
+
+fn reference(name: &str) -> Option<PathBuf> {
+    let p = PathBuf::from(format!(
+        "{}/../../../shared/reference/{name}",
+        env!("CARGO_MANIFEST_DIR")
+    ));
+    if p.exists() {
+        Some(p)
+    } else {
+        eprintln!("skipping: {} not found", p.display());
+        None
+    }
+}
+
+/// A small network with `inputs` inputs and one output, written as ONNX.
+fn tiny_network(dir: &Path, inputs: usize) -> PathBuf {
+    use samara_nn::{Activation, Affine, Layer, Network};
+    let net = Network {
+        input_names: (0..inputs).map(|i| format!("x{i}")).collect(),
+        output_names: vec!["ex".into()],
+        input_norm: None,
+        layers: vec![
+            Layer::Affine(Affine::new(
+                inputs,
+                2,
+                (0..2 * inputs).map(|i| 0.01 * i as f64).collect(),
+                vec![0.0, 0.1],
+            )),
+            Layer::Act(Activation::Relu),
+            Layer::Affine(Affine::new(2, 1, vec![0.001, -0.001], vec![0.187])),
+        ],
+        output_denorm: None,
+    };
+    let p = dir.join(format!("tiny{inputs}.onnx"));
+    samara_nn::onnx::save(&net, &p, &Default::default()).unwrap();
+    p
+}
+
+/// Run `samara reach` with `args` and `--out DIR/out`; expect exit 2, a message
+/// containing every needle, and no output directory.
+fn assert_usage_error(args: &[&str], needles: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out = samara()
+        .arg("reach")
+        .args(args)
+        .arg("--out")
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "args {args:?}: {err}");
+    for needle in needles {
+        assert!(
+            err.contains(needle),
+            "args {args:?}: message {err:?} lacks {needle:?}"
+        );
+    }
+    assert!(out.stdout.is_empty(), "args {args:?} printed a result");
+    assert!(
+        !out_dir.exists(),
+        "args {args:?} left an output directory behind"
+    );
+}
+
+#[test]
+fn wrong_network_shape_exits_2_without_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let three = tiny_network(dir.path(), 3);
+    let three = three.to_str().unwrap();
+    assert_usage_error(
+        &["--network", three],
+        &["--network", "3 inputs", "6 inputs"],
+    );
+    // A well-formed 6-input network passes the check (and the flag checks come first).
+    let six = tiny_network(dir.path(), 6);
+    assert_usage_error(
+        &["--network", six.to_str().unwrap(), "--y0", "3:2"],
+        &["--y0", "inverted"],
+    );
+}
+
+#[test]
+fn missing_network_exits_2_without_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let missing = dir.path().join("nope.onnx");
+    assert_usage_error(
+        &["--network", missing.to_str().unwrap()],
+        &["--network", "no such file"],
+    );
+    // Not an ONNX file at all.
+    let junk = dir.path().join("junk.onnx");
+    std::fs::write(&junk, b"not a network").unwrap();
+    assert_usage_error(
+        &["--network", junk.to_str().unwrap()],
+        &["--network", "cannot load"],
+    );
+}
+
+#[test]
+fn bad_flags_exit_2_with_a_message_and_no_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let six = tiny_network(dir.path(), 6);
+    let net = six.to_str().unwrap();
+    let cases: &[(&[&str], &[&str])] = &[
+        (&["--y0", "3:2"], &["--y0", "inverted", "A <= B"]),
+        (&["--y0", "1:nan"], &["--y0", "finite"]),
+        (&["--y0", "1:inf"], &["--y0", "finite"]),
+        (&["--y0", "abc"], &["--y0", "A:B"]),
+        (&["--y0", "1:2:3"], &["--y0", "A:B"]),
+        (
+            &["--horizon", "20.25", "--period", "0.5"],
+            &["--horizon", "multiple of --period"],
+        ),
+        (&["--horizon", "0"], &["--horizon", "positive"]),
+        (&["--period", "-0.5"], &["--period", "positive"]),
+        (
+            &["--model", "plate7"],
+            &["--model", "reduced, plate6, full"],
+        ),
+        (&["--init", "theta=0.1:0"], &["--init", "inverted"]),
+        (&["--init", "q=0:1"], &["unknown state", "v_xp"]),
+        (&["--init", "E=0:1"], &["no filter state E"]),
+        (&["--init", "theta"], &["NAME=A:B"]),
+        (&["--init", "x=0:1", "--init", "x=0:2"], &["given twice"]),
+        (&["--y0", "2:3", "--init", "y=2:3"], &["--y0", "once"]),
+        (&["--goal-from", "3"], &["--goal-ystar"]),
+        (&["--goal-ystar", "-1"], &["--goal-ystar", ">= 0"]),
+        (
+            &["--goal-ystar", "2", "--goal-from", "30"],
+            &["--goal-from", "[0, horizon"],
+        ),
+        (&["--threads", "0"], &["--threads"]),
+        (&["--max-leaves", "0"], &["--max-leaves"]),
+    ];
+    for (args, needles) in cases {
+        let mut all = vec!["--network", net];
+        all.extend_from_slice(args);
+        assert_usage_error(&all, needles);
+    }
+    // --init E is accepted for the 7-state models (checked without running: the horizon
+    // is then the error reported).
+    assert_usage_error(
+        &[
+            "--network",
+            net,
+            "--model",
+            "full",
+            "--init",
+            "E=0:0.001",
+            "--horizon",
+            "1.3",
+        ],
+        &["multiple of --period"],
+    );
+    // Missing --network or --out: clap's usage error, also exit 2.
+    let out = samara().args(["reach", "--out", "x"]).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
+
+#[test]
+fn small_run_is_proved_and_writes_json_and_figures() {
+    let Some(net) = reference("base_model_denorm.onnx") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("out");
+    let out = samara()
+        .arg("reach")
+        .arg("--network")
+        .arg(&net)
+        .args(["--y0", "2.0:2.05", "--horizon", "2", "--goal-ystar", "100"])
+        .args(["--threads", "2", "--json", "--out"])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["verdict"], "proved");
+    let fin: Vec<f64> = s["final_x_plus_y"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    assert_eq!(fin.len(), 2);
+    assert!(fin[0] <= fin[1] && fin[0].abs() <= 100.0 && fin[1].abs() <= 100.0);
+    let sampled: Vec<f64> = s["sampled_x_plus_y"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    // The enclosure contains every sampled trajectory's x + y at the horizon.
+    assert!(fin[0] <= sampled[0] && sampled[1] <= fin[1], "{s}");
+    assert!(s["subproblems"].as_u64().unwrap() >= 1);
+    assert!(s["seconds"].as_f64().unwrap() > 0.0);
+
+    // reach.json: settings, verdict, and per sub-box, per control instant the box of
+    // all states and the x + y enclosure.
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out_dir.join("reach.json")).unwrap())
+            .unwrap();
+    assert_eq!(r["settings"]["model"], "reduced");
+    assert_eq!(r["settings"]["horizon"], 2.0);
+    assert_eq!(r["settings"]["period"], 0.5);
+    assert_eq!(r["settings"]["init"]["y"][0], 2.0);
+    assert_eq!(r["settings"]["init"]["y"][1], 2.05);
+    assert_eq!(r["settings"]["init"]["v_xp"][0], 1.0);
+    assert_eq!(r["settings"]["goal"]["ystar"], 100.0);
+    assert_eq!(r["verdict"]["verdict"], "proved");
+    assert_eq!(r["final_x_plus_y"], s["final_x_plus_y"]);
+    assert_eq!(r["subproblems"], s["subproblems"]);
+    assert!(r["width_ratio"].as_f64().unwrap() >= 1.0 - 1e-9);
+    let leaves = r["leaves"].as_array().unwrap();
+    assert_eq!(leaves.len() as u64, s["subproblems"].as_u64().unwrap());
+    // The sub-boxes cover the initial y interval.
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for l in leaves {
+        let y = &l["init"][5];
+        lo = lo.min(y[0].as_f64().unwrap());
+        hi = hi.max(y[1].as_f64().unwrap());
+        let steps = l["steps"].as_array().unwrap();
+        assert_eq!(steps.len(), 5, "instants 0, 0.5, ..., 2");
+        for (k, st) in steps.iter().enumerate() {
+            assert_eq!(st["t"].as_f64().unwrap(), 0.5 * k as f64);
+            let bbox = st["bbox"].as_array().unwrap();
+            assert_eq!(bbox.len(), 6);
+            let xy = st["x_plus_y"].as_array().unwrap();
+            let (a, b) = (xy[0].as_f64().unwrap(), xy[1].as_f64().unwrap());
+            assert!(a <= b);
+            // x + y is enclosed by the sum of the boxes of x and y.
+            let bx = (bbox[4][0].as_f64().unwrap(), bbox[4][1].as_f64().unwrap());
+            let by = (bbox[5][0].as_f64().unwrap(), bbox[5][1].as_f64().unwrap());
+            assert!(a >= bx.0 + by.0 - 1e-9 && b <= bx.1 + by.1 + 1e-9);
+        }
+    }
+    assert_eq!((lo, hi), (2.0, 2.05));
+    assert!(std::fs::metadata(out_dir.join("reach.png")).unwrap().len() > 1000);
+    let svg = std::fs::read_to_string(out_dir.join("reach.svg")).unwrap();
+    assert!(svg.contains("<svg") && svg.contains("reachable set") && svg.contains("target y = -x"));
+    // No temporary files left behind.
+    let mut names: Vec<String> = std::fs::read_dir(&out_dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["reach.json", "reach.png", "reach.svg"]);
+}
+
+#[test]
+fn violated_goal_exits_1_with_a_counterexample() {
+    let Some(net) = reference("base_model_denorm.onnx") else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    // At t = 1 the glider is still near its start (x + y about 2.6): |x + y| <= 0.5 fails.
+    let out = samara()
+        .arg("reach")
+        .arg("--network")
+        .arg(&net)
+        .args(["--y0", "2.0:2.01", "--horizon", "1", "--goal-ystar", "0.5"])
+        .args(["--json", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(s["verdict"], "violated");
+    let ce = &s["counterexample"];
+    let y0 = ce["initial"][5].as_f64().unwrap();
+    assert!((2.0..=2.01).contains(&y0));
+    assert!(ce["x_plus_y"].as_f64().unwrap().abs() > 0.5);
+    assert!(s["reason"].is_string());
+    assert!(dir.path().join("reach.json").exists());
+
+    // The human line says the same.
+    let out = samara()
+        .arg("reach")
+        .arg("--network")
+        .arg(&net)
+        .args(["--y0", "2.0:2.01", "--horizon", "1", "--goal-ystar", "0.5"])
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let line = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        line.starts_with("violated") && line.contains("counterexample"),
+        "{line}"
+    );
+}
