@@ -204,6 +204,21 @@ impl<'a> Problem<'a> {
     }
 }
 
+/// The intersection of two sets of bounds (either may be absent).
+fn meet(
+    a: Option<&(Vec<f64>, Vec<f64>)>,
+    b: Option<&(Vec<f64>, Vec<f64>)>,
+) -> Option<(Vec<f64>, Vec<f64>)> {
+    match (a, b) {
+        (None, None) => None,
+        (Some(x), None) | (None, Some(x)) => Some(x.clone()),
+        (Some(x), Some(y)) => Some((
+            x.0.iter().zip(&y.0).map(|(p, q)| p.max(*q)).collect(),
+            x.1.iter().zip(&y.1).map(|(p, q)| p.min(*q)).collect(),
+        )),
+    }
+}
+
 /// Input boxes tightened by the constraints on a single input (`a x_k + c cmp 0`).
 pub fn tighten(boxes: &[Vec<(f64, f64)>], constraints: &[Constraint]) -> Vec<Vec<(f64, f64)>> {
     {
@@ -633,6 +648,28 @@ impl Problem<'_> {
         }
         let mut best: Option<(Point, f64)> = None;
         let mut closed_upper = f64::NEG_INFINITY;
+        // Delayed root tightening (`LpTighten::Root`): once the search has solved as
+        // many node LPs as the tightening will (two per unstable neuron), the root's
+        // bounds are tightened and then hold at every node: a search that settles
+        // quickly never pays for it, a long one pays at most double.
+        let root_lps: usize = if limits.tighten == LpTighten::Root {
+            let mut u = 0;
+            for (net, av) in self.nets.iter().zip(&apps) {
+                for (k, (m, relu)) in net.maps.iter().enumerate() {
+                    let zo = av.maps[k].0;
+                    if *relu {
+                        u += (0..m.out)
+                            .filter(|&i| lo0[zo + i] < 0.0 && hi0[zo + i] > 0.0)
+                            .count();
+                    }
+                }
+            }
+            2 * u
+        } else {
+            usize::MAX
+        };
+        let mut root_seed: Option<(Vec<f64>, Vec<f64>)> = None;
+        let phases_root = phases0.clone();
         let mut heap = BinaryHeap::new();
         heap.push(Node {
             phases: phases0,
@@ -660,8 +697,15 @@ impl Problem<'_> {
                 break;
             }
             nodes += 1;
+            if nodes == root_lps.saturating_add(1) {
+                // (None: the root tightening failed to help; the search goes on without.)
+                root_seed = self
+                    .lp_tighten(&apps, &lo0, &hi0, &phases_root)
+                    .and_then(|s| self.bounds(&apps, n_net, &boxes, &phases_root, Some(&s)));
+            }
+            let node_seed = meet(node.seed.as_deref(), root_seed.as_ref());
             let Some((mut lo, mut hi)) =
-                self.bounds(&apps, n_net, &boxes, &node.phases, node.seed.as_deref())
+                self.bounds(&apps, n_net, &boxes, &node.phases, node_seed.as_ref())
             else {
                 continue;
             };

@@ -25,19 +25,21 @@ pub enum LpTighten {
     /// Interval and DeepPoly bounds only.
     #[default]
     Off,
-    /// At the root node only; every node inherits the tightened bounds.
+    /// Once, for the root problem, delayed until the search has solved as many node
+    /// LPs as the tightening will (two per unstable neuron); every later node uses the
+    /// tightened bounds. A search that settles in a few nodes never pays for it.
     Root,
-    /// At every node with at most this many fixed ReLU phases (`Depth(0)` is `Root`);
-    /// children inherit their parent's tightened bounds.
+    /// At every node with at most this many fixed ReLU phases, when its LP leaves it
+    /// to be branched on (the LP is then solved again); children inherit the
+    /// tightened bounds. `Depth(0)`: the root, at once.
     Depth(usize),
 }
 
 impl LpTighten {
-    /// Whether a node with `depth` fixed phases is tightened.
+    /// Whether a node with `depth` fixed phases is tightened when it is branched on.
     pub fn at(self, depth: usize) -> bool {
         match self {
-            LpTighten::Off => false,
-            LpTighten::Root => depth == 0,
+            LpTighten::Off | LpTighten::Root => false,
             LpTighten::Depth(d) => depth <= d,
         }
     }

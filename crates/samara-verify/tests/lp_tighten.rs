@@ -195,8 +195,9 @@ fn input_le(a: &[f64], t: f64) -> Constraint {
     }
 }
 
-fn modes() -> [LpTighten; 2] {
-    [LpTighten::Root, LpTighten::Depth(3)]
+/// Delayed root tightening, the root at once, and every node down to depth 3.
+fn modes() -> [LpTighten; 3] {
+    [LpTighten::Root, LpTighten::Depth(0), LpTighten::Depth(3)]
 }
 
 fn with(t: LpTighten) -> Settings {
@@ -318,15 +319,18 @@ fn case_study_critical_values_do_not_change() {
         let mut nets = HashMap::new();
         nets.insert("f".to_string(), f);
         let prep = Prepared::new(&nets);
-        for q in p1_to_p4("f", &units, &c, &hi) {
+        for (q, t) in p1_to_p4("f", &units, &c, &hi)
+            .into_iter()
+            .flat_map(|q| [(q.clone(), LpTighten::Root), (q, LpTighten::Depth(0))])
+        {
             let off = optimise(&q, &prep, &Settings::default()).unwrap();
-            let on = optimise(&q, &prep, &with(LpTighten::Root)).unwrap();
+            let on = optimise(&q, &prep, &with(t)).unwrap();
             // (`complete` also requires no thin leaves, which P4's boundary has.)
-            assert_eq!(off.complete, on.complete, "{file} {}", q.name);
+            assert_eq!(off.complete, on.complete, "{file} {} {t:?}", q.name);
             let (a, b) = (off.value.unwrap(), on.value.unwrap());
             assert!(
                 (a - b).abs() <= 1e-6 && (off.bound - on.bound).abs() <= 1e-6,
-                "{file} {}: off {a} / {}, on {b} / {}",
+                "{file} {} {t:?}: off {a} / {}, on {b} / {}",
                 q.name,
                 off.bound,
                 on.bound
