@@ -73,7 +73,9 @@ pub struct ReachArgs {
 /// its value in messages (e.g. `--y0 "3:2"`).
 pub fn parse_interval(s: &str, what: &str) -> Result<(f64, f64)> {
     let bad = || {
-        anyhow!("{what}: expected A:B (e.g. 1.4286:4.2857) or a single value A, with finite numbers")
+        anyhow!(
+            "{what}: expected A:B (e.g. 1.4286:4.2857) or a single value A, with finite numbers"
+        )
     };
     let parts: Vec<&str> = s.split(':').collect();
     let (a, b) = match parts.as_slice() {
@@ -320,7 +322,7 @@ fn verdict_details(v: &Verdict) -> serde_json::Value {
             x_plus_y,
         } => serde_json::json!({
             "verdict": "violated",
-            "reason": format!("the simulated trajectory from the initial state below has x + y = {x_plus_y} at t = {t}"),
+            "reason": format!("the simulated trajectory from {initial:?} has x + y = {x_plus_y} at t = {t}, outside the goal band"),
             "counterexample": { "initial": initial, "t": t, "x_plus_y": x_plus_y },
         }),
     }
