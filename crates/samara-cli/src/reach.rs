@@ -19,6 +19,9 @@ const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
 /// sub-boxes are merged (interval hull, still an over-approximation).
 const MAX_FIGURE_BOXES: usize = 20_000;
 
+/// Sampled trajectories drawn on top of the sets.
+const MAX_FIGURE_SAMPLES: usize = 24;
+
 /// Flags of `samara reach`. The defaults are the published CORA setting: reduced
 /// model, start (1, 0, 0, 0, 0, y0) with y0 in [1.4286, 4.2857], period 0.5, horizon 20.
 #[derive(clap::Args, Debug)]
@@ -450,14 +453,22 @@ fn figure_boxes(res: &ReachResult) -> Vec<(f64, f64, f64, f64)> {
 }
 
 fn figure(a: &ReachArgs, s: &ReachSettings, res: &ReachResult) -> TrajectoryFigure {
-    let curves = res
+    // A few trajectories only (the extremes come first in the samples, then random
+    // starts), so the sets under them stay visible.
+    let n = res.samples.len();
+    let step = n.div_ceil(MAX_FIGURE_SAMPLES).max(1);
+    let curves: Vec<Curve> = res
         .samples
         .iter()
-        .map(|smp| Curve {
+        .enumerate()
+        .filter(|(i, _)| *i < 2 || i % step == 0)
+        .take(MAX_FIGURE_SAMPLES)
+        .map(|(_, smp)| Curve {
             label: format!("y0 = {:.4}", smp.initial[5]),
             points: smp.xy.clone(),
         })
         .collect();
+    let shown = curves.len();
     let name = a
         .network
         .file_stem()
@@ -465,7 +476,7 @@ fn figure(a: &ReachArgs, s: &ReachSettings, res: &ReachResult) -> TrajectoryFigu
         .unwrap_or_else(|| "network".into());
     let mut fig = TrajectoryFigure::new(
         format!(
-            "Reachable sets, {} model, {name}: {} ({} sub-boxes)",
+            "{name}, {} model: {} ({} sub-boxes; sets at control instants)",
             s.model.name(),
             res.verdict.name(),
             res.subproblems()
@@ -475,6 +486,6 @@ fn figure(a: &ReachArgs, s: &ReachSettings, res: &ReachResult) -> TrajectoryFigu
     fig.boxes = figure_boxes(res);
     fig.band = s.goal.as_ref().map(|g| g.ystar);
     fig.legend = false;
-    fig.group_label = Some(format!("sampled trajectories ({})", res.samples.len()));
+    fig.group_label = Some(format!("sampled trajectories ({shown} of {n})"));
     fig
 }

@@ -203,6 +203,15 @@ impl TrajectoryFigure {
                 });
         }
         if !self.boxes.is_empty() {
+            // Outlined as well as filled, so thin (or degenerate) sets stay visible.
+            chart
+                .draw_series(self.boxes.iter().map(|b| {
+                    Rectangle::new(
+                        [(b.0, b.2), (b.1, b.3)],
+                        RGBColor(90, 120, 220).mix(0.8).stroke_width(2),
+                    )
+                }))
+                .map_err(|e| err(&e))?;
             chart
                 .draw_series(self.boxes.iter().map(|b| {
                     Rectangle::new(
