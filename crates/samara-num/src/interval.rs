@@ -114,6 +114,7 @@ impl Sub for Interval {
 }
 impl Mul for Interval {
     type Output = Self;
+    #[inline]
     fn mul(self, o: Self) -> Self {
         let p = [
             self.lo * o.lo,
@@ -121,10 +122,18 @@ impl Mul for Interval {
             self.hi * o.lo,
             self.hi * o.hi,
         ];
-        // 0 * inf is NaN: the product of a zero and an unbounded end contributes 0.
-        let p = p.map(|v| if v.is_nan() { 0.0 } else { v });
-        let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
-        let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let lo = p[0].min(p[1]).min(p[2].min(p[3]));
+        let hi = p[0].max(p[1]).max(p[2].max(p[3]));
+        if p.iter().any(|v| v.is_nan()) {
+            // 0 * inf is NaN: the product of a zero and an unbounded end contributes 0.
+            let p = p.map(|v| if v.is_nan() { 0.0 } else { v });
+            let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
+            let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+            return Interval {
+                lo: dn(lo),
+                hi: up(hi),
+            };
+        }
         Interval {
             lo: dn(lo),
             hi: up(hi),

@@ -11,9 +11,13 @@
 //! one trait with the required operations and a constant helper.
 
 mod dual;
+mod idual;
 mod interval;
 mod scalar;
+mod series;
 
 pub use dual::Dual;
+pub use idual::IDual;
 pub use interval::Interval;
 pub use scalar::{Scalar, Sign};
+pub use series::Series;

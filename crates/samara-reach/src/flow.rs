@@ -1,0 +1,403 @@
+//! Validated integration of the plant over one control period with the control held
+//! constant: an interval Taylor method in the style of Lohner (1987) on zonotopes.
+//!
+//! One step of size `h` from the zonotope `Z = c + G xi` (the control `ex` is the last
+//! row, with zero derivative, so its dependence on the parameters is kept):
+//! 1. a-priori enclosure `B` of every trajectory over `[0, h]`: the first-order Picard
+//!    test `box(Z) + [0, h] f(B) ⊆ B` (Nedialkov, Jackson & Corliss 1999, §3);
+//! 2. Taylor map `T(s) = sum_{i<=p} x_i(s) h^i` by Taylor-mode AD of the plant's own
+//!    equations ([`samara_num::Series`]), the Lagrange remainder `h^{p+1} x_{p+1}(B)`;
+//! 3. mean-value form `T(Z) ⊆ T(c) + DT(box Z) G xi`, with `DT` enclosed by
+//!    `Series<IDual>`; the midpoint matrix maps the generators exactly (no wrapping),
+//!    the radius matrix and the remainder become new axis-aligned generators.
+//!
+//! Where the right-hand side is not analytic over `B` (the full model's `|omega|` and
+//! quadrant masks), the step falls back to the zeroth-order enclosure
+//! `phi_h(s) ∈ s + h f(B)`, which only needs `f` bounded on `B`.
+
+// Numeric kernels index several arrays by one index; the explicit forms mirror the formulas.
+#![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
+
+use crate::zonotope::{gamma, Zonotope};
+use samara_num::{IDual, Interval, Scalar, Series};
+use samara_plant::Plant;
+
+/// Taylor order of the validated steps.
+pub const ORDER: usize = 7;
+const KK: usize = ORDER + 2;
+/// Dual directions: v_xp, v_yp, omega, theta and ex (the right-hand side never reads
+/// x or y, so their Jacobian columns are unit vectors).
+const ND: usize = 5;
+/// Rows of the integrated state: the six physical states and the held control. The
+/// filter state E of plate6/full never acts on the others (it only fed the PID) and is
+/// left out of the sets.
+pub const ROWS: usize = 7;
+
+/// The plant's right-hand side on the six states (E = 0 supplied when the model has it).
+fn rhs6<S: Scalar>(plant: &Plant, x: &[S], out: &mut [S]) {
+    if plant.dim() == 7 {
+        let mut st: Vec<S> = x[..6].to_vec();
+        st.push(S::cst(0.0));
+        let mut o = vec![S::cst(0.0); 7];
+        plant.rhs(&st, &x[6], &mut o);
+        out[..6].clone_from_slice(&o[..6]);
+    } else {
+        plant.rhs(&x[..6], &x[6], &mut out[..6]);
+    }
+}
+
+/// Why a period could not be enclosed.
+#[derive(Clone, Debug, PartialEq)]
+pub enum FlowFailure {
+    /// The a-priori enclosure could not be validated even for tiny steps (the set is
+    /// too large, or the flow leaves the model's domain: `v_xp` reaching 0, ...).
+    NoEnclosure {
+        /// Time within the period.
+        t: f64,
+    },
+}
+
+/// Settings of the validated integrator.
+#[derive(Clone, Debug)]
+pub struct FlowSettings {
+    /// Nominal step (0.5 / 8).
+    pub h: f64,
+    /// Smallest Taylor step before the zeroth-order fallback (1e-3).
+    pub h_min_taylor: f64,
+    /// Smallest step at all (1e-7).
+    pub h_min: f64,
+    /// Largest remainder width accepted per step before the step is shortened (1e-8).
+    pub rem_tol: f64,
+    /// Noise generators kept by the reduction (4 per dimension).
+    pub max_noise_per_dim: usize,
+    /// Remainder accepted relative to the set's width in that row (1e-4).
+    pub rem_rel: f64,
+    /// Attempted steps per period before giving up (the set is then too wide to
+    /// integrate efficiently and the caller splits it): 400.
+    pub max_attempts: usize,
+}
+
+impl Default for FlowSettings {
+    fn default() -> Self {
+        FlowSettings {
+            h: 0.0625,
+            h_min_taylor: 1e-3,
+            h_min: 1e-7,
+            rem_tol: 1e-8,
+            max_noise_per_dim: 4,
+            max_attempts: 400,
+            rem_rel: 1e-4,
+        }
+    }
+}
+
+/// Statistics of one period.
+#[derive(Clone, Debug, Default)]
+pub struct FlowStats {
+    /// Taylor steps taken.
+    pub taylor_steps: usize,
+    /// Zeroth-order fallback steps taken.
+    pub fallback_steps: usize,
+    /// Rejected attempts.
+    pub rejected: usize,
+}
+
+fn rhs_interval(plant: &Plant, x: &[Interval]) -> Vec<Interval> {
+    let mut out = vec![Interval::point(0.0); ROWS];
+    rhs6(plant, x, &mut out);
+    out
+}
+
+/// Taylor coefficients `0..=upto` of the solution from `x0` (last entry: ex, constant).
+fn taylor<S: Scalar + Copy>(plant: &Plant, x0: &[S], upto: usize) -> Vec<Series<S, KK>> {
+    let d = x0.len();
+    let n = d - 1;
+    let mut x: Vec<Series<S, KK>> = x0.iter().map(|v| Series::var(*v)).collect();
+    x[n] = Series::constant(x0[n]);
+    let mut out = vec![Series::<S, KK>::cst(0.0); d];
+    for i in 0..upto {
+        for xj in x.iter_mut().take(n) {
+            xj.n = i + 1;
+        }
+        rhs6(plant, &x, &mut out);
+        for j in 0..n {
+            x[j].c[i + 1] = out[j].c[i] / (i as f64 + 1.0);
+            x[j].bad |= out[j].bad;
+        }
+    }
+    for xj in x.iter_mut().take(n) {
+        xj.n = upto + 1;
+    }
+    x
+}
+
+fn subset(a: &[Interval], b: &[Interval]) -> bool {
+    a.iter().zip(b).all(|(x, y)| y.lo <= x.lo && x.hi <= y.hi)
+}
+
+fn finite(v: &[Interval]) -> bool {
+    v.iter().all(|x| x.lo.is_finite() && x.hi.is_finite())
+}
+
+/// A-priori enclosure of all trajectories from `bz` over `[0, h]`.
+fn apriori(plant: &Plant, bz: &[Interval], h: f64) -> Option<Vec<Interval>> {
+    let th = Interval::new(0.0, h);
+    let f0 = rhs_interval(plant, bz);
+    if !finite(&f0) {
+        return None;
+    }
+    let mut b: Vec<Interval> = bz.iter().zip(&f0).map(|(z, f)| *z + th * *f).collect();
+    for _ in 0..12 {
+        // Inflate, then test.
+        let inf: Vec<Interval> = b
+            .iter()
+            .map(|x| {
+                let w = 0.2 * (x.hi - x.lo) + 1e-12 * (1.0 + x.lo.abs().max(x.hi.abs()));
+                Interval::new(x.lo - w, x.hi + w)
+            })
+            .collect();
+        let fb = rhs_interval(plant, &inf);
+        if !finite(&fb) {
+            return None;
+        }
+        let nb: Vec<Interval> = bz.iter().zip(&fb).map(|(z, f)| *z + th * *f).collect();
+        if subset(&nb, &inf) {
+            return Some(nb);
+        }
+        b = nb;
+    }
+    None
+}
+
+fn pow_up(h: f64, k: usize) -> Interval {
+    let mut p = Interval::point(1.0);
+    for _ in 0..k {
+        p = p * h;
+    }
+    p
+}
+
+/// One Taylor step; `None` if it cannot be validated at this `h`.
+fn taylor_step(
+    plant: &Plant,
+    z: &Zonotope,
+    h: f64,
+    s: &FlowSettings,
+    hint: &mut f64,
+) -> Option<(Zonotope, Vec<Interval>)> {
+    let d = z.dim();
+    let n = d - 1;
+    let bz = z.bbox();
+    let b = apriori(plant, &bz, h)?;
+    // Remainder h^{p+1} x_{p+1}(B).
+    let tb = taylor::<Interval>(plant, &b, ORDER + 1);
+    if tb[..n].iter().any(|x| x.bad) {
+        return None;
+    }
+    let hp = pow_up(h, ORDER + 1);
+    let rem: Vec<Interval> = (0..n).map(|j| tb[j].c[ORDER + 1] * hp).collect();
+    // Step-size suggestion from the remainder's scaling, rem ~ h^{p+1}.
+    // Worst ratio of the remainder's width to what is accepted in its row: the absolute
+    // tolerance, or a fraction of the set's own width (a wide set cannot do better).
+    let worst = rem
+        .iter()
+        .zip(&bz)
+        .map(|(r, b)| (r.hi - r.lo) / s.rem_tol.max(s.rem_rel * (b.hi - b.lo)))
+        .fold(0.0f64, f64::max)
+        * s.rem_tol;
+    *hint = if worst.is_finite() && worst > 0.0 {
+        h * 0.9 * (s.rem_tol / worst).powf(1.0 / (ORDER as f64 + 1.0))
+    } else if worst == 0.0 {
+        2.0 * h
+    } else {
+        0.5 * h
+    };
+    if !finite(&rem) || worst > s.rem_tol && h > s.h_min_taylor {
+        return None;
+    }
+    // T(c).
+    let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
+    let tc = taylor::<Interval>(plant, &cpt, ORDER);
+    if tc[..n].iter().any(|x| x.bad) {
+        return None;
+    }
+    let horner = |co: &[Interval]| -> Interval {
+        let mut acc = co[ORDER];
+        for i in (0..ORDER).rev() {
+            acc = acc * h + co[i];
+        }
+        acc
+    };
+    let centre: Vec<Interval> = (0..n).map(|j| horner(&tc[j].c) + rem[j]).collect();
+    // DT(box Z).
+    // Seeds: v_xp, v_yp, omega, theta -> directions 0..4, ex -> 4; x, y constant.
+    let dir = |i: usize| match i {
+        0..=3 => Some(i),
+        6 => Some(4),
+        _ => None,
+    };
+    let seeds: Vec<IDual<ND>> = bz
+        .iter()
+        .enumerate()
+        .map(|(i, v)| match dir(i) {
+            Some(k) => IDual::var(*v, k),
+            None => IDual::constant(*v),
+        })
+        .collect();
+    let tj = taylor::<IDual<ND>>(plant, &seeds, ORDER);
+    if tj[..n].iter().any(|x| x.bad) {
+        return None;
+    }
+    // jac[j][k] enclosure of d T_j / d s_k.
+    let mut jac = vec![vec![Interval::point(0.0); d]; d];
+    for j in 0..n {
+        for (k, jk) in jac[j].iter_mut().enumerate() {
+            *jk = match dir(k) {
+                Some(q) => {
+                    let mut acc = tj[j].c[ORDER].d[q];
+                    for i in (0..ORDER).rev() {
+                        acc = acc * h + tj[j].c[i].d[q];
+                    }
+                    acc
+                }
+                None => Interval::point(if j == k { 1.0 } else { 0.0 }),
+            };
+        }
+    }
+    jac[n][n] = Interval::point(1.0);
+    if jac.iter().any(|r| !finite(r)) || !finite(&centre) {
+        return None;
+    }
+    // New zonotope.
+    let mid: Vec<Vec<f64>> = jac
+        .iter()
+        .map(|r| r.iter().map(|x| 0.5 * (x.lo + x.hi)).collect())
+        .collect();
+    let rad: Vec<Vec<f64>> = jac
+        .iter()
+        .zip(&mid)
+        .map(|(r, m)| {
+            r.iter()
+                .zip(m)
+                .map(|(x, mm)| (x.hi - mm).max(mm - x.lo).next_up())
+                .collect()
+        })
+        .collect();
+    let mut noise = vec![0.0f64; d];
+    let mut c = z.c.clone();
+    for j in 0..n {
+        let m = 0.5 * (centre[j].lo + centre[j].hi);
+        c[j] = m;
+        noise[j] = (centre[j].hi - m).max(m - centre[j].lo).next_up();
+    }
+    let mut gens = Vec::with_capacity(z.gens.len() + d);
+    for g in &z.gens {
+        let mut ng = vec![0.0; d];
+        for j in 0..d {
+            let mut acc = 0.0;
+            let mut mag = 0.0;
+            let mut radterm = 0.0;
+            for k in 0..d {
+                acc += mid[j][k] * g[k];
+                mag += (mid[j][k] * g[k]).abs();
+                radterm += rad[j][k] * g[k].abs();
+            }
+            ng[j] = acc;
+            noise[j] += (radterm + mag * gamma(d)) * (1.0 + gamma(d));
+        }
+        gens.push(ng);
+    }
+    for x in noise.iter_mut() {
+        *x = x.next_up();
+    }
+    let mut nz = Zonotope {
+        c,
+        gens,
+        n_param: z.n_param,
+    };
+    nz.add_box(&noise);
+    nz.reduce(s.max_noise_per_dim * d);
+    Some((nz, b))
+}
+
+/// The zeroth-order step `phi_h(Z) ⊆ Z ⊕ h f(B)`.
+fn fallback_step(
+    plant: &Plant,
+    z: &Zonotope,
+    h: f64,
+    s: &FlowSettings,
+) -> Option<(Zonotope, Vec<Interval>)> {
+    let bz = z.bbox();
+    let b = apriori(plant, &bz, h)?;
+    let fb = rhs_interval(plant, &b);
+    let mut nz = z.clone();
+    let mut r = vec![0.0; z.dim()];
+    for j in 0..z.dim() - 1 {
+        let inc = fb[j] * h;
+        let m = 0.5 * (inc.lo + inc.hi);
+        let e = (nz.c[j].abs() + m.abs()) * f64::EPSILON;
+        nz.c[j] += m;
+        r[j] = ((inc.hi - m).max(m - inc.lo) + e).next_up();
+    }
+    nz.add_box(&r);
+    nz.reduce(s.max_noise_per_dim * z.dim());
+    Some((nz, b))
+}
+
+/// Enclose the flow of `z` (last row: the held control) over `[0, period]`. Returns
+/// the final zonotope, the hull of `x + y` over the whole period, and statistics.
+pub fn flow_period(
+    plant: &Plant,
+    z: &Zonotope,
+    period: f64,
+    s: &FlowSettings,
+    h_start: &mut f64,
+) -> Result<(Zonotope, Interval, FlowStats), FlowFailure> {
+    let mut t = 0.0;
+    let mut z = z.clone();
+    let mut h = h_start.min(s.h).min(period);
+    let mut st = FlowStats::default();
+    let mut xy = z.x_plus_y();
+    while t < period {
+        let rest = period - t;
+        let hh = if h >= rest * (1.0 - 1e-12) { rest } else { h };
+        let mut hint = 0.5 * hh;
+        let mut res = taylor_step(plant, &z, hh, s, &mut hint);
+        if res.is_some() {
+            st.taylor_steps += 1;
+        } else if hh <= s.h_min_taylor * 1.0001 {
+            res = fallback_step(plant, &z, hh, s);
+            if res.is_some() {
+                st.fallback_steps += 1;
+            }
+        }
+        if std::env::var_os("SAMARA_FLOW_DEBUG").is_some() {
+            eprintln!(
+                "t {t:.5} h {hh:.2e} ok {} hint {hint:.2e} gens {}",
+                res.is_some(),
+                z.gens.len()
+            );
+        }
+        match res {
+            Some((nz, b)) => {
+                xy = xy.hull(&(b[4] + b[5]));
+                z = nz;
+                t = if hh == rest { period } else { t + hh };
+                if hh < rest {
+                    h = hint.clamp(0.5 * hh, 4.0 * hh).max(s.h_min_taylor).min(s.h);
+                }
+            }
+            None => {
+                st.rejected += 1;
+                if hh <= s.h_min
+                    || st.rejected + st.taylor_steps + st.fallback_steps > s.max_attempts
+                {
+                    return Err(FlowFailure::NoEnclosure { t });
+                }
+                h = hint.clamp(0.1 * hh, 0.5 * hh);
+            }
+        }
+    }
+    *h_start = h;
+    Ok((z, xy, st))
+}

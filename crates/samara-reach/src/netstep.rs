@@ -1,0 +1,223 @@
+//! The network step of the closed loop on a set: the controller output over a zonotope,
+//! as an affine function of the zonotope's generator coordinates plus a deviation,
+//! `ex ∈ a . xi + b ± d`, so the control keeps its dependence on the initial set.
+//!
+//! For piecewise-linear networks (ReLU, clamp) the generator map `s = c + G xi` is
+//! prepended to the network as one more affine layer and the output is bounded by the
+//! DeepPoly/CROWN back-substitution (Singh et al., POPL 2019; Zhang et al., NeurIPS
+//! 2018) over the box `xi ∈ [-1, 1]^k`: every intermediate bound is thus taken over the
+//! zonotope, not its interval hull. The closed loop's clip is appended to the network as
+//! a clamp layer, which the encoding turns into two ReLUs. Smooth networks (sigmoid,
+//! tanh) fall back to interval evaluation over the hull (no dependence kept).
+
+// Numeric kernels index several arrays by one index; the explicit forms mirror the formulas.
+#![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
+
+use crate::zonotope::Zonotope;
+use samara_nn::{Activation, Affine, Layer, Network};
+use samara_num::Interval;
+use samara_verify::net::{affine_bounds, deeppoly, PwlNet};
+
+/// A controller network prepared for set evaluation.
+#[derive(Clone, Debug)]
+pub struct SetController {
+    /// The network with the clip appended (raw units).
+    pub net: Network,
+    /// Its piecewise-linear form, if it has one.
+    pwl: Option<PwlNet>,
+}
+
+/// The controller output over a set: `ex = cst + coef . xi + [-dev, dev]`.
+#[derive(Clone, Debug)]
+pub struct ControlSet {
+    /// Coefficients over the zonotope's generators.
+    pub coef: Vec<f64>,
+    /// Constant.
+    pub cst: f64,
+    /// Deviation bound.
+    pub dev: f64,
+    /// Sound interval of the output.
+    pub range: Interval,
+}
+
+impl SetController {
+    /// Prepare `net` (6 raw inputs, 1 output); `clip` is appended as a clamp.
+    pub fn new(net: &Network, clip: Option<(f64, f64)>) -> Self {
+        let mut net = net.clone();
+        if let Some((lo, hi)) = clip {
+            let mut body = net.layers.clone();
+            if let Some(d) = net.output_denorm.take() {
+                body.push(Layer::Affine(d));
+            }
+            body.push(Layer::Act(Activation::Clamp { lo, hi }));
+            net.layers = body;
+        }
+        let pwl = PwlNet::from_network(&net).ok();
+        SetController { net, pwl }
+    }
+
+    /// Evaluate at a point (f64), clip included.
+    pub fn eval(&self, s: &[f64]) -> f64 {
+        self.net.eval_f64(&s[..6])[0]
+    }
+
+    /// The output over the zonotope `z` (its first six rows are the network inputs).
+    pub fn over(&self, z: &Zonotope) -> ControlSet {
+        let k = z.gens.len();
+        match &self.pwl {
+            None => {
+                let bb = z.bbox();
+                let r = self.net.eval::<Interval>(&bb[..6])[0];
+                let m = 0.5 * (r.lo + r.hi);
+                ControlSet {
+                    coef: vec![0.0; k],
+                    cst: m,
+                    dev: (r.hi - m).max(m - r.lo).next_up(),
+                    range: r,
+                }
+            }
+            Some(p) => {
+                // s = c + G xi as the first map (k -> 6).
+                let mut w = vec![0.0; 6 * k];
+                for i in 0..6 {
+                    for (j, g) in z.gens.iter().enumerate() {
+                        w[i * k + j] = g[i];
+                    }
+                }
+                let first = Affine::new(k, 6, w, z.c[..6].to_vec());
+                let mut maps = vec![(first, false)];
+                maps.extend(p.maps.iter().cloned());
+                let net = PwlNet { maps };
+                crown(&net, k)
+            }
+        }
+    }
+}
+
+/// Interval bounds of every map (outward rounded), then DeepPoly on top, then the final
+/// output's linear bounds over `xi ∈ [-1, 1]^k`.
+fn crown(net: &PwlNet, k: usize) -> ControlSet {
+    let xlo = vec![-1.0; k];
+    let xhi = vec![1.0; k];
+    let mut lo: Vec<Vec<f64>> = Vec::new();
+    let mut hi: Vec<Vec<f64>> = Vec::new();
+    let (mut alo, mut ahi) = (xlo.clone(), xhi.clone());
+    for (m, relu) in &net.maps {
+        let (l, h) = affine_bounds(m, &alo, &ahi);
+        lo.push(l.clone());
+        hi.push(h.clone());
+        if *relu {
+            alo = l.iter().map(|v| v.max(0.0)).collect();
+            ahi = h.iter().map(|v| v.max(0.0)).collect();
+        } else {
+            alo = l;
+            ahi = h;
+        }
+    }
+    let fixed: Vec<Vec<i8>> = net
+        .maps
+        .iter()
+        .filter(|m| m.1)
+        .map(|m| vec![0i8; m.0.out])
+        .collect();
+    deeppoly(net, &xlo, &xhi, &fixed, &mut lo, &mut hi);
+    let last = net.maps.len() - 1;
+    let range = Interval {
+        lo: lo[last][0],
+        hi: hi[last][0],
+    };
+    let (cu, bu, mu) = back_substitute(net, &lo, &hi, true);
+    let (cl, bl, ml) = back_substitute(net, &lo, &hi, false);
+    // ex in [cl . xi + bl, cu . xi + bu] on the box.
+    let coef: Vec<f64> = cu.iter().zip(&cl).map(|(u, l)| 0.5 * (u + l)).collect();
+    let cst = 0.5 * (bu + bl);
+    let mut dev = 0.5 * (bu - bl);
+    for (u, l) in cu.iter().zip(&cl) {
+        dev += 0.5 * (u - l).abs();
+    }
+    // Stated tolerance for the rounding of the back-substitution, as in `deeppoly`.
+    dev = (dev + 1e-10 * (1.0 + mu + ml)).next_up();
+    let half = 0.5 * (range.hi - range.lo);
+    if dev >= half {
+        let m = 0.5 * (range.lo + range.hi);
+        return ControlSet {
+            coef: vec![0.0; k],
+            cst: m,
+            dev: (range.hi - m).max(m - range.lo).next_up(),
+            range,
+        };
+    }
+    ControlSet {
+        coef,
+        cst,
+        dev,
+        range,
+    }
+}
+
+/// Linear bound `coef . xi + cst` of the single output (upper if `upper`), through the
+/// ReLU relaxations given the pre-activation bounds; also the magnitude of the terms.
+fn back_substitute(
+    net: &PwlNet,
+    lo: &[Vec<f64>],
+    hi: &[Vec<f64>],
+    upper: bool,
+) -> (Vec<f64>, f64, f64) {
+    let s = if upper { 1.0 } else { -1.0 };
+    let nm = net.maps.len();
+    let mut coef = vec![s];
+    let mut cst = 0.0f64;
+    let mut mag = 0.0f64;
+    for j in (0..nm).rev() {
+        let m = &net.maps[j].0;
+        let mut next = vec![0.0; m.inp];
+        for (row, c) in coef.iter().enumerate() {
+            if *c == 0.0 {
+                continue;
+            }
+            cst += c * m.b[row];
+            mag += (c * m.b[row]).abs();
+            for (col, nx) in next.iter_mut().enumerate() {
+                let w = m.w[row * m.inp + col];
+                if w != 0.0 {
+                    *nx += c * w;
+                    mag += (c * w).abs();
+                }
+            }
+        }
+        if j == 0 {
+            coef = next;
+            break;
+        }
+        let pj = j - 1;
+        if !net.maps[pj].1 {
+            coef = next;
+            continue;
+        }
+        let mut zc = vec![0.0; next.len()];
+        for (t, c) in next.iter().enumerate() {
+            if *c == 0.0 {
+                continue;
+            }
+            let (l, u) = (lo[pj][t], hi[pj][t]);
+            if l >= 0.0 {
+                zc[t] = *c;
+            } else if u <= 0.0 {
+            } else {
+                let slope = u / (u - l);
+                if *c > 0.0 {
+                    zc[t] = c * slope;
+                    cst += -c * slope * l;
+                    mag += (c * slope * l).abs();
+                } else {
+                    let lambda = if u > -l { 1.0 } else { 0.0 };
+                    zc[t] = c * lambda;
+                }
+            }
+        }
+        coef = zc;
+    }
+    // Undo the sign: s * out <= coef . xi + cst.
+    let coef: Vec<f64> = coef.iter().map(|c| c * s).collect();
+    (coef, cst * s, mag)
+}

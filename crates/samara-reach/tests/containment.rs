@@ -1,0 +1,101 @@
+//! Soundness of the reachable sets against an independent computation: trajectories
+//! simulated with samara-sim's tight integrator (DOP853, rtol 1e-10, atol 1e-12, the
+//! f64 plant and network evaluators, no set arithmetic) must lie inside the enclosure
+//! of the sub-box that contains their start, at every control instant: inside its
+//! interval hull, and inside its zonotope with the parameter coordinates of the start.
+//! Tolerance 1e-7 for the simulation's own error (about 1e-8 over a flight).
+
+use samara_plant::{Model, Plant};
+use samara_reach::{check_containment, reach, simulate_samples, Goal, ReachSettings};
+use std::path::Path;
+
+fn net(name: &str) -> Option<samara_nn::Network> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference").join(name);
+    if !p.exists() {
+        eprintln!("skipping: {} not found", p.display());
+        return None;
+    }
+    Some(samara_nn::onnx::load(&p).expect("published network loads"))
+}
+
+fn check(model: Model, file: &str, y0: (f64, f64), horizon: f64, n: usize, seed: u64) {
+    let Some(net) = net(file) else { return };
+    let mut s = ReachSettings::published(model);
+    s.init[5] = y0;
+    s.horizon = horizon;
+    s.keep_sets = true;
+    s.initial_splits = 4;
+    s.max_leaves = 8;
+    s.samples = 8;
+    s.goal = Some(Goal { ystar: 100.0, from: None });
+    let r = reach(&net, &s).expect("reach runs");
+    assert!(r.leaves.iter().all(|l| l.failure.is_none()), "a sub-box failed");
+    let mut s2 = s.clone();
+    s2.seed = seed;
+    let samples = simulate_samples(&Plant::new(model), &net, &s2, n);
+    assert_eq!(samples.len(), n);
+    for smp in &samples {
+        if let Err(e) = check_containment(&r, smp, 1e-7) {
+            panic!("{model:?} {file}: start {:?}: {e}", smp.initial);
+        }
+    }
+    // The enclosure of x + y at the horizon contains every sampled value.
+    for smp in &samples {
+        let x = smp.states.last().unwrap();
+        let v = x[4] + x[5];
+        assert!(r.final_x_plus_y[0] <= v + 1e-7 && v - 1e-7 <= r.final_x_plus_y[1]);
+    }
+    // A goal that is plainly true is proved.
+    assert_eq!(r.verdict.name(), "proved");
+}
+
+#[test]
+fn reduced_base_contains_samples() {
+    check(Model::Reduced, "base_model_denorm.onnx", (2.0, 2.2), 3.0, 200, 7);
+}
+
+#[test]
+fn plate6_adversarial_contains_samples() {
+    check(Model::Plate6, "adversarial_model_denorm.onnx", (3.0, 3.1), 3.0, 200, 8);
+}
+
+#[test]
+fn full_base_contains_samples() {
+    check(Model::Full, "base_model_denorm.onnx", (1.5, 1.6), 2.0, 200, 9);
+}
+
+/// The soundness bar: 2,000 random starts over the whole published interval and
+/// horizon, both raw-unit networks, all three variants (minutes; run with --ignored).
+#[test]
+#[ignore]
+fn published_setting_contains_2000_samples() {
+    for model in Model::ALL {
+        for file in ["base_model_denorm.onnx", "adversarial_model_denorm.onnx"] {
+            let Some(net) = net(file) else { return };
+            let mut s = ReachSettings::published(model);
+            s.keep_sets = true;
+            s.samples = 16;
+            let r = reach(&net, &s).expect("reach runs");
+            let samples = simulate_samples(&Plant::new(model), &net, &s, 2000);
+            let mut failed = 0;
+            for smp in &samples {
+                if r.leaves.iter().any(|l| l.failure.is_some()) {
+                    break;
+                }
+                if let Err(e) = check_containment(&r, smp, 1e-7) {
+                    eprintln!("{model:?} {file}: {e}");
+                    failed += 1;
+                }
+            }
+            eprintln!(
+                "{model:?} {file}: {} samples, {} outside, verdict {}, ratio {:.3}, {:.1} s",
+                samples.len(),
+                failed,
+                r.verdict.name(),
+                r.width_ratio(),
+                r.seconds
+            );
+            assert_eq!(failed, 0);
+        }
+    }
+}
