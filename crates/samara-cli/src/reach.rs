@@ -8,19 +8,12 @@
 use anyhow::{anyhow, bail, Context, Result};
 use samara_plant::{Model, STATE_NAMES};
 use samara_reach::{Goal, ReachResult, ReachSettings, Verdict};
-use samara_report::{write_atomic, Curve, TrajectoryFigure};
+use samara_report::{write_atomic, TrajectoryFigure};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// The published initial heights: y0 in [0.1/0.07, 0.3/0.07].
 const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
-
-/// Largest number of filled boxes drawn in the figure; beyond it neighbouring
-/// sub-boxes are merged (interval hull, still an over-approximation).
-const MAX_FIGURE_BOXES: usize = 20_000;
-
-/// Sampled trajectories drawn on top of the sets.
-const MAX_FIGURE_SAMPLES: usize = 24;
 
 /// Flags of `samara reach`. The defaults are the published CORA setting: reduced
 /// model, start (1, 0, 0, 0, 0, y0) with y0 in [1.4286, 4.2857], period 0.5, horizon 20.
@@ -423,69 +416,15 @@ fn human_line(s: &ReachSettings, res: &ReachResult) -> String {
     )
 }
 
-/// The x-y boxes of every sub-box at every control instant, merged across neighbouring
-/// sub-boxes (sorted by their initial box) if there are too many to draw.
-fn figure_boxes(res: &ReachResult) -> Vec<(f64, f64, f64, f64)> {
-    let total: usize = res.leaves.iter().map(|l| l.steps.len()).sum();
-    let group = total.div_ceil(MAX_FIGURE_BOXES).max(1);
-    let mut out = Vec::new();
-    for chunk in res.leaves.chunks(group) {
-        let steps = chunk.iter().map(|l| l.steps.len()).max().unwrap_or(0);
-        for k in 0..steps {
-            let mut b = (
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-                f64::INFINITY,
-                f64::NEG_INFINITY,
-            );
-            for l in chunk {
-                if let Some(st) = l.steps.get(k) {
-                    let (x, y) = (st.bbox[4], st.bbox[5]);
-                    b = (b.0.min(x[0]), b.1.max(x[1]), b.2.min(y[0]), b.3.max(y[1]));
-                }
-            }
-            if b.0.is_finite() && b.1.is_finite() && b.2.is_finite() && b.3.is_finite() {
-                out.push(b);
-            }
-        }
-    }
-    out
-}
-
 fn figure(a: &ReachArgs, s: &ReachSettings, res: &ReachResult) -> TrajectoryFigure {
-    // A few trajectories only (the extremes come first in the samples, then random
-    // starts), so the sets under them stay visible.
-    let n = res.samples.len();
-    let step = n.div_ceil(MAX_FIGURE_SAMPLES).max(1);
-    let curves: Vec<Curve> = res
-        .samples
-        .iter()
-        .enumerate()
-        .filter(|(i, _)| *i < 2 || i % step == 0)
-        .take(MAX_FIGURE_SAMPLES)
-        .map(|(_, smp)| Curve {
-            label: format!("y0 = {:.4}", smp.initial[5]),
-            points: smp.xy.clone(),
-        })
-        .collect();
-    let shown = curves.len();
     let name = a
         .network
         .file_stem()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "network".into());
-    let mut fig = TrajectoryFigure::new(
-        format!(
-            "{name}, {} model: {} ({} sub-boxes; sets at control instants)",
-            s.model.name(),
-            res.verdict.name(),
-            res.subproblems()
-        ),
-        curves,
-    );
-    fig.boxes = figure_boxes(res);
-    fig.band = s.goal.as_ref().map(|g| g.ystar);
-    fig.legend = false;
-    fig.group_label = Some(format!("sampled trajectories ({shown} of {n})"));
-    fig
+    samara_reach::figure(
+        res,
+        &format!("{name}, {} model", s.model.name()),
+        s.goal.as_ref().map(|g| g.ystar),
+    )
 }

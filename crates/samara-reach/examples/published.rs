@@ -26,6 +26,9 @@ fn main() {
     if let Ok(v) = std::env::var("DEV") {
         s.max_control_dev = v.parse().unwrap();
     }
+    if let Ok(v) = std::env::var("LEAVES") {
+        s.max_leaves = v.parse().unwrap();
+    }
     let r = reach(&net, &s).expect("reach");
     let mut taylor = 0;
     let mut fb = 0;

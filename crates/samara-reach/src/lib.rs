@@ -25,6 +25,7 @@ use rayon::prelude::*;
 use samara_nn::Network;
 use samara_num::{Interval, Scalar};
 use samara_plant::{Model, Plant};
+use samara_report::{Curve, TrajectoryFigure};
 use samara_sim::{fly, Integrator, LoopSettings, NetworkController};
 use serde::Serialize;
 use std::time::Instant;
@@ -101,8 +102,12 @@ pub struct ReachSettings {
     pub reset_filter: bool,
     /// Goal to decide, if any.
     pub goal: Option<Goal>,
-    /// Sub-boxes to start from, along the widest parameter (8, as the published runs).
+    /// Sub-boxes to start from, along the widest parameter; 0 (the default) picks one per
+    /// `auto_piece` of its width, rounded up to a power of two and capped by `max_leaves`
+    /// (64 on the published interval, whose CORA runs used 8-16 pieces cut by hand).
     pub initial_splits: usize,
+    /// Width per initial sub-box when `initial_splits` is 0 (0.05).
+    pub auto_piece: f64,
     /// Largest number of sub-boxes (2048).
     pub max_leaves: usize,
     /// Split a sub-box when the network enclosure's deviation exceeds this (2e-5 in ex).
@@ -137,7 +142,8 @@ impl ReachSettings {
             clip: Some(samara_plant::EX_RANGE),
             reset_filter: true,
             goal: None,
-            initial_splits: 8,
+            initial_splits: 0,
+            auto_piece: 0.05,
             max_leaves: 64,
             max_control_dev: 2e-5,
             max_noise: 0.01,
@@ -229,6 +235,7 @@ pub enum Verdict {
         reason: String,
     },
     /// No goal was given.
+    #[serde(rename = "none")]
     NoGoal,
 }
 
@@ -662,7 +669,18 @@ pub fn reach(net: &Network, s: &ReachSettings) -> Result<ReachResult, ReachError
     // Initial partition along the widest parameter.
     let root = initial_leaf(&s.init);
     let mut leaves = vec![root];
-    for _ in 0..s.initial_splits.max(1).ilog2() {
+    let pieces = if s.initial_splits > 0 {
+        s.initial_splits
+    } else {
+        let w = s.init[..6]
+            .iter()
+            .map(|(a, b)| b - a)
+            .fold(0.0f64, f64::max);
+        ((w / s.auto_piece).ceil().max(1.0) as usize)
+            .next_power_of_two()
+            .min(s.max_leaves.max(1))
+    };
+    for _ in 0..pieces.max(1).ilog2() {
         leaves = leaves
             .into_iter()
             .flat_map(|l| {
@@ -834,4 +852,75 @@ pub fn check_containment(res: &ReachResult, smp: &Sample, tol: f64) -> Result<()
         }
     }
     Ok(())
+}
+
+/// Largest number of boxes drawn in a figure; beyond it neighbouring sub-boxes are
+/// merged (interval hull, still an over-approximation).
+const MAX_FIGURE_BOXES: usize = 20_000;
+
+/// Sampled trajectories drawn on top of the sets.
+const MAX_FIGURE_SAMPLES: usize = 24;
+
+/// The x-y boxes of every sub-box at every control instant, merged across neighbouring
+/// sub-boxes (sorted by their initial box) if there are too many to draw.
+fn figure_boxes(res: &ReachResult) -> Vec<(f64, f64, f64, f64)> {
+    let total: usize = res.leaves.iter().map(|l| l.steps.len()).sum();
+    let group = total.div_ceil(MAX_FIGURE_BOXES).max(1);
+    let mut out = Vec::new();
+    for chunk in res.leaves.chunks(group) {
+        let steps = chunk.iter().map(|l| l.steps.len()).max().unwrap_or(0);
+        for k in 0..steps {
+            let mut b = (
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+            );
+            for l in chunk {
+                if let Some(st) = l.steps.get(k) {
+                    let (x, y) = (st.bbox[4], st.bbox[5]);
+                    b = (b.0.min(x[0]), b.1.max(x[1]), b.2.min(y[0]), b.3.max(y[1]));
+                }
+            }
+            if b.0.is_finite() && b.1.is_finite() && b.2.is_finite() && b.3.is_finite() {
+                out.push(b);
+            }
+        }
+    }
+    out
+}
+
+/// The x-y figure of a run: every sub-box's set at every control instant (as boxes),
+/// the target line, the goal band `|x + y| <= band` and a few sampled trajectories on
+/// top, equal axes (the layout of the published reachability figure).
+pub fn figure(res: &ReachResult, title: &str, band: Option<f64>) -> TrajectoryFigure {
+    // A few trajectories only (the extremes come first in the samples, then random
+    // starts), so the sets under them stay visible.
+    let n = res.samples.len();
+    let step = n.div_ceil(MAX_FIGURE_SAMPLES).max(1);
+    let curves: Vec<Curve> = res
+        .samples
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| *i < 2 || i % step == 0)
+        .take(MAX_FIGURE_SAMPLES)
+        .map(|(_, smp)| Curve {
+            label: format!("y0 = {:.4}", smp.initial[5]),
+            points: smp.xy.clone(),
+        })
+        .collect();
+    let shown = curves.len();
+    let mut fig = TrajectoryFigure::new(
+        format!(
+            "{title}: {} ({} sub-boxes; sets at control instants)",
+            res.verdict.name(),
+            res.subproblems()
+        ),
+        curves,
+    );
+    fig.boxes = figure_boxes(res);
+    fig.band = band;
+    fig.legend = false;
+    fig.group_label = Some(format!("sampled trajectories ({shown} of {n})"));
+    fig
 }

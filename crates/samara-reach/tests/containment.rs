@@ -10,7 +10,9 @@ use samara_reach::{check_containment, reach, simulate_samples, Goal, ReachSettin
 use std::path::Path;
 
 fn net(name: &str) -> Option<samara_nn::Network> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference").join(name);
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference")
+        .join(name);
     if !p.exists() {
         eprintln!("skipping: {} not found", p.display());
         return None;
@@ -27,9 +29,15 @@ fn check(model: Model, file: &str, y0: (f64, f64), horizon: f64, n: usize, seed:
     s.initial_splits = 4;
     s.max_leaves = 8;
     s.samples = 8;
-    s.goal = Some(Goal { ystar: 100.0, from: None });
+    s.goal = Some(Goal {
+        ystar: 100.0,
+        from: None,
+    });
     let r = reach(&net, &s).expect("reach runs");
-    assert!(r.leaves.iter().all(|l| l.failure.is_none()), "a sub-box failed");
+    assert!(
+        r.leaves.iter().all(|l| l.failure.is_none()),
+        "a sub-box failed"
+    );
     let mut s2 = s.clone();
     s2.seed = seed;
     let samples = simulate_samples(&Plant::new(model), &net, &s2, n);
@@ -51,17 +59,38 @@ fn check(model: Model, file: &str, y0: (f64, f64), horizon: f64, n: usize, seed:
 
 #[test]
 fn reduced_base_contains_samples() {
-    check(Model::Reduced, "base_model_denorm.onnx", (2.0, 2.2), 3.0, 200, 7);
+    check(
+        Model::Reduced,
+        "base_model_denorm.onnx",
+        (2.0, 2.2),
+        3.0,
+        200,
+        7,
+    );
 }
 
 #[test]
 fn plate6_adversarial_contains_samples() {
-    check(Model::Plate6, "adversarial_model_denorm.onnx", (3.0, 3.1), 3.0, 200, 8);
+    check(
+        Model::Plate6,
+        "adversarial_model_denorm.onnx",
+        (3.0, 3.1),
+        3.0,
+        200,
+        8,
+    );
 }
 
 #[test]
 fn full_base_contains_samples() {
-    check(Model::Full, "base_model_denorm.onnx", (1.5, 1.6), 2.0, 200, 9);
+    check(
+        Model::Full,
+        "base_model_denorm.onnx",
+        (1.5, 1.6),
+        2.0,
+        200,
+        9,
+    );
 }
 
 /// The soundness bar: 2,000 random starts over the whole published interval and

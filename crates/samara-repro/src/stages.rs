@@ -19,6 +19,7 @@ pub fn all() -> Vec<(&'static str, StageFn)> {
         ("train", crate::more::train as StageFn),
         ("verify", crate::more::verify as StageFn),
         ("closed_loop", crate::more::closed_loop as StageFn),
+        ("reach", crate::more::reach as StageFn),
     ]
 }
 
