@@ -54,7 +54,7 @@ pub struct ReachArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Largest number of sub-boxes of the initial set (default 2048).
+    /// Largest number of sub-boxes of the initial set (default 64; more gives tighter sets, slower).
     #[arg(long)]
     pub max_leaves: Option<usize>,
     /// Output directory (created if missing).
@@ -188,7 +188,7 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
     }
     if let Some(n) = a.max_leaves {
         if n == 0 {
-            bail!("--max-leaves 0: give at least 1 (default 2048)");
+            bail!("--max-leaves 0: give at least 1 (default 64)");
         }
         s.max_leaves = n;
     }

@@ -70,6 +70,8 @@ pub struct FlowSettings {
     pub rem_tol: f64,
     /// Noise generators kept by the reduction (4 per dimension).
     pub max_noise_per_dim: usize,
+    /// Largest first-order step where the right-hand side is not analytic (1e-3).
+    pub h_lohner1: f64,
     /// Remainder accepted relative to the set's width in that row (1e-4).
     pub rem_rel: f64,
     /// Attempted steps per period before giving up (the set is then too wide to
@@ -87,6 +89,7 @@ impl Default for FlowSettings {
             max_noise_per_dim: 4,
             max_attempts: 400,
             rem_rel: 1e-4,
+            h_lohner1: 1e-3,
         }
     }
 }
@@ -192,6 +195,7 @@ fn taylor_step(
     // Remainder h^{p+1} x_{p+1}(B).
     let tb = taylor::<Interval>(plant, &b, ORDER + 1);
     if tb[..n].iter().any(|x| x.bad) {
+        *hint = f64::NAN;
         return None;
     }
     let hp = pow_up(h, ORDER + 1);
@@ -219,6 +223,7 @@ fn taylor_step(
     let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
     let tc = taylor::<Interval>(plant, &cpt, ORDER);
     if tc[..n].iter().any(|x| x.bad) {
+        *hint = f64::NAN;
         return None;
     }
     let horner = |co: &[Interval]| -> Interval {
@@ -246,6 +251,7 @@ fn taylor_step(
         .collect();
     let tj = taylor::<IDual<ND>>(plant, &seeds, ORDER);
     if tj[..n].iter().any(|x| x.bad) {
+        *hint = f64::NAN;
         return None;
     }
     // jac[j][k] enclosure of d T_j / d s_k.
@@ -268,7 +274,15 @@ fn taylor_step(
     if jac.iter().any(|r| !finite(r)) || !finite(&centre) {
         return None;
     }
-    // New zonotope.
+    Some((compose(z, &centre, &jac, s), b))
+}
+
+/// The zonotope `centre + jac G xi`: `mid(jac)` maps the generators exactly; the radius of
+/// `jac` times `|G|`, the centre's width and the rounding of the products become new
+/// axis-aligned generators (then Girard reduction). `centre` covers the first rows
+/// (the states); the control row is carried unchanged.
+fn compose(z: &Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSettings) -> Zonotope {
+    let d = z.dim();
     let mid: Vec<Vec<f64>> = jac
         .iter()
         .map(|r| r.iter().map(|x| 0.5 * (x.lo + x.hi)).collect())
@@ -285,7 +299,7 @@ fn taylor_step(
         .collect();
     let mut noise = vec![0.0f64; d];
     let mut c = z.c.clone();
-    for j in 0..n {
+    for j in 0..centre.len() {
         let m = 0.5 * (centre[j].lo + centre[j].hi);
         c[j] = m;
         noise[j] = (centre[j].hi - m).max(m - centre[j].lo).next_up();
@@ -317,7 +331,149 @@ fn taylor_step(
     };
     nz.add_box(&noise);
     nz.reduce(s.max_noise_per_dim * d);
-    Some((nz, b))
+    nz
+}
+
+/// Enclosure of the right-hand side's Jacobian (rows and columns: the 6 states and ex)
+/// over the box `b`, by interval duals.
+fn jacobian(plant: &Plant, b: &[Interval]) -> Option<Vec<Vec<Interval>>> {
+    let d = b.len();
+    let n = d - 1;
+    let dir = |i: usize| match i {
+        0..=3 => Some(i),
+        6 => Some(4),
+        _ => None,
+    };
+    let seeds: Vec<IDual<ND>> = b
+        .iter()
+        .enumerate()
+        .map(|(i, v)| match dir(i) {
+            Some(k) => IDual::var(*v, k),
+            None => IDual::constant(*v),
+        })
+        .collect();
+    let mut out = vec![IDual::<ND>::cst(0.0); d];
+    rhs6(plant, &seeds, &mut out);
+    let mut jf = vec![vec![Interval::point(0.0); d]; d];
+    for j in 0..n {
+        for k in 0..d {
+            if let Some(q) = dir(k) {
+                jf[j][k] = out[j].d[q];
+            }
+        }
+    }
+    if jf.iter().any(|r| !finite(r)) {
+        return None;
+    }
+    Some(jf)
+}
+
+fn imat_mul(a: &[Vec<Interval>], b: &[Vec<Interval>]) -> Vec<Vec<Interval>> {
+    let d = a.len();
+    (0..d)
+        .map(|i| {
+            (0..d)
+                .map(|j| {
+                    let mut acc = Interval::point(0.0);
+                    for k in 0..d {
+                        if a[i][k] != Interval::point(0.0) && b[k][j] != Interval::point(0.0) {
+                            acc = acc + a[i][k] * b[k][j];
+                        }
+                    }
+                    acc
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn identity(d: usize) -> Vec<Vec<Interval>> {
+    (0..d)
+        .map(|i| {
+            (0..d)
+                .map(|j| Interval::point(if i == j { 1.0 } else { 0.0 }))
+                .collect()
+        })
+        .collect()
+}
+
+/// First-order (C^1) Lohner step for right-hand sides that are only Lipschitz (the full
+/// model's `omega |omega|` and quadrant masks): the Jacobian `J(B)` is enclosed with
+/// interval duals (Clarke's generalised Jacobian where a branch is undecided: the hull
+/// of both pieces' derivatives), the flow's Jacobian over `[0, h]` by the fixed point
+/// `W ⊇ I + [0, h] J(B) W`, and `phi_h(Z) ⊆ phi_h(c) + (I + h J(B) W) G xi` by the
+/// mean-value theorem (Clarke's version for Lipschitz maps), with
+/// `phi_h(c) ∈ c + h f(B_c)`.
+fn lohner1_step(
+    plant: &Plant,
+    z: &Zonotope,
+    h: f64,
+    s: &FlowSettings,
+) -> Option<(Zonotope, Vec<Interval>)> {
+    let d = z.dim();
+    let n = d - 1;
+    let bz = z.bbox();
+    let b = apriori(plant, &bz, h)?;
+    let jf = jacobian(plant, &b)?;
+    let t = Interval::new(0.0, h);
+    let tj: Vec<Vec<Interval>> = jf
+        .iter()
+        .map(|r| r.iter().map(|x| *x * t).collect())
+        .collect();
+    let id = identity(d);
+    let add = |a: &[Vec<Interval>], b: &[Vec<Interval>]| -> Vec<Vec<Interval>> {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| x.iter().zip(y).map(|(p, q)| *p + *q).collect())
+            .collect()
+    };
+    let mut w = add(&id, &imat_mul(&tj, &add(&id, &tj)));
+    let mut found = None;
+    for _ in 0..10 {
+        let inf: Vec<Vec<Interval>> = w
+            .iter()
+            .map(|r| {
+                r.iter()
+                    .map(|x| {
+                        let e = 0.1 * (x.hi - x.lo) + 1e-12;
+                        Interval::new(x.lo - e, x.hi + e)
+                    })
+                    .collect()
+            })
+            .collect();
+        let nw = add(&id, &imat_mul(&tj, &inf));
+        if nw.iter().zip(&inf).all(|(a, b)| subset(a, b)) {
+            found = Some(nw);
+            break;
+        }
+        w = nw;
+    }
+    let w = found?;
+    let hj: Vec<Vec<Interval>> = jf
+        .iter()
+        .map(|r| r.iter().map(|x| *x * h).collect())
+        .collect();
+    let wh = add(&id, &imat_mul(&hj, &w));
+    // Centre, second order: phi_h(c) ∈ c + h f(c) + h^2/2 co(J(B_c) f(B_c)).
+    let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
+    let bc = apriori(plant, &cpt, h)?;
+    let f0 = rhs_interval(plant, &cpt);
+    let fbc = rhs_interval(plant, &bc);
+    let jbc = jacobian(plant, &bc)?;
+    let h2 = Interval::point(h) * h * 0.5;
+    let centre: Vec<Interval> = (0..n)
+        .map(|j| {
+            let mut jf = Interval::point(0.0);
+            for k in 0..d {
+                jf = jf + jbc[j][k] * fbc[k];
+            }
+            cpt[j] + f0[j] * h + jf * h2
+        })
+        .collect();
+    if !finite(&centre) || wh.iter().any(|r| !finite(r)) {
+        return None;
+    }
+    Some((compose(z, &centre, &wh, s), b))
 }
 
 /// The zeroth-order step `phi_h(Z) ⊆ Z ⊕ h f(B)`.
@@ -365,8 +521,9 @@ pub fn flow_period(
         let mut res = taylor_step(plant, &z, hh, s, &mut hint);
         if res.is_some() {
             st.taylor_steps += 1;
-        } else if hh <= s.h_min_taylor * 1.0001 {
-            res = fallback_step(plant, &z, hh, s);
+        } else if hh <= s.h_min_taylor * 1.0001 || hint.is_nan() && hh <= s.h_lohner1 {
+            // Not analytic here (hint NaN), or Taylor cannot be validated: first order.
+            res = lohner1_step(plant, &z, hh, s).or_else(|| fallback_step(plant, &z, hh, s));
             if res.is_some() {
                 st.fallback_steps += 1;
             }
@@ -394,7 +551,11 @@ pub fn flow_period(
                 {
                     return Err(FlowFailure::NoEnclosure { t });
                 }
-                h = hint.clamp(0.1 * hh, 0.5 * hh);
+                h = if hint.is_nan() {
+                    (0.5 * hh).min(s.h_lohner1)
+                } else {
+                    hint.clamp(0.1 * hh, 0.5 * hh)
+                };
             }
         }
     }
