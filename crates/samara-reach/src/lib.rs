@@ -403,8 +403,14 @@ impl Ctx<'_> {
         (0..l.params.len())
             .filter(|&j| self.can_split(l, j))
             .max_by(|&a, &b| {
+                // A sub-box that lost its enclosure splits along the parameter that
+                // moves the dynamics' states (v_xp, v_yp, omega, theta) most; otherwise
+                // along the one that moves x + y most.
                 let w = |j: usize| match coef {
                     Some(c) => c[j].abs(),
+                    None if l.failure.is_some() => {
+                        l.z.gens[j][..4].iter().map(|v| v.abs()).sum::<f64>()
+                    }
                     None => (l.z.gens[j][4] + l.z.gens[j][5]).abs(),
                 };
                 w(a).total_cmp(&w(b))
@@ -676,9 +682,15 @@ pub fn reach(net: &Network, s: &ReachSettings) -> Result<ReachResult, ReachError
             .iter()
             .map(|(a, b)| b - a)
             .fold(0.0f64, f64::max);
+        // Leave room in the budget for one split of every other parameter.
+        let others = s.init[..6]
+            .iter()
+            .filter(|(a, b)| b > a)
+            .count()
+            .saturating_sub(1);
         ((w / s.auto_piece).ceil().max(1.0) as usize)
             .next_power_of_two()
-            .min(s.max_leaves.max(1))
+            .min((s.max_leaves >> others.min(20)).max(1))
     };
     for _ in 0..pieces.max(1).ilog2() {
         leaves = leaves

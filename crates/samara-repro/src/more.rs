@@ -343,8 +343,16 @@ pub fn reach(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
             ),
             _ => String::new(),
         };
+        let stopped: Vec<f64> = r
+            .leaves
+            .iter()
+            .filter(|l| l.failure.is_some())
+            .filter_map(|l| l.steps.last().map(|st| st.t))
+            .collect();
         out.push(json!({
             "controller": s.label,
+            "stopped": stopped.len(),
+            "stopped_at": stopped.iter().cloned().fold(f64::INFINITY, f64::min),
             "verdict": r.verdict.name(),
             "reason": reason,
             "final_x_plus_y": r.final_x_plus_y,
@@ -580,16 +588,28 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
                 .iter()
                 .map(|n| {
                     let f = &n["final_x_plus_y"];
+                    let enclosure = if n["stopped"].as_u64().unwrap_or(0) > 0 {
+                        format!(
+                            "not enclosed to t = 20: {} sub-boxes lost validation (first at t = {})",
+                            n["stopped"],
+                            f4(&n["stopped_at"])
+                        )
+                    } else {
+                        format!("[{}, {}]", f4(&f[0]), f4(&f[1]))
+                    };
                     vec![
                         n["controller"].as_str().unwrap_or("").to_string(),
                         n["verdict"].as_str().unwrap_or("").to_string(),
-                        format!("[{}, {}]", f4(&f[0]), f4(&f[1])),
+                        enclosure,
                         format!(
                             "[{}, {}]",
                             f4(&n["sampled_x_plus_y"][0]),
                             f4(&n["sampled_x_plus_y"][1])
                         ),
-                        format!("{:.3}", n["ratio"].as_f64().unwrap_or(f64::NAN)),
+                        match n["ratio"].as_f64() {
+                            Some(r) if r.is_finite() => format!("{r:.3}"),
+                            _ => "-".into(),
+                        },
                         n["subproblems"].to_string(),
                         format!("{:.1}", n["seconds"].as_f64().unwrap_or(0.0)),
                     ]
