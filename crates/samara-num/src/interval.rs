@@ -96,6 +96,7 @@ impl Interval {
 
 impl Add for Interval {
     type Output = Self;
+    #[inline]
     fn add(self, o: Self) -> Self {
         Interval {
             lo: dn(self.lo + o.lo),
@@ -114,32 +115,60 @@ impl Sub for Interval {
 }
 impl Mul for Interval {
     type Output = Self;
+    /// Sign-case multiplication (two products in eight of the nine cases), each end
+    /// rounded outward by one ulp; unbounded or NaN ends take the general path.
     #[inline]
     fn mul(self, o: Self) -> Self {
-        let p = [
-            self.lo * o.lo,
-            self.lo * o.hi,
-            self.hi * o.lo,
-            self.hi * o.hi,
-        ];
-        let lo = p[0].min(p[1]).min(p[2].min(p[3]));
-        let hi = p[0].max(p[1]).max(p[2].max(p[3]));
-        if p.iter().any(|v| v.is_nan()) {
-            // 0 * inf is NaN: the product of a zero and an unbounded end contributes 0.
-            let p = p.map(|v| if v.is_nan() { 0.0 } else { v });
-            let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
-            let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-            return Interval {
-                lo: dn(lo),
-                hi: up(hi),
-            };
+        let (a, b) = (self, o);
+        if !(a.lo.is_finite() && a.hi.is_finite() && b.lo.is_finite() && b.hi.is_finite()) {
+            return mul_general(a, b);
         }
+        let (lo, hi) = if a.lo >= 0.0 {
+            if b.lo >= 0.0 {
+                (a.lo * b.lo, a.hi * b.hi)
+            } else if b.hi <= 0.0 {
+                (a.hi * b.lo, a.lo * b.hi)
+            } else {
+                (a.hi * b.lo, a.hi * b.hi)
+            }
+        } else if a.hi <= 0.0 {
+            if b.lo >= 0.0 {
+                (a.lo * b.hi, a.hi * b.lo)
+            } else if b.hi <= 0.0 {
+                (a.hi * b.hi, a.lo * b.lo)
+            } else {
+                (a.lo * b.hi, a.lo * b.lo)
+            }
+        } else if b.lo >= 0.0 {
+            (a.lo * b.hi, a.hi * b.hi)
+        } else if b.hi <= 0.0 {
+            (a.hi * b.lo, a.lo * b.lo)
+        } else {
+            (
+                (a.lo * b.hi).min(a.hi * b.lo),
+                (a.lo * b.lo).max(a.hi * b.hi),
+            )
+        };
         Interval {
             lo: dn(lo),
             hi: up(hi),
         }
     }
 }
+
+/// The four-product multiplication, for unbounded or NaN ends.
+fn mul_general(a: Interval, o: Interval) -> Interval {
+    let p = [a.lo * o.lo, a.lo * o.hi, a.hi * o.lo, a.hi * o.hi];
+    // 0 * inf is NaN: the product of a zero and an unbounded end contributes 0.
+    let p = p.map(|v| if v.is_nan() { 0.0 } else { v });
+    let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
+    let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    Interval {
+        lo: dn(lo),
+        hi: up(hi),
+    }
+}
+
 impl Div for Interval {
     type Output = Self;
     fn div(self, o: Self) -> Self {
@@ -183,8 +212,20 @@ impl Sub<f64> for Interval {
 }
 impl Mul<f64> for Interval {
     type Output = Self;
+    #[inline]
     fn mul(self, o: f64) -> Self {
-        self * Interval::point(o)
+        if !(self.lo.is_finite() && self.hi.is_finite() && o.is_finite()) {
+            return mul_general(self, Interval::point(o));
+        }
+        let (lo, hi) = if o >= 0.0 {
+            (self.lo * o, self.hi * o)
+        } else {
+            (self.hi * o, self.lo * o)
+        };
+        Interval {
+            lo: dn(lo),
+            hi: up(hi),
+        }
     }
 }
 impl Div<f64> for Interval {
