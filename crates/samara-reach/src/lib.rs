@@ -108,7 +108,8 @@ pub struct ReachSettings {
     pub initial_splits: usize,
     /// Width per initial sub-box when `initial_splits` is 0 (0.05).
     pub auto_piece: f64,
-    /// Largest number of sub-boxes (2048).
+    /// Largest number of sub-boxes (64); sub-boxes that lost their enclosure may use a
+    /// quarter more.
     pub max_leaves: usize,
     /// Split a sub-box when the network enclosure's deviation exceeds this (2e-5 in ex).
     pub max_control_dev: f64,
@@ -741,7 +742,14 @@ pub fn reach(net: &Network, s: &ReachSettings) -> Result<ReachResult, ReachError
         for l in results {
             let want = ctx.needs_refinement(&l, tol_noise);
             match ctx.split_dir(&l, None) {
-                Some(j) if want && total < s.max_leaves => {
+                // A sub-box that lost its enclosure may still be split when the budget
+                // is spent, up to a quarter more: better a few more sub-boxes than an
+                // unknown.
+                Some(j)
+                    if want
+                        && (total < s.max_leaves
+                            || l.failure.is_some() && total < s.max_leaves + s.max_leaves / 4) =>
+                {
                     let mut init: Vec<(f64, f64)> = l.init.iter().map(|r| (r[0], r[1])).collect();
                     let p = l.params[j];
                     let mid = 0.5 * (init[p].0 + init[p].1);
