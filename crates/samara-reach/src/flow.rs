@@ -24,6 +24,10 @@ use samara_plant::Plant;
 
 /// Taylor order of the validated steps.
 pub const ORDER: usize = 7;
+/// Orders of the Taylor map whose Jacobian is enclosed by interval duals (the
+/// expensive part); orders `JAC_ORDER + 1 ..= ORDER` contribute `h^i` times their
+/// interval spread over the set instead, a small first-order term.
+pub const JAC_ORDER: usize = 5;
 const KK: usize = ORDER + 2;
 /// Dual directions: v_xp, v_yp, omega, theta and ex (the right-hand side never reads
 /// x or y, so their Jacobian columns are unit vectors).
@@ -112,12 +116,16 @@ fn rhs_interval(plant: &Plant, x: &[Interval]) -> Vec<Interval> {
 }
 
 /// Taylor coefficients `0..=upto` of the solution from `x0` (last entry: ex, constant).
-fn taylor<S: Scalar + Copy>(plant: &Plant, x0: &[S], upto: usize) -> Vec<Series<S, KK>> {
+fn taylor<S: Scalar + Copy, const K: usize>(
+    plant: &Plant,
+    x0: &[S],
+    upto: usize,
+) -> Vec<Series<S, K>> {
     let d = x0.len();
     let n = d - 1;
-    let mut x: Vec<Series<S, KK>> = x0.iter().map(|v| Series::var(*v)).collect();
+    let mut x: Vec<Series<S, K>> = x0.iter().map(|v| Series::var(*v)).collect();
     x[n] = Series::constant(x0[n]);
-    let mut out = vec![Series::<S, KK>::cst(0.0); d];
+    let mut out = vec![Series::<S, K>::cst(0.0); d];
     for i in 0..upto {
         for xj in x.iter_mut().take(n) {
             xj.n = i + 1;
@@ -193,7 +201,7 @@ fn taylor_step(
     let bz = z.bbox();
     let b = apriori(plant, &bz, h)?;
     // Remainder h^{p+1} x_{p+1}(B).
-    let tb = taylor::<Interval>(plant, &b, ORDER + 1);
+    let tb = taylor::<Interval, KK>(plant, &b, ORDER + 1);
     if tb[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -221,7 +229,7 @@ fn taylor_step(
     }
     // T(c).
     let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
-    let tc = taylor::<Interval>(plant, &cpt, ORDER);
+    let tc = taylor::<Interval, KK>(plant, &cpt, ORDER);
     if tc[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -233,7 +241,25 @@ fn taylor_step(
         }
         acc
     };
-    let centre: Vec<Interval> = (0..n).map(|j| horner(&tc[j].c) + rem[j]).collect();
+    // Orders above JAC_ORDER enter by intervals over box(Z):
+    // h^i (x_i(s) - x_i(c)) ∈ h^i (x_i(box Z) - x_i(c)).
+    let tz = taylor::<Interval, KK>(plant, &bz, ORDER);
+    if tz[..n].iter().any(|x| x.bad) {
+        *hint = f64::NAN;
+        return None;
+    }
+    let centre: Vec<Interval> = (0..n)
+        .map(|j| {
+            let mut hi_orders = Interval::point(0.0);
+            for i in (JAC_ORDER + 1..=ORDER).rev() {
+                hi_orders = (hi_orders + (tz[j].c[i] - tc[j].c[i])) * h;
+            }
+            for _ in 0..JAC_ORDER {
+                hi_orders = hi_orders * h;
+            }
+            horner(&tc[j].c) + rem[j] + hi_orders
+        })
+        .collect();
     // DT(box Z).
     // Seeds: v_xp, v_yp, omega, theta -> directions 0..4, ex -> 4; x, y constant.
     let dir = |i: usize| match i {
@@ -249,7 +275,7 @@ fn taylor_step(
             None => IDual::constant(*v),
         })
         .collect();
-    let tj = taylor::<IDual<ND>>(plant, &seeds, ORDER);
+    let tj = taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, &seeds, JAC_ORDER);
     if tj[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -260,8 +286,8 @@ fn taylor_step(
         for (k, jk) in jac[j].iter_mut().enumerate() {
             *jk = match dir(k) {
                 Some(q) => {
-                    let mut acc = tj[j].c[ORDER].d[q];
-                    for i in (0..ORDER).rev() {
+                    let mut acc = tj[j].c[JAC_ORDER].d[q];
+                    for i in (0..JAC_ORDER).rev() {
                         acc = acc * h + tj[j].c[i].d[q];
                     }
                     acc
