@@ -57,6 +57,10 @@ pub struct ReachArgs {
     /// Largest number of sub-boxes of the initial set (default 64; more gives tighter sets, slower).
     #[arg(long)]
     pub max_leaves: Option<usize>,
+    /// Simulated trajectories for falsification, the sampled range and the figure
+    /// (default 200).
+    #[arg(long)]
+    pub samples: Option<usize>,
     /// Output directory (created if missing).
     #[arg(long)]
     pub out: PathBuf,
@@ -191,6 +195,12 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
             bail!("--max-leaves 0: give at least 1 (default 64)");
         }
         s.max_leaves = n;
+    }
+    if let Some(n) = a.samples {
+        if n == 0 {
+            bail!("--samples 0: give at least 1 (default 200); falsification needs trajectories");
+        }
+        s.samples = n;
     }
     if a.threads == Some(0) {
         bail!("--threads 0: give at least 1 (or leave it out to use all cores)");

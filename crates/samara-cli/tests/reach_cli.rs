@@ -142,6 +142,7 @@ fn bad_flags_exit_2_with_a_message_and_no_files() {
         ),
         (&["--threads", "0"], &["--threads"]),
         (&["--max-leaves", "0"], &["--max-leaves"]),
+        (&["--samples", "0"], &["--samples"]),
     ];
     for (args, needles) in cases {
         let mut all = vec!["--network", net];

@@ -554,13 +554,6 @@ pub fn flow_period(
                 st.fallback_steps += 1;
             }
         }
-        if std::env::var_os("SAMARA_FLOW_DEBUG").is_some() {
-            eprintln!(
-                "t {t:.5} h {hh:.2e} ok {} hint {hint:.2e} gens {}",
-                res.is_some(),
-                z.gens.len()
-            );
-        }
         match res {
             Some((nz, b)) => {
                 xy = xy.hull(&(b[4] + b[5]));

@@ -468,14 +468,6 @@ impl Ctx<'_> {
         za.gens.push(dg);
         match flow_period(self.plant, &za, self.s.period, &self.s.flow, &mut l.h) {
             Ok((nz, xyp, st)) => {
-                if std::env::var_os("SAMARA_REACH_DEBUG2").is_some() {
-                    eprintln!(
-                        "k {k} y0 [{:.4},{:.4}] ex {:.6}+-{:.2e} |coef| {:.2e} xy-noise {:.2e} xy {:?} steps {:?}",
-                        l.init[5][0], l.init[5][1], u.cst, u.dev,
-                        u.coef.iter().map(|c| c.abs()).sum::<f64>(),
-                        l.z.noise_radius()[4] + l.z.noise_radius()[5], l.z.x_plus_y(), st
-                    );
-                }
                 l.flow_steps.0 += st.taylor_steps;
                 l.flow_steps.1 += st.fallback_steps;
                 let mut z = Zonotope {
@@ -728,16 +720,6 @@ pub fn reach(net: &Network, s: &ReachSettings) -> Result<ReachResult, ReachError
     while !pending.is_empty() {
         let results: Vec<Leaf> = pending.into_par_iter().map(|l| ctx.run(l, steps)).collect();
         pending = Vec::new();
-        if std::env::var_os("SAMARA_REACH_DEBUG").is_some() {
-            for l in &results {
-                let nr = l.z.noise_radius();
-                eprintln!(
-                    "leaf y0 [{:.4}, {:.4}] fail {:?} noise {:.2e} maxdev {:.2e} final {:?} steps {:?} at {:.1}s",
-                    l.init[5][0], l.init[5][1], l.failure.is_some(), nr[4] + nr[5], l.max_dev,
-                    l.steps.last().map(|s| s.x_plus_y), l.flow_steps, t0.elapsed().as_secs_f64()
-                );
-            }
-        }
         let mut total = done.len() + results.len();
         for l in results {
             let want = ctx.needs_refinement(&l, tol_noise);
