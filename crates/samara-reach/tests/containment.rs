@@ -128,3 +128,56 @@ fn published_setting_contains_2000_samples() {
         }
     }
 }
+
+/// The goal over a time window: the enclosures of x + y over each period (from the
+/// a-priori boxes of every validated step) contain the densely sampled x + y of
+/// simulated trajectories between control instants; a wide band is proved, a narrow
+/// one is violated by a simulated trajectory at a time inside the window.
+#[test]
+fn goal_over_a_time_window() {
+    let Some(net) = net("base_model_denorm.onnx") else {
+        return;
+    };
+    let mut s = ReachSettings::published(Model::Reduced);
+    s.init[5] = (2.0, 2.1);
+    s.horizon = 3.0;
+    s.initial_splits = 2;
+    s.max_leaves = 4;
+    s.samples = 40;
+    s.goal = Some(Goal {
+        ystar: 100.0,
+        from: Some(1.0),
+    });
+    let r = reach(&net, &s).expect("reach runs");
+    assert_eq!(r.verdict.name(), "proved");
+    let mut checked = 0;
+    for smp in &r.samples {
+        let leaf = r
+            .leaves
+            .iter()
+            .find(|l| l.init[5][0] <= smp.initial[5] && smp.initial[5] <= l.init[5][1])
+            .expect("a sub-box holds the start");
+        for &(t, v) in &smp.txy {
+            // Period k covers (t_{k-1}, t_k]; its record is the one at t_k.
+            let k = ((t / s.period).ceil() as usize).min(leaf.steps.len() - 1);
+            let e = leaf.steps[k].x_plus_y_period;
+            assert!(
+                e[0] - 1e-7 <= v && v <= e[1] + 1e-7,
+                "t = {t}: x + y = {v} outside {e:?}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000);
+    s.goal = Some(Goal {
+        ystar: 0.1,
+        from: Some(1.0),
+    });
+    let r = reach(&net, &s).expect("reach runs");
+    match r.verdict {
+        samara_reach::Verdict::Violated { t, x_plus_y, .. } => {
+            assert!(t >= 1.0 - 1e-12 && x_plus_y.abs() > 0.1);
+        }
+        v => panic!("expected a violation, got {v:?}"),
+    }
+}
