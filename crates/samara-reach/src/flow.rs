@@ -427,7 +427,7 @@ fn identity(d: usize) -> Vec<Vec<Interval>> {
 /// model's `omega |omega|` and quadrant masks): the Jacobian `J(B)` is enclosed with
 /// interval duals (Clarke's generalised Jacobian where a branch is undecided: the hull
 /// of both pieces' derivatives), the flow's Jacobian over `[0, h]` by the fixed point
-/// `W ⊇ I + [0, h] J(B) W`, and `phi_h(Z) ⊆ phi_h(c) + (I + h J(B) W) G xi` by the
+/// `W ⊇ I + [0, h] J(B) W`, and `phi_h(Z) ⊆ phi_h(c) + (I + h J + h²/2 J J W) G xi` by the
 /// mean-value theorem (Clarke's version for Lipschitz maps), with
 /// `phi_h(c) ∈ c + h f(B_c)`.
 fn lohner1_step(
@@ -479,7 +479,18 @@ fn lohner1_step(
         .iter()
         .map(|r| r.iter().map(|x| *x * h).collect())
         .collect();
-    let wh = add(&id, &imat_mul(&hj, &w));
+    // D phi_h = I + int_0^h J (D phi_tau) dtau with D phi_tau - I ∈ [0, tau] J W, so
+    // D phi_h ∈ I + h J(B) + h^2/2 J(B) J(B) W: the [0, h] spread of W enters at
+    // second order only.
+    let h2j: Vec<Vec<Interval>> = jf
+        .iter()
+        .map(|r| {
+            r.iter()
+                .map(|x| *x * (Interval::point(h) * h * 0.5))
+                .collect()
+        })
+        .collect();
+    let wh = add(&add(&id, &hj), &imat_mul(&h2j, &imat_mul(&jf, &w)));
     // Centre, second order: phi_h(c) ∈ c + h f(c) + h^2/2 co(J(B_c) f(B_c)).
     let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
     let bc = apriori(plant, &cpt, h)?;
