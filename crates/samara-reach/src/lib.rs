@@ -257,7 +257,7 @@ impl Verdict {
 pub struct StepSet {
     /// Time.
     pub t: f64,
-    /// Interval hull of all states.
+    /// Interval hull of the six physical states (v_xp, v_yp, omega, theta, x, y).
     pub bbox: Vec<[f64; 2]>,
     /// Enclosure of `x + y` at `t`.
     pub x_plus_y: [f64; 2],
