@@ -245,20 +245,7 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
             .map_err(|e| anyhow!("--threads {n}: cannot start the thread pool: {e}"))?;
     }
     // Output directory: create and probe before the (possibly long) analysis.
-    std::fs::create_dir_all(&a.out).with_context(|| {
-        format!(
-            "cannot create output directory {}; choose a writable --out",
-            a.out.display()
-        )
-    })?;
-    let probe = a.out.join(format!(".samara-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"").with_context(|| {
-        format!(
-            "output directory {} is not writable; choose a writable --out",
-            a.out.display()
-        )
-    })?;
-    let _ = std::fs::remove_file(&probe);
+    crate::simulate::prepare_out_dir(&a.out)?;
 
     let spinner = progress(&plan.settings);
     let res = samara_reach::reach(&plan.net, &plan.settings);

@@ -195,6 +195,26 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
 }
 
 /// Run `samara simulate`.
+/// Create the output directory `out` and check that it is writable (a probe file), so a
+/// bad `--out` fails before any long computation.
+pub(crate) fn prepare_out_dir(out: &std::path::Path) -> Result<()> {
+    std::fs::create_dir_all(out).with_context(|| {
+        format!(
+            "cannot create output directory {}; choose a writable --out",
+            out.display()
+        )
+    })?;
+    let probe = out.join(format!(".samara-probe-{}", std::process::id()));
+    std::fs::write(&probe, b"").with_context(|| {
+        format!(
+            "output directory {} is not writable; choose a writable --out",
+            out.display()
+        )
+    })?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
 pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
     let plan = plan(a)?;
     let mut controller = make_controller(&a.controller, a.no_clip)?;
@@ -202,20 +222,7 @@ pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
         bail!("--controller pid needs the filter state E, which model `reduced` does not have; use --model plate6 or full, or another controller");
     }
     // Output directory: create and probe before simulating, so a bad path fails fast.
-    std::fs::create_dir_all(&a.out).with_context(|| {
-        format!(
-            "cannot create output directory {}; choose a writable --out",
-            a.out.display()
-        )
-    })?;
-    let probe = a.out.join(format!(".samara-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"").with_context(|| {
-        format!(
-            "output directory {} is not writable; choose a writable --out",
-            a.out.display()
-        )
-    })?;
-    let _ = std::fs::remove_file(&probe);
+    prepare_out_dir(&a.out)?;
 
     let t0 = Instant::now();
     let mut flights = Vec::with_capacity(plan.starts.len());

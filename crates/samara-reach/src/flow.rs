@@ -109,6 +109,27 @@ pub struct FlowStats {
     pub rejected: usize,
 }
 
+/// Dual direction of each row: v_xp, v_yp, omega, theta -> 0..4, ex (row 6) -> 4;
+/// x and y carry none (the right-hand side never reads them).
+fn dual_dir(i: usize) -> Option<usize> {
+    match i {
+        0..=3 => Some(i),
+        6 => Some(4),
+        _ => None,
+    }
+}
+
+/// Interval duals seeded over the box `b` along [`dual_dir`].
+fn dual_seeds(b: &[Interval]) -> Vec<IDual<ND>> {
+    b.iter()
+        .enumerate()
+        .map(|(i, v)| match dual_dir(i) {
+            Some(k) => IDual::var(*v, k),
+            None => IDual::constant(*v),
+        })
+        .collect()
+}
+
 fn rhs_interval(plant: &Plant, x: &[Interval]) -> Vec<Interval> {
     let mut out = vec![Interval::point(0.0); ROWS];
     rhs6(plant, x, &mut out);
@@ -261,21 +282,7 @@ fn taylor_step(
         })
         .collect();
     // DT(box Z).
-    // Seeds: v_xp, v_yp, omega, theta -> directions 0..4, ex -> 4; x, y constant.
-    let dir = |i: usize| match i {
-        0..=3 => Some(i),
-        6 => Some(4),
-        _ => None,
-    };
-    let seeds: Vec<IDual<ND>> = bz
-        .iter()
-        .enumerate()
-        .map(|(i, v)| match dir(i) {
-            Some(k) => IDual::var(*v, k),
-            None => IDual::constant(*v),
-        })
-        .collect();
-    let tj = taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, &seeds, JAC_ORDER);
+    let tj = taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, &dual_seeds(&bz), JAC_ORDER);
     if tj[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -284,7 +291,7 @@ fn taylor_step(
     let mut jac = vec![vec![Interval::point(0.0); d]; d];
     for j in 0..n {
         for (k, jk) in jac[j].iter_mut().enumerate() {
-            *jk = match dir(k) {
+            *jk = match dual_dir(k) {
                 Some(q) => {
                     let mut acc = tj[j].c[JAC_ORDER].d[q];
                     for i in (0..JAC_ORDER).rev() {
@@ -365,25 +372,12 @@ fn compose(z: &Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSet
 fn jacobian(plant: &Plant, b: &[Interval]) -> Option<Vec<Vec<Interval>>> {
     let d = b.len();
     let n = d - 1;
-    let dir = |i: usize| match i {
-        0..=3 => Some(i),
-        6 => Some(4),
-        _ => None,
-    };
-    let seeds: Vec<IDual<ND>> = b
-        .iter()
-        .enumerate()
-        .map(|(i, v)| match dir(i) {
-            Some(k) => IDual::var(*v, k),
-            None => IDual::constant(*v),
-        })
-        .collect();
     let mut out = vec![IDual::<ND>::cst(0.0); d];
-    rhs6(plant, &seeds, &mut out);
+    rhs6(plant, &dual_seeds(b), &mut out);
     let mut jf = vec![vec![Interval::point(0.0); d]; d];
     for j in 0..n {
         for k in 0..d {
-            if let Some(q) = dir(k) {
+            if let Some(q) = dual_dir(k) {
                 jf[j][k] = out[j].d[q];
             }
         }
