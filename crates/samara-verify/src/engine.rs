@@ -455,36 +455,12 @@ impl Problem<'_> {
             let mut relu_k = 0;
             for (k, (m, relu)) in net.maps.iter().enumerate() {
                 let (zo, ao) = av.maps[k];
-                for i in 0..m.out {
-                    // z_i - W_i a = b_i
-                    let mut row: Row = vec![(zo + i, 1.0)];
-                    for j in 0..m.inp {
-                        let w = m.w[i * m.inp + j];
-                        if w != 0.0 {
-                            row.push((prev + j, -w));
-                        }
-                    }
-                    lp.eq.push((row, m.b[i]));
-                }
+                lp.push_affine(m, zo, prev);
                 if *relu {
                     let a = ao.expect("relu var");
                     let ph = &phases[ai][relu_k];
                     relu_k += 1;
-                    for i in 0..m.out {
-                        let (zl, zh) = (lo[zo + i], hi[zo + i]);
-                        if ph[i] == 1 || zl >= 0.0 {
-                            lp.eq.push((vec![(a + i, 1.0), (zo + i, -1.0)], 0.0));
-                        } else if ph[i] == -1 || zh <= 0.0 {
-                            lp.eq.push((vec![(a + i, 1.0)], 0.0));
-                        } else {
-                            // a >= z (a >= 0 is in the box); a <= s (z - zl) + margin.
-                            lp.le.push((vec![(zo + i, 1.0), (a + i, -1.0)], 0.0));
-                            let s = zh / (zh - zl);
-                            let margin = 1e-12 * (1.0 + zh.abs() + zl.abs());
-                            lp.le
-                                .push((vec![(a + i, 1.0), (zo + i, -s)], -s * zl + margin));
-                        }
-                    }
+                    lp.push_relu(a, zo, &lo[zo..zo + m.out], &hi[zo..zo + m.out], ph);
                     prev = a;
                 } else {
                     prev = zo;

@@ -217,16 +217,7 @@ fn prefix_lp(
         lp.n += m.out;
         lp.lo.extend_from_slice(&lo[j]);
         lp.hi.extend_from_slice(&hi[j]);
-        for i in 0..m.out {
-            let mut row: Row = vec![(zo + i, 1.0)];
-            for t in 0..m.inp {
-                let w = m.w[i * m.inp + t];
-                if w != 0.0 {
-                    row.push((prev + t, -w));
-                }
-            }
-            lp.eq.push((row, m.b[i]));
-        }
+        lp.push_affine(m, zo, prev);
         if !*relu {
             prev = zo;
             continue;
@@ -236,21 +227,7 @@ fn prefix_lp(
         lp.n += m.out;
         lp.lo.extend(lo[j].iter().map(|v| v.max(0.0)));
         lp.hi.extend(hi[j].iter().map(|v| v.max(0.0)));
-        for i in 0..m.out {
-            let (zl, zh) = (lo[j][i], hi[j][i]);
-            if p[i] == 1 || zl >= 0.0 {
-                lp.eq.push((vec![(a + i, 1.0), (zo + i, -1.0)], 0.0));
-            } else if p[i] == -1 || zh <= 0.0 {
-                lp.eq.push((vec![(a + i, 1.0)], 0.0));
-            } else {
-                // a >= z (a >= 0 is in the box); a <= s (z - zl) + margin (as the engine).
-                lp.le.push((vec![(zo + i, 1.0), (a + i, -1.0)], 0.0));
-                let s = zh / (zh - zl);
-                let margin = 1e-12 * (1.0 + zh.abs() + zl.abs());
-                lp.le
-                    .push((vec![(a + i, 1.0), (zo + i, -s)], -s * zl + margin));
-            }
-        }
+        lp.push_relu(a, zo, &lo[j], &hi[j], p);
         prev = a;
     }
     lp.c = vec![0.0; lp.n];
