@@ -16,7 +16,7 @@
 use crate::zonotope::Zonotope;
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_num::Interval;
-use samara_verify::net::{affine_bounds, deeppoly, PwlNet};
+use samara_verify::net::{affine_bounds, back_substitute, deeppoly, relu_indices, PwlNet};
 
 /// A controller network prepared for set evaluation.
 #[derive(Clone, Debug)]
@@ -126,8 +126,14 @@ fn crown(net: &PwlNet, k: usize) -> ControlSet {
         lo: lo[last][0],
         hi: hi[last][0],
     };
-    let (cu, bu, mu) = back_substitute(net, &lo, &hi, true);
-    let (cl, bl, ml) = back_substitute(net, &lo, &hi, false);
+    // ex <= cu . xi + bu and -ex <= lcoef . xi + lcst, i.e. ex >= cl . xi + bl. The
+    // weights count in the tolerance's magnitude too (cancellation in the coefficients).
+    let relu_idx = relu_indices(net);
+    let up = back_substitute(net, &relu_idx, &fixed, &lo, &hi, last, 0, true, true);
+    let dn = back_substitute(net, &relu_idx, &fixed, &lo, &hi, last, 0, false, true);
+    let (cu, bu, mu) = (up.coef, up.cst, up.mag);
+    let cl: Vec<f64> = dn.coef.iter().map(|c| -c).collect();
+    let (bl, ml) = (-dn.cst, dn.mag);
     // ex in [cl . xi + bl, cu . xi + bu] on the box.
     let coef: Vec<f64> = cu.iter().zip(&cl).map(|(u, l)| 0.5 * (u + l)).collect();
     let cst = 0.5 * (bu + bl);
@@ -153,71 +159,4 @@ fn crown(net: &PwlNet, k: usize) -> ControlSet {
         dev,
         range,
     }
-}
-
-/// Linear bound `coef . xi + cst` of the single output (upper if `upper`), through the
-/// ReLU relaxations given the pre-activation bounds; also the magnitude of the terms.
-fn back_substitute(
-    net: &PwlNet,
-    lo: &[Vec<f64>],
-    hi: &[Vec<f64>],
-    upper: bool,
-) -> (Vec<f64>, f64, f64) {
-    let s = if upper { 1.0 } else { -1.0 };
-    let nm = net.maps.len();
-    let mut coef = vec![s];
-    let mut cst = 0.0f64;
-    let mut mag = 0.0f64;
-    for j in (0..nm).rev() {
-        let m = &net.maps[j].0;
-        let mut next = vec![0.0; m.inp];
-        for (row, c) in coef.iter().enumerate() {
-            if *c == 0.0 {
-                continue;
-            }
-            cst += c * m.b[row];
-            mag += (c * m.b[row]).abs();
-            for (col, nx) in next.iter_mut().enumerate() {
-                let w = m.w[row * m.inp + col];
-                if w != 0.0 {
-                    *nx += c * w;
-                    mag += (c * w).abs();
-                }
-            }
-        }
-        if j == 0 {
-            coef = next;
-            break;
-        }
-        let pj = j - 1;
-        if !net.maps[pj].1 {
-            coef = next;
-            continue;
-        }
-        let mut zc = vec![0.0; next.len()];
-        for (t, c) in next.iter().enumerate() {
-            if *c == 0.0 {
-                continue;
-            }
-            let (l, u) = (lo[pj][t], hi[pj][t]);
-            if l >= 0.0 {
-                zc[t] = *c;
-            } else if u <= 0.0 {
-            } else {
-                let slope = u / (u - l);
-                if *c > 0.0 {
-                    zc[t] = c * slope;
-                    cst += -c * slope * l;
-                    mag += (c * slope * l).abs();
-                } else {
-                    let lambda = if u > -l { 1.0 } else { 0.0 };
-                    zc[t] = c * lambda;
-                }
-            }
-        }
-        coef = zc;
-    }
-    // Undo the sign: s * out <= coef . xi + cst.
-    let coef: Vec<f64> = coef.iter().map(|c| c * s).collect();
-    (coef, cst * s, mag)
 }

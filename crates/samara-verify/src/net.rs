@@ -155,85 +155,15 @@ pub fn deeppoly(
     lo: &mut [Vec<f64>],
     hi: &mut [Vec<f64>],
 ) {
-    let nm = net.maps.len();
-    // relu index of each map (if it has a ReLU).
-    let mut relu_idx = vec![None; nm];
-    let mut r = 0;
-    for (k, (_, relu)) in net.maps.iter().enumerate() {
-        if *relu {
-            relu_idx[k] = Some(r);
-            r += 1;
-        }
-    }
-    for k in 0..nm {
-        let out = net.maps[k].0.out;
-        for i in 0..out {
+    let relu_idx = relu_indices(net);
+    for k in 0..net.maps.len() {
+        for i in 0..net.maps[k].0.out {
             for upper in [false, true] {
-                // Bound s * z_k[i] from above (s = 1: upper bound; s = -1: lower bound).
-                let s = if upper { 1.0 } else { -1.0 };
-                let mut coef = vec![0.0; out];
-                coef[i] = s;
-                let mut cst = 0.0f64;
-                let mut mag = 0.0f64;
-                // z_j = W_j a_{j-1} + b_j, going down from j = k.
-                for j in (0..=k).rev() {
-                    let m = &net.maps[j].0;
-                    // coef . z_j = coef . (W a + b)
-                    let mut next = vec![0.0; m.inp];
-                    for (row, c) in coef.iter().enumerate() {
-                        if *c == 0.0 {
-                            continue;
-                        }
-                        cst += c * m.b[row];
-                        mag += (c * m.b[row]).abs();
-                        for col in 0..m.inp {
-                            let w = m.w[row * m.inp + col];
-                            if w != 0.0 {
-                                next[col] += c * w;
-                            }
-                        }
-                    }
-                    if j == 0 {
-                        coef = next;
-                        break;
-                    }
-                    // next is over a_{j-1}: the output of map j-1 (ReLU or not).
-                    let pj = j - 1;
-                    match relu_idx[pj] {
-                        None => coef = next,
-                        Some(ri) => {
-                            // Relax a = relu(z) of map pj, maximising coef . a.
-                            let mut zc = vec![0.0; next.len()];
-                            for (t, c) in next.iter().enumerate() {
-                                if *c == 0.0 {
-                                    continue;
-                                }
-                                let (l, u) = (lo[pj][t], hi[pj][t]);
-                                let ph = fixed[ri][t];
-                                if ph == 1 || l >= 0.0 {
-                                    zc[t] = *c;
-                                } else if ph == -1 || u <= 0.0 {
-                                } else {
-                                    let slope = u / (u - l);
-                                    if *c > 0.0 {
-                                        // a <= slope (z - l)
-                                        zc[t] = c * slope;
-                                        cst += -c * slope * l;
-                                        mag += (c * slope * l).abs();
-                                    } else {
-                                        // a >= lambda z, lambda in {0, 1}.
-                                        let lambda = if u > -l { 1.0 } else { 0.0 };
-                                        zc[t] = c * lambda;
-                                    }
-                                }
-                            }
-                            coef = zc;
-                        }
-                    }
-                }
+                let b = back_substitute(net, &relu_idx, fixed, lo, hi, k, i, upper, false);
                 // Concretise over the input box.
-                let mut v = cst;
-                for (t, c) in coef.iter().enumerate() {
+                let mut v = b.cst;
+                let mut mag = b.mag;
+                for (t, c) in b.coef.iter().enumerate() {
                     let term = (c * x_lo[t]).max(c * x_hi[t]);
                     v += term;
                     mag += term.abs();
@@ -247,4 +177,115 @@ pub fn deeppoly(
             }
         }
     }
+}
+
+/// The index of each map's ReLU layer among the ReLU layers (`None`: no ReLU follows).
+pub fn relu_indices(net: &PwlNet) -> Vec<Option<usize>> {
+    let mut r = 0;
+    net.maps
+        .iter()
+        .map(|(_, relu)| {
+            relu.then(|| {
+                r += 1;
+                r - 1
+            })
+        })
+        .collect()
+}
+
+/// A linear bound `s z_k[i] <= coef . x + cst` over the network's inputs (`s = 1` for
+/// an upper bound, `-1` for a lower one), with `mag` the sum of the magnitudes of the
+/// terms that went into `cst` (for the rounding tolerance).
+#[derive(Clone, Debug)]
+pub struct LinearBound {
+    /// Coefficients over the inputs.
+    pub coef: Vec<f64>,
+    /// Constant.
+    pub cst: f64,
+    /// Sum of magnitudes of the accumulated terms.
+    pub mag: f64,
+}
+
+/// Back-substitution of one pre-activation `z_k[i]` down to the inputs through the ReLU
+/// relaxations of every earlier layer (DeepPoly/CROWN): `a <= u (z - l) / (u - l)` above,
+/// `a >= z` or `a >= 0` below (whichever loses less area); neurons fixed by `fixed`
+/// (1 active, -1 inactive) or by their bounds `lo`/`hi` are exact. With
+/// `weights_in_mag` the products `c w` are added to `mag` as well (callers whose
+/// tolerance must also cover cancellation in the coefficients).
+#[allow(clippy::too_many_arguments)]
+pub fn back_substitute(
+    net: &PwlNet,
+    relu_idx: &[Option<usize>],
+    fixed: &[Vec<i8>],
+    lo: &[Vec<f64>],
+    hi: &[Vec<f64>],
+    k: usize,
+    i: usize,
+    upper: bool,
+    weights_in_mag: bool,
+) -> LinearBound {
+    let s = if upper { 1.0 } else { -1.0 };
+    let mut coef = vec![0.0; net.maps[k].0.out];
+    coef[i] = s;
+    let mut cst = 0.0f64;
+    let mut mag = 0.0f64;
+    // z_j = W_j a_{j-1} + b_j, going down from j = k.
+    for j in (0..=k).rev() {
+        let m = &net.maps[j].0;
+        // coef . z_j = coef . (W a + b)
+        let mut next = vec![0.0; m.inp];
+        for (row, c) in coef.iter().enumerate() {
+            if *c == 0.0 {
+                continue;
+            }
+            cst += c * m.b[row];
+            mag += (c * m.b[row]).abs();
+            for (col, nx) in next.iter_mut().enumerate() {
+                let w = m.w[row * m.inp + col];
+                if w != 0.0 {
+                    *nx += c * w;
+                    if weights_in_mag {
+                        mag += (c * w).abs();
+                    }
+                }
+            }
+        }
+        if j == 0 {
+            coef = next;
+            break;
+        }
+        // next is over a_{j-1}: the output of map j-1 (ReLU or not).
+        let pj = j - 1;
+        let Some(ri) = relu_idx[pj] else {
+            coef = next;
+            continue;
+        };
+        // Relax a = relu(z) of map pj, maximising coef . a.
+        let mut zc = vec![0.0; next.len()];
+        for (t, c) in next.iter().enumerate() {
+            if *c == 0.0 {
+                continue;
+            }
+            let (l, u) = (lo[pj][t], hi[pj][t]);
+            let ph = fixed[ri][t];
+            if ph == 1 || l >= 0.0 {
+                zc[t] = *c;
+            } else if ph == -1 || u <= 0.0 {
+            } else {
+                let slope = u / (u - l);
+                if *c > 0.0 {
+                    // a <= slope (z - l)
+                    zc[t] = c * slope;
+                    cst += -c * slope * l;
+                    mag += (c * slope * l).abs();
+                } else {
+                    // a >= lambda z, lambda in {0, 1}.
+                    let lambda = if u > -l { 1.0 } else { 0.0 };
+                    zc[t] = c * lambda;
+                }
+            }
+        }
+        coef = zc;
+    }
+    LinearBound { coef, cst, mag }
 }
