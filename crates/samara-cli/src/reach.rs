@@ -143,18 +143,7 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
         seen.push(i);
         s.init[i] = parse_interval(iv, &format!("--init {spec:?}"))?;
     }
-    if !(a.horizon.is_finite() && a.horizon > 0.0) {
-        bail!(
-            "--horizon {}: the horizon must be a positive number (e.g. --horizon 20)",
-            a.horizon
-        );
-    }
-    if !(a.period.is_finite() && a.period > 0.0) {
-        bail!(
-            "--period {}: the period must be a positive number (e.g. --period 0.5)",
-            a.period
-        );
-    }
+    crate::simulate::check_horizon_period(a.horizon, a.period)?;
     s.horizon = a.horizon;
     s.period = a.period;
     let k = a.horizon / a.period;

@@ -158,18 +158,7 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
             a.integrator
         )
     })?;
-    if !(a.horizon.is_finite() && a.horizon > 0.0) {
-        bail!(
-            "--horizon {}: the horizon must be positive (e.g. --horizon 20)",
-            a.horizon
-        );
-    }
-    if !(a.period.is_finite() && a.period > 0.0) {
-        bail!(
-            "--period {}: the period must be positive (e.g. --period 0.5)",
-            a.period
-        );
-    }
+    check_horizon_period(a.horizon, a.period)?;
     let output_step = if (a.period / 0.01 - (a.period / 0.01).round()).abs() < 1e-9 {
         Some(0.01)
     } else {
@@ -195,6 +184,18 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
 }
 
 /// Run `samara simulate`.
+/// `--horizon` and `--period` must be positive finite numbers (shared by the commands
+/// that fly the closed loop).
+pub(crate) fn check_horizon_period(horizon: f64, period: f64) -> Result<()> {
+    if !(horizon.is_finite() && horizon > 0.0) {
+        bail!("--horizon {horizon}: the horizon must be positive (e.g. --horizon 20)");
+    }
+    if !(period.is_finite() && period > 0.0) {
+        bail!("--period {period}: the period must be positive (e.g. --period 0.5)");
+    }
+    Ok(())
+}
+
 /// Create the output directory `out` and check that it is writable (a probe file), so a
 /// bad `--out` fails before any long computation.
 pub(crate) fn prepare_out_dir(out: &std::path::Path) -> Result<()> {
