@@ -111,8 +111,6 @@ pub struct ReachSettings {
     /// Largest number of sub-boxes (64); sub-boxes that lost their enclosure may use a
     /// quarter more.
     pub max_leaves: usize,
-    /// Split a sub-box when the network enclosure's deviation exceeds this (2e-5 in ex).
-    pub max_control_dev: f64,
     /// Split a sub-box when the noise part of its `x + y` enclosure exceeds this (0.01).
     pub max_noise: f64,
     /// Sub-boxes narrower than this fraction of the initial width are not split (1e-4).
@@ -146,7 +144,6 @@ impl ReachSettings {
             initial_splits: 0,
             auto_piece: 0.05,
             max_leaves: 64,
-            max_control_dev: 2e-5,
             max_noise: 0.01,
             min_fraction: 1e-4,
             samples: 200,
@@ -398,56 +395,46 @@ impl Ctx<'_> {
         l.init[p][1] - l.init[p][0] > 2.0 * self.min_width[p]
     }
 
-    /// The parameter along which `l` is most worth splitting: largest effect of the
-    /// parameter generator on the control (or on x + y if `on_xy`).
-    fn split_dir(&self, l: &Leaf, coef: Option<&[f64]>) -> Option<usize> {
+    /// The parameter along which the flown sub-box `l` is most worth splitting.
+    fn split_dir(&self, l: &Leaf) -> Option<usize> {
         (0..l.params.len())
             .filter(|&j| self.can_split(l, j))
             .max_by(|&a, &b| {
                 // A sub-box that lost its enclosure splits along the parameter that
                 // moves the dynamics' states (v_xp, v_yp, omega, theta) most; otherwise
                 // along the one that moves x + y most.
-                let w = |j: usize| match coef {
-                    Some(c) => c[j].abs(),
-                    None if l.failure.is_some() => {
-                        l.z.gens[j][..4].iter().map(|v| v.abs()).sum::<f64>()
-                    }
+                let w = |j: usize| match l.failure {
+                    Some(_) => l.z.gens[j][..4].iter().map(|v| v.abs()).sum::<f64>(),
                     None => (l.z.gens[j][4] + l.z.gens[j][5]).abs(),
                 };
                 w(a).total_cmp(&w(b))
             })
     }
 
-    /// Advance `l` by one period from instant `k`; may split (returns 1 or more leaves).
+    /// Advance `l` by one period from instant `k` (a failure is recorded in the leaf).
     fn advance(&self, l: &mut Leaf, k: usize) {
         let t = k as f64 * self.s.period;
         let u = self.ctrl.over(&l.z);
         l.max_dev = l.max_dev.max(u.dev);
-        // Record the instant (with the control).
-        let bb = l.z.bbox();
-        let xy = l.z.x_plus_y();
-        let mut rec = StepSet {
-            t,
-            bbox: bb.iter().map(|x| iv(*x)).collect(),
-            x_plus_y: iv(xy),
-            x_plus_y_period: iv(xy),
-            ex: Some([
-                (u.cst - u.dev - u.coef.iter().map(|c| c.abs()).sum::<f64>()).max(u.range.lo),
-                (u.cst + u.dev + u.coef.iter().map(|c| c.abs()).sum::<f64>()).min(u.range.hi),
-            ]),
-            set: self.s.keep_sets.then(|| l.z.clone()),
-        };
-        if let Some(prev) = l.steps.last() {
-            rec.x_plus_y_period = prev.x_plus_y_period;
-        }
-        if k == 0 {
-            l.steps.push(rec);
-        } else {
-            // The record at t was made at the end of the previous period; add ex.
-            let last = l.steps.last_mut().expect("record of the previous period");
-            last.ex = rec.ex;
-            if last.set.is_some() {
-                last.set = rec.set;
+        // The control held over the period starting at t.
+        let spread = u.coef.iter().map(|c| c.abs()).sum::<f64>();
+        let ex = Some([
+            (u.cst - u.dev - spread).max(u.range.lo),
+            (u.cst + u.dev + spread).min(u.range.hi),
+        ]);
+        match l.steps.last_mut() {
+            // The record at t was made at the end of the previous period.
+            Some(last) if k > 0 => last.ex = ex,
+            _ => {
+                let xy = iv(l.z.x_plus_y());
+                l.steps.push(StepSet {
+                    t,
+                    bbox: l.z.bbox().iter().map(|x| iv(*x)).collect(),
+                    x_plus_y: xy,
+                    x_plus_y_period: xy,
+                    ex,
+                    set: self.s.keep_sets.then(|| l.z.clone()),
+                });
             }
         }
         // Augment with the control row.
@@ -723,7 +710,7 @@ pub fn reach(net: &Network, s: &ReachSettings) -> Result<ReachResult, ReachError
         let mut total = done.len() + results.len();
         for l in results {
             let want = ctx.needs_refinement(&l, tol_noise);
-            match ctx.split_dir(&l, None) {
+            match ctx.split_dir(&l) {
                 // A sub-box that lost its enclosure may still be split when the budget
                 // is spent, up to a quarter more: better a few more sub-boxes than an
                 // unknown.
