@@ -16,38 +16,103 @@ use std::process::ExitCode;
 
 /// samara: from data to proof for neural-network controllers of the Alsomitra glider.
 #[derive(Parser)]
-#[command(name = "samara", version, about, long_about = None)]
+#[command(name = "samara", version, about, long_about = None, after_help = EXIT_CODES)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
+}
+
+/// The exit codes, shown at the end of every subcommand's help.
+const EXIT_CODES: &str = "Exit codes: 0 success, 1 a property was violated or a check failed \
+(unknown counts as not proved), 2 a usage or input error (the message names the flag or \
+file, the place and the fix).";
+
+macro_rules! help {
+    ($($line:expr),+ $(,)?) => {
+        concat!("Examples:\n", $("  ", $line, "\n",)+ "\n",
+            "Exit codes: 0 success, 1 a property was violated or a check failed \
+(unknown counts as not proved), 2 a usage or input error (the message names the flag or \
+file, the place and the fix).")
+    };
 }
 
 #[derive(Subcommand)]
 enum Command {
     /// Simulate the closed loop (plant + PID, constant or network controller); write
     /// trajectories, the training data set, its normalisation constants and figures.
+    #[command(after_help = help!(
+        "samara simulate --out out/sim                      # the published protocol (PID, nine starts)",
+        "samara simulate --controller net.onnx --y0 -1:2:5 --out out/net --json",
+        "samara simulate --controller constant:0.187 --y0 2,3 --horizon 10 --no-plot --out out/c",
+    ))]
     Simulate(simulate::SimulateArgs),
     /// Train a controller network (plain, adversarial, lipschitz, dl2, goedel) and
     /// export it to ONNX.
+    #[command(after_help = help!(
+        "samara train --data out/sim/training_data.csv --out net.onnx",
+        "samara train --data Training_Data.csv --method adversarial --eps 0.005 --seed 1 --out adv.onnx",
+    ))]
     Train(train::TrainArgs),
     /// Parse and type-check a specification; summarise its properties.
+    #[command(after_help = help!("samara check models/alsomitra/alsomitra.spec"))]
     Check(verify::CheckArgs),
     /// Prove or refute the properties of a specification exactly.
+    #[command(after_help = help!(
+        "samara verify models/alsomitra/alsomitra.spec --network f=base_model_norm.onnx",
+        "samara verify SPEC --network f=net.onnx --param ystar=2 --property P1 --json",
+    ))]
     Verify(verify::VerifyArgs),
     /// The exact critical value of a parameter for which a property holds.
+    #[command(after_help = help!(
+        "samara critical models/alsomitra/alsomitra.spec --property P1 --network f=base_model_norm.onnx",
+    ))]
     Critical(verify::CriticalArgs),
     /// Local-robustness tables (P5) over a data set.
+    #[command(after_help = help!(
+        "samara robustness --network base_model_norm.onnx --data Training_Data_Normalised.csv",
+        "samara robustness --network net.onnx --data data.csv --eps 1e-3,1e-2 --out p5.csv --json",
+    ))]
     Robustness(verify::RobustnessArgs),
     /// Check one VNN-LIB 1.0 property on one network (VNN-COMP style: sat/unsat/unknown).
+    #[command(after_help = help!(
+        "samara verify-vnnlib --network net.onnx --property p.vnnlib   # exit 0 unsat, 1 sat or unknown",
+    ))]
     VerifyVnnlib(verify::VerifyVnnlibArgs),
     /// Write each property instance as a VNN-LIB 1.0 file.
+    #[command(after_help = help!(
+        "samara export-vnnlib models/alsomitra/alsomitra.spec --out out/vnnlib --network f=base_model_norm.onnx",
+    ))]
     ExportVnnlib(verify::ExportArgs),
+    Vnncomp(verify::VnncompArgs),
+    /// Merge the shard files of a `--shard I/N` run (robustness, vnncomp) into what one
+    /// process writes.
+    Merge(verify::shard::MergeArgs),
     /// Sound reachable sets of the closed loop (plant + network) from an initial box,
     /// with a goal |x + y| <= Y decided: proved, violated or unknown.
+    #[command(after_help = help!(
+        "samara reach --network base_model_denorm.onnx --goal-ystar 2 --out out/reach",
+        "samara reach --network net.onnx --y0 2:2.5 --init theta=-0.01:0.01 --horizon 5 --out out/r --json",
+        "(exit 0: proved or no goal; 1: violated or unknown; 2: bad input)",
+    ))]
     Reach(reach::ReachArgs),
     /// Reproduce the whole case study (data, controllers, proofs, reachable sets,
     /// figures, report) in one command.
+    #[command(after_help = help!(
+        "samara reproduce --quick --out out/quick",
+        "samara reproduce --published ../shared/reference --out out/reproduce",
+    ))]
     Reproduce(reproduce::ReproduceArgs),
+    /// Print a shell completion script (bash, zsh, fish, powershell, elvish) on stdout.
+    #[command(after_help = help!(
+        "samara completions bash > ~/.local/share/bash-completion/completions/samara",
+        "samara completions zsh > ~/.zfunc/_samara",
+        "samara completions fish > ~/.config/fish/completions/samara.fish",
+    ))]
+    Completions {
+        /// The shell.
+        #[arg(value_enum)]
+        shell: clap_complete::Shell,
+    },
 }
 
 fn main() -> ExitCode {
@@ -74,12 +139,68 @@ fn main() -> ExitCode {
         Command::Robustness(a) => verify::run_robustness(a),
         Command::ExportVnnlib(a) => verify::run_export(a),
         Command::VerifyVnnlib(a) => verify::run_verify_vnnlib(a),
+        Command::Vnncomp(a) => verify::run_vnncomp(a),
+        Command::Merge(a) => verify::shard::run_merge(a),
+        Command::Completions { shell } => {
+            use clap::CommandFactory;
+            let mut cmd = Cli::command();
+            clap_complete::generate(*shell, &mut cmd, "samara", &mut std::io::stdout());
+            Ok(ExitCode::SUCCESS)
+        }
     };
     match result {
         Ok(code) => code,
         Err(e) => {
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", error_chain(&e));
             ExitCode::from(2)
         }
+    }
+}
+
+/// The message of `e` and its causes joined by `: `, skipping a cause whose text the
+/// message already carries (library errors often print their source themselves, as in
+/// `cannot read: No such file or directory (os error 2)`; anyhow's `{:#}` would then
+/// print the OS error twice).
+fn error_chain(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if c.is_empty() || msg.contains(&c) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&c);
+    }
+    msg
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("f.onnx: cannot read: {source}")]
+    struct Read {
+        source: std::io::Error,
+    }
+
+    #[test]
+    fn an_os_error_is_printed_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file");
+        let e = anyhow::Error::new(Read { source: io }).context("--network f.onnx");
+        assert_eq!(
+            error_chain(&e),
+            "--network f.onnx: f.onnx: cannot read: No such file"
+        );
+        let e = anyhow::anyhow!("outer").context("ctx");
+        assert_eq!(error_chain(&e), "ctx: outer");
+    }
+
+    #[test]
+    fn the_cli_definition_is_consistent() {
+        use clap::CommandFactory;
+        Cli::command().debug_assert();
     }
 }

@@ -12,6 +12,22 @@ use samara_report::{write_atomic, TrajectoryFigure};
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use crate::simulate::{limits, num as fmt_num};
+
+/// Most control periods of a reachability run (the published run has 40; every period
+/// costs a set-valued integration per sub-box).
+const MAX_PERIODS: f64 = 10_000.0;
+/// Longest control period of a reachability run.
+const MAX_PERIOD: f64 = 10.0;
+/// Most sub-boxes (`--max-leaves`).
+const MAX_LEAVES: usize = 100_000;
+/// Most simulated trajectories (`--samples`).
+const MAX_SAMPLES: usize = 100_000;
+/// Most sampled points kept in memory (samples x horizon / 0.05).
+const MAX_SAMPLE_POINTS: f64 = 1e7;
+/// Most worker threads.
+const MAX_THREADS: usize = 1024;
+
 /// The published initial heights: y0 in [0.1/0.07, 0.3/0.07].
 const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
 
@@ -27,41 +43,43 @@ pub struct ReachArgs {
     /// simulation model) or full (four-quadrant model).
     #[arg(long, default_value = "reduced")]
     pub model: String,
-    /// Initial interval of the height y: `A:B` (or a single value A).
-    /// Default 1.4285714285714286:4.285714285714286 (= 0.1/0.07 : 0.3/0.07).
+    /// Initial interval of the height y: `A:B` (or a single value A), ends in
+    /// [-1000, 1000]. Default 1.4285714285714286:4.285714285714286 (= 0.1/0.07 : 0.3/0.07).
     #[arg(long, allow_hyphen_values = true)]
     pub y0: Option<String>,
     /// Initial interval of one state, `NAME=A:B` or `NAME=A` (repeatable); NAME is one
     /// of v_xp, v_yp, omega, theta, x, y (and E for plate6/full). Other states start at
-    /// (1, 0, 0, 0, 0, y0[, 0]).
+    /// (1, 0, 0, 0, 0, y0[, 0]). Ends in [-1000, 1000].
     #[arg(long = "init", value_name = "NAME=A:B", allow_hyphen_values = true)]
     pub init: Vec<String>,
-    /// Horizon (a positive multiple of the period).
-    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    /// Horizon (a positive multiple of the period, at most 10000 periods).
+    #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
     pub horizon: f64,
-    /// Control period (sample and hold).
-    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    /// Control period (sample and hold), in [0.001, 10].
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
     pub period: f64,
     /// Goal: |x + y| <= Y at the horizon (or on [T*, horizon] with --goal-from).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     pub goal_ystar: Option<f64>,
     /// Start T* of the goal's time window (needs --goal-ystar).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_hyphen_values = true)]
     pub goal_from: Option<f64>,
     /// Do not clip the controller's output to [0.181, 0.193] (as the CORA model).
     #[arg(long)]
     pub no_clip: bool,
-    /// Worker threads (default: all cores).
-    #[arg(long)]
+    /// Worker threads, 1 to 1024 (default: all cores).
+    #[arg(long, allow_hyphen_values = true)]
     pub threads: Option<usize>,
-    /// Largest number of sub-boxes of the initial set (default 64; more gives tighter sets, slower).
-    #[arg(long)]
+    /// Largest number of sub-boxes of the initial set, 1 to 100000 (default 64; more
+    /// gives tighter sets, slower).
+    #[arg(long, allow_hyphen_values = true)]
     pub max_leaves: Option<usize>,
-    /// Simulated trajectories for falsification, the sampled range and the figure
-    /// (default 200).
-    #[arg(long)]
+    /// Simulated trajectories for falsification, the sampled range and the figure, 1 to
+    /// 100000 and at most 10^7 sampled points (about samples x horizon / 0.05) (default 200).
+    #[arg(long, allow_hyphen_values = true)]
     pub samples: Option<usize>,
-    /// Output directory (created if missing).
+    /// Output directory (created if missing; removed again if the run fails and created
+    /// it). It may not be, or lie inside, the --network file.
     #[arg(long)]
     pub out: PathBuf,
     /// Print a JSON summary on stdout instead of the human line.
@@ -94,6 +112,10 @@ pub fn parse_interval(s: &str, what: &str) -> Result<(f64, f64)> {
     }
     if a > b {
         bail!("{what}: the interval is empty (inverted, {a} > {b}); give A:B with A <= B, e.g. {b}:{a}");
+    }
+    let m = limits::MAX_STATE;
+    if a < -m || b > m {
+        bail!("{what}: the interval ends must lie in [-{m}, {m}], the range in which the nondimensional model means anything (published: y0 in [1.43, 4.29], the other states 0 or 1); give a smaller interval");
     }
     Ok((a, b))
 }
@@ -144,6 +166,10 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
         s.init[i] = parse_interval(iv, &format!("--init {spec:?}"))?;
     }
     crate::simulate::check_horizon_period(a.horizon, a.period)?;
+    if a.period > MAX_PERIOD {
+        bail!("--period {}: reach takes periods up to {MAX_PERIOD} (the validated integrator takes at most 400 steps of at most 0.0625 per period, so a longer hold cannot be enclosed); e.g. --period 0.5", a.period);
+    }
+    crate::simulate::check_period_count(a.horizon, a.period, MAX_PERIODS)?;
     s.horizon = a.horizon;
     s.period = a.period;
     let k = a.horizon / a.period;
@@ -161,16 +187,23 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
     }
     match (a.goal_ystar, a.goal_from) {
         (None, Some(f)) => {
-            bail!("--goal-from {f}: needs a goal; add --goal-ystar Y (e.g. --goal-ystar 2)")
+            bail!(
+                "--goal-from {}: needs a goal; add --goal-ystar Y (e.g. --goal-ystar 2)",
+                fmt_num(f)
+            )
         }
         (Some(y), from) => {
             if !(y.is_finite() && y >= 0.0) {
-                bail!("--goal-ystar {y}: the band half-width must be a finite number >= 0 (e.g. --goal-ystar 2)");
+                bail!(
+                    "--goal-ystar {}: the band half-width must be a finite number >= 0 (e.g. --goal-ystar 2)",
+                    fmt_num(y)
+                );
             }
             if let Some(f) = from {
                 if !(f.is_finite() && f >= 0.0 && f <= a.horizon) {
                     bail!(
-                        "--goal-from {f}: the window start must lie in [0, horizon = {}]",
+                        "--goal-from {}: the window start must lie in [0, horizon = {}]",
+                        fmt_num(f),
                         a.horizon
                     );
                 }
@@ -183,22 +216,53 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
         if n == 0 {
             bail!("--max-leaves 0: give at least 1 (default 64)");
         }
+        if n > MAX_LEAVES {
+            bail!("--max-leaves {n}: at most {MAX_LEAVES} sub-boxes are allowed (each is a full reachability run; the default is 64)");
+        }
         s.max_leaves = n;
     }
     if let Some(n) = a.samples {
         if n == 0 {
             bail!("--samples 0: give at least 1 (default 200); falsification needs trajectories");
         }
+        if n > MAX_SAMPLES {
+            bail!("--samples {n}: at most {MAX_SAMPLES} trajectories are allowed (each is kept in memory; the default is 200)");
+        }
         s.samples = n;
     }
-    if a.threads == Some(0) {
-        bail!("--threads 0: give at least 1 (or leave it out to use all cores)");
+    // Sampled trajectories are recorded every 0.05 (or the finest step above that which
+    // divides the period).
+    let q = a.period / 0.05;
+    let per_period = if (q - q.round()).abs() <= 1e-9 * q.max(1.0) && q.round() >= 1.0 {
+        q.round()
+    } else {
+        q.ceil().max(1.0)
+    };
+    let points = s.samples as f64 * (a.horizon / a.period).round() * per_period;
+    if points > MAX_SAMPLE_POINTS {
+        bail!(
+            "--samples {} with --horizon {}: {points:e} sampled points (one about every 0.05 time units per trajectory); at most {MAX_SAMPLE_POINTS:e} are kept in memory: pass fewer --samples or a shorter --horizon",
+            s.samples,
+            a.horizon
+        );
+    }
+    match a.threads {
+        Some(0) => bail!("--threads 0: give at least 1 (or leave it out to use all cores)"),
+        Some(n) if n > MAX_THREADS => bail!(
+            "--threads {n}: at most {MAX_THREADS} worker threads are allowed (more than the cores only costs memory); leave it out to use all cores"
+        ),
+        _ => {}
     }
     Ok(s)
 }
 
+/// The files a run writes into `--out`.
+const WRITES: [&str; 3] = ["reach.json", "reach.png", "reach.svg"];
+
 fn plan(a: &ReachArgs) -> Result<Plan> {
     let settings = build_settings(a)?;
+    // Never write over the network file (an input), before anything is computed.
+    samara_report::guard::check_output_dir("--out", &a.out, &WRITES, &[("--network", &a.network)])?;
     // The flags are checked; now the network, then the library's own check of the
     // settings against it.
     if !a.network.exists() {
@@ -233,8 +297,9 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
             .build_global()
             .map_err(|e| anyhow!("--threads {n}: cannot start the thread pool: {e}"))?;
     }
-    // Output directory: create and probe before the (possibly long) analysis.
-    crate::simulate::prepare_out_dir(&a.out)?;
+    // Output directory: create and probe before the (possibly long) analysis; a failed
+    // run removes the folders it created.
+    let out = samara_report::guard::OutDir::prepare(&a.out)?;
 
     let spinner = progress(&plan.settings);
     let res = samara_reach::reach(&plan.net, &plan.settings);
@@ -256,6 +321,7 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         println!("{}", human_line(&plan.settings, &res));
         eprintln!("wrote {}", a.out.display());
     }
+    out.keep();
     Ok(match res.verdict {
         Verdict::Proved | Verdict::NoGoal => ExitCode::SUCCESS,
         Verdict::Violated { .. } | Verdict::Unknown { .. } => ExitCode::from(1),
@@ -386,17 +452,26 @@ fn human_line(s: &ReachSettings, res: &ReachResult) -> String {
         } => format!("; counterexample: from {initial:?}, x + y = {x_plus_y} at t = {t}"),
         _ => String::new(),
     };
+    // No finite sampled trajectory (e.g. a state where the model is singular): say so
+    // instead of printing the empty range [inf, -inf].
+    let sampled = if sm[0] <= sm[1] {
+        format!(
+            "sampled [{:.6}, {:.6}] (width {:.6}); ratio {:.3}",
+            sm[0],
+            sm[1],
+            width(sm),
+            res.width_ratio()
+        )
+    } else {
+        "sampled: none (no simulated trajectory stayed finite); ratio n/a".to_string()
+    };
     format!(
-        "{}{goal}: x + y at t = {} in [{:.6}, {:.6}] (width {:.6}); sampled [{:.6}, {:.6}] (width {:.6}); ratio {:.3}; {} sub-boxes; {:.2} s{detail}",
+        "{}{goal}: x + y at t = {} in [{:.6}, {:.6}] (width {:.6}); {sampled}; {} sub-boxes; {:.2} s{detail}",
         res.verdict.name(),
         s.horizon,
         f[0],
         f[1],
         width(f),
-        sm[0],
-        sm[1],
-        width(sm),
-        res.width_ratio(),
         res.subproblems(),
         res.seconds
     )

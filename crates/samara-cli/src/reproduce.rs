@@ -1,6 +1,6 @@
 //! `samara reproduce`.
 
-use anyhow::Result;
+use anyhow::{bail, Result};
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -26,8 +26,31 @@ pub struct ReproduceArgs {
     pub json: bool,
 }
 
+/// What a run writes at the top of `--out`.
+const WRITES: [&str; 8] = [
+    "data",
+    "figures",
+    "networks",
+    "tables",
+    ".cache",
+    "report.html",
+    "report.md",
+    "results.json",
+];
+
 /// Run `samara reproduce`.
 pub fn run(a: &ReproduceArgs) -> Result<ExitCode> {
+    if let Some(p) = &a.published {
+        // Check the input before any folder is created, and never write into it.
+        if !p.is_dir() {
+            bail!(
+                "--published {}: no such directory; give a folder laid out like the published reference/ (Training_Data.csv, *_norm.onnx, *_denorm.onnx)",
+                p.display()
+            );
+        }
+        samara_report::guard::check_output_dir("--out", &a.out, &WRITES, &[("--published", p)])?;
+    }
+    let out = samara_report::guard::OutDir::prepare(&a.out)?;
     let opts = samara_repro::ReproduceOptions {
         out: a.out.clone(),
         quick: a.quick,
@@ -54,5 +77,6 @@ pub fn run(a: &ReproduceArgs) -> Result<ExitCode> {
             a.out.display()
         );
     }
+    out.keep();
     Ok(ExitCode::SUCCESS)
 }

@@ -30,20 +30,23 @@ pub struct SimulateArgs {
     #[arg(long)]
     pub no_clip: bool,
     /// Initial heights: `START:END:COUNT` (evenly spaced, ends included) or a
-    /// comma-separated list. Default: the nine published starts.
-    #[arg(long)]
+    /// comma-separated list, each in [-1000, 1000], at most 100000 starts (negative
+    /// values work as `--y0 -1:2:3`). Default: the nine published starts.
+    #[arg(long, allow_hyphen_values = true)]
     pub y0: Option<String>,
-    /// Integrator: `ode45` (MATLAB clone, reproduces the published data), `tight`
-    /// (DOP853, rtol 1e-10, atol 1e-12), `dp5` (Dormand-Prince 5(4) at the same tolerances) or `rk4` (fixed step 1e-3).
+    /// Integrator: `ode45` (MATLAB clone, reproduces the published data), `dop853`
+    /// (also `tight`: DOP853, rtol 1e-10, atol 1e-12), `dp5` (Dormand-Prince 5(4) at the
+    /// same tolerances) or `rk4` (fixed step 1e-3).
     #[arg(long, default_value = "ode45")]
     pub integrator: String,
-    /// Horizon (a positive multiple of the period).
-    #[arg(long, default_value_t = 20.0, allow_negative_numbers = true)]
+    /// Horizon (a positive multiple of the period, at most 100000 periods).
+    #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
     pub horizon: f64,
-    /// Control period (sample and hold).
-    #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+    /// Control period (sample and hold), in [0.001, 100].
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
     pub period: f64,
-    /// Output directory (created if missing).
+    /// Output directory (created if missing; removed again if the run fails and
+    /// created it). It may not hold the --controller file under a name the run writes.
     #[arg(long)]
     pub out: PathBuf,
     /// Print a JSON summary (final state per start, wall time) on stdout.
@@ -52,6 +55,48 @@ pub struct SimulateArgs {
     /// Skip the figures (useful for thousands of starts).
     #[arg(long)]
     pub no_plot: bool,
+    /// A system file (`docs/system.md`, e.g. `examples/archcomp/tora.sys`): fly it under
+    /// the network `--controller NET.onnx` from `--samples` starts in its initial set, with
+    /// its own period and horizon, and check its goals along every flight. `--model`,
+    /// `--y0`, `--integrator`, `--horizon` and `--period` do not apply (the file states
+    /// them; DOP853 integrates). Exit 1 when a flight violates a goal.
+    #[arg(long)]
+    pub system: Option<PathBuf>,
+    /// With `--system`: number of starts (the initial box's lower and upper corners, its
+    /// centre, then seeded uniform samples), 1 to 100000.
+    #[arg(long, default_value_t = 9)]
+    pub samples: usize,
+}
+
+/// Limits of the numbers `simulate` and `reach` accept (documented in `--help` and
+/// docs/simulation.md): beyond them a run would only exhaust memory or leave the range in
+/// which the (nondimensional) glider model means anything.
+pub(crate) mod limits {
+    /// Shortest control period (1 ms); below it the hold is shorter than the
+    /// integrator's useful steps.
+    pub const MIN_PERIOD: f64 = 1e-3;
+    /// Longest control period.
+    pub const MAX_PERIOD: f64 = 100.0;
+    /// Most control periods (`horizon / period`) of `simulate` (the published run has 40).
+    pub const MAX_PERIODS: f64 = 100_000.0;
+    /// Most starts of `simulate --y0`.
+    pub const MAX_STARTS: usize = 100_000;
+    /// Most rows of `trajectories.csv` (built in memory, about 200 bytes a row).
+    pub const MAX_ROWS: f64 = 2_000_000.0;
+    /// Largest magnitude of an initial state value: the model is nondimensional and the
+    /// published states are O(1) (heights 1.43 to 4.29).
+    pub const MAX_STATE: f64 = 1000.0;
+}
+
+/// A number for a message: plain when moderate, scientific when huge or tiny (so 1e308
+/// does not print as 309 digits).
+pub(crate) fn num(v: f64) -> String {
+    let a = v.abs();
+    if a != 0.0 && a.is_finite() && !(1e-4..1e7).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
 }
 
 /// Parse `START:END:COUNT` or `V,V,...`.
@@ -59,6 +104,25 @@ pub fn parse_y0(s: &str) -> Result<Vec<f64>> {
     let bad = || {
         anyhow!("--y0 {s:?}: expected START:END:COUNT (e.g. 1.4286:4.2857:9) or a list V,V,... of finite numbers")
     };
+    let v = parse_y0_values(s, &bad)?;
+    if v.len() > limits::MAX_STARTS {
+        bail!(
+            "--y0 {s:?}: {} starts; at most {} are allowed (each start is a full flight kept in memory); use fewer starts or several runs",
+            v.len(),
+            limits::MAX_STARTS
+        );
+    }
+    if let Some(y) = v.iter().find(|y| y.abs() > limits::MAX_STATE) {
+        bail!(
+            "--y0 {s:?}: the height {} is outside [-{m}, {m}], the range in which the nondimensional model means anything (published starts: 1.43 to 4.29); give heights inside it",
+            num(*y),
+            m = limits::MAX_STATE
+        );
+    }
+    Ok(v)
+}
+
+fn parse_y0_values(s: &str, bad: &dyn Fn() -> anyhow::Error) -> Result<Vec<f64>> {
     if s.contains(':') {
         let parts: Vec<&str> = s.split(':').collect();
         if parts.len() != 3 {
@@ -69,6 +133,12 @@ pub fn parse_y0(s: &str) -> Result<Vec<f64>> {
         let n: usize = parts[2].trim().parse().map_err(|_| bad())?;
         if n == 0 || !a.is_finite() || !b.is_finite() {
             return Err(bad());
+        }
+        if n > limits::MAX_STARTS {
+            bail!(
+                "--y0 {s:?}: COUNT {n} is more than {} starts (each start is a full flight kept in memory); use fewer starts or several runs",
+                limits::MAX_STARTS
+            );
         }
         if n == 1 {
             return Ok(vec![a]);
@@ -115,7 +185,12 @@ pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>>
                 path.display()
             );
         }
-        let net = crate_nn_load(path)?;
+        let net = crate_nn_load(path).with_context(|| {
+            format!(
+                "--controller {}: cannot load the network; give an ONNX file samara can read",
+                path.display()
+            )
+        })?;
         if net.n_inputs() != 6 || net.n_outputs() != 1 {
             bail!(
                 "{}: the network has {} inputs and {} outputs; a controller needs 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and 1 output (ex)",
@@ -154,11 +229,12 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
     })?;
     let integrator = Integrator::from_name(&a.integrator).ok_or_else(|| {
         anyhow!(
-            "--integrator {:?}: unknown integrator; choose ode45, tight, dp5 or rk4",
+            "--integrator {:?}: unknown integrator; choose ode45, dop853 (or tight), dp5 or rk4",
             a.integrator
         )
     })?;
     check_horizon_period(a.horizon, a.period)?;
+    check_period_count(a.horizon, a.period, limits::MAX_PERIODS)?;
     let output_step = if (a.period / 0.01 - (a.period / 0.01).round()).abs() < 1e-9 {
         Some(0.01)
     } else {
@@ -176,6 +252,17 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
         Some(s) => parse_y0(s)?,
         None => published_starts(),
     };
+    // Rows of trajectories.csv: t = 0 and every output point of every period.
+    let per_period = output_step.map_or(1.0, |o| (a.period / o).round().max(1.0));
+    let rows = starts.len() as f64 * (1.0 + (a.horizon / a.period).round() * per_period);
+    if rows > limits::MAX_ROWS {
+        bail!(
+            "--y0/--horizon/--period: {} start(s) x {} period(s) x {per_period} output points give {rows:e} trajectory rows; at most {:e} are allowed (trajectories.csv is built in memory): use fewer starts, a shorter --horizon or a longer --period",
+            starts.len(),
+            (a.horizon / a.period).round(),
+            limits::MAX_ROWS
+        );
+    }
     Ok(Plan {
         plant: Plant::new(model),
         settings,
@@ -183,47 +270,85 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
     })
 }
 
-/// Run `samara simulate`.
-/// `--horizon` and `--period` must be positive finite numbers (shared by the commands
-/// that fly the closed loop).
+/// `--horizon` and `--period` must be positive finite numbers, the period in
+/// [`limits::MIN_PERIOD`, `limits::MAX_PERIOD`] (shared by the commands that fly the
+/// closed loop).
 pub(crate) fn check_horizon_period(horizon: f64, period: f64) -> Result<()> {
     if !(horizon.is_finite() && horizon > 0.0) {
-        bail!("--horizon {horizon}: the horizon must be positive (e.g. --horizon 20)");
+        bail!(
+            "--horizon {}: the horizon must be positive (e.g. --horizon 20)",
+            num(horizon)
+        );
     }
     if !(period.is_finite() && period > 0.0) {
-        bail!("--period {period}: the period must be positive (e.g. --period 0.5)");
+        bail!(
+            "--period {}: the period must be positive (e.g. --period 0.5)",
+            num(period)
+        );
+    }
+    if !(limits::MIN_PERIOD..=limits::MAX_PERIOD).contains(&period) {
+        bail!(
+            "--period {}: the control period must lie in [{}, {}] (a hold shorter than 1 ms or longer than 100 time units is outside what the model and integrators are meant for); e.g. --period 0.5",
+            num(period),
+            limits::MIN_PERIOD,
+            limits::MAX_PERIOD
+        );
     }
     Ok(())
 }
 
-/// Create the output directory `out` and check that it is writable (a probe file), so a
-/// bad `--out` fails before any long computation.
-pub(crate) fn prepare_out_dir(out: &std::path::Path) -> Result<()> {
-    std::fs::create_dir_all(out).with_context(|| {
-        format!(
-            "cannot create output directory {}; choose a writable --out",
-            out.display()
-        )
-    })?;
-    let probe = out.join(format!(".samara-probe-{}", std::process::id()));
-    std::fs::write(&probe, b"").with_context(|| {
-        format!(
-            "output directory {} is not writable; choose a writable --out",
-            out.display()
-        )
-    })?;
-    let _ = std::fs::remove_file(&probe);
+/// At most `max` control periods (`horizon / period`).
+pub(crate) fn check_period_count(horizon: f64, period: f64, max: f64) -> Result<()> {
+    let k = horizon / period;
+    if k > max + 0.5 {
+        bail!(
+            "--horizon {} / --period {} = {} control periods; at most {max} are allowed (time and memory grow with every period; the published run has 40): pass a shorter --horizon or a longer --period",
+            num(horizon),
+            num(period),
+            num(k)
+        );
+    }
+    if k < 0.5 {
+        bail!(
+            "--horizon {} is shorter than one --period {}: the horizon must be a positive multiple of the period (e.g. --horizon 20)",
+            num(horizon),
+            num(period)
+        );
+    }
     Ok(())
 }
 
+/// The files a run writes into `--out`.
+const WRITES: [&str; 5] = [
+    "trajectories.csv",
+    "training_data.csv",
+    "normalisation.csv",
+    "trajectories.png",
+    "trajectories.svg",
+];
+
+/// Run `samara simulate`.
 pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
+    if let Some(sys) = &a.system {
+        return run_system(a, sys);
+    }
     let plan = plan(a)?;
-    let mut controller = make_controller(&a.controller, a.no_clip)?;
     if a.controller == "pid" && !plan.plant.model.has_filter() {
         bail!("--controller pid needs the filter state E, which model `reduced` does not have; use --model plate6 or full, or another controller");
     }
-    // Output directory: create and probe before simulating, so a bad path fails fast.
-    prepare_out_dir(&a.out)?;
+    // Never write over the controller file (an input), before anything is computed.
+    if a.controller != "pid" && !a.controller.starts_with("constant:") {
+        samara_report::guard::check_output_dir(
+            "--out",
+            &a.out,
+            &WRITES,
+            &[("--controller", Path::new(&a.controller))],
+        )?;
+    }
+    let mut controller = make_controller(&a.controller, a.no_clip)?;
+    // Output directory: create and probe before simulating, so a bad path fails fast;
+    // a failed run removes the folders it created.
+    let out = samara_report::guard::OutDir::prepare(&a.out)?;
 
     let t0 = Instant::now();
     let mut flights = Vec::with_capacity(plan.starts.len());
@@ -250,6 +375,7 @@ pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
             a.out.display()
         );
     }
+    out.keep();
     Ok(ExitCode::SUCCESS)
 }
 
@@ -328,5 +454,129 @@ fn summary(a: &SimulateArgs, plan: &Plan, flights: &[Flight], wall: f64) -> serd
         "starts": starts,
         "wall_seconds": wall,
         "out": a.out.display().to_string(),
+    })
+}
+
+/// Files `simulate --system` writes.
+const SYSTEM_WRITES: [&str; 1] = ["trajectories.csv"];
+
+/// `simulate --system FILE --controller NET.onnx`: closed-loop flights of a system file
+/// from starts in its initial set, goals checked along each (a falsification run).
+fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
+    use rand::{Rng, SeedableRng};
+    if a.y0.is_some() {
+        bail!("--y0 does not apply with --system: the system file's `init` lines give the initial set; use --samples N");
+    }
+    if a.samples == 0 || a.samples > limits::MAX_STARTS {
+        bail!(
+            "--samples {}: give 1 to {} starts",
+            a.samples,
+            limits::MAX_STARTS
+        );
+    }
+    let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
+    if a.controller == "pid" || a.controller.starts_with("constant:") {
+        bail!("--system needs a network controller: --controller NET.onnx (inputs: the file's `observe` list, outputs: its net[i])");
+    }
+    let net_path = Path::new(&a.controller);
+    let net = samara_nn::onnx::load(net_path)
+        .with_context(|| format!("--controller {}", net_path.display()))?;
+    if net.n_inputs() != sys.n_observed() || net.n_outputs() < sys.n_net_outputs {
+        bail!(
+            "--controller {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
+            net_path.display(),
+            net.n_inputs(),
+            net.n_outputs(),
+            path.display(),
+            sys.n_observed(),
+            sys.n_net_outputs
+        );
+    }
+    let rows = (a.samples as f64) * (sys.steps() as f64 * 10.0 + 1.0);
+    if rows > limits::MAX_ROWS {
+        bail!(
+            "--samples {} x {} periods x 10 output points = {rows:e} trajectory rows; at most {:e} are allowed: use fewer --samples",
+            a.samples,
+            sys.steps(),
+            limits::MAX_ROWS
+        );
+    }
+    samara_report::guard::check_output_dir(
+        "--out",
+        &a.out,
+        &SYSTEM_WRITES,
+        &[("--system", path), ("--controller", net_path)],
+    )?;
+    let out = samara_report::guard::OutDir::prepare(&a.out)?;
+    // Starts: lower corner, upper corner, centre, then seeded uniform samples.
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let starts: Vec<Vec<f64>> = (0..a.samples)
+        .map(|k| {
+            sys.init
+                .iter()
+                .map(|&(lo, hi)| match k {
+                    0 => lo,
+                    1 => hi,
+                    2 => 0.5 * (lo + hi),
+                    _ if lo < hi => rng.gen_range(lo..=hi),
+                    _ => lo,
+                })
+                .collect()
+        })
+        .collect();
+    let t0 = Instant::now();
+    let eval = |o: &[f64]| net.eval_f64(o);
+    let mut csv = String::from("start,t");
+    for n in sys.states.iter().chain(&sys.inputs) {
+        csv.push(',');
+        csv.push_str(n);
+    }
+    csv.push('\n');
+    let mut violations = Vec::new();
+    for (k, x0) in starts.iter().enumerate() {
+        let f = samara_system::sim::fly(&sys, &eval, x0, 10)
+            .map_err(|e| anyhow!("{}: start {k} {x0:?}: {e}", path.display()))?;
+        for ((t, x), u) in f.t.iter().zip(&f.states).zip(&f.inputs) {
+            csv.push_str(&format!("{k},{}", samara_report::fmt_f64(*t)));
+            for v in x.iter().chain(u) {
+                csv.push(',');
+                csv.push_str(&samara_report::fmt_f64(*v));
+            }
+            csv.push('\n');
+        }
+        for (g, ok) in sys
+            .goals
+            .iter()
+            .zip(samara_system::sim::goals_hold(&sys, &f))
+        {
+            if !ok {
+                violations.push(serde_json::json!({"start": k, "initial": x0, "goal": g.text}));
+            }
+        }
+    }
+    samara_report::write_atomic(&a.out.join("trajectories.csv"), csv.as_bytes())?;
+    out.keep();
+    let wall = t0.elapsed().as_secs_f64();
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({"system": sys.name, "starts": starts.len(), "goals": sys.goals.iter().map(|g| g.text.clone()).collect::<Vec<_>>(), "violations": violations, "wall_seconds": wall})
+        );
+    } else {
+        println!(
+            "{}: {} flights, {} goal violations ({wall:.2} s); trajectories in {}",
+            path.display(),
+            starts.len(),
+            violations.len(),
+            a.out.join("trajectories.csv").display()
+        );
+        if let Some(v) = violations.first() {
+            println!("first violation: {v}");
+        }
+    }
+    Ok(if violations.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
     })
 }

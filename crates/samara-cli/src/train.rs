@@ -1,12 +1,14 @@
 //! `samara train`.
 
 use anyhow::{anyhow, bail, Context, Result};
+use samara_report::guard::{check_output_file, resolve, OutDir};
 use samara_train::{
-    case_study, read_table, train, Attack, Logic, Method, MinMax, TrainOptions, Units,
+    read_table, train, Attack, Logic, Method, MinMax, TrainError, TrainOptions,
+    DEFAULT_MAX_RESTARTS,
 };
 use std::fmt::Write as _;
 use std::io::IsTerminal;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Flags of `samara train`. Defaults are the published setting (6-6-4-1, ReLU on every
@@ -20,7 +22,10 @@ pub struct TrainArgs {
     /// computed from the data when absent.
     #[arg(long)]
     pub normalisation: Option<PathBuf>,
-    /// plain | adversarial | lipschitz | dl2 | goedel.
+    /// plain | adversarial | lipschitz | dl2 | goedel | closed-loop (the goal
+    /// |x + y| <= --goal-ystar at t = 20 of the reduced model's sample-and-hold loop,
+    /// trained through the loop and checked by reach in counterexample-guided rounds;
+    /// docs/training.md).
     #[arg(long, default_value = "plain")]
     pub method: String,
     /// Adversarial attack: fgsm (the published training) or pgd.
@@ -50,10 +55,12 @@ pub struct TrainArgs {
     /// Weight of the Lipschitz or property term.
     #[arg(long)]
     pub weight: Option<f64>,
-    /// ystar of the built-in case-study properties P1-P4 used by dl2/goedel.
+    /// ystar of the case-study properties P1-P4 (models/alsomitra/alsomitra.spec) used
+    /// by dl2/goedel without --spec.
     #[arg(long, default_value_t = 2.0)]
     pub ystar: f64,
-    /// Take the dl2/goedel properties from a specification instead of the built-in P1-P4.
+    /// Take the dl2/goedel properties from this specification instead of the case
+    /// study's (models/alsomitra/alsomitra.spec, compiled in).
     #[arg(long)]
     pub spec: Option<PathBuf>,
     /// Properties of --spec to train for (comma-separated; default: every property
@@ -72,26 +79,168 @@ pub struct TrainArgs {
     /// Print the metrics as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Restarts from a fresh initialisation allowed when training gives a dead, constant
+    /// or useless (training R^2 <= 0) network; restart k uses the k-th SplitMix64 output
+    /// from --seed. Exit code 1 when every attempt was degenerate.
+    #[arg(long, default_value_t = DEFAULT_MAX_RESTARTS)]
+    pub max_restarts: usize,
+    /// Least R^2 on the training rows a finished network must reach, else training
+    /// restarts (default 0.9 for plain and adversarial, whose published networks reach
+    /// it; 0 for lipschitz, dl2 and goedel, which trade accuracy for their property).
+    /// A network with R^2 <= 0 is always refused.
+    #[arg(long)]
+    pub min_r2: Option<f64>,
+    /// Settings of --method closed-loop.
+    #[command(flatten)]
+    pub closed_loop: Box<ClosedLoopArgs>,
 }
 
-/// Properties from a spec, moved into the units of the network being trained.
+/// Flags of `samara train --method closed-loop`.
+#[derive(clap::Args, Debug)]
+pub struct ClosedLoopArgs {
+    /// closed-loop: the goal |x + y| <= Y at the horizon (t = 20) that reach must prove.
+    #[arg(long, default_value_t = 2.0)]
+    pub goal_ystar: f64,
+    /// closed-loop: also for every t in [T*, 20] (the goal over a window).
+    #[arg(long)]
+    pub goal_from: Option<f64>,
+    /// closed-loop: the interval of initial y, A:B (default the published
+    /// 0.1/0.07:0.3/0.07); the other states start at (1, 0, 0, 0, 0).
+    #[arg(long)]
+    pub y0: Option<String>,
+    /// closed-loop: the flights are trained to |x + y| <= Y - margin, leaving the
+    /// enclosures room.
+    #[arg(long, default_value_t = 0.75)]
+    pub margin: f64,
+    /// closed-loop: most train-then-reach rounds.
+    #[arg(long, default_value_t = 6)]
+    pub rounds: usize,
+    /// closed-loop: Adam steps per round (a round stops early once every flight meets
+    /// the training bound).
+    #[arg(long, default_value_t = 150)]
+    pub steps_per_round: usize,
+    /// closed-loop: Adam learning rate of the rounds (--lr is the data-only training's).
+    #[arg(long, default_value_t = 0.005)]
+    pub round_lr: f64,
+    /// closed-loop: weight of the PID data MSE (normalised units) against the mean
+    /// closed-loop penalty.
+    #[arg(long, default_value_t = 100.0)]
+    pub data_weight: f64,
+    /// closed-loop: sub-boxes of reach in each round (the full --max-leaves is tried when
+    /// this budget leaves the goal undecided, and in the last round).
+    #[arg(long, default_value_t = 16)]
+    pub round_leaves: usize,
+    /// closed-loop: sub-boxes of the full reach.
+    #[arg(long, default_value_t = 64)]
+    pub max_leaves: usize,
+}
+
+/// `--min-r2` when not given: 0.9 for the accuracy-only methods.
+pub const DEFAULT_MIN_R2: f64 = 0.9;
+
+/// Refuse flag values that no training can use, naming the flag and the fix (the
+/// library checks the rest of the settings).
+fn check_flags(a: &TrainArgs) -> Result<()> {
+    if !(a.lipschitz > 0.0 && a.lipschitz.is_finite()) {
+        bail!(
+            "--lipschitz {}: the Lipschitz constant must be a positive number, e.g. 0.5",
+            a.lipschitz
+        );
+    }
+    if let Some(w) = a.weight {
+        if !(w >= 0.0 && w.is_finite()) {
+            bail!("--weight {w}: the penalty weight must be a finite number >= 0, e.g. 10");
+        }
+    }
+    if !(a.ystar >= 0.0 && a.ystar.is_finite()) {
+        bail!(
+            "--ystar {}: the threshold must be a finite number >= 0, e.g. 2",
+            a.ystar
+        );
+    }
+    Ok(())
+}
+
+/// The parent folder of an output file ("." for a bare file name).
+fn parent(p: &Path) -> &Path {
+    match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    }
+}
+
+/// Refuse outputs that would overwrite an input or each other, or that are folders;
+/// returns the log path.
+fn check_outputs(a: &TrainArgs) -> Result<PathBuf> {
+    let log_flag = if a.log.is_some() {
+        "--log"
+    } else {
+        "--log (default <--out stem>.log.csv)"
+    };
+    let log_path = a
+        .log
+        .clone()
+        .unwrap_or_else(|| a.out.with_extension("log.csv"));
+    let mut inputs: Vec<(&str, &Path)> = vec![("--data", &a.data)];
+    if let Some(n) = &a.normalisation {
+        inputs.push(("--normalisation", n));
+    }
+    if let Some(s) = &a.spec {
+        inputs.push(("--spec", s));
+    }
+    check_output_file("--out", &a.out, &inputs)?;
+    check_output_file(log_flag, &log_path, &inputs)?;
+    if resolve(&a.out) == resolve(&log_path) {
+        bail!(
+            "--log {} is the same file as --out; choose another --log",
+            log_path.display()
+        );
+    }
+    for (flag, p) in [("--out", &a.out), (log_flag, &log_path)] {
+        if p.is_dir() {
+            bail!(
+                "{flag} {} is a folder; give a file name such as {}",
+                p.display(),
+                p.join(if flag == "--out" {
+                    "net.onnx"
+                } else {
+                    "net.log.csv"
+                })
+                .display()
+            );
+        }
+    }
+    Ok(log_path)
+}
+
+/// The dl2/goedel properties: those of --spec, or P1-P4 of the case-study spec
+/// (models/alsomitra/alsomitra.spec, compiled in) over the data's box with `ystar =
+/// --ystar`, lowered by samara-spec in the units of the network being trained.
 fn spec_properties(
-    path: &std::path::Path,
     a: &TrainArgs,
     mm: &MinMax,
+    data: &samara_train::Table,
 ) -> Result<Vec<samara_train::Property>> {
-    let spec = samara_spec::Spec::read(path).map_err(|e| anyhow!("{e}"))?;
+    let spec = match &a.spec {
+        Some(path) => samara_spec::Spec::read(path).map_err(|e| anyhow!("{e}"))?,
+        None => samara_train::case_study_spec(),
+    };
     let mut b = samara_spec::Bindings::default();
     for s in &a.params {
         let (k, v) = s
             .split_once('=')
             .ok_or_else(|| anyhow!("--param {s:?}: expected NAME=VALUE"))?;
-        b.params.insert(
-            k.trim().into(),
-            v.trim()
-                .parse()
-                .map_err(|_| anyhow!("--param {s:?}: not a number"))?,
-        );
+        let v: f64 = v
+            .trim()
+            .parse()
+            .map_err(|_| anyhow!("--param {s:?}: not a number"))?;
+        if !v.is_finite() {
+            bail!("--param {s:?}: the value must be a finite number");
+        }
+        b.params.insert(k.trim().into(), v);
+    }
+    if a.spec.is_none() {
+        b.params.entry("ystar".into()).or_insert(a.ystar);
     }
     let names: Vec<String> = match &a.properties {
         Some(p) => p.split(',').map(|s| s.trim().to_string()).collect(),
@@ -107,29 +256,22 @@ fn spec_properties(
         .first()
         .ok_or_else(|| anyhow!("the spec declares no network"))?;
     let n = decl.inputs.len();
-    if n + decl.outputs.len() != mm.min.len().min(n + decl.outputs.len()) || mm.min.len() < n + 1 {
+    if decl.outputs.len() != 1 || mm.min.len() != n + 1 || data.cols != n + 1 {
         bail!(
-            "--spec: the network `{}` has {n} inputs; the data must have them and one output",
-            decl.name
+            "--method {}: the properties' network `{}` has {n} inputs and {} output(s); the data must have the inputs and one output",
+            a.method,
+            decl.name,
+            decl.outputs.len()
         );
     }
-    // spec units -> raw -> trainer units: old = a * new + b.
-    let inputs: Vec<(f64, f64)> = (0..n)
-        .map(|k| {
-            let (c, s) = decl.input_map(k);
-            (mm.range[k] / s, (mm.min[k] - c) / s)
-        })
-        .collect();
-    let (oc, os) = decl.output_map(0);
-    let outputs = vec![(mm.range[n] / os, (mm.min[n] - oc) / os)];
-    let mut props = Vec::new();
-    for name in names {
-        let inst = spec.lower_prove(&name, &b).map_err(|e| anyhow!("{e}"))?;
-        for i in inst {
-            let q = samara_train::rescale_query(&i.query, &inputs, &outputs);
-            props.extend(samara_train::from_query(&q)?);
-        }
-    }
+    // The case study's properties range over the box of the data trained on; a
+    // --spec's over its own domain.
+    let domain = a.spec.is_none().then(|| {
+        let d = MinMax::of(data);
+        (0..n).map(|j| (d.min[j], d.min[j] + d.range[j])).collect()
+    });
+    let props =
+        samara_train::spec_properties(&spec, &names, &b, mm, domain).map_err(|e| anyhow!("{e}"))?;
     if props.is_empty() {
         bail!("--spec: no property to train for");
     }
@@ -138,6 +280,8 @@ fn spec_properties(
 
 /// Run `samara train`.
 pub fn run(a: &TrainArgs) -> Result<ExitCode> {
+    let log_path = check_outputs(a)?;
+    check_flags(a)?;
     let arch: Vec<usize> = a
         .arch
         .split(',')
@@ -154,6 +298,9 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
         Some(p) => MinMax::read(p)?,
         None => MinMax::of(&data),
     };
+    if a.method == "closed-loop" {
+        return run_closed_loop(a, &data, &mm, arch, &log_path);
+    }
     let method = match a.method.as_str() {
         "plain" => Method::Plain,
         "adversarial" => Method::Adversarial(match a.attack.as_str() {
@@ -166,36 +313,33 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
             weight: a.weight.unwrap_or(10.0),
         },
         "dl2" | "goedel" => {
-            if data.cols != 7 || arch.first() != Some(&6) {
-                bail!("--method {}: the built-in properties P1-P4 need the case study's 6 inputs and 1 output", a.method);
-            }
-            let n = 6;
-            let units = Units {
-                c: mm.min[..n].to_vec(),
-                s: mm.range[..n].to_vec(),
-                c_out: mm.min[n],
-                s_out: mm.range[n],
-            };
-            let data_mm = MinMax::of(&data);
-            let lo = data_mm.min[..n].to_vec();
-            let hi: Vec<f64> = (0..n).map(|j| data_mm.min[j] + data_mm.range[j]).collect();
             let logic = if a.method == "dl2" {
                 Logic::Dl2
             } else {
                 Logic::Goedel
             };
-            let props = match &a.spec {
-                None => case_study(&units, &lo, &hi, a.ystar),
-                Some(path) => spec_properties(path, a, &mm)?,
-            };
+            let props = spec_properties(a, &mm, &data)?;
+            if arch.first() != Some(&(data.cols - 1)) {
+                bail!(
+                    "--arch {}: the first width must be the data's {} inputs",
+                    a.arch,
+                    data.cols - 1
+                );
+            }
             Method::Properties {
                 logic,
                 props,
                 weight: a.weight.unwrap_or(1.0),
             }
         }
-        other => bail!("--method {other:?}: choose plain, adversarial, lipschitz, dl2 or goedel"),
+        other => bail!(
+            "--method {other:?}: choose plain, adversarial, lipschitz, dl2, goedel or closed-loop"
+        ),
     };
+    let min_r2 = a.min_r2.unwrap_or(match method {
+        Method::Plain | Method::Adversarial(_) => DEFAULT_MIN_R2,
+        _ => 0.0,
+    });
     let o = TrainOptions {
         arch,
         epochs: a.epochs,
@@ -205,25 +349,44 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
         eps: a.eps,
         method,
         progress: std::io::stderr().is_terminal() && !a.json,
+        max_restarts: a.max_restarts,
+        min_r2,
         ..Default::default()
     };
-    let outcome = train(&data, Some(&mm), &o)?;
+    o.validate()?;
+    // Create missing output folders now (a failed run removes them again).
+    let out_dir = OutDir::prepare(parent(&a.out))?;
+    let log_dir = OutDir::prepare(parent(&log_path))?;
+    let outcome = match train(&data, Some(&mm), &o) {
+        Ok(r) => r,
+        Err(e @ (TrainError::Degenerate { .. } | TrainError::NonFiniteMetric { .. })) => {
+            eprintln!("error: {e}; nothing was written");
+            return Ok(ExitCode::from(1));
+        }
+        Err(e) => return Err(e.into()),
+    };
     let mut net = outcome.network;
     if net.n_inputs() == 6 && net.n_outputs() == 1 {
         net = net.with_names(&samara_nn::STATE_INPUTS, &["ex"])?;
     }
     samara_nn::onnx::save(&net, &a.out, &Default::default())
         .with_context(|| format!("cannot write {}; choose a writable --out", a.out.display()))?;
-    let log_path = a
-        .log
-        .clone()
-        .unwrap_or_else(|| a.out.with_extension("log.csv"));
     let mut log = String::from("epoch,loss,test_rmse\n");
     for r in &outcome.log {
         let _ = writeln!(log, "{},{:?},{:?}", r.epoch, r.loss, r.test_rmse);
     }
     samara_report::write_atomic(&log_path, log.as_bytes())?;
+    out_dir.keep();
+    log_dir.keep();
     let m = &outcome.metrics;
+    let restarts: Vec<_> = outcome
+        .restarts
+        .iter()
+        .map(|r| {
+            serde_json::json!({"attempt": r.attempt, "seed": r.seed, "epoch": r.epoch,
+                "reason": r.reason.to_string()})
+        })
+        .collect();
     if a.json {
         println!(
             "{}",
@@ -231,11 +394,30 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
                 "method": a.method, "out": a.out.display().to_string(), "log": log_path.display().to_string(),
                 "test_rows": m.n_test, "r2": m.r2, "rmse": m.rmse, "mae": m.mae,
                 "eps": a.eps, "attack_worst_deviation": m.attack_worst, "attack_mean_deviation": m.attack_mean,
+                "seed": a.seed, "init_seed": outcome.init_seed,
+                "restarts": outcome.restarts.len(), "restart_log": restarts,
             }))?
         );
     } else {
+        for r in &outcome.restarts {
+            eprintln!(
+                "restart {}: the network from seed {} was degenerate {} ({}); reinitialising",
+                r.attempt + 1,
+                r.seed,
+                r.when(),
+                r.reason
+            );
+        }
+        let restarted = match outcome.restarts.len() {
+            0 => String::new(),
+            n => format!(
+                " after {n} restart{} (initialised from derived seed {})",
+                if n == 1 { "" } else { "s" },
+                outcome.init_seed
+            ),
+        };
         eprintln!(
-            "trained {} network: test R^2 {:.4}, RMSE {:.3e}, MAE {:.3e}, worst attack deviation at eps {} = {:.3e}; wrote {} and {}",
+            "trained {} network{restarted}: test R^2 {:.4}, RMSE {:.3e}, MAE {:.3e}, worst attack deviation at eps {} = {:.3e}; wrote {} and {}",
             a.method,
             m.r2,
             m.rmse,
@@ -247,4 +429,231 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
         );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The figure of the closed-loop rounds: `<--out stem>.rounds.png` and `.svg`.
+fn rounds_figure_paths(out: &Path) -> (PathBuf, PathBuf) {
+    (
+        out.with_extension("rounds.png"),
+        out.with_extension("rounds.svg"),
+    )
+}
+
+/// `samara train --method closed-loop`.
+fn run_closed_loop(
+    t: &TrainArgs,
+    data: &samara_train::Table,
+    mm: &MinMax,
+    arch: Vec<usize>,
+    log_path: &Path,
+) -> Result<ExitCode> {
+    use samara_train::{train_closed_loop, CegisOptions, ClosedLoopLoss};
+    let a = &*t.closed_loop;
+    if !(a.goal_ystar > 0.0 && a.goal_ystar.is_finite()) {
+        bail!(
+            "--goal-ystar {}: the goal bound must be a positive number, e.g. 2",
+            a.goal_ystar
+        );
+    }
+    if !(a.margin >= 0.0 && a.margin <= a.goal_ystar) {
+        bail!(
+            "--margin {}: must be a number in [0, --goal-ystar = {}], e.g. 0.75",
+            a.margin,
+            a.goal_ystar
+        );
+    }
+    if let Some(f) = a.goal_from {
+        if !(0.0..=20.0).contains(&f) {
+            bail!("--goal-from {f}: the window must start in [0, 20] (the horizon)");
+        }
+    }
+    if data.cols != 7 {
+        bail!(
+            "--method closed-loop: the data must have the 6 states (v_xp, v_yp, omega, theta, x, y) and ex as columns; {} has {}",
+            t.data.display(),
+            data.cols
+        );
+    }
+    if a.round_leaves == 0 || a.max_leaves == 0 {
+        bail!("--round-leaves and --max-leaves must be at least 1");
+    }
+    let y0 = match &a.y0 {
+        Some(s) => crate::reach::parse_interval(s, &format!("--y0 {s:?}"))?,
+        None => (0.1 / 0.07, 0.3 / 0.07),
+    };
+    let (png, svg) = rounds_figure_paths(&t.out);
+    let mut inputs: Vec<(&str, &Path)> = vec![("--data", &t.data)];
+    if let Some(n) = &t.normalisation {
+        inputs.push(("--normalisation", n));
+    }
+    check_output_file("the rounds figure (<--out stem>.rounds.png)", &png, &inputs)?;
+    check_output_file("the rounds figure (<--out stem>.rounds.svg)", &svg, &inputs)?;
+    let defaults = CegisOptions::default();
+    let o = CegisOptions {
+        pretrain: TrainOptions {
+            arch,
+            epochs: t.epochs,
+            batch: t.batch,
+            lr: t.lr,
+            seed: t.seed,
+            eps: t.eps,
+            method: Method::Plain,
+            progress: false,
+            max_restarts: t.max_restarts,
+            min_r2: t.min_r2.unwrap_or(DEFAULT_MIN_R2),
+            ..Default::default()
+        },
+        loss: ClosedLoopLoss {
+            bound: a.goal_ystar - a.margin,
+            from: a.goal_from,
+            ..defaults.loss.clone()
+        },
+        goal: a.goal_ystar,
+        y0,
+        steps_per_round: a.steps_per_round,
+        lr: a.round_lr,
+        data_weight: a.data_weight,
+        max_rounds: a.rounds,
+        round_reach: (a.round_leaves, defaults.round_reach.1),
+        final_reach: (a.max_leaves, defaults.final_reach.1),
+        progress: !t.json,
+        ..defaults
+    };
+    o.pretrain.validate()?;
+    o.validate()?;
+    let out_dir = OutDir::prepare(parent(&t.out))?;
+    let log_dir = OutDir::prepare(parent(log_path))?;
+    let outcome = match train_closed_loop(data, Some(mm), &o) {
+        Ok(r) => r,
+        Err(e @ (TrainError::Degenerate { .. } | TrainError::NonFiniteMetric { .. })) => {
+            eprintln!("error: {e}; nothing was written");
+            return Ok(ExitCode::from(1));
+        }
+        Err(e) => return Err(e.into()),
+    };
+    samara_nn::onnx::save(&outcome.network, &t.out, &Default::default())
+        .with_context(|| format!("cannot write {}; choose a writable --out", t.out.display()))?;
+    let mut log = String::from(
+        "round,steps,loss,mse,penalty,r2,starts,verdict,enclosure_lo,enclosure_hi,sampled_lo,sampled_hi,max_leaves,added,train_seconds,reach_seconds\n",
+    );
+    for r in &outcome.rounds {
+        let added: Vec<String> = r.added.iter().map(|v| format!("{v:?}")).collect();
+        let _ = writeln!(
+            log,
+            "{},{},{:?},{:?},{:?},{:?},{},{},{:?},{:?},{:?},{:?},{},{},{:.3},{:.3}",
+            r.round,
+            r.steps,
+            r.loss,
+            r.mse,
+            r.penalty,
+            r.r2,
+            r.starts,
+            r.verdict,
+            r.enclosure[0],
+            r.enclosure[1],
+            r.sampled[0],
+            r.sampled[1],
+            r.max_leaves,
+            added.join(" "),
+            r.train_seconds,
+            r.reach_seconds
+        );
+    }
+    samara_report::write_atomic(log_path, log.as_bytes())?;
+    samara_train::cegis::rounds_figure(
+        &outcome.rounds,
+        a.goal_ystar,
+        &format!(
+            "closed-loop training: |x + y| <= {} at t = {}, {}",
+            a.goal_ystar,
+            o.loss.horizon,
+            if outcome.proved {
+                "proved"
+            } else {
+                "not proved"
+            }
+        ),
+        &png,
+        &svg,
+    )
+    .map_err(|e| anyhow!("cannot write the rounds figure: {e}"))?;
+    out_dir.keep();
+    log_dir.keep();
+    let verdict = outcome.reach.verdict.name();
+    let enc = outcome.reach.final_x_plus_y;
+    let training_seconds = outcome.seconds;
+    if t.json {
+        let rounds: Vec<_> = outcome
+            .rounds
+            .iter()
+            .map(|r| {
+                serde_json::json!({"round": r.round, "steps": r.steps, "loss": r.loss, "mse": r.mse,
+                    "penalty": r.penalty, "r2": r.r2, "starts": r.starts, "verdict": r.verdict,
+                    "reason": r.reason, "enclosure": r.enclosure, "sampled": r.sampled,
+                    "max_leaves": r.max_leaves, "added": r.added,
+                    "train_seconds": r.train_seconds, "reach_seconds": r.reach_seconds,
+                    "seconds": r.train_seconds + r.reach_seconds})
+            })
+            .collect();
+        let restarts: Vec<_> = outcome
+            .restarts
+            .iter()
+            .map(|r| {
+                serde_json::json!({"attempt": r.attempt, "seed": r.seed, "epoch": r.epoch,
+                    "reason": r.reason.to_string()})
+            })
+            .collect();
+        let m = &outcome.pretrain_metrics;
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({
+                "method": "closed-loop", "out": t.out.display().to_string(),
+                "log": log_path.display().to_string(), "figure": png.display().to_string(),
+                "goal": {"ystar": a.goal_ystar, "from": a.goal_from, "horizon": o.loss.horizon,
+                    "y0": [y0.0, y0.1], "model": "reduced", "clip": o.loss.clip.map(|c| [c.0, c.1])},
+                "proved": outcome.proved, "verdict": verdict, "enclosure": enc,
+                "sampled": outcome.reach.sampled_x_plus_y,
+                "r2": outcome.r2, "rmse": outcome.rmse, "data_rows": data.rows(),
+                "pretrain": {"test_r2": m.r2, "test_rmse": m.rmse, "epochs": t.epochs,
+                    "seconds": outcome.pretrain_seconds},
+                "rounds": rounds, "seconds": training_seconds,
+                "seed": t.seed, "init_seed": outcome.init_seed,
+                "restarts": outcome.restarts.len(), "restart_log": restarts,
+            }))?
+        );
+    } else {
+        for r in &outcome.restarts {
+            eprintln!(
+                "restart {}: the network from seed {} was degenerate {} ({}); reinitialising",
+                r.attempt + 1,
+                r.seed,
+                r.when(),
+                r.reason
+            );
+        }
+        eprintln!(
+            "closed-loop training: {} after {} round{} in {:.1} s; x + y at t = {} {} (goal |x + y| <= {}); R^2 {:.4} against the {} data rows; wrote {}, {} and {}",
+            verdict,
+            outcome.rounds.len(),
+            if outcome.rounds.len() == 1 { "" } else { "s" },
+            training_seconds,
+            o.loss.horizon,
+            samara_train::cegis::enclosure_text(enc),
+            a.goal_ystar,
+            outcome.r2,
+            data.rows(),
+            t.out.display(),
+            log_path.display(),
+            png.display()
+        );
+    }
+    if outcome.proved {
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!(
+            "the goal was not proved within {} rounds (last verdict: {verdict}); the network was written; try more --rounds or --steps-per-round, a larger --margin or --max-leaves",
+            a.rounds
+        );
+        Ok(ExitCode::from(1))
+    }
 }

@@ -3,24 +3,9 @@
 //! summary, `reach.json` and the figures checked here.
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
-fn samara() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_samara"))
-}
-
-fn reference(name: &str) -> Option<PathBuf> {
-    let p = PathBuf::from(format!(
-        "{}/../../../shared/reference/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    ));
-    if p.exists() {
-        Some(p)
-    } else {
-        eprintln!("skipping: {} not found", p.display());
-        None
-    }
-}
+mod support;
+use support::{reference, samara};
 
 /// A small network with `inputs` inputs and one output, written as ONNX.
 fn tiny_network(dir: &Path, inputs: usize) -> PathBuf {
@@ -171,9 +156,7 @@ fn bad_flags_exit_2_with_a_message_and_no_files() {
 
 #[test]
 fn small_run_is_proved_and_writes_json_and_figures() {
-    let Some(net) = reference("base_model_denorm.onnx") else {
-        return;
-    };
+    let net = reference("base_model_denorm.onnx");
     let dir = tempfile::tempdir().unwrap();
     let out_dir = dir.path().join("out");
     let out = samara()
@@ -266,9 +249,7 @@ fn small_run_is_proved_and_writes_json_and_figures() {
 
 #[test]
 fn violated_goal_exits_1_with_a_counterexample() {
-    let Some(net) = reference("base_model_denorm.onnx") else {
-        return;
-    };
+    let net = reference("base_model_denorm.onnx");
     let dir = tempfile::tempdir().unwrap();
     // At t = 1 the glider is still near its start (x + y about 2.6): |x + y| <= 0.5 fails.
     let out = samara()

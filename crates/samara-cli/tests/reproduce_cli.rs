@@ -1,11 +1,8 @@
 //! `samara reproduce --quick`: the report references only files that exist, results.json
 //! parses, and a re-run reuses the finished stages.
 
-use std::process::Command;
-
-fn samara() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_samara"))
-}
+mod support;
+use support::samara;
 
 /// Every `src="..."` and `](...)` target of the reports.
 fn referenced_files(html: &str, md: &str) -> Vec<String> {

@@ -2,18 +2,12 @@
 //! binary, and bad inputs rejected with exit code 2 and no files left behind.
 
 use std::path::Path;
-use std::process::Command;
 
-fn samara() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_samara"))
-}
+mod support;
+use support::{reference, samara};
 
 fn reference_rows() -> Vec<Vec<f64>> {
-    let p = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/reference/Training_Data.csv"
-    );
-    std::fs::read_to_string(p)
+    std::fs::read_to_string(reference("Training_Data.csv"))
         .unwrap()
         .lines()
         .filter(|l| !l.is_empty())
@@ -132,12 +126,6 @@ fn unwritable_output_directory_is_a_usage_error() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("writable --out"));
-}
-
-fn reference(name: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference")
-        .join(name)
 }
 
 #[test]

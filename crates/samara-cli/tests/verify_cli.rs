@@ -2,22 +2,18 @@
 //! exit codes (0 proved, 1 violated/unknown, 2 input error) and verdicts re-checked here
 //! against the plain network evaluation.
 
-use std::process::Command;
-
-fn samara() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_samara"))
-}
+mod support;
+use support::samara;
 
 const SPEC: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../../models/alsomitra/alsomitra.spec"
 );
 
+/// A published reference file as a path string (fails, never skips, when it is
+/// missing: `support::reference`).
 fn reference(name: &str) -> String {
-    format!(
-        "{}/../../../shared/reference/{name}",
-        env!("CARGO_MANIFEST_DIR")
-    )
+    support::reference(name).display().to_string()
 }
 
 #[test]
@@ -234,8 +230,10 @@ fn check_and_export_vnnlib() {
     assert!(out.status.success());
     assert!(String::from_utf8_lossy(&out.stdout).contains("property p3"));
     let dir = tempfile::tempdir().unwrap();
+    // (Only p1: exporting every property without --network skips the relational P5
+    // instances, which now fails with exit 1 instead of a silent exit 0.)
     let out = samara()
-        .args(["export-vnnlib", SPEC, "--out"])
+        .args(["export-vnnlib", SPEC, "--property", "p1", "--out"])
         .arg(dir.path())
         .output()
         .unwrap();
@@ -276,7 +274,8 @@ fn check_and_export_vnnlib() {
     assert_eq!((stacked.n_inputs(), stacked.n_outputs()), (12, 2));
     assert!(d2.path().join("p5_lipschitz_0__0.vnnlib").exists());
     assert!(d2.path().join("p1_0.vnnlib").exists());
-    let bad = dir.path().join("bad.spec");
+    let bad_dir = tempfile::tempdir().unwrap();
+    let bad = bad_dir.path().join("bad.spec");
     std::fs::write(&bad, "network f(a) -> (b)\nproperty p: aa >= 1 => b >= 0\n").unwrap();
     let out = samara().arg("check").arg(&bad).output().unwrap();
     assert_eq!(out.status.code(), Some(2));

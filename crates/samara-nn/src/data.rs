@@ -9,15 +9,17 @@ use std::path::Path;
 #[derive(Debug, thiserror::Error)]
 pub enum DataError {
     /// I/O.
-    #[error("{file}: cannot read: {source}")]
+    // The OS error is part of the message and deliberately not a `source()`: shown both
+    // ways it would be printed twice by `{:#}` (issue 17).
+    #[error("{file}: cannot read: {cause}")]
     Io {
         /// File.
         file: String,
         /// Cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// Malformed content.
-    #[error("{file}:{line}: {message}")]
+    #[error("{}{}: {message}", .file, at_line(*.line))]
     Format {
         /// File.
         file: String,
@@ -26,6 +28,16 @@ pub enum DataError {
         /// What is wrong and how to fix it.
         message: String,
     },
+}
+
+/// `:LINE` for a 1-based line, nothing for 0 (a binary format or the file as a whole),
+/// so a message never shows the meaningless place `file:0`.
+fn at_line(line: usize) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(":{line}")
+    }
 }
 
 /// A table of numbers (rows of equal length).
@@ -55,9 +67,9 @@ impl Table {
 /// Empty files, ragged rows and non-numbers are errors naming file and line.
 pub fn read_csv(path: &Path) -> Result<Table, DataError> {
     let file = path.display().to_string();
-    let text = std::fs::read_to_string(path).map_err(|source| DataError::Io {
+    let text = std::fs::read_to_string(path).map_err(|cause| DataError::Io {
         file: file.clone(),
-        source,
+        cause,
     })?;
     parse_csv(&text, &file)
 }
@@ -135,9 +147,9 @@ pub fn parse_csv(text: &str, file: &str) -> Result<Table, DataError> {
 /// The first dimension is rows; the rest are flattened into columns.
 pub fn read_idx(path: &Path) -> Result<Table, DataError> {
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| DataError::Io {
+    let bytes = std::fs::read(path).map_err(|cause| DataError::Io {
         file: file.clone(),
-        source,
+        cause,
     })?;
     parse_idx(&bytes, &file)
 }
@@ -175,10 +187,14 @@ pub fn parse_idx(bytes: &[u8], file: &str) -> Result<Table, DataError> {
         .try_fold(1usize, |a, &d| a.checked_mul(d))
         .ok_or_else(|| fmt("dimensions overflow".into()))?;
     let body = &bytes[4 + 4 * rank..];
-    if body.len() != n * size {
+    if n == 0 {
         return Err(fmt(format!(
-            "IDX header announces {n} values ({} bytes) but the file holds {} bytes",
-            n * size,
+            "the IDX header announces dimensions {dims:?}, i.e. no values"
+        )));
+    }
+    if n.checked_mul(size) != Some(body.len()) {
+        return Err(fmt(format!(
+            "IDX header announces {n} values of {size} byte(s) (dimensions {dims:?}) but the file holds {} bytes after the header; is it truncated?",
             body.len()
         )));
     }
@@ -316,6 +332,17 @@ mod tests {
         assert_eq!((t.rows(), t.cols, t.row(1)[2]), (2, 3, 6.5));
         assert!(parse_idx(&b[..b.len() - 1], "t.idx").is_err());
         assert!(parse_idx(b"PK\x03\x04", "t.idx").is_err());
+        // A huge announced size never overflows or allocates; the message has no `:0`.
+        let e = parse_idx(
+            &[
+                0, 0, 0x0E, 3, 255, 255, 255, 255, 255, 255, 255, 255, 255, 255, 255, 255, 1,
+            ],
+            "h.idx",
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.starts_with("h.idx: ") && !e.contains(":0"), "{e}");
+        assert!(parse_idx(&[0, 0, 0x08, 1, 0, 0, 0, 0], "z.idx").is_err());
     }
 
     #[test]

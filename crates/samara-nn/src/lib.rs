@@ -1,6 +1,7 @@
 //! Neural networks for samara: an intermediate representation (a sequence of layers with
 //! named inputs and outputs), evaluation generic over [`samara_num::Scalar`], and ONNX
 //! import and export ([`onnx`]).
+#![warn(missing_docs)]
 
 pub mod data;
 pub mod ir;

@@ -5,12 +5,12 @@
 
 use samara_nn::onnx;
 
-fn reference_dir() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference")
-}
+#[path = "../../samara-cli/tests/support/reference.rs"]
+mod support;
+use support::reference;
 
 fn check(stem: &str) -> f64 {
-    let net = onnx::load(reference_dir().join(format!("{stem}.onnx"))).unwrap();
+    let net = onnx::load(reference(&format!("{stem}.onnx"))).unwrap();
     let text = std::fs::read_to_string(format!(
         "{}/tests/data/{stem}.csv",
         env!("CARGO_MANIFEST_DIR")
@@ -49,7 +49,7 @@ fn published_networks_agree_with_onnxruntime() {
 
 #[test]
 fn denorm_networks_carry_their_normalisation() {
-    let net = onnx::load(reference_dir().join("base_model_denorm.onnx")).unwrap();
+    let net = onnx::load(reference("base_model_denorm.onnx")).unwrap();
     let norm = net
         .input_norm
         .as_ref()
@@ -63,14 +63,14 @@ fn denorm_networks_carry_their_normalisation() {
     assert!((norm.weight(0, 0) - 1.0 / 2.522324921).abs() < 1e-7);
     assert!((norm.b[0] + 0.967568147 / 2.522324921).abs() < 1e-7);
     assert!((den.weight(0, 0) - 0.012).abs() < 1e-9 && (den.b[0] - 0.181).abs() < 1e-8);
-    let plain = onnx::load(reference_dir().join("base_model_norm.onnx")).unwrap();
+    let plain = onnx::load(reference("base_model_norm.onnx")).unwrap();
     assert!(plain.input_norm.is_none() && plain.output_denorm.is_none());
     assert_eq!(plain.layers.len(), 6);
 }
 
 #[test]
 fn doubled_network_is_block_diagonal_sigmoid() {
-    let net = onnx::load(reference_dir().join("merged_model_base.onnx")).unwrap();
+    let net = onnx::load(reference("merged_model_base.onnx")).unwrap();
     assert_eq!((net.n_inputs(), net.n_outputs()), (12, 2));
     // Output 0 depends only on inputs 0..6: perturbing inputs 6..12 leaves it unchanged.
     let x: Vec<f64> = (0..12).map(|i| 0.05 * i as f64).collect();

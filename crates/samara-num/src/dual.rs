@@ -168,6 +168,13 @@ impl<const N: usize> Scalar for Dual<N> {
         let e = self.v.exp();
         self.chain(e, e)
     }
+    fn ln(&self) -> Self {
+        self.chain(self.v.ln(), 1.0 / self.v)
+    }
+    fn tan(&self) -> Self {
+        let t = self.v.tan();
+        self.chain(t, 1.0 + t * t)
+    }
     fn abs(&self) -> Self {
         // Derivative of |x| taken as sign(x) (0 at 0: the subgradient midpoint).
         let s = if self.v > 0.0 {
@@ -214,6 +221,19 @@ mod tests {
             proptest::prop_assert!((g.d[0] - fx).abs() < 1e-7 * (1.0 + fx.abs()), "{} vs {}", g.d[0], fx);
             proptest::prop_assert!((g.d[1] - fy).abs() < 1e-7 * (1.0 + fy.abs()), "{} vs {}", g.d[1], fy);
         }
+    }
+
+    #[test]
+    fn ln_tan_min_max_sgn_derivatives() {
+        let x = Dual::<1>::var(0.7, 0);
+        assert!((x.ln().d[0] - 1.0 / 0.7).abs() < 1e-15);
+        let t = 0.7f64.tan();
+        assert!((x.tan().d[0] - (1.0 + t * t)).abs() < 1e-14);
+        let c = Dual::<1>::constant(2.0);
+        assert_eq!(x.smin(&c).d[0], 1.0);
+        assert_eq!(x.smax(&c).d[0], 0.0);
+        assert_eq!(x.sgn().v, 1.0);
+        assert_eq!(x.sgn().d[0], 0.0);
     }
 
     #[test]

@@ -174,6 +174,13 @@ impl<const N: usize> Scalar for IDual<N> {
         let e = self.v.exp();
         self.chain(e, e)
     }
+    fn ln(&self) -> Self {
+        self.chain(self.v.ln(), Interval::point(1.0) / self.v)
+    }
+    fn tan(&self) -> Self {
+        let t = self.v.tan();
+        self.chain(t, t.sqr() + 1.0)
+    }
     fn abs(&self) -> Self {
         match self.v.sign() {
             Sign::Positive | Sign::NonNegative | Sign::Zero => *self,
@@ -211,13 +218,16 @@ mod tests {
         let by = Interval::new(-0.3, 0.1);
         let x = IDual::<2>::var(bx, 0);
         let y = IDual::<2>::var(by, 1);
-        let f = (y / x).atan() * (x.sqr() + y.sqr()).sqrt() + x.exp() * y.sin();
+        let f = (y / x).atan() * (x.sqr() + y.sqr()).sqrt() + x.exp() * y.sin() - x.ln() * y.tan()
+            + x.smin(&y) * x.smax(&(y * 2.0));
         for i in 0..=10 {
             for j in 0..=10 {
                 let (px, py) = (0.9 + 0.02 * i as f64, -0.3 + 0.04 * j as f64);
                 let dx = crate::Dual::<2>::var(px, 0);
                 let dy = crate::Dual::<2>::var(py, 1);
-                let g = (dy / dx).atan() * (dx.sqr() + dy.sqr()).sqrt() + dx.exp() * dy.sin();
+                let g = (dy / dx).atan() * (dx.sqr() + dy.sqr()).sqrt() + dx.exp() * dy.sin()
+                    - dx.ln() * dy.tan()
+                    + dx.smin(&dy) * dx.smax(&(dy * 2.0));
                 assert!(f.v.contains(g.v));
                 assert!(f.d[0].contains(g.d[0]) && f.d[1].contains(g.d[1]));
             }

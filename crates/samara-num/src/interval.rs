@@ -326,6 +326,38 @@ impl Scalar for Interval {
             hi: r.hi,
         }
     }
+    fn ln(&self) -> Self {
+        // glibc's log is correctly rounded to < 1 ulp; widened by 4 ulps like exp.
+        if self.hi.is_nan() || self.hi <= 0.0 {
+            return Interval {
+                lo: f64::NAN,
+                hi: f64::NAN,
+            };
+        }
+        let lo = if self.lo > 0.0 {
+            dn4(self.lo.ln())
+        } else {
+            f64::NEG_INFINITY
+        };
+        Interval {
+            lo,
+            hi: up4(self.hi.ln()),
+        }
+    }
+    fn tan(&self) -> Self {
+        // Increasing between the poles pi/2 + k pi. Beyond |x| = 1e6 the rounding of
+        // k pi could misplace a pole by more than the 1e-9 margin: the whole line.
+        let far = |v: f64| v.is_nan() || v.abs() > 1e6;
+        if far(self.lo) || far(self.hi) || self.width() >= PI {
+            return Interval::entire();
+        }
+        let k = ((self.lo - FRAC_PI_2) / PI).ceil();
+        let pole = FRAC_PI_2 + k * PI; // the first pole at or above lo (up to rounding)
+        if pole <= self.hi + 1e-9 || pole - PI >= self.lo - 1e-9 {
+            return Interval::entire();
+        }
+        self.mono(f64::tan)
+    }
     fn abs(&self) -> Self {
         if self.lo >= 0.0 {
             *self
@@ -413,7 +445,46 @@ mod tests {
             prop_assert!(x.sqr().contains(u * u));
             let p = Interval::new(a.abs(), a.abs() + wa);
             prop_assert!(p.sqrt().contains(sample(&p, s).sqrt()));
+            if p.lo > 0.0 {
+                prop_assert!(p.ln().contains(sample(&p, s).ln()));
+            }
+            let (w, z) = (x * 0.05, y * 0.05);
+            prop_assert!(w.tan().contains((u * 0.05).tan()), "tan {w:?} at {}", u * 0.05);
+            prop_assert!(x.tan().contains(u.tan()) || x.tan() == Interval::entire());
+            prop_assert!(x.smin(&y).contains(u.min(v)));
+            prop_assert!(x.smax(&y).contains(u.max(v)));
+            let sg = x.sgn();
+            let su = if u > 0.0 { 1.0 } else if u < 0.0 { -1.0 } else { 0.0 };
+            prop_assert!(sg.contains(su));
+            prop_assert!(z.tan().contains((v * 0.05).tan()));
         }
+    }
+
+    /// ln and tan against f64 on a grid: every point value lies in the enclosure of a
+    /// small interval around it, and the enclosure is tight (a few ulps).
+    #[test]
+    fn ln_tan_grid_against_f64() {
+        for i in 0..4000 {
+            let x = -6.0 + 12.0 * i as f64 / 3999.0;
+            let xi = Interval::new(x, x.next_up().next_up());
+            let t = xi.tan();
+            if t != Interval::entire() {
+                assert!(t.contains(x.tan()), "tan at {x}: {t:?}");
+                assert!(t.hi - t.lo <= 1e-12 * (1.0 + x.tan().abs() * (1.0 + x.tan().abs())));
+            }
+            // Near a pole the enclosure is the whole line.
+            let p = Interval::new(FRAC_PI_2 - 1e-12, FRAC_PI_2 + 1e-12);
+            assert_eq!(p.tan(), Interval::entire());
+            let y = 1e-3 + 50.0 * i as f64 / 3999.0;
+            let yi = Interval::point(y);
+            let l = yi.ln();
+            assert!(l.contains(y.ln()) && l.hi - l.lo <= 1e-14 * (1.0 + y.ln().abs()));
+        }
+        assert_eq!(Interval::new(0.0, 1.0).ln().lo, f64::NEG_INFINITY);
+        assert!(Interval::new(-2.0, -1.0).ln().lo.is_nan());
+        assert_eq!(Interval::new(-1.0, 2.0).sgn(), Interval::new(-1.0, 1.0));
+        assert_eq!(Interval::new(0.0, 2.0).sgn(), Interval::new(0.0, 1.0));
+        assert_eq!(Interval::new(3.0, 4.0).sgn(), Interval::point(1.0));
     }
 
     #[test]

@@ -62,6 +62,44 @@ pub trait Scalar:
     fn exp(&self) -> Self;
     /// Absolute value.
     fn abs(&self) -> Self;
+    /// Natural logarithm; the argument must be positive (sets: the part `<= 0` gives
+    /// an unbounded lower end).
+    fn ln(&self) -> Self;
+    /// Tangent. The default `sin / cos` is sound for every type (a set containing a
+    /// pole divides by a set containing 0, which is the whole line); types may do better.
+    fn tan(&self) -> Self {
+        self.sin() / self.cos()
+    }
+    /// Three-way sign as a number: -1, 0 or 1 exactly for points; for a set straddling
+    /// a jump, the hull of the values it can take (e.g. `[-1, 1]`).
+    fn sgn(&self) -> Self {
+        match self.sign() {
+            Sign::Positive => Self::cst(1.0),
+            Sign::Negative => Self::cst(-1.0),
+            Sign::Zero => Self::cst(0.0),
+            Sign::NonNegative => Self::cst(0.0).hull(&Self::cst(1.0)),
+            Sign::NonPositive => Self::cst(-1.0).hull(&Self::cst(0.0)),
+            Sign::Mixed => Self::cst(-1.0).hull(&Self::cst(1.0)),
+        }
+    }
+    /// `min(self, other)`: exact for points (`self` on ties), the hull of both
+    /// operands when the order of two sets is undecided (which encloses the minimum).
+    fn smin(&self, other: &Self) -> Self {
+        match (self.clone() - other.clone()).sign() {
+            Sign::Negative | Sign::Zero | Sign::NonPositive => self.clone(),
+            Sign::Positive | Sign::NonNegative => other.clone(),
+            Sign::Mixed => self.hull(other),
+        }
+    }
+    /// `max(self, other)`: exact for points (`self` on ties), the hull of both
+    /// operands when the order of two sets is undecided (which encloses the maximum).
+    fn smax(&self, other: &Self) -> Self {
+        match (self.clone() - other.clone()).sign() {
+            Sign::Positive | Sign::Zero | Sign::NonNegative => self.clone(),
+            Sign::Negative | Sign::NonPositive => other.clone(),
+            Sign::Mixed => self.hull(other),
+        }
+    }
     /// Square, `x * x` (types may do better, e.g. intervals).
     fn sqr(&self) -> Self {
         self.clone() * self.clone()
@@ -162,6 +200,14 @@ impl Scalar for f64 {
         f64::abs(*self)
     }
     #[inline(always)]
+    fn ln(&self) -> Self {
+        f64::ln(*self)
+    }
+    #[inline(always)]
+    fn tan(&self) -> Self {
+        f64::tan(*self)
+    }
+    #[inline(always)]
     fn sqr(&self) -> Self {
         *self * *self
     }
@@ -226,6 +272,19 @@ mod tests {
         assert_eq!(Scalar::relu(&-2.0), 0.0);
         assert_eq!(Scalar::relu(&2.0), 2.0);
         assert_eq!(Scalar::sign(&f64::NAN), Sign::Mixed);
+    }
+
+    #[test]
+    fn sgn_min_max_points() {
+        assert_eq!(Scalar::sgn(&-3.0), -1.0);
+        assert_eq!(Scalar::sgn(&0.0), 0.0);
+        assert_eq!(Scalar::sgn(&2.5), 1.0);
+        assert_eq!(Scalar::smin(&1.0, &2.0), 1.0);
+        assert_eq!(Scalar::smin(&3.0, &2.0), 2.0);
+        assert_eq!(Scalar::smax(&1.0, &2.0), 2.0);
+        assert_eq!(Scalar::smax(&3.0, &-2.0), 3.0);
+        assert_eq!(Scalar::ln(&1.0), 0.0);
+        assert_eq!(Scalar::tan(&0.5), 0.5f64.tan());
     }
 
     #[test]

@@ -322,6 +322,24 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
         }
         e
     }
+    fn ln(&self) -> Self {
+        if self.konst {
+            let mut r = *self;
+            r.c[0] = self.c[0].ln();
+            return r;
+        }
+        // a u' = a': i u_i a_0 = i a_i - sum_{j=1}^{i-1} j u_j a_{i-j}.
+        let mut u = Self::zero_like(self.n, self.bad);
+        u.c[0] = self.c[0].ln();
+        for i in 1..self.n {
+            let mut acc = self.c[i];
+            for j in 1..i {
+                acc -= u.c[j] * self.c[i - j] * (j as f64 / i as f64);
+            }
+            u.c[i] = acc / self.c[0];
+        }
+        u
+    }
     fn abs(&self) -> Self {
         match strict(self.c[0].sign()) {
             Sign::Positive => *self,
@@ -378,6 +396,12 @@ mod tests {
         assert!(close(s.c[1], 0.5) && close(s.c[2], -0.125) && close(s.c[3], 1.0 / 16.0));
         assert!(close(h.c[3], -1.0 / 3.0) && close(h.c[5], 2.0 / 15.0));
         assert!((0..6).all(|i| close(d.c[i], 1.0)));
+        // ln(1 + t) = t - t^2/2 + t^3/3 - t^4/4 + t^5/5; tan(t) = t + t^3/3 + 2t^5/15.
+        let l = (t + 1.0).ln();
+        let want = [0.0, 1.0, -0.5, 1.0 / 3.0, -0.25, 0.2];
+        assert!((0..6).all(|i| close(l.c[i], want[i])), "{:?}", l.c);
+        let g = t.tan();
+        assert!(close(g.c[1], 1.0) && close(g.c[3], 1.0 / 3.0) && close(g.c[5], 2.0 / 15.0));
     }
 
     #[test]

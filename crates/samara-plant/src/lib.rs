@@ -6,6 +6,7 @@
 //! The equations follow `docs/MODEL.md` of the shared documentation exactly (the MATLAB
 //! code is the ground truth); evaluation order of the derived constants is kept so that
 //! the published data are reproduced bit-faithfully.
+#![warn(missing_docs)]
 
 use samara_num::{Scalar, Sign};
 use std::f64::consts::{FRAC_PI_2, PI};

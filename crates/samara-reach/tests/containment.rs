@@ -7,21 +7,16 @@
 
 use samara_plant::{Model, Plant};
 use samara_reach::{check_containment, reach, simulate_samples, Goal, ReachSettings};
-use std::path::Path;
+#[path = "../../samara-cli/tests/support/reference.rs"]
+mod support;
 
-fn net(name: &str) -> Option<samara_nn::Network> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference")
-        .join(name);
-    if !p.exists() {
-        eprintln!("skipping: {} not found", p.display());
-        return None;
-    }
-    Some(samara_nn::onnx::load(&p).expect("published network loads"))
+/// A published network (the test fails with a message when it is missing).
+fn net(name: &str) -> samara_nn::Network {
+    samara_nn::onnx::load(support::reference(name)).expect("published network loads")
 }
 
 fn check(model: Model, file: &str, y0: (f64, f64), horizon: f64, n: usize, seed: u64) {
-    let Some(net) = net(file) else { return };
+    let net = net(file);
     let mut s = ReachSettings::published(model);
     s.init[5] = y0;
     s.horizon = horizon;
@@ -100,7 +95,7 @@ fn full_base_contains_samples() {
 fn published_setting_contains_2000_samples() {
     for model in Model::ALL {
         for file in ["base_model_denorm.onnx", "adversarial_model_denorm.onnx"] {
-            let Some(net) = net(file) else { return };
+            let net = net(file);
             let mut s = ReachSettings::published(model);
             s.keep_sets = true;
             s.samples = 16;
@@ -135,9 +130,7 @@ fn published_setting_contains_2000_samples() {
 /// one is violated by a simulated trajectory at a time inside the window.
 #[test]
 fn goal_over_a_time_window() {
-    let Some(net) = net("base_model_denorm.onnx") else {
-        return;
-    };
+    let net = net("base_model_denorm.onnx");
     let mut s = ReachSettings::published(Model::Reduced);
     s.init[5] = (2.0, 2.1);
     s.horizon = 3.0;
@@ -180,4 +173,24 @@ fn goal_over_a_time_window() {
         }
         v => panic!("expected a violation, got {v:?}"),
     }
+}
+
+/// Issue 17: an initial interval beyond the model's meaningful range, or more control
+/// periods than the library accepts, is an error before anything is computed (the
+/// sampling used to panic on `-1e308:1e308`).
+#[test]
+fn out_of_range_settings_are_errors_not_panics() {
+    let net = net("base_model_denorm.onnx");
+    let mut s = samara_reach::ReachSettings::published(samara_plant::Model::Reduced);
+    s.init[5] = (-1e308, 1e308);
+    assert!(matches!(
+        samara_reach::reach(&net, &s),
+        Err(samara_reach::ReachError::BadInterval { .. })
+    ));
+    let mut s = samara_reach::ReachSettings::published(samara_plant::Model::Reduced);
+    s.horizon = 1e308;
+    assert!(matches!(
+        samara_reach::reach(&net, &s),
+        Err(samara_reach::ReachError::Horizon { .. })
+    ));
 }

@@ -1,6 +1,9 @@
 //! Reports for samara: trajectory figures (PNG and SVG through `plotters`) and atomic
 //! file output (write to a temporary file in the target directory, then rename, so an
 //! interrupted run never leaves a half-written result).
+#![warn(missing_docs)]
+
+pub mod guard;
 
 use plotters::prelude::*;
 use std::io::Write;

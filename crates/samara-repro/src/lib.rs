@@ -145,7 +145,14 @@ pub fn run(opts: &ReproduceOptions) -> Result<Outcome, ReproError> {
     let overall = ctx.bar(stages.len() as u64, "reproduce");
     for (name, f) in stages {
         overall.set_message(format!("stage {name}"));
-        let key = cache::fnv1a(&[name, version, mode, &published, &prev_key]);
+        let key = cache::fnv1a(&[
+            name,
+            version,
+            mode,
+            &published,
+            samara_train::CASE_STUDY_SPEC,
+            &prev_key,
+        ]);
         let res = if let Some(r) = cache.get(name, &key, &opts.out) {
             reused.push(name.to_string());
             r

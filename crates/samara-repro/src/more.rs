@@ -10,46 +10,81 @@ use samara_plant::{Model, Plant};
 use samara_sim::{
     fly, initial_state, published_starts, LoopSettings, NetworkController, PidController,
 };
+use samara_spec::normal::{Goal, LinExpr, Query, Sense, Var};
+use samara_spec::{Bindings, Spec};
 use samara_train::{
-    case_study, read_table, train as train_net, Attack, Logic, Method, MinMax, TrainOptions, Units,
+    case_study_spec, read_table, spec_properties, train as train_net, train_closed_loop,
+    with_units, Attack, CegisOptions, Logic, Method, MinMax, TrainOptions,
 };
-use samara_verify::case_study::{p1_to_p4, Units as VUnits};
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep, Reference};
 use samara_verify::{optimise, Prepared, Settings};
+use serde::Deserialize;
 use serde_json::{json, Value};
 use std::collections::HashMap;
 
-const METHODS: [&str; 5] = ["plain", "adversarial", "lipschitz", "dl2", "goedel"];
+const METHODS: [&str; 6] = [
+    "plain",
+    "adversarial",
+    "lipschitz",
+    "dl2",
+    "goedel",
+    "closed-loop",
+];
+/// The spec's global properties, verified by critical values and trained for by DL2 and
+/// Goedel.
+const P1_TO_P4: [&str; 4] = ["p1", "p2", "p3", "p4"];
 const EPS: [f64; 4] = [1e-5, 1e-4, 1e-3, 1e-2];
 const LS: [f64; 4] = [1e-5, 1e-4, 1e-3, 1e-2];
-/// The published normalisation constants (Normalisation_Constants.csv), used only to
-/// give the published networks their units when `--published` is passed.
-fn published_constants(dir: &std::path::Path) -> Result<(Vec<f64>, Vec<f64>), String> {
-    let rows = read_plain_csv(&dir.join("Normalisation_Constants.csv"))?;
-    if rows.len() < 2 || rows[0].len() < 6 {
-        return Err("Normalisation_Constants.csv: expected two rows of at least 6 columns".into());
-    }
-    Ok((rows[0][..6].to_vec(), rows[1][..6].to_vec()))
+/// R^2 of a raw-unit network against every row of `data` (raw units).
+fn r2_all(net: &Network, data: &samara_train::Table) -> f64 {
+    r2_rows(net, data, &(0..data.rows()).collect::<Vec<_>>()).0
 }
 
-/// Stage 2: train the five controllers on the regenerated data.
+/// R^2 and RMSE of a raw-unit network against the rows `idx` of `data` (raw units).
+fn r2_rows(net: &Network, data: &samara_train::Table, idx: &[usize]) -> (f64, f64) {
+    let n = idx.len() as f64;
+    let mean = idx.iter().map(|&i| data.row(i)[6]).sum::<f64>() / n;
+    let (mut sse, mut sst) = (0.0, 0.0);
+    for &i in idx {
+        let r = data.row(i);
+        sse += (net.eval_f64(&r[..6])[0] - r[6]).powi(2);
+        sst += (r[6] - mean).powi(2);
+    }
+    (1.0 - sse / sst, (sse / n).sqrt())
+}
+
+/// Stage 2: train the six controllers on the regenerated data: the five data-driven
+/// methods, and the closed-loop method (issue 18) with its reach rounds.
 pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
     let data =
         read_table(&ctx.path("data/training_data.csv")).map_err(|e| stage_err("train", e))?;
     let mm = MinMax::of(&data);
-    let units = Units {
-        c: mm.min[..6].to_vec(),
-        s: mm.range[..6].to_vec(),
-        c_out: mm.min[6],
-        s_out: mm.range[6],
-    };
     let lo = mm.min[..6].to_vec();
     let hi: Vec<f64> = (0..6).map(|j| mm.min[j] + mm.range[j]).collect();
+    // P1-P4 as the spec states them, lowered in the trainer's units over the box of the
+    // regenerated data.
+    let props = spec_properties(
+        &case_study_spec(),
+        &P1_TO_P4.map(String::from),
+        &Bindings::default(),
+        &mm,
+        Some(lo.iter().cloned().zip(hi.iter().cloned()).collect()),
+    )
+    .map_err(|e| stage_err("train", e))?;
     let epochs = if ctx.opts.quick { 200 } else { 1000 };
     let pb = ctx.bar(METHODS.len() as u64, "training controllers");
     let mut rows = Vec::new();
     let mut files = Vec::new();
+    let mut cegis = Value::Null;
     for m in METHODS {
+        if m == "closed-loop" {
+            let (row, extra, figs) = train_closed_loop_stage(ctx, &data, &mm, epochs)?;
+            rows.push(row);
+            cegis = extra;
+            files.extend(figs);
+            pb.inc(1);
+            continue;
+        }
         let method = match m {
             "plain" => Method::Plain,
             "adversarial" => Method::Adversarial(Attack::Fgsm),
@@ -59,12 +94,12 @@ pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
             },
             "dl2" => Method::Properties {
                 logic: Logic::Dl2,
-                props: case_study(&units, &lo, &hi, 2.0),
+                props: props.clone(),
                 weight: 1.0,
             },
             _ => Method::Properties {
                 logic: Logic::Goedel,
-                props: case_study(&units, &lo, &hi, 2.0),
+                props: props.clone(),
                 weight: 1.0,
             },
         };
@@ -85,39 +120,113 @@ pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
             .map_err(|e| stage_err("train", e))?;
         files.push(rel.clone());
         let k = &out.metrics;
-        rows.push(json!({"method": m, "file": rel, "r2": k.r2, "rmse": k.rmse, "mae": k.mae,
+        rows.push(json!({"method": m, "file": rel, "r2": k.r2, "r2_all": r2_all(&net, &data), "rmse": k.rmse, "mae": k.mae,
             "attack_worst": k.attack_worst, "attack_mean": k.attack_mean, "eps": o.eps, "epochs": epochs, "seconds": secs}));
         pb.inc(1);
     }
     pb.finish_and_clear();
     Ok(StageOutput {
-        result: json!({"networks": rows, "domain_lo": lo, "domain_hi": hi, "norm_min": mm.min, "norm_range": mm.range}),
+        result: json!({"networks": rows, "closed_loop": cegis, "domain_lo": lo, "domain_hi": hi, "norm_min": mm.min, "norm_range": mm.range}),
         files,
     })
+}
+
+/// The closed-loop method: data-only training of `epochs`, then train-and-reach rounds
+/// (the reach budget of a round is the quick reproduction's: 16 sub-boxes, 50 samples).
+/// Returns its row of the training table, its rounds, and the files written.
+fn train_closed_loop_stage(
+    ctx: &Ctx,
+    data: &samara_train::Table,
+    mm: &MinMax,
+    epochs: usize,
+) -> Result<(Value, Value, Vec<String>), ReproError> {
+    let o = CegisOptions {
+        pretrain: TrainOptions {
+            epochs,
+            min_r2: 0.9,
+            ..Default::default()
+        },
+        ..Default::default()
+    };
+    let t = std::time::Instant::now();
+    let out = train_closed_loop(data, Some(mm), &o).map_err(|e| stage_err("train", e))?;
+    let secs = t.elapsed().as_secs_f64();
+    let net = out.network.clone();
+    let rel = "networks/closed-loop.onnx".to_string();
+    samara_nn::onnx::save(&net, ctx.path(&rel), &Default::default())
+        .map_err(|e| stage_err("train", e))?;
+    let (png, svg) = (
+        "figures/closed_loop_rounds.png".to_string(),
+        "figures/closed_loop_rounds.svg".to_string(),
+    );
+    samara_train::cegis::rounds_figure(
+        &out.rounds,
+        o.goal,
+        &format!(
+            "closed-loop training rounds: |x + y| <= {} at t = 20, {}",
+            o.goal,
+            if out.proved { "proved" } else { "not proved" }
+        ),
+        &ctx.path(&png),
+        &ctx.path(&svg),
+    )
+    .map_err(|e| stage_err("train", e))?;
+    let rounds: Vec<Value> = out
+        .rounds
+        .iter()
+        .map(|r| {
+            json!({"round": r.round, "steps": r.steps, "loss": r.loss, "mse": r.mse,
+                "penalty": r.penalty, "r2": r.r2, "starts": r.starts, "verdict": r.verdict,
+                "enclosure": r.enclosure, "sampled": r.sampled, "max_leaves": r.max_leaves,
+                "added": r.added, "seconds": r.train_seconds + r.reach_seconds})
+        })
+        .collect();
+    // Test R^2 on the rows the data-only training held out (its split, seed 0).
+    let (_, test) =
+        samara_train::data::split(data.rows(), o.pretrain.test_fraction, o.pretrain.seed);
+    let (r2_test, rmse_test) = r2_rows(&net, data, &test);
+    let row = json!({"method": "closed-loop", "file": rel, "r2": r2_test, "r2_all": out.r2,
+        "rmse": rmse_test, "mae": Value::Null, "attack_worst": Value::Null,
+        "attack_mean": Value::Null, "eps": Value::Null, "epochs": epochs, "seconds": secs});
+    let extra = json!({"proved": out.proved, "verdict": out.reach.verdict.name(),
+        "enclosure": out.reach.final_x_plus_y, "r2_all": out.r2, "rounds": rounds,
+        "goal_ystar": o.goal, "training_bound": o.loss.bound, "data_weight": o.data_weight,
+        "steps_per_round": o.steps_per_round, "seconds": secs, "figure": png});
+    Ok((row, extra, vec![rel, png, svg]))
 }
 
 struct Subject {
     label: String,
     net: Network,
-    units: VUnits,
-    lo: Vec<f64>,
-    hi: Vec<f64>,
+    /// The case-study spec, its network given this network's units and domain.
+    spec: Spec,
     /// Body network and data rows in its (normalised) units, for P5.
     p5: Option<(Network, Vec<Vec<f64>>)>,
     raw_controller: Option<Network>,
 }
 
+/// What the verify stage takes from the train stage's result: the data's box and the
+/// min-max constants the networks were trained in (read once, as one struct).
+#[derive(serde::Deserialize)]
+struct TrainUnits {
+    domain_lo: Vec<f64>,
+    domain_hi: Vec<f64>,
+    norm_min: Vec<f64>,
+    norm_range: Vec<f64>,
+}
+
 fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
     let mut v = Vec::new();
-    let tr = &up["train"];
-    let lo: Vec<f64> =
-        serde_json::from_value(tr["domain_lo"].clone()).map_err(|e| stage_err("verify", e))?;
-    let hi: Vec<f64> =
-        serde_json::from_value(tr["domain_hi"].clone()).map_err(|e| stage_err("verify", e))?;
-    let nmin: Vec<f64> =
-        serde_json::from_value(tr["norm_min"].clone()).map_err(|e| stage_err("verify", e))?;
-    let nrange: Vec<f64> =
-        serde_json::from_value(tr["norm_range"].clone()).map_err(|e| stage_err("verify", e))?;
+    let TrainUnits {
+        domain_lo: lo,
+        domain_hi: hi,
+        norm_min: nmin,
+        norm_range: nrange,
+    } = TrainUnits::deserialize(&up["train"]).map_err(|e| stage_err("verify", e))?;
+    let spec = case_study_spec();
+    // samara's networks take raw units (their normalisation is inside the file); their
+    // domain is the box of the data they were trained on.
+    let domain: Vec<(f64, f64)> = lo.iter().cloned().zip(hi.iter().cloned()).collect();
     let data =
         read_table(&ctx.path("data/training_data.csv")).map_err(|e| stage_err("verify", e))?;
     let rows_norm: Vec<Vec<f64>> = (0..data.rows())
@@ -140,17 +249,12 @@ fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
         v.push(Subject {
             label: format!("samara {m}"),
             net: net.clone(),
-            units: VUnits::raw(),
-            lo: lo.clone(),
-            hi: hi.clone(),
+            spec: with_units(&spec, None, None, Some(domain.clone())),
             p5: Some((body, rows_norm.clone())),
             raw_controller: Some(net),
         });
     }
     if let Some(dir) = &ctx.opts.published {
-        let (c, s) = published_constants(dir).map_err(|e| stage_err("verify", e))?;
-        let plo = c.clone();
-        let phi: Vec<f64> = c.iter().zip(&s).map(|(a, b)| a + b).collect();
         let pdata = read_plain_csv(&dir.join("Training_Data_Normalised.csv"))
             .map_err(|e| stage_err("verify", e))?;
         for name in [
@@ -165,18 +269,13 @@ fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
             v.push(Subject {
                 label: format!("published {name}"),
                 net: net.clone(),
-                units: if norm {
-                    VUnits {
-                        c: c.clone(),
-                        s: s.clone(),
-                        c_out: 0.181,
-                        s_out: 0.012,
-                    }
+                // The published normalised networks have the spec's units; the
+                // denormalised ones take raw units over the same domain.
+                spec: if norm {
+                    spec.clone()
                 } else {
-                    VUnits::raw()
+                    with_units(&spec, None, None, None)
                 },
-                lo: plo.clone(),
-                hi: phi.clone(),
                 p5: if norm {
                     Some((net.clone(), pdata.clone()))
                 } else {
@@ -189,6 +288,139 @@ fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
     Ok(v)
 }
 
+/// The critical query of `ystar` for a property the spec lowers, and whether the
+/// property holds above (`Max`: the supremum of counterexample values) or below (`Min`:
+/// the infimum) it. The direction comes from the lowering: every constraint on the
+/// parameter bounds it from one side, so the counterexample set is monotone in it.
+/// When one constraint alone mentions the parameter (`ystar <= e(x)` or `ystar >=
+/// e(x)`), the parameter is eliminated and `e` optimised directly: the critical value is
+/// the network's, not clipped to the parameter's declared range.
+pub fn critical_query(spec: &Spec, property: &str, param: &str) -> Result<Query, String> {
+    let inst = spec
+        .lower_critical(property, param, &Bindings::default())
+        .map_err(|e| e.to_string())?;
+    let [inst] = inst.as_slice() else {
+        return Err(format!(
+            "`{property}` has {} instances; critical values need one",
+            inst.len()
+        ));
+    };
+    let mut q = inst.query.clone();
+    let Goal::Optimise { objective, .. } = &q.goal else {
+        return Err(format!("`{property}`: not an optimisation"));
+    };
+    let [(Var::Free(p), one)] = objective.terms.as_slice() else {
+        return Err(format!("`{property}`: the objective is not the parameter"));
+    };
+    let (p, one) = (*p, *one);
+    let coef = |c: &samara_spec::normal::Constraint| -> f64 {
+        c.expr
+            .terms
+            .iter()
+            .filter(|(v, _)| *v == Var::Free(p))
+            .map(|(_, k)| k)
+            .sum()
+    };
+    let signs: Vec<f64> = q
+        .region
+        .iter()
+        .flatten()
+        .map(coef)
+        .filter(|k| *k != 0.0)
+        .collect();
+    let sense = if !signs.is_empty() && signs.iter().all(|k| *k > 0.0) {
+        Sense::Max
+    } else if !signs.is_empty() && signs.iter().all(|k| *k < 0.0) {
+        Sense::Min
+    } else {
+        return Err(format!("`{property}` is not monotone in `{param}`"));
+    };
+    let label = param.to_string();
+    if q.region.len() == 1 && signs.len() == 1 && one == 1.0 {
+        let conj = &mut q.region[0];
+        let at = conj.iter().position(|c| coef(c) != 0.0).expect("one");
+        let c = conj.remove(at);
+        let k = coef(&c);
+        // k ystar + rest (<=|<) 0  =>  ystar bounded by -rest / k.
+        let objective = LinExpr {
+            terms: c
+                .expr
+                .terms
+                .iter()
+                .filter(|(v, _)| *v != Var::Free(p))
+                .map(|(v, a)| (*v, -a / k))
+                .collect(),
+            constant: -c.expr.constant / k,
+        }
+        .normalised();
+        if p + 1 == q.free_vars.len() {
+            q.free_vars.pop();
+        }
+        q.goal = Goal::Optimise {
+            objective,
+            sense,
+            label,
+        };
+    } else if let Goal::Optimise { sense: s, .. } = &mut q.goal {
+        *s = sense;
+    }
+    Ok(q)
+}
+
+/// The critical values of P1-P4 as the spec states them, for the network `f` of `prep`,
+/// as stored in results.json.
+pub fn critical_values(
+    spec: &Spec,
+    prep: &Prepared,
+    settings: &Settings,
+) -> Result<Vec<Value>, String> {
+    P1_TO_P4
+        .iter()
+        .map(|name| {
+            let q = critical_query(spec, name, "ystar")?;
+            let r = optimise(&q, prep, settings).map_err(|e| e.to_string())?;
+            Ok(critical_json(name, &r))
+        })
+        .collect()
+}
+
+/// One critical value as stored in results.json: the search's value, bound, flags, and
+/// why it is incomplete (`unknown_reason`, null for a complete search).
+fn critical_json(property: &str, r: &samara_verify::Critical) -> Value {
+    json!({"property": property, "critical": r.value, "bound": r.bound, "attained": r.attained,
+        "vacuous": r.vacuous, "domain_extreme": r.domain_extreme, "complete": r.complete,
+        "unknown_reason": r.unknown.as_ref().map(|u| json!({"kind": u.kind(), "message": u.to_string()}))})
+}
+
+/// The report's cell for one critical value. Only a complete search makes a claim: an
+/// incomplete one (or a result without `complete`) reads "unknown" with its reason,
+/// never "holds"; a value whose gap to the sound bound is open shows both.
+fn critical_cell(c: &Value) -> String {
+    let value = c["critical"].as_f64();
+    let bound = c["bound"].as_f64();
+    if c["complete"].as_bool() != Some(true) {
+        let reason = &c["unknown_reason"];
+        let why = match (reason["kind"].as_str(), reason["message"].as_str()) {
+            (Some(k), Some(m)) => format!("{k}: {m}"),
+            _ => "search incomplete".into(),
+        };
+        let seen = match (value, bound) {
+            (Some(v), Some(b)) => format!("; witness {v:.4}, bound {b:.4}"),
+            (None, Some(b)) => format!("; no witness, bound {b:.4}"),
+            _ => String::new(),
+        };
+        return format!("unknown ({why}){seen}");
+    }
+    match value {
+        None => "holds for every ystar".into(),
+        Some(v) if c["attained"].as_bool() == Some(true) => format!("{v:.4}"),
+        Some(v) => match bound {
+            Some(b) => format!("{v:.4} (gap open: sound bound {b:.4})"),
+            None => format!("{v:.4} (gap open)"),
+        },
+    }
+}
+
 /// Stage 4: critical values of P1-P4 and P5 tables, for every network.
 pub fn verify(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
     let subs = subjects(ctx, up)?;
@@ -199,13 +431,8 @@ pub fn verify(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
         nets.insert("f".to_string(), s.net.clone());
         let prep = Prepared::new(&nets);
         let t = std::time::Instant::now();
-        let mut crit = Vec::new();
-        for q in p1_to_p4("f", &s.units, &s.lo, &s.hi) {
-            let r =
-                optimise(&q, &prep, &Settings::default()).map_err(|e| stage_err("verify", e))?;
-            crit.push(json!({"property": q.name, "critical": r.value, "bound": r.bound, "attained": r.attained,
-                "vacuous": r.vacuous, "domain_extreme": r.domain_extreme, "complete": r.complete}));
-        }
+        let crit = critical_values(&s.spec, &prep, &Settings::default())
+            .map_err(|e| stage_err("verify", e))?;
         let crit_secs = t.elapsed().as_secs_f64();
         let mut p5 = Value::Null;
         if let Some((body, rows)) = &s.p5 {
@@ -374,6 +601,74 @@ pub fn reach(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
     })
 }
 
+/// The closed-loop method's rounds (issue 18 item 2).
+fn closed_loop_section(cl: &Value, d: &mut Document) {
+    d.push(Block::Heading(
+        2,
+        "2b. Closed-loop training (samara closed-loop)".into(),
+    ));
+    d.push(Block::Para(format!(
+        "The plain network is trained on through the closed loop: each round takes up to {} full-batch Adam steps on {} x the data MSE plus the mean of max(0, |x + y|(20) - {})^2 over a set of flights of the reduced model (sample-and-hold, RK4, output clipped), differentiated through the loop; then `samara reach` checks |x + y| <= {} at t = 20 over y0 in [1.4286, 4.2857] (16 sub-boxes, 64 when undecided), and the starts of violating trajectories and of refuted or undecided sub-boxes join the flight set for the next round. Result: {} (x + y at t = 20 in [{}, {}]), R^2 {} against every PID data row, {:.1} s.",
+        cl["steps_per_round"],
+        cl["data_weight"],
+        cl["training_bound"],
+        cl["goal_ystar"],
+        cl["verdict"].as_str().unwrap_or("?"),
+        f4(&cl["enclosure"][0]),
+        f4(&cl["enclosure"][1]),
+        f4(&cl["r2_all"]),
+        cl["seconds"].as_f64().unwrap_or(0.0)
+    )));
+    let rows = cl["rounds"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .map(|r| {
+            vec![
+                r["round"].to_string(),
+                r["steps"].to_string(),
+                r["starts"].to_string(),
+                format!("{:.3e}", r["loss"].as_f64().unwrap_or(f64::NAN)),
+                f4(&r["r2"]),
+                r["verdict"].as_str().unwrap_or("").to_string(),
+                if r["enclosure"][0].is_null() {
+                    "lost".into()
+                } else {
+                    format!("[{}, {}]", f4(&r["enclosure"][0]), f4(&r["enclosure"][1]))
+                },
+                r["max_leaves"].to_string(),
+                r["added"]
+                    .as_array()
+                    .map(|a| a.len())
+                    .unwrap_or(0)
+                    .to_string(),
+                format!("{:.1}", r["seconds"].as_f64().unwrap_or(0.0)),
+            ]
+        })
+        .collect();
+    d.push(table(
+        &[
+            "round",
+            "Adam steps",
+            "flights",
+            "loss",
+            "R^2 (all PID rows)",
+            "reach verdict",
+            "x + y at t = 20 (enclosure)",
+            "sub-boxes",
+            "starts added",
+            "seconds",
+        ],
+        rows,
+    ));
+    if let Some(p) = cl["figure"].as_str() {
+        d.push(Block::Image {
+            path: p.to_string(),
+            caption: "Closed-loop training rounds: reach's enclosure of x + y at t = 20, the sampled range and the goal band".into(),
+        });
+    }
+}
+
 fn pct(v: &Value) -> String {
     v.as_f64()
         .map(|x| format!("{:.1}%", 100.0 * x))
@@ -393,8 +688,12 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
                         vec![
                             n["method"].as_str().unwrap_or("").to_string(),
                             f4(&n["r2"]),
+                            f4(&n["r2_all"]),
                             format!("{:.2e}", n["rmse"].as_f64().unwrap_or(f64::NAN)),
-                            format!("{:.2e}", n["attack_worst"].as_f64().unwrap_or(f64::NAN)),
+                            n["attack_worst"]
+                                .as_f64()
+                                .map(|v| format!("{v:.2e}"))
+                                .unwrap_or_else(|| "-".into()),
                             format!("{:.2}", n["seconds"].as_f64().unwrap_or(0.0)),
                         ]
                     })
@@ -405,6 +704,7 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
             &[
                 "method",
                 "test R^2",
+                "R^2 (all PID rows)",
                 "RMSE (ex)",
                 "worst attack deviation (ex)",
                 "seconds",
@@ -412,22 +712,27 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
             rows,
         ));
     }
+    if let Some(cl) = st
+        .get("train")
+        .map(|t| &t["closed_loop"])
+        .filter(|v| !v.is_null())
+    {
+        closed_loop_section(cl, d);
+    }
     if let Some(v) = st.get("verify") {
         d.push(Block::Heading(
             1,
             "3-4. Verification: critical values of P1-P4".into(),
         ));
-        d.push(Block::Para("P1 and P2 hold for ystar above the critical value, P3 and P4 below it. Each value is one exact optimisation (branch and bound with sound LP bounds), reported with a concrete witness; `vacuous` marks a threshold that equals the extreme of x + y over the input box, where the property's precondition is empty; \"holds for every ystar\" means the counterexample region is empty for every value.".into()));
+        d.push(Block::Para("P1 and P2 hold for ystar above the critical value, P3 and P4 below it. Each value is one exact optimisation (branch and bound with sound LP bounds), reported with a concrete witness; `vacuous` marks a threshold that equals the extreme of x + y over the input box, where the property's precondition is empty; \"holds for every ystar\" means a complete search found the counterexample region empty for every value; \"unknown\" marks a search cut short (time or node limit), with its reason, and makes no claim; an open gap between the witness value and the sound bound is shown as both.".into()));
         let mut rows = Vec::new();
         let mut vac: Vec<String> = Vec::new();
         for n in v["networks"].as_array().into_iter().flatten() {
             let mut row = vec![n["network"].as_str().unwrap_or("").to_string()];
             for c in n["critical"].as_array().into_iter().flatten() {
-                let val = c["critical"]
-                    .as_f64()
-                    .map(|x| format!("{x:.4}"))
-                    .unwrap_or("holds for every ystar".into());
-                let v = c["vacuous"].as_bool() == Some(true);
+                let val = critical_cell(c);
+                let v =
+                    c["complete"].as_bool() == Some(true) && c["vacuous"].as_bool() == Some(true);
                 if v {
                     vac.push(format!(
                         "{} {}",
@@ -649,6 +954,50 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
                 .filter_map(|n| n["controller"].as_str())
                 .collect();
             let secs: f64 = nets.iter().filter_map(|n| n["seconds"].as_f64()).sum();
+            let r2_of = |method: &str| {
+                st["train"]["networks"]
+                    .as_array()
+                    .into_iter()
+                    .flatten()
+                    .find(|n| n["method"] == method)
+                    .map(|n| f4(&n["r2_all"]))
+                    .unwrap_or_else(|| "-".into())
+            };
+            let samara: Vec<(String, &Value)> = nets
+                .iter()
+                .filter_map(|n| {
+                    n["controller"]
+                        .as_str()
+                        .and_then(|c| c.strip_prefix("samara "))
+                        .map(|m| (m.to_string(), *n))
+                })
+                .collect();
+            let proved_methods: Vec<String> = samara
+                .iter()
+                .filter(|(_, n)| n["verdict"] == "proved")
+                .map(|(m, n)| {
+                    format!(
+                        "{m} (x + y at t = 20 in [{}, {}], R^2 {} against the PID data)",
+                        f4(&n["final_x_plus_y"][0]),
+                        f4(&n["final_x_plus_y"][1]),
+                        r2_of(m)
+                    )
+                })
+                .collect();
+            let others: Vec<String> = samara
+                .iter()
+                .filter(|(_, n)| n["verdict"] != "proved")
+                .map(|(m, n)| format!("{m} {}", n["verdict"].as_str().unwrap_or("?")))
+                .collect();
+            if !samara.is_empty() {
+                findings.push(format!(
+                    "Of samara's {} training methods, {} produced a controller that reach proves for |x + y| <= 2 at t = 20 over the whole published interval of y0 (reduced model, clipped): {}; the others: {}.",
+                    samara.len(),
+                    proved_methods.len(),
+                    if proved_methods.is_empty() { "none".to_string() } else { proved_methods.join("; ") },
+                    if others.is_empty() { "none".to_string() } else { others.join(", ") },
+                ));
+            }
             findings.push(format!(
                 "Reachability of the reduced model over the whole published interval of y0 takes {secs:.0} s for {} networks (the published CORA runs needed manual splitting into 8-16 pieces and over 8 hours in some cases). The goal |x + y| <= 2 at t = 20 is proved for every start for: {}; it is violated (by a simulated trajectory) for: {}.",
                 nets.len(),
@@ -656,5 +1005,143 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
                 if violated.is_empty() { "none".to_string() } else { violated.join(", ") },
             ));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use samara_verify::{Critical, UnknownReason};
+
+    fn crit(value: Option<f64>, unknown: Option<UnknownReason>, attained: bool) -> Critical {
+        Critical {
+            value,
+            bound: 3.5,
+            witness: None,
+            attained,
+            domain_extreme: Some(3.6),
+            vacuous: false,
+            complete: unknown.is_none(),
+            unknown,
+            nodes: 7,
+            seconds: 0.0,
+        }
+    }
+
+    #[test]
+    fn an_incomplete_search_reads_unknown_with_its_reason_never_holds() {
+        let c = critical_json(
+            "p1",
+            &crit(None, Some(UnknownReason::Timeout { nodes: 7 }), false),
+        );
+        assert_eq!(c["complete"], json!(false));
+        assert_eq!(c["unknown_reason"]["kind"], json!("timeout"));
+        let cell = critical_cell(&c);
+        assert!(
+            cell.starts_with("unknown (timeout: time limit reached after 7 nodes"),
+            "{cell}"
+        );
+        assert!(!cell.contains("holds"), "{cell}");
+        // With a witness but the gap open: both ends, and the reason.
+        let c = critical_json(
+            "p3",
+            &crit(
+                Some(1.25),
+                Some(UnknownReason::NodeLimit { nodes: 7 }),
+                false,
+            ),
+        );
+        let cell = critical_cell(&c);
+        assert!(
+            cell.starts_with("unknown (node_limit: node limit reached after 7 nodes)"),
+            "{cell}"
+        );
+        assert!(cell.contains("witness 1.2500, bound 3.5000"), "{cell}");
+        // A result without `complete` makes no claim either.
+        assert!(critical_cell(&json!({"critical": null})).starts_with("unknown"));
+    }
+
+    #[test]
+    fn a_complete_search_reads_its_value_or_holds() {
+        let c = critical_json("p1", &crit(None, None, false));
+        assert_eq!(c["unknown_reason"], Value::Null);
+        assert_eq!(critical_cell(&c), "holds for every ystar");
+        assert_eq!(
+            critical_cell(&critical_json("p1", &crit(Some(3.5), None, true))),
+            "3.5000"
+        );
+        assert_eq!(
+            critical_cell(&critical_json("p1", &crit(Some(3.25), None, false))),
+            "3.2500 (gap open: sound bound 3.5000)"
+        );
+    }
+
+    /// ex = 0.187 + 0.01 (x + y) in raw units.
+    fn linear_net() -> Network {
+        Network {
+            input_names: samara_nn::STATE_INPUTS
+                .iter()
+                .map(|s| s.to_string())
+                .collect(),
+            output_names: vec!["ex".into()],
+            input_norm: None,
+            layers: vec![samara_nn::Layer::Affine(samara_nn::Affine::new(
+                6,
+                1,
+                vec![0.0, 0.0, 0.0, 0.0, 0.01, 0.01],
+                vec![0.187],
+            ))],
+            output_denorm: None,
+        }
+    }
+
+    fn p1_critical(spec: &Spec) -> f64 {
+        let mut nets = HashMap::new();
+        nets.insert("f".to_string(), linear_net());
+        let prep = Prepared::new(&nets);
+        let spec = with_units(spec, None, None, None);
+        let c = critical_values(&spec, &prep, &Settings::default()).unwrap();
+        assert_eq!(c[0]["property"], json!("p1"));
+        assert_eq!(c[0]["complete"], json!(true));
+        c[0]["critical"].as_f64().unwrap()
+    }
+
+    #[test]
+    fn the_verify_stage_reads_p1_from_the_spec() {
+        // ex < 0.187 iff x + y < 0: P1 holds for ystar above 0.
+        let c = p1_critical(&case_study_spec());
+        assert!(c.abs() < 1e-6, "{c}");
+        // Edit a copy of the spec: ex < 0.2 iff x + y < 1.3, and the threshold moves.
+        let edited = samara_train::CASE_STUDY_SPEC.replace("=> ex >= 0.187", "=> ex >= 0.2");
+        assert_ne!(edited, samara_train::CASE_STUDY_SPEC);
+        let spec = Spec::parse(&edited, "edited.spec", std::path::Path::new(".")).unwrap();
+        let c = p1_critical(&spec);
+        assert!((c - 1.3).abs() < 1e-6, "{c}");
+    }
+
+    #[test]
+    fn critical_queries_take_their_direction_from_the_lowering() {
+        let spec = case_study_spec();
+        let sense = |p: &str| match critical_query(&spec, p, "ystar").unwrap().goal {
+            Goal::Optimise { sense, .. } => sense,
+            _ => unreachable!(),
+        };
+        assert_eq!(
+            P1_TO_P4.map(sense),
+            [Sense::Max, Sense::Max, Sense::Min, Sense::Min]
+        );
+        // P1, P2, P4: the parameter is eliminated; P3 keeps it (two bounds on it).
+        assert!(critical_query(&spec, "p1", "ystar")
+            .unwrap()
+            .free_vars
+            .is_empty());
+        assert_eq!(
+            critical_query(&spec, "p3", "ystar")
+                .unwrap()
+                .free_vars
+                .len(),
+            1
+        );
+        assert!(critical_query(&spec, "p5", "ystar").is_err());
     }
 }

@@ -16,7 +16,7 @@ fn main() {
         .unwrap_or(1000);
     let plant = Plant::new(Model::Plate6);
     let settings = LoopSettings {
-        integrator: Integrator::Tight(Default::default()),
+        integrator: Integrator::Dop853(Default::default()),
         output_step: None,
         ..Default::default()
     };

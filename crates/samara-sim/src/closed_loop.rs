@@ -3,8 +3,9 @@
 //! integrated, and (published protocol) the filter state E restarts at 0 every period.
 
 use crate::control::Controller;
-use crate::dopri::{self, Tolerances};
-use crate::ode45::{self, Ode45Options, Stats};
+use crate::dopri;
+use crate::explicit_rk::{Stats, Tolerances};
+use crate::ode45::{self, Ode45Options};
 use samara_plant::Plant;
 
 /// Which integrator advances the plant over one period.
@@ -12,24 +13,33 @@ use samara_plant::Plant;
 pub enum Integrator {
     /// MATLAB-ode45 clone with default tolerances (reproduces the published data).
     Ode45,
-    /// DOP853 at tight tolerances (the default tight mode).
-    Tight(Tolerances),
-    /// Dormand-Prince 5(4) at tight tolerances.
+    /// DOP853 under the standard step control (CLI `dop853`, alias `tight`; by default
+    /// at rtol 1e-10, atol 1e-12), continuing each period with the step the previous
+    /// one proposed.
+    Dop853(Tolerances),
+    /// Dormand-Prince 5(4) under the standard step control (CLI `dp5`).
     Dp5(Tolerances),
     /// Fixed-step RK4 with the given step.
     Rk4(f64),
 }
 
 impl Integrator {
-    /// Parse a CLI name (`ode45`, `tight`, `rk4`).
+    /// Parse a CLI name (`ode45`, `dop853` or its older name `tight`, `dp5`, `rk4`).
     pub fn from_name(s: &str) -> Option<Integrator> {
         match s {
             "ode45" => Some(Integrator::Ode45),
-            "tight" => Some(Integrator::Tight(Tolerances::default())),
+            "dop853" | "tight" => Some(Integrator::Dop853(Tolerances::default())),
             "dp5" => Some(Integrator::Dp5(Tolerances::default())),
             "rk4" => Some(Integrator::Rk4(1e-3)),
             _ => None,
         }
+    }
+
+    /// The older name of [`Integrator::Dop853`] (it named the method by a property, its
+    /// tight default tolerances), kept as a constructor so existing callers compile.
+    #[allow(non_snake_case)]
+    pub const fn Tight(tol: Tolerances) -> Integrator {
+        Integrator::Dop853(tol)
     }
 }
 
@@ -61,6 +71,13 @@ impl Default for LoopSettings {
     }
 }
 
+/// Largest number of control periods of one flight (`horizon / period`): a guard against
+/// settings that would allocate without bound (the published protocol has 40).
+pub const MAX_PERIODS: usize = 1_000_000;
+
+/// Largest number of output points per control period (`period / output_step`).
+pub const MAX_OUTPUTS_PER_PERIOD: usize = 1_000_000;
+
 /// Invalid settings or states.
 #[derive(Debug, thiserror::Error, PartialEq)]
 pub enum SimError {
@@ -75,9 +92,29 @@ pub enum SimError {
         /// Period given.
         period: f64,
     },
+    /// More control periods than [`MAX_PERIODS`].
+    #[error("the horizon {horizon} is {periods:e} control periods of {period}; at most {max} are allowed (memory grows with every period): pass a shorter --horizon or a longer --period")]
+    TooManyPeriods {
+        /// Horizon given.
+        horizon: f64,
+        /// Period given.
+        period: f64,
+        /// `horizon / period`.
+        periods: f64,
+        /// The limit.
+        max: usize,
+    },
     /// The output step does not divide the period.
-    #[error("the output step {0} must be positive and divide the period")]
+    #[error("the output step {0} must be positive, divide the period, and give at most 1000000 points per period")]
     OutputStep(f64),
+    /// The state became NaN or infinite (the model left its valid range).
+    #[error("the state became NaN or infinite in the control period ending at t = {t} (held input ex = {ex}): the model left its valid range; clip the controller's output (drop --no-clip) or start nearer the published heights")]
+    NonFinite {
+        /// End of the period.
+        t: f64,
+        /// Input held during it.
+        ex: f64,
+    },
     /// State of the wrong size.
     #[error("the initial state has {found} components but model `{model}` has {expected}")]
     StateDim {
@@ -98,7 +135,16 @@ impl LoopSettings {
         }
         let r = self.horizon / self.period;
         let steps = r.round();
+        if self.horizon.is_finite() && r > MAX_PERIODS as f64 + 0.5 {
+            return Err(SimError::TooManyPeriods {
+                horizon: self.horizon,
+                period: self.period,
+                periods: r,
+                max: MAX_PERIODS,
+            });
+        }
         if !(self.horizon.is_finite() && self.horizon > 0.0)
+            || steps < 1.0
             || (r - steps).abs() > 1e-9 * r.max(1.0)
         {
             return Err(SimError::Horizon {
@@ -108,7 +154,11 @@ impl LoopSettings {
         }
         if let Some(o) = self.output_step {
             let q = self.period / o;
-            if !(o > 0.0) || (q - q.round()).abs() > 1e-9 * q.max(1.0) {
+            if !(o > 0.0)
+                || !q.is_finite()
+                || q > MAX_OUTPUTS_PER_PERIOD as f64 + 0.5
+                || (q - q.round()).abs() > 1e-9 * q.max(1.0)
+            {
                 return Err(SimError::OutputStep(o));
             }
         }
@@ -230,7 +280,7 @@ pub fn fly(
                 &Ode45Options::default(),
                 if want { Some(&mut buf) } else { None },
             ),
-            Integrator::Tight(tol) => crate::dop853::integrate_from(
+            Integrator::Dop853(tol) => crate::dop853::integrate_from(
                 rhs,
                 &mut s,
                 0.0,
@@ -268,6 +318,12 @@ pub fn fly(
         let t0 = k as f64 * period;
         for row in buf.chunks_exact(dim + 1) {
             dense.push(t0 + row[0], &row[1..], ex);
+        }
+        if s.iter().any(|v| !v.is_finite()) {
+            return Err(SimError::NonFinite {
+                t: (k + 1) as f64 * period,
+                ex,
+            });
         }
         steps.push(StepRecord {
             t_end: (k + 1) as f64 * period,
@@ -327,4 +383,66 @@ pub fn minmax(rows: &[[f64; 7]]) -> ([f64; 7], [f64; 7]) {
         range[j] = hi[j] - lo[j];
     }
     (lo, range)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings(horizon: f64, period: f64) -> LoopSettings {
+        LoopSettings {
+            horizon,
+            period,
+            ..LoopSettings::default()
+        }
+    }
+
+    #[test]
+    fn sizes_are_checked_before_anything_is_allocated() {
+        assert_eq!(settings(20.0, 0.5).steps(), Ok(40));
+        assert!(matches!(
+            settings(1e12, 0.5).steps(),
+            Err(SimError::TooManyPeriods { .. })
+        ));
+        assert!(matches!(
+            settings(1e308, 0.5).steps(),
+            Err(SimError::TooManyPeriods { .. })
+        ));
+        // Less than one period is no flight at all.
+        assert!(matches!(
+            settings(1e-20, 0.5).steps(),
+            Err(SimError::Horizon { .. })
+        ));
+        for p in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+            assert!(matches!(
+                settings(20.0, p).steps(),
+                Err(SimError::Period(_))
+            ));
+        }
+        let mut s = settings(0.5, 0.5);
+        s.output_step = Some(1e-12);
+        assert!(matches!(s.steps(), Err(SimError::OutputStep(_))));
+    }
+
+    /// A right-hand side that turns NaN: every adaptive integrator stops with a NaN state
+    /// (dp5 used to shrink its step forever).
+    #[test]
+    fn nan_right_hand_sides_end_the_integration() {
+        let nan_after = |y: &[f64], d: &mut [f64]| {
+            for (di, yi) in d.iter_mut().zip(y) {
+                *di = if *yi > 1.2 { f64::NAN } else { 1.0 };
+            }
+        };
+        let tol = crate::dopri::Tolerances::default();
+        let times = [0.0, 0.25, 0.5];
+        let mut y = [1.0, 1.0];
+        crate::dopri::integrate(nan_after, &mut y, 0.0, 0.5, tol, &times, None);
+        assert!(y.iter().all(|v| v.is_nan()), "{y:?}");
+        let mut y = [1.0, 1.0];
+        crate::dop853::integrate(nan_after, &mut y, 0.0, 0.5, tol, &times, None);
+        assert!(y.iter().any(|v| !v.is_finite()), "{y:?}");
+        let mut y = [1.0, 1.0];
+        crate::ode45::integrate(nan_after, &mut y, &times, &Default::default(), None);
+        assert!(y.iter().any(|v| !v.is_finite()), "{y:?}");
+    }
 }

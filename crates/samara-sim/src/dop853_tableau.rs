@@ -1,4 +1,4 @@
-//! Coefficients of the explicit Runge-Kutta pair DOP853 of Dormand & Prince as given by
+//! Coefficients (data for [`crate::tableau::DOP853`]) of the explicit Runge-Kutta pair DOP853 of Dormand & Prince as given by
 //! Hairer, Norsett & Wanner, *Solving ODEs I* (2nd ed.), section II.10 (the published
 //! Fortran code DOP853). Numbers are the published rational approximations.
 #![allow(clippy::excessive_precision, clippy::unreadable_literal)]

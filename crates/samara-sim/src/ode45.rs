@@ -3,62 +3,14 @@
 //! RelTol 1e-3, AbsTol 1e-6 (scalar), MaxStep 0.1 |tf - t0|, mixed relative/absolute
 //! infinity-norm error test, and the 4th-order `ntrp45` interpolant for output points.
 //! Every rule follows `docs/MODEL.md` section 5; the arithmetic order of the stages
-//! (`y + h * (sum b_ij f_j)`) is kept.
+//! (`y + h * (sum b_ij f_j)`) is kept. The step control is a policy on the one adaptive
+//! Runge-Kutta driver ([`crate::explicit_rk`]) running the [`DP54`] tableau.
 
+use crate::explicit_rk::{drive, OutputPoints, Rejection, Stages, StepControl, MAX_STEPS};
+use crate::tableau::{ErrorEstimator, Tableau, DP54};
 use crate::MAX_DIM;
 
-/// Dormand-Prince stage coefficients (row i: b_{i+1, j}).
-pub(crate) const A: [[f64; 6]; 6] = [
-    [1.0 / 5.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-    [3.0 / 40.0, 9.0 / 40.0, 0.0, 0.0, 0.0, 0.0],
-    [44.0 / 45.0, -56.0 / 15.0, 32.0 / 9.0, 0.0, 0.0, 0.0],
-    [
-        19372.0 / 6561.0,
-        -25360.0 / 2187.0,
-        64448.0 / 6561.0,
-        -212.0 / 729.0,
-        0.0,
-        0.0,
-    ],
-    [
-        9017.0 / 3168.0,
-        -355.0 / 33.0,
-        46732.0 / 5247.0,
-        49.0 / 176.0,
-        -5103.0 / 18656.0,
-        0.0,
-    ],
-    [
-        35.0 / 384.0,
-        0.0,
-        500.0 / 1113.0,
-        125.0 / 192.0,
-        -2187.0 / 6784.0,
-        11.0 / 84.0,
-    ],
-];
-
-/// Error weights E (5th minus 4th order).
-pub(crate) const E: [f64; 7] = [
-    71.0 / 57600.0,
-    0.0,
-    -71.0 / 16695.0,
-    71.0 / 1920.0,
-    -17253.0 / 339200.0,
-    22.0 / 525.0,
-    -1.0 / 40.0,
-];
-
-/// `ntrp45` interpolation matrix (rows: stages, columns: powers s, s^2, s^3, s^4).
-pub(crate) const BI: [[f64; 4]; 7] = [
-    [1.0, -183.0 / 64.0, 37.0 / 12.0, -145.0 / 128.0],
-    [0.0, 0.0, 0.0, 0.0],
-    [0.0, 1500.0 / 371.0, -1000.0 / 159.0, 1000.0 / 371.0],
-    [0.0, -125.0 / 32.0, 125.0 / 12.0, -375.0 / 64.0],
-    [0.0, 9477.0 / 3392.0, -729.0 / 106.0, 25515.0 / 6784.0],
-    [0.0, -11.0 / 7.0, 11.0 / 3.0, -55.0 / 28.0],
-    [0.0, 3.0 / 2.0, -4.0, 5.0 / 2.0],
-];
+pub use crate::explicit_rk::Stats;
 
 /// MATLAB `eps(t)`: the spacing of doubles at `t`.
 fn eps_of(t: f64) -> f64 {
@@ -88,19 +40,6 @@ impl Default for Ode45Options {
     }
 }
 
-/// Statistics of one integration.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Stats {
-    /// Accepted steps.
-    pub accepted: usize,
-    /// Rejected steps.
-    pub rejected: usize,
-    /// Right-hand-side evaluations.
-    pub evals: usize,
-    /// Step size proposed for a continuation (0 if not provided by the method).
-    pub h_next: f64,
-}
-
 /// Integrate `y' = f(y)` (autonomous) from `t0` to `tf` with MATLAB's `ode45` rules, as
 /// if called with `tspan = out_times` (`out_times[0] = t0`, last = `tf`, at least two
 /// entries). Returns the end state in `y` and, if `out` is given, pushes the state at
@@ -108,142 +47,201 @@ pub struct Stats {
 /// exact) as flat rows `t, y...`. `hmax` = 0.1 |tf - t0| and the first step uses `|tspan(2) - tspan(1)|`
 /// exactly as MATLAB.
 pub fn integrate<F>(
-    mut f: F,
+    f: F,
     y: &mut [f64],
     out_times: &[f64],
     opts: &Ode45Options,
-    mut out: Option<&mut Vec<f64>>,
+    out: Option<&mut Vec<f64>>,
 ) -> Stats
 where
     F: FnMut(&[f64], &mut [f64]),
 {
-    let n = y.len();
-    assert!(n <= MAX_DIM && out_times.len() >= 2);
+    assert!(y.len() <= MAX_DIM && out_times.len() >= 2);
     let t0 = out_times[0];
     let tf = *out_times.last().unwrap();
-    let rtol = opts.rel_tol;
-    let threshold = opts.abs_tol / rtol;
-    let pow = 1.0 / 5.0;
-    let hmax = 0.1 * (tf - t0).abs();
-    let htspan = (out_times[1] - out_times[0]).abs();
-    let mut stats = Stats::default();
+    let mut ctl = Matlab {
+        tf,
+        rtol: opts.rel_tol,
+        threshold: opts.abs_tol / opts.rel_tol,
+        pow: 1.0 / 5.0,
+        hmax: 0.1 * (tf - t0).abs(),
+        htspan: (out_times[1] - out_times[0]).abs(),
+        t0,
+        hmin: 0.0,
+        absh: 0.0,
+        retry: false,
+        nofailed: true,
+        forced: false,
+        outputs: OutputPoints {
+            times: out_times,
+            next: 1,
+            out,
+        },
+    };
+    drive(&DP54, &mut ctl, f, y, t0)
+}
 
-    let mut k = [[0.0f64; MAX_DIM]; 7];
-    f(&y[..n], &mut k[0][..n]);
-    stats.evals += 1;
+/// MATLAB's `ode45` step control as a policy on the driver: mixed relative/absolute
+/// infinity-norm error test, step `absh` within `[16 eps(t), hmax]`, the end reached
+/// once `1.1 absh` covers it, the first failure rescaling by `0.8 (rtol/err)^(1/5)`
+/// (at least 0.1) and later ones halving, and output points from the pair's continuous
+/// extension (`ntrp45`).
+struct Matlab<'a> {
+    tf: f64,
+    rtol: f64,
+    /// `AbsTol / RelTol`.
+    threshold: f64,
+    pow: f64,
+    hmax: f64,
+    htspan: f64,
+    t0: f64,
+    hmin: f64,
+    absh: f64,
+    /// The next attempt retries a failed step (MATLAB's inner loop).
+    retry: bool,
+    /// No failure yet in this step.
+    nofailed: bool,
+    /// This step was taken at the minimum step size despite its error.
+    forced: bool,
+    outputs: OutputPoints<'a>,
+}
 
-    let mut t = t0;
-    let mut hmin = 16.0 * eps_of(t);
-    let mut absh = hmax.min(htspan);
-    let mut rh = 0.0f64;
-    for i in 0..n {
-        rh = rh.max(k[0][i].abs() / y[i].abs().max(threshold));
+impl StepControl for Matlab<'_> {
+    fn start(&mut self, y: &[f64], f0: &[f64]) {
+        self.hmin = 16.0 * eps_of(self.t0);
+        let mut absh = self.hmax.min(self.htspan);
+        let mut rh = 0.0f64;
+        for i in 0..y.len() {
+            rh = rh.max(f0[i].abs() / y[i].abs().max(self.threshold));
+        }
+        rh /= 0.8 * self.rtol.powf(self.pow);
+        if absh * rh > 1.0 {
+            absh = 1.0 / rh;
+        }
+        self.absh = absh.max(self.hmin);
     }
-    rh /= 0.8 * rtol.powf(pow);
-    if absh * rh > 1.0 {
-        absh = 1.0 / rh;
-    }
-    absh = absh.max(hmin);
 
-    let mut next_out = 1usize;
-    let mut ynew = [0.0f64; MAX_DIM];
-    let mut done = false;
-    while !done {
-        hmin = 16.0 * eps_of(t);
-        absh = hmax.min(hmin.max(absh));
-        let mut h = absh;
-        if 1.1 * absh >= (tf - t).abs() {
-            h = tf - t;
-            absh = h.abs();
-            done = true;
+    fn attempt(&mut self, t: f64) -> (f64, bool) {
+        if self.retry {
+            self.retry = false;
+            return (self.absh, false);
         }
-        let mut nofailed = true;
-        let tnew;
-        loop {
-            crate::common::dp5_stages(&mut f, &y[..n], &mut k, h);
-            stats.evals += 5;
-            let mut tn = t + h;
-            if done {
-                tn = tf;
-            }
-            h = tn - t;
-            crate::common::dp5_solution(&mut f, &y[..n], &mut k, h, &mut ynew);
-            stats.evals += 1;
-            let mut err = 0.0f64;
-            for i in 0..n {
-                let mut fe = 0.0;
-                for (j, kj) in k.iter().enumerate() {
-                    fe += kj[i] * E[j];
-                }
-                let den = y[i].abs().max(ynew[i].abs()).max(threshold);
-                err = err.max((fe / den).abs());
-            }
-            err *= absh;
-            if err > rtol || err.is_nan() {
-                stats.rejected += 1;
-                if absh <= hmin {
-                    // MATLAB warns and stops; we accept to avoid an infinite loop.
-                    tnew = tn;
-                    break;
-                }
-                if nofailed {
-                    nofailed = false;
-                    let r = if err.is_nan() {
-                        0.1
-                    } else {
-                        0.1f64.max(0.8 * (rtol / err).powf(pow))
-                    };
-                    absh = hmin.max(absh * r);
-                } else {
-                    absh = hmin.max(0.5 * absh);
-                }
-                h = absh;
-                done = false;
-                continue;
-            }
-            if nofailed {
-                let temp = 1.25 * (err / rtol).powf(pow);
-                if temp > 0.2 {
-                    absh /= temp;
-                } else {
-                    absh *= 5.0;
-                }
-            }
-            tnew = tn;
-            break;
+        self.hmin = 16.0 * eps_of(t);
+        self.absh = self.hmax.min(self.hmin.max(self.absh));
+        self.nofailed = true;
+        self.forced = false;
+        if 1.1 * self.absh >= (self.tf - t).abs() {
+            let h = self.tf - t;
+            self.absh = h.abs();
+            (h, true)
+        } else {
+            (self.absh, false)
         }
-        stats.accepted += 1;
-        // Output points inside (t, tnew].
-        if let Some(o) = out.as_deref_mut() {
-            while next_out < out_times.len() && out_times[next_out] <= tnew {
-                let to = out_times[next_out];
-                if to == tnew {
-                    o.push(to);
-                    o.extend_from_slice(&ynew[..n]);
-                } else {
-                    let s = (to - t) / h;
-                    let pw = [s, s * s, s * s * s, s * s * s * s];
-                    o.push(to);
-                    o.extend((0..n).map(|i| {
-                        let mut acc = 0.0;
-                        for (j, kj) in k.iter().enumerate() {
-                            let c = BI[j][0] * pw[0]
-                                + BI[j][1] * pw[1]
-                                + BI[j][2] * pw[2]
-                                + BI[j][3] * pw[3];
-                            acc += kj[i] * c;
-                        }
-                        y[i] + h * acc
-                    }));
-                }
-                next_out += 1;
-            }
-        }
-        t = tnew;
-        y[..n].copy_from_slice(&ynew[..n]);
-        k[0] = k[6];
     }
-    stats
+
+    fn solution_step(&self, t: f64, h: f64, last: bool) -> (f64, f64) {
+        let tn = if last { self.tf } else { t + h };
+        (tn - t, tn)
+    }
+
+    fn error(&self, tab: &Tableau, y: &[f64], ynew: &[f64], k: &Stages, _h: f64) -> (f64, bool) {
+        let ErrorEstimator::Embedded(e) = &tab.error else {
+            unreachable!("the ode45 control runs the DP5(4) pair");
+        };
+        let mut err = 0.0f64;
+        for i in 0..y.len() {
+            let mut fe = 0.0;
+            for j in 0..tab.stages {
+                fe += k[j][i] * e[j];
+            }
+            let den = y[i].abs().max(ynew[i].abs()).max(self.threshold);
+            err = err.max((fe / den).abs());
+        }
+        err *= self.absh;
+        (err, !(err > self.rtol || err.is_nan()))
+    }
+
+    fn rejected(&mut self, _t: f64, err: f64, ynew: &[f64], stats: &Stats) -> Rejection {
+        if self.absh <= self.hmin {
+            if err.is_nan()
+                || ynew.iter().any(|v| !v.is_finite())
+                || stats.accepted + stats.rejected > MAX_STEPS
+            {
+                // No step can meet the tolerance any more (NaN, or steps of 16 eps(t)
+                // that would take ~1e14 iterations): stop with a NaN state instead of
+                // hanging (issue 17).
+                return Rejection::GiveUp;
+            }
+            // MATLAB warns and stops; we accept to avoid an infinite loop.
+            self.forced = true;
+            return Rejection::AcceptAnyway;
+        }
+        if self.nofailed {
+            self.nofailed = false;
+            let r = if err.is_nan() {
+                0.1
+            } else {
+                0.1f64.max(0.8 * (self.rtol / err).powf(self.pow))
+            };
+            self.absh = self.hmin.max(self.absh * r);
+        } else {
+            self.absh = self.hmin.max(0.5 * self.absh);
+        }
+        self.retry = true;
+        Rejection::Retry
+    }
+
+    fn output(
+        &mut self,
+        tab: &Tableau,
+        t: f64,
+        tnew: f64,
+        h: f64,
+        y: &[f64],
+        ynew: &[f64],
+        k: &Stages,
+        _f1: &[f64],
+    ) {
+        let op = &mut self.outputs;
+        let Some(o) = op.out.as_deref_mut() else {
+            return;
+        };
+        let bi = tab.interpolant.as_ref().expect("DP5(4) has ntrp45");
+        while op.next < op.times.len() && op.times[op.next] <= tnew {
+            let to = op.times[op.next];
+            if to == tnew {
+                o.push(to);
+                o.extend_from_slice(ynew);
+            } else {
+                let s = (to - t) / h;
+                let pw = [s, s * s, s * s * s, s * s * s * s];
+                o.push(to);
+                o.extend((0..y.len()).map(|i| {
+                    let mut acc = 0.0;
+                    for j in 0..tab.stages {
+                        let c = bi[j][0] * pw[0]
+                            + bi[j][1] * pw[1]
+                            + bi[j][2] * pw[2]
+                            + bi[j][3] * pw[3];
+                        acc += k[j][i] * c;
+                    }
+                    y[i] + h * acc
+                }));
+            }
+            op.next += 1;
+        }
+    }
+
+    fn accepted(&mut self, err: f64, _last: bool, _stats: &mut Stats) {
+        if self.nofailed && !self.forced {
+            let temp = 1.25 * (err / self.rtol).powf(self.pow);
+            if temp > 0.2 {
+                self.absh /= temp;
+            } else {
+                self.absh *= 5.0;
+            }
+        }
+    }
 }
 
 #[cfg(test)]

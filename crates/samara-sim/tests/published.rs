@@ -1,17 +1,16 @@
 //! The published training data are the independent reference here: they were produced
 //! by the authors' MATLAB code (ode45), not by samara.
 
+#[path = "../../samara-cli/tests/support/reference.rs"]
+mod support;
+
 use samara_plant::{Model, Plant};
 use samara_sim::{
     fly, initial_state, published_starts, training_rows, Integrator, LoopSettings, PidController,
 };
 
 fn reference() -> Vec<[f64; 7]> {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/reference/Training_Data.csv"
-    );
-    let text = std::fs::read_to_string(path).expect("shared/reference/Training_Data.csv");
+    let text = std::fs::read_to_string(support::reference("Training_Data.csv")).unwrap();
     text.lines()
         .filter(|l| !l.trim().is_empty())
         .map(|l| {
@@ -73,8 +72,8 @@ fn dp5_tight_mode_reproduces_published_data_to_1e_7() {
 }
 
 #[test]
-fn tight_mode_reproduces_published_data_to_1e_7() {
-    let d = max_dev(Integrator::Tight(Default::default()));
-    eprintln!("tight max abs deviation {d:e}");
+fn dop853_mode_reproduces_published_data_to_1e_7() {
+    let d = max_dev(Integrator::Dop853(Default::default()));
+    eprintln!("dop853 (tight) max abs deviation {d:e}");
     assert!(d <= 1e-7, "max deviation {d:e}");
 }

@@ -26,7 +26,7 @@ fn flights_match_scipy_on_the_python_model() {
             _ => Box::new(ConstantController(f["controller"].as_f64().unwrap())),
         };
         let settings = LoopSettings {
-            integrator: Integrator::Tight(Default::default()),
+            integrator: Integrator::Dop853(Default::default()),
             output_step: None,
             ..Default::default()
         };

@@ -5,6 +5,7 @@
 //! - [`lower`]: checking (names, dimensions, linearity, bound parameters) and lowering to
 //!   the linear normal form ([`normal`]) that solvers take;
 //! - [`vnnlib`]: VNN-LIB 1.0 export and import.
+#![warn(missing_docs)]
 
 pub mod lower;
 pub mod normal;

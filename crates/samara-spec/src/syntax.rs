@@ -2,7 +2,8 @@
 
 use std::fmt;
 
-/// A position in the source (1-based line and column).
+/// A position in the source (1-based line and column; line 0 means "no position in the
+/// source", e.g. for a file that cannot be read, and is not printed).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub struct Pos {
     /// Line.
@@ -28,14 +29,33 @@ pub struct SpecError {
 
 impl fmt::Display for SpecError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        writeln!(
-            f,
-            "{}:{}:{}: {}",
-            self.file, self.pos.line, self.pos.col, self.message
-        )?;
+        if self.pos.line == 0 {
+            writeln!(f, "{}: {}", self.file, self.message)?;
+        } else {
+            writeln!(
+                f,
+                "{}:{}:{}: {}",
+                self.file, self.pos.line, self.pos.col, self.message
+            )?;
+        }
         if !self.source_line.is_empty() {
-            writeln!(f, "  | {}", self.source_line)?;
-            writeln!(f, "  | {}^", " ".repeat(self.pos.col.saturating_sub(1)))?;
+            // At most WIDTH characters of the line, around the column.
+            const WIDTH: usize = 120;
+            let chars: Vec<char> = self.source_line.chars().collect();
+            let col = self.pos.col.saturating_sub(1).min(chars.len());
+            let start = col.saturating_sub(WIDTH / 2);
+            let end = (start + WIDTH).min(chars.len());
+            let mut shown: String = chars[start..end].iter().collect();
+            let mut caret = col - start;
+            if start > 0 {
+                shown.insert_str(0, "...");
+                caret += 3;
+            }
+            if end < chars.len() {
+                shown.push_str("...");
+            }
+            writeln!(f, "  | {shown}")?;
+            writeln!(f, "  | {}^", " ".repeat(caret))?;
         }
         if !self.hint.is_empty() {
             write!(f, "  = help: {}", self.hint)?;
@@ -76,6 +96,24 @@ const SYMS: &[&str] = &[
     "=>", "<=", ">=", "==", "->", "<", ">", "=", "+", "-", "*", "/", "(", ")", "[", "]", ",", ":",
     "|", ".",
 ];
+
+/// Source bytes as text, or an error naming the line and column of the first byte that
+/// is not UTF-8.
+pub fn decode<'a>(bytes: &'a [u8], file: &str) -> Result<&'a str, SpecError> {
+    std::str::from_utf8(bytes).map_err(|e| {
+        let ok = &bytes[..e.valid_up_to()];
+        let line = ok.iter().filter(|b| **b == b'\n').count() + 1;
+        let start = ok.iter().rposition(|b| *b == b'\n').map_or(0, |i| i + 1);
+        let col = std::str::from_utf8(&ok[start..]).map_or(1, |s| s.chars().count() + 1);
+        SpecError {
+            file: file.into(),
+            pos: Pos { line, col },
+            message: "the file is not UTF-8 text".into(),
+            hint: "save the file as UTF-8".into(),
+            source_line: String::new(),
+        }
+    })
+}
 
 /// Split source text into tokens.
 pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
@@ -124,13 +162,25 @@ pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
                     }
                 }
                 let text: String = chars[start..i].iter().collect();
-                let v: f64 = text.parse().map_err(|_| SpecError {
-                    file: file.into(),
-                    pos,
-                    message: format!("`{text}` is not a number"),
-                    hint: "write numbers like 0.187, -41.68 or 1e-3".into(),
-                    source_line: line.to_string(),
-                })?;
+                let parsed = text.parse::<f64>();
+                let v: f64 = parsed
+                    .clone()
+                    .ok()
+                    .filter(|v: &f64| v.is_finite())
+                    .ok_or_else(|| SpecError {
+                        file: file.into(),
+                        pos,
+                        message: if parsed.is_ok() {
+                            format!("`{text}` is not a finite number (it overflows)")
+                        } else {
+                            format!("`{text}` is not a number")
+                        },
+                        hint: format!(
+                            "write numbers like 0.187, -41.68 or 1e-3, of magnitude below {:e}",
+                            f64::MAX
+                        ),
+                        source_line: line.to_string(),
+                    })?;
                 out.push(Token {
                     tok: Tok::Num(v),
                     pos,
@@ -219,14 +269,12 @@ pub enum Expr {
     Name(Option<String>, String, Pos),
     /// `net(point)` or `net(point).output`.
     Call(String, String, Option<String>, Pos),
-    /// Sum.
-    Add(Box<Expr>, Box<Expr>),
-    /// Difference.
-    Sub(Box<Expr>, Box<Expr>),
-    /// Product.
-    Mul(Box<Expr>, Box<Expr>, Pos),
-    /// Quotient.
-    Div(Box<Expr>, Box<Expr>, Pos),
+    /// A sum `e0 ± e1 ± ...` kept flat (a long sum is a list, not a deep tree, so no
+    /// pass recurses once per term): `(subtract, term)`, the first flag is `false`.
+    Sum(Vec<(bool, Expr)>),
+    /// A product or quotient chain `e0 (*|/) e1 ...`, flat like [`Expr::Sum`]: the first
+    /// factor, then `(divide, factor, position of the operator)`.
+    Prod(Box<Expr>, Vec<(bool, Expr, Pos)>),
     /// Negation.
     Neg(Box<Expr>),
     /// `|e|`.
@@ -389,12 +437,19 @@ pub enum Stmt {
     },
 }
 
+/// The deepest nesting the parser accepts (parentheses, `|...|`, `not`, unary `-`,
+/// `=>` chains): deeper input is refused with a message rather than risking the stack
+/// (every later pass recurses at most this deep).
+pub const MAX_DEPTH: usize = 256;
+
 /// Parser state.
 pub struct Parser<'a> {
     toks: Vec<Token>,
     i: usize,
     file: &'a str,
     lines: Vec<&'a str>,
+    depth: usize,
+    too_deep: bool,
 }
 
 /// Parse a whole spec.
@@ -405,6 +460,8 @@ pub fn parse(src: &str, file: &str) -> Result<Vec<Stmt>, SpecError> {
         i: 0,
         file,
         lines: src.lines().collect(),
+        depth: 0,
+        too_deep: false,
     };
     let mut out = Vec::new();
     loop {
@@ -460,6 +517,24 @@ impl Parser<'_> {
                 .unwrap_or("")
                 .to_string(),
         }
+    }
+
+    /// Run `f` one nesting level deeper, refusing to go beyond [`MAX_DEPTH`].
+    fn nested<T>(
+        &mut self,
+        f: impl FnOnce(&mut Self) -> Result<T, SpecError>,
+    ) -> Result<T, SpecError> {
+        if self.depth >= MAX_DEPTH {
+            self.too_deep = true;
+            return Err(self.err(
+                &format!("nesting deeper than {MAX_DEPTH} levels"),
+                "split the formula or expression into simpler parts (at most 256 nested parentheses, |...|, not, - or =>)",
+            ));
+        }
+        self.depth += 1;
+        let r = f(self);
+        self.depth -= 1;
+        r
     }
 
     fn sym(&mut self, s: &str) -> bool {
@@ -751,12 +826,14 @@ impl Parser<'_> {
 
     /// formula := or ('=>' formula)?
     pub fn formula(&mut self) -> Result<Formula, SpecError> {
-        let lhs = self.or()?;
-        if self.sym("=>") {
-            let rhs = self.formula()?;
-            return Ok(Formula::Implies(Box::new(lhs), Box::new(rhs)));
-        }
-        Ok(lhs)
+        self.nested(|p| {
+            let lhs = p.or()?;
+            if p.sym("=>") {
+                let rhs = p.formula()?;
+                return Ok(Formula::Implies(Box::new(lhs), Box::new(rhs)));
+            }
+            Ok(lhs)
+        })
     }
 
     fn or(&mut self) -> Result<Formula, SpecError> {
@@ -785,21 +862,26 @@ impl Parser<'_> {
 
     fn unary(&mut self) -> Result<Formula, SpecError> {
         if self.kw("not") {
-            return Ok(Formula::Not(Box::new(self.unary()?)));
+            return self.nested(|p| Ok(Formula::Not(Box::new(p.unary()?))));
         }
         // A parenthesised formula, or an expression starting with '('.
         if matches!(self.peek(), Tok::Sym("(")) {
             let save = self.i;
             self.i += 1;
-            if let Ok(f) = self.formula() {
-                if self.sym(")")
-                    && !matches!(
-                        self.peek(),
-                        Tok::Sym("<=" | ">=" | "<" | ">" | "==" | "+" | "-" | "*" | "/")
-                    )
-                {
-                    return Ok(f);
+            match self.formula() {
+                Ok(f) => {
+                    if self.sym(")")
+                        && !matches!(
+                            self.peek(),
+                            Tok::Sym("<=" | ">=" | "<" | ">" | "==" | "+" | "-" | "*" | "/")
+                        )
+                    {
+                        return Ok(f);
+                    }
                 }
+                // Too deep is too deep either way: do not retry as an expression.
+                Err(e) if self.too_deep => return Err(e),
+                Err(_) => {}
             }
             self.i = save;
         }
@@ -830,28 +912,35 @@ impl Parser<'_> {
 
     /// expr := term (('+'|'-') term)*
     pub fn expr(&mut self) -> Result<Expr, SpecError> {
-        let mut e = self.term()?;
-        loop {
-            if self.sym("+") {
-                e = Expr::Add(Box::new(e), Box::new(self.term()?));
-            } else if self.sym("-") {
-                e = Expr::Sub(Box::new(e), Box::new(self.term()?));
-            } else {
-                return Ok(e);
+        self.nested(|p| {
+            let mut terms = vec![(false, p.term()?)];
+            loop {
+                if p.sym("+") {
+                    terms.push((false, p.term()?));
+                } else if p.sym("-") {
+                    terms.push((true, p.term()?));
+                } else if terms.len() == 1 {
+                    return Ok(terms.pop().expect("one").1);
+                } else {
+                    return Ok(Expr::Sum(terms));
+                }
             }
-        }
+        })
     }
 
     fn term(&mut self) -> Result<Expr, SpecError> {
-        let mut e = self.factor()?;
+        let first = self.factor()?;
+        let mut rest = Vec::new();
         loop {
             let pos = self.pos();
             if self.sym("*") {
-                e = Expr::Mul(Box::new(e), Box::new(self.factor()?), pos);
+                rest.push((false, self.factor()?, pos));
             } else if self.sym("/") {
-                e = Expr::Div(Box::new(e), Box::new(self.factor()?), pos);
+                rest.push((true, self.factor()?, pos));
+            } else if rest.is_empty() {
+                return Ok(first);
             } else {
-                return Ok(e);
+                return Ok(Expr::Prod(Box::new(first), rest));
             }
         }
     }
@@ -859,7 +948,7 @@ impl Parser<'_> {
     fn factor(&mut self) -> Result<Expr, SpecError> {
         let pos = self.pos();
         if self.sym("-") {
-            return Ok(Expr::Neg(Box::new(self.factor()?)));
+            return self.nested(|p| Ok(Expr::Neg(Box::new(p.factor()?))));
         }
         if self.sym("(") {
             let e = self.expr()?;

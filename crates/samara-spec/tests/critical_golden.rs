@@ -9,7 +9,7 @@
 use rand::{Rng, SeedableRng};
 use samara_spec::normal::{Cmp, Var};
 use samara_spec::{Bindings, Spec};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 const C: [f64; 6] = [
     0.967568147,
@@ -33,11 +33,9 @@ fn spec() -> Spec {
         .unwrap()
 }
 
-fn reference(file: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference")
-        .join(file)
-}
+#[path = "../../samara-cli/tests/support/reference.rs"]
+mod support;
+use support::reference;
 
 /// Counterexample to P_k with ystar = t, from the paper's statements (raw units).
 fn counterexample(k: usize, s: &[f64], ex: f64, t: f64) -> bool {

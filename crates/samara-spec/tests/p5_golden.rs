@@ -8,13 +8,11 @@
 use rand::{Rng, SeedableRng};
 use samara_spec::normal::{Cmp, Query, Var};
 use samara_spec::{vnnlib, Bindings, Spec};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-fn reference(file: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference")
-        .join(file)
-}
+#[path = "../../samara-cli/tests/support/reference.rs"]
+mod support;
+use support::reference;
 
 fn spec() -> Spec {
     Spec::read(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../models/alsomitra/alsomitra.spec"))

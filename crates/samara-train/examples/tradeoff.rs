@@ -2,7 +2,8 @@
 //! `cargo run --release -p samara-train --example tradeoff -- DATA.csv [EPOCHS] [EPS]`.
 
 use samara_train::{
-    case_study, read_table, train, Attack, Logic, Method, MinMax, TrainOptions, Units,
+    case_study_spec, read_table, spec_properties, train, Attack, Logic, Method, MinMax,
+    TrainOptions,
 };
 use std::time::Instant;
 
@@ -16,15 +17,19 @@ fn main() {
     let eps: f64 = args.get(3).and_then(|s| s.parse().ok()).unwrap_or(0.005);
     let data = read_table(std::path::Path::new(path)).expect("data");
     let mm = MinMax::of(&data);
-    let units = Units {
-        c: mm.min[..6].to_vec(),
-        s: mm.range[..6].to_vec(),
-        c_out: mm.min[6],
-        s_out: mm.range[6],
-    };
-    let lo: Vec<f64> = mm.min[..6].to_vec();
-    let hi: Vec<f64> = (0..6).map(|j| mm.min[j] + mm.range[j]).collect();
-    let props = case_study(&units, &lo, &hi, 2.0);
+    // P1-P4 of models/alsomitra/alsomitra.spec over the data's box.
+    let domain = (0..6)
+        .map(|j| (mm.min[j], mm.min[j] + mm.range[j]))
+        .collect();
+    let names = ["p1", "p2", "p3", "p4"].map(String::from);
+    let props = spec_properties(
+        &case_study_spec(),
+        &names,
+        &Default::default(),
+        &mm,
+        Some(domain),
+    )
+    .expect("P1-P4 train");
     let methods = vec![
         Method::Plain,
         Method::Adversarial(Attack::Fgsm),

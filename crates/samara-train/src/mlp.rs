@@ -3,6 +3,7 @@
 
 use rand::Rng;
 use samara_nn::{Activation, Affine, Layer};
+use samara_num::Scalar;
 
 /// A dense MLP: `sizes[0]` inputs, hidden layers with ReLU, output with ReLU when
 /// `relu_output` (the published setting) or linear.
@@ -91,6 +92,33 @@ impl Mlp {
             }
         }
         &c.acts[self.depth()]
+    }
+
+    /// Forward pass over any [`Scalar`] with the parameters given separately (same layout
+    /// as [`Mlp::params`]), so derivatives with respect to them can be seeded (e.g. with
+    /// [`samara_num::Dual`]); on `f64` it computes what [`Mlp::forward`] computes, in the
+    /// same order.
+    pub fn forward_with<S: Scalar>(&self, params: &[S], x: &[S]) -> Vec<S> {
+        let mut a: Vec<S> = x.to_vec();
+        for l in 0..self.depth() {
+            let (i, o) = (self.sizes[l], self.sizes[l + 1]);
+            let off = self.offsets[l];
+            let relu = self.relu_at(l);
+            a = (0..o)
+                .map(|r| {
+                    let mut z = params[off + i * o + r].clone();
+                    for j in 0..i {
+                        z += params[off + r * i + j].clone() * a[j].clone();
+                    }
+                    if relu {
+                        z.relu()
+                    } else {
+                        z
+                    }
+                })
+                .collect();
+        }
+        a
     }
 
     /// Back-propagate `dout` (gradient of a scalar loss w.r.t. the output) through the
@@ -261,6 +289,10 @@ mod tests {
         for _ in 0..50 {
             let x: Vec<f64> = (0..6).map(|_| rng.gen_range(0.0..1.0)).collect();
             assert_eq!(net.forward(&x, &mut c)[0], ir.eval_f64(&x)[0]);
+            assert_eq!(
+                net.forward(&x, &mut c),
+                &net.forward_with(&net.params, &x)[..]
+            );
         }
     }
 }

@@ -9,7 +9,8 @@
 //! - Goedel: atom truth `1 - min(1, max(0, a - b))`, and = min, or = max; loss =
 //!   1 - truth.
 //!
-//! [`case_study`] builds P1..P4 of the SAIV 2025 case study from raw-unit thresholds.
+//! The case study's P1..P4 come from its specification ([`case_study_spec`]) through
+//! [`spec_properties`].
 
 use crate::region::Region;
 
@@ -132,110 +133,78 @@ pub struct Property {
     pub formula: Formula,
 }
 
-/// The affine maps between raw and normalised units: `z = (x - c) / s` per input and
-/// `ex = c_out + s_out * out`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Units {
-    /// Input minimum.
-    pub c: Vec<f64>,
-    /// Input range.
-    pub s: Vec<f64>,
-    /// Output offset.
-    pub c_out: f64,
-    /// Output scale.
-    pub s_out: f64,
+/// The case-study specification, `models/alsomitra/alsomitra.spec`, compiled in: the one
+/// statement of P1-P5 that training, verification and the reproduction all lower.
+pub const CASE_STUDY_SPEC: &str = include_str!("../../../models/alsomitra/alsomitra.spec");
+
+/// [`CASE_STUDY_SPEC`] parsed and checked (its data paths resolve against the source
+/// tree's `models/alsomitra`).
+pub fn case_study_spec() -> samara_spec::Spec {
+    let dir = std::path::Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../models/alsomitra"
+    ));
+    samara_spec::Spec::parse(CASE_STUDY_SPEC, "models/alsomitra/alsomitra.spec", dir)
+        .expect("the compiled-in case-study spec parses")
 }
 
-impl Units {
-    /// Atom `raw_ex <= t` as an atom on the normalised output.
-    pub fn ex_le(&self, t: f64) -> Formula {
-        Formula::Atom {
-            coef: self.s_out,
-            constant: self.c_out - t,
+/// The spec with its first network given other units and another raw-unit domain: the
+/// properties stay as stated, the network they are lowered for changes. `in_norm` is
+/// `(min, range)` per input (`raw = min + range z`), `None` for a network that takes raw
+/// inputs; `out_norm` likewise per output (`raw = offset + scale out`).
+pub fn with_units(
+    spec: &samara_spec::Spec,
+    in_norm: Option<(Vec<f64>, Vec<f64>)>,
+    out_norm: Option<(Vec<f64>, Vec<f64>)>,
+    domain: Option<Vec<(f64, f64)>>,
+) -> samara_spec::Spec {
+    let mut s = spec.clone();
+    if let Some(n) = s.networks.first_mut() {
+        n.in_norm = in_norm;
+        n.out_norm = out_norm;
+        if let Some(d) = domain {
+            n.domain = d;
         }
     }
-
-    /// Atom `raw_ex >= t` as an atom on the normalised output.
-    pub fn ex_ge(&self, t: f64) -> Formula {
-        Formula::Atom {
-            coef: -self.s_out,
-            constant: t - self.c_out,
-        }
-    }
-
-    /// The raw band `lo <= a.x <= hi` in normalised inputs: `a.(c + s z) = (a s).z + a.c`.
-    pub fn band(&self, a: &[f64], lo: f64, hi: f64) -> (Vec<f64>, f64, f64) {
-        let ac: f64 = a.iter().zip(&self.c).map(|(x, y)| x * y).sum();
-        (
-            a.iter().zip(&self.s).map(|(x, y)| x * y).collect(),
-            lo - ac,
-            hi - ac,
-        )
-    }
-
-    /// A raw box in normalised units.
-    pub fn boxed(&self, lo: &[f64], hi: &[f64]) -> (Vec<f64>, Vec<f64>) {
-        let z = |v: &[f64]| {
-            v.iter()
-                .enumerate()
-                .map(|(k, x)| (x - self.c[k]) / self.s[k])
-                .collect::<Vec<_>>()
-        };
-        (z(lo), z(hi))
-    }
+    s
 }
 
-/// P1..P4 of the case study over the raw input box `[lo, hi]` (inputs v_xp, v_yp,
-/// omega, theta, x, y), with threshold `ystar`:
-/// - P1: y >= -x + ystar => ex >= 0.187
-/// - P2: y <= -x - ystar => ex <= 0.187
-/// - P3: -x - ystar <= y <= -x + ystar and -0.786 <= theta <= -0.747 => 0.184 <= ex <= 0.19
-/// - P4: -x <= y <= -x + ystar and omega <= -0.12 and v_yp <= -0.3 => ex <= 0.187
-pub fn case_study(u: &Units, lo: &[f64], hi: &[f64], ystar: f64) -> Vec<Property> {
-    let xy = [0.0, 0.0, 0.0, 0.0, 1.0, 1.0];
-    let mk = |name: &str, blo: Vec<f64>, bhi: Vec<f64>, band: (f64, f64), formula: Formula| {
-        let (zl, zh) = u.boxed(&blo, &bhi);
-        Property {
-            name: name.into(),
-            region: Region {
-                lo: zl,
-                hi: zh,
-                band: Some(u.band(&xy, band.0, band.1)),
-            },
-            formula,
+/// Why a spec's properties cannot drive training.
+#[derive(Debug, thiserror::Error)]
+pub enum SpecPropertyError {
+    /// The spec does not lower (unknown property, unbound parameter, ...).
+    #[error("{0}")]
+    Spec(#[from] samara_spec::SpecError),
+    /// A lowered property is outside what the trainer handles.
+    #[error(transparent)]
+    Train(#[from] FromQueryError),
+}
+
+/// The spec's properties `names` for training a network in the min-max units `mm`
+/// (inputs then the one output) over the raw box `domain` (`None`: the spec's own
+/// domain): lowered by `samara_spec` directly in the trainer's units, then
+/// [`from_query`].
+pub fn spec_properties(
+    spec: &samara_spec::Spec,
+    names: &[String],
+    b: &samara_spec::Bindings,
+    mm: &crate::data::MinMax,
+    domain: Option<Vec<(f64, f64)>>,
+) -> Result<Vec<Property>, SpecPropertyError> {
+    let n = spec.networks.first().map(|d| d.inputs.len()).unwrap_or(0);
+    let spec = with_units(
+        spec,
+        Some((mm.min[..n].to_vec(), mm.range[..n].to_vec())),
+        Some((mm.min[n..].to_vec(), mm.range[n..].to_vec())),
+        domain,
+    );
+    let mut props = Vec::new();
+    for name in names {
+        for i in spec.lower_prove(name, b)? {
+            props.extend(from_query(&i.query)?);
         }
-    };
-    let mut p3lo = lo.to_vec();
-    let mut p3hi = hi.to_vec();
-    p3lo[3] = p3lo[3].max(-0.786);
-    p3hi[3] = p3hi[3].min(-0.747);
-    let mut p4hi = hi.to_vec();
-    p4hi[2] = p4hi[2].min(-0.12);
-    p4hi[1] = p4hi[1].min(-0.3);
-    vec![
-        mk(
-            "p1",
-            lo.to_vec(),
-            hi.to_vec(),
-            (ystar, f64::INFINITY),
-            u.ex_ge(0.187),
-        ),
-        mk(
-            "p2",
-            lo.to_vec(),
-            hi.to_vec(),
-            (f64::NEG_INFINITY, -ystar),
-            u.ex_le(0.187),
-        ),
-        mk(
-            "p3",
-            p3lo,
-            p3hi,
-            (-ystar, ystar),
-            Formula::And(vec![u.ex_ge(0.184), u.ex_le(0.19)]),
-        ),
-        mk("p4", lo.to_vec(), p4hi, (0.0, ystar), u.ex_le(0.187)),
-    ]
+    }
+    Ok(props)
 }
 
 #[cfg(test)]
@@ -271,19 +240,6 @@ mod tests {
             }
         }
     }
-
-    #[test]
-    fn raw_atoms_map_to_normalised_units() {
-        let u = Units {
-            c: vec![0.0; 6],
-            s: vec![1.0; 6],
-            c_out: 0.181,
-            s_out: 0.012,
-        };
-        // out = 0.5 -> ex = 0.187 (up to rounding): the boundary of both atoms.
-        assert!(u.ex_ge(0.187).holds(0.5 + 1e-12) && u.ex_le(0.187).holds(0.5 - 1e-12));
-        assert!(!u.ex_ge(0.187).holds(0.49) && !u.ex_le(0.187).holds(0.51));
-    }
 }
 
 /// Why a normal-form query cannot drive property-driven training.
@@ -293,7 +249,8 @@ pub struct FromQueryError(pub String, pub String);
 
 /// Properties for DL2/Goedel training from a lowered `Prove` query of the property
 /// language (network units). Each disjunct of the counterexample region becomes one
-/// property: its input constraints are the precondition (single-input bounds plus at
+/// property (disjuncts with the same precondition become one, named after the query
+/// when it is the only one): its input constraints are the precondition (single-input bounds plus at
 /// most one general linear constraint, or two with opposite normals forming a band),
 /// its output atoms `a_i(out) <= 0` (or `< 0`) are what a counterexample satisfies, so
 /// the property asks for `or_i a_i(out) > 0`, written as the atoms `-a_i <= 0`.
@@ -365,9 +322,19 @@ pub fn from_query(q: &samara_spec::normal::Query) -> Result<Vec<Property>, FromQ
                 }
             }
         }
+        // Bands are written with their first non-zero coefficient positive, so one
+        // precondition has one representation whichever way the spec states it.
+        let positive = |a: &[f64]| a.iter().find(|x| **x != 0.0).is_some_and(|x| *x > 0.0);
         let band = match general.len() {
             0 => None,
-            1 => Some((general[0].0.clone(), f64::NEG_INFINITY, general[0].1)),
+            1 => {
+                let (a, b) = &general[0];
+                if positive(a) {
+                    Some((a.clone(), f64::NEG_INFINITY, *b))
+                } else {
+                    Some((a.iter().map(|x| -x).collect(), -b, f64::INFINITY))
+                }
+            }
             2 => {
                 let (a1, b1) = &general[0];
                 let (a2, b2) = &general[1];
@@ -376,7 +343,11 @@ pub fn from_query(q: &samara_spec::normal::Query) -> Result<Vec<Property>, FromQ
                     .zip(a2)
                     .all(|(x, y)| (x + y).abs() <= 1e-12 * (x.abs() + 1.0))
                 {
-                    Some((a1.clone(), -b2, *b1))
+                    if positive(a1) {
+                        Some((a1.clone(), -b2, *b1))
+                    } else {
+                        Some((a2.clone(), -b1, *b2))
+                    }
                 } else {
                     return Err(err("more than one general input constraint"));
                 }
@@ -386,15 +357,28 @@ pub fn from_query(q: &samara_spec::normal::Query) -> Result<Vec<Property>, FromQ
         if atoms.is_empty() {
             return Err(err("a disjunct without output constraints (the precondition alone is a counterexample)"));
         }
-        out.push(Property {
-            name: format!("{}#{d}", q.name),
-            region: Region { lo, hi, band },
-            formula: if atoms.len() == 1 {
-                atoms.pop().expect("one")
-            } else {
-                Formula::Or(atoms)
+        let formula = if atoms.len() == 1 {
+            atoms.pop().expect("one")
+        } else {
+            Formula::Or(atoms)
+        };
+        let region = Region { lo, hi, band };
+        // Disjuncts over the same precondition (e.g. `ex < a or ex > b`) are one
+        // property whose formula is the conjunction of their negations.
+        match out.iter_mut().find(|p: &&mut Property| p.region == region) {
+            Some(p) => match &mut p.formula {
+                Formula::And(v) => v.push(formula),
+                f => *f = Formula::And(vec![f.clone(), formula]),
             },
-        });
+            None => out.push(Property {
+                name: format!("{}#{d}", q.name),
+                region,
+                formula,
+            }),
+        }
+    }
+    if out.len() == 1 {
+        out[0].name = q.name.clone();
     }
     Ok(out)
 }

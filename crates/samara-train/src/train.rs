@@ -95,6 +95,12 @@ pub struct TrainOptions {
     pub method: Method,
     /// Show a progress bar on stderr.
     pub progress: bool,
+    /// Restarts allowed after a degenerate network (see [`train`]).
+    pub max_restarts: usize,
+    /// Least R^2 on the training rows (pooled over the outputs) a finished network must
+    /// reach; below it the attempt counts as degenerate. A network with R^2 <= 0 is
+    /// refused whatever this is. In [0, 1); 0 by default.
+    pub min_r2: f64,
 }
 
 impl Default for TrainOptions {
@@ -111,6 +117,120 @@ impl Default for TrainOptions {
             attack_steps: 10,
             method: Method::Plain,
             progress: false,
+            max_restarts: DEFAULT_MAX_RESTARTS,
+            min_r2: 0.0,
+        }
+    }
+}
+
+/// Restarts allowed after a degenerate network unless set otherwise: with the published
+/// setting about one initialisation in five is dead, so eleven dead ones in a row are
+/// all but impossible unless the settings or data are at fault.
+pub const DEFAULT_MAX_RESTARTS: usize = 10;
+/// Largest `max_restarts` accepted.
+pub const MAX_RESTARTS_CAP: usize = 100;
+/// Largest number of epochs accepted (100 times the published 1000).
+pub const MAX_EPOCHS: usize = 100_000;
+/// Largest layer width accepted.
+pub const MAX_WIDTH: usize = 1024;
+/// Most affine layers accepted.
+pub const MAX_LAYERS: usize = 16;
+/// Largest Adam learning rate accepted (inputs and outputs are normalised to [0, 1]).
+pub const MAX_LR: f64 = 10.0;
+
+/// The seed of attempt `attempt`: attempt 0 uses `seed` itself; restart `k >= 1` uses the
+/// `k`-th output of SplitMix64 (Steele, Lea & Flood 2014) started at `seed`, i.e. the
+/// SplitMix64 finaliser applied to `seed + k * 0x9E3779B97F4A7C15` (wrapping). The
+/// attempt's initialisation, shuffles and training attacks are drawn from it.
+pub fn attempt_seed(seed: u64, attempt: usize) -> u64 {
+    if attempt == 0 {
+        return seed;
+    }
+    let mut z = seed.wrapping_add((attempt as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Fewest data rows that leave at least 2 test rows (R^2 needs two) and 2 training rows
+/// after a split holding out `test_fraction` of the rows (rounded), as [`split`] does.
+pub fn min_rows(test_fraction: f64) -> usize {
+    (2..100_000)
+        .find(|&n| {
+            let t = ((n as f64) * test_fraction).round() as usize;
+            t >= 2 && n >= t + 2
+        })
+        .unwrap_or(usize::MAX)
+}
+
+/// Why a network is degenerate.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Degeneracy {
+    /// Every output ReLU is inactive on every training row: the output is 0 everywhere
+    /// and no gradient reaches any weight, so training cannot recover it.
+    DeadOutput,
+    /// The output is the same on every training row.
+    Constant {
+        /// The output (normalised units).
+        value: f64,
+    },
+    /// R^2 on the training rows after the last epoch is <= 0 (no better than predicting
+    /// the mean) or below [`TrainOptions::min_r2`].
+    LowR2 {
+        /// R^2 on the training rows.
+        r2: f64,
+        /// The required least R^2.
+        min: f64,
+    },
+    /// The loss, the weights or the outputs became NaN or infinite.
+    Diverged,
+}
+
+impl std::fmt::Display for Degeneracy {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Degeneracy::DeadOutput => write!(
+                f,
+                "dead network: every output ReLU is inactive on every training row (constant output 0, no gradient)"
+            ),
+            Degeneracy::Constant { value } => write!(
+                f,
+                "constant network: the same output ({value:.4} normalised) on every training row"
+            ),
+            Degeneracy::LowR2 { r2, min } if *r2 <= 0.0 || *min <= 0.0 => write!(
+                f,
+                "R^2 on the training rows is {r2:.4} <= 0 (no better than predicting the mean)"
+            ),
+            Degeneracy::LowR2 { r2, min } => write!(
+                f,
+                "R^2 on the training rows is {r2:.4}, below the required {min} (--min-r2)"
+            ),
+            Degeneracy::Diverged => {
+                write!(f, "diverged: the loss or the weights became NaN or infinite")
+            }
+        }
+    }
+}
+
+/// One discarded attempt.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Restart {
+    /// Attempt number (0 = the initialisation from the seed itself).
+    pub attempt: usize,
+    /// Its seed ([`attempt_seed`]).
+    pub seed: u64,
+    /// The epoch after which it was judged degenerate (0 = at initialisation).
+    pub epoch: usize,
+    /// Why.
+    pub reason: Degeneracy,
+}
+
+impl Restart {
+    /// "at initialisation" or "after epoch N".
+    pub fn when(&self) -> String {
+        match self.epoch {
+            0 => "at initialisation".into(),
+            e => format!("after epoch {e}"),
         }
     }
 }
@@ -121,6 +241,40 @@ pub enum TrainError {
     /// Settings out of range.
     #[error("invalid training setting: {0}")]
     Settings(String),
+    /// Too few rows to train and test on.
+    #[error("the data have {rows} rows; training needs at least {need} (with {test_percent}% held out for testing that leaves 2 test rows to measure R^2 on); add rows")]
+    TooFewRows {
+        /// Rows of the data.
+        rows: usize,
+        /// Rows needed.
+        need: usize,
+        /// Test share in percent.
+        test_percent: f64,
+    },
+    /// An output column does not vary: there is nothing to learn and R^2 is undefined.
+    #[error("the output column {column} has the same value on all {rows} training rows; there is nothing to learn (R^2 is undefined); check the data")]
+    ConstantOutput {
+        /// Its name.
+        column: String,
+        /// Training rows.
+        rows: usize,
+    },
+    /// Every attempt gave a degenerate network.
+    #[error("{}", degenerate_message(restarts))]
+    Degenerate {
+        /// Every attempt, in order.
+        restarts: Vec<Restart>,
+    },
+    /// A metric of the trained network is NaN or infinite.
+    #[error("the trained network's {metric} on the {n_test} test rows is {value}; the metrics are meaningless (are the test outputs all equal? add rows)")]
+    NonFiniteMetric {
+        /// Which metric.
+        metric: String,
+        /// Its value.
+        value: f64,
+        /// Test rows.
+        n_test: usize,
+    },
     /// Data do not fit the architecture.
     #[error("the data have {cols} columns but the architecture {arch:?} needs {need} ({inputs} inputs + {outputs} outputs)")]
     Shape {
@@ -137,28 +291,110 @@ pub enum TrainError {
     },
 }
 
+fn degenerate_message(r: &[Restart]) -> String {
+    let Some(last) = r.last() else {
+        return "training produced no network".into();
+    };
+    let counts = |f: fn(&Degeneracy) -> bool| r.iter().filter(|x| f(&x.reason)).count();
+    format!(
+        "training gave a degenerate network in every attempt ({}: the seed and {} derived \
+         seeds; dead {}, constant {}, R^2 too low {}, diverged {}); the last, from seed {} {}: {}; \
+         try another --seed, a smaller --lr, more --epochs, a lower --min-r2 or a larger --max-restarts",
+        r.len(),
+        r.len() - 1,
+        counts(|d| matches!(d, Degeneracy::DeadOutput)),
+        counts(|d| matches!(d, Degeneracy::Constant { .. })),
+        counts(|d| matches!(d, Degeneracy::LowR2 { .. })),
+        counts(|d| matches!(d, Degeneracy::Diverged)),
+        last.seed,
+        last.when(),
+        last.reason,
+    )
+}
+
 impl TrainOptions {
     /// Check the settings.
     pub fn validate(&self) -> Result<(), TrainError> {
-        let bad = |m: &str| Err(TrainError::Settings(m.into()));
-        if self.arch.len() < 2 || self.arch.contains(&0) {
-            return bad("--arch needs at least two positive widths, e.g. 6,6,4,1");
+        let bad = |m: String| Err(TrainError::Settings(m));
+        if self.arch.len() < 2 || self.arch.len() > MAX_LAYERS + 1 {
+            return bad(format!(
+                "--arch {:?} has {} widths; give 2 to {} (inputs first, outputs last), e.g. 6,6,4,1",
+                self.arch,
+                self.arch.len(),
+                MAX_LAYERS + 1
+            ));
         }
-        if self.epochs == 0 || self.batch == 0 {
-            return bad("epochs and batch must be positive");
+        if self.arch.iter().any(|&w| w == 0 || w > MAX_WIDTH) {
+            return bad(format!(
+                "--arch {:?}: every width must be between 1 and {MAX_WIDTH}",
+                self.arch
+            ));
         }
-        if !(self.lr > 0.0 && self.lr.is_finite()) {
-            return bad("the learning rate must be positive");
+        if self.epochs == 0 || self.epochs > MAX_EPOCHS {
+            return bad(format!(
+                "--epochs {} is out of range; give 1 to {MAX_EPOCHS}",
+                self.epochs
+            ));
         }
-        if !(0.0..1.0).contains(&self.test_fraction) {
-            return bad("the test fraction must be in [0, 1)");
+        if self.batch == 0 {
+            return bad("--batch 0: the mini-batch size must be at least 1".into());
         }
-        if !(self.eps >= 0.0 && self.eps.is_finite()) {
-            return bad("--eps must be a non-negative number");
+        if !(self.lr > 0.0 && self.lr <= MAX_LR) {
+            return bad(format!(
+                "--lr {}: the learning rate must be a number in (0, {MAX_LR}], e.g. 0.06",
+                self.lr
+            ));
         }
-        if let Method::Lipschitz { l, .. } = self.method {
-            if !(l >= 0.0 && l.is_finite()) {
-                return bad("--lipschitz must be a non-negative number");
+        if !(self.test_fraction > 0.0 && self.test_fraction < 1.0) {
+            return bad(format!(
+                "the test fraction {} must be in (0, 1)",
+                self.test_fraction
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.eps) {
+            return bad(format!(
+                "--eps {}: the attack radius (normalised input units) must be a number in [0, 1], e.g. 0.005",
+                self.eps
+            ));
+        }
+        if !(0.0..1.0).contains(&self.min_r2) {
+            return bad(format!(
+                "--min-r2 {}: the least training R^2 must be a number in [0, 1), e.g. 0.9",
+                self.min_r2
+            ));
+        }
+        if self.max_restarts > MAX_RESTARTS_CAP {
+            return bad(format!(
+                "--max-restarts {}: give 0 to {MAX_RESTARTS_CAP}",
+                self.max_restarts
+            ));
+        }
+        let weight_ok = |w: f64| w >= 0.0 && w.is_finite();
+        match &self.method {
+            Method::Lipschitz { l, weight } => {
+                if !(*l > 0.0 && l.is_finite()) {
+                    return bad(format!(
+                        "--lipschitz {l}: the Lipschitz constant must be a positive number, e.g. 0.5"
+                    ));
+                }
+                if !weight_ok(*weight) {
+                    return bad(format!(
+                        "--weight {weight}: the penalty weight must be a finite number >= 0, e.g. 10"
+                    ));
+                }
+            }
+            Method::Properties { weight, .. } => {
+                if !weight_ok(*weight) {
+                    return bad(format!(
+                        "--weight {weight}: the property weight must be a finite number >= 0, e.g. 1"
+                    ));
+                }
+            }
+            Method::Plain | Method::Adversarial(_) => {}
+        }
+        if let Method::Adversarial(Attack::Pgd { steps }) = self.method {
+            if steps == 0 {
+                return bad("PGD needs at least one step".into());
             }
         }
         Ok(())
@@ -185,6 +421,8 @@ pub struct Metrics {
     pub mae: f64,
     /// Coefficient of determination.
     pub r2: f64,
+    /// Coefficient of determination on the training rows.
+    pub r2_train: f64,
     /// Worst output deviation |f(x') - f(x)| found by PGD within eps (raw output units),
     /// over the test points.
     pub attack_worst: f64,
@@ -201,8 +439,12 @@ pub struct TrainOutcome {
     pub network: Network,
     /// Test metrics.
     pub metrics: Metrics,
-    /// Per-epoch log.
+    /// Per-epoch log of the returned attempt.
     pub log: Vec<LogRow>,
+    /// The discarded degenerate attempts, in order (empty when the first one was fine).
+    pub restarts: Vec<Restart>,
+    /// The seed the returned network was initialised from ([`attempt_seed`]).
+    pub init_seed: u64,
 }
 
 /// Normalised rows: inputs z in [0,1]^n and outputs t.
@@ -274,6 +516,17 @@ fn ball(x: &[f64], eps: f64) -> Region {
 
 /// Train a network on `data` (columns: inputs then outputs, raw units) with min-max
 /// constants `mm` (computed from the data when `None`).
+///
+/// A degenerate network (see [`Degeneracy`]) is never returned silently: training
+/// restarts from a fresh initialisation with the next derived seed ([`attempt_seed`]),
+/// at most [`TrainOptions::max_restarts`] times, and fails with
+/// [`TrainError::Degenerate`] when every attempt was degenerate. A dead or constant
+/// network is caught at initialisation (so a dead start costs nothing) and after every
+/// epoch (when it stays so for [`DEAD_PATIENCE`] epochs, or at the last), a training
+/// R^2 <= 0 or below [`TrainOptions::min_r2`] after the last epoch. The split into training
+/// and test rows, and the attack metrics, always use `seed` itself, so the restarts are
+/// measured on the same test rows; the whole run, restarts included, is a function of
+/// the seed, the options and the data (bit-identical networks).
 pub fn train(
     data: &Table,
     mm: Option<&MinMax>,
@@ -289,6 +542,14 @@ pub fn train(
             need: n_in + n_out,
             inputs: n_in,
             outputs: n_out,
+        });
+    }
+    let need = min_rows(o.test_fraction);
+    if data.rows() < need {
+        return Err(TrainError::TooFewRows {
+            rows: data.rows(),
+            need,
+            test_percent: 100.0 * o.test_fraction,
         });
     }
     let computed;
@@ -310,21 +571,20 @@ pub fn train(
     };
     let nd = normalise(data, mm, n_in);
     let (train_idx, test_idx) = split(data.rows(), o.test_fraction, o.seed);
-    if train_idx.is_empty() {
-        return Err(TrainError::Settings(
-            "no training rows left after the test split".into(),
-        ));
+    for k in 0..n_out {
+        let first = nd.t[train_idx[0]][k];
+        if train_idx.iter().all(|&i| nd.t[i][k] == first) {
+            let j = n_in + k;
+            return Err(TrainError::ConstantOutput {
+                column: data
+                    .names
+                    .get(j)
+                    .cloned()
+                    .unwrap_or_else(|| format!("c{j}")),
+                rows: train_idx.len(),
+            });
+        }
     }
-    let mut rng = ChaCha8Rng::seed_from_u64(o.seed.wrapping_add(0x5a5a));
-    let mut net = Mlp::new(&o.arch, o.relu_output, &mut rng);
-    let mut adam = Adam::new(net.params.len(), o.lr);
-    let mut grad = vec![0.0; net.params.len()];
-    let mut scratch = vec![0.0; net.params.len()];
-    let mut cache = net.cache();
-    let mut cache2 = net.cache();
-    let mut gx = vec![0.0; n_in];
-    let mut order = train_idx.clone();
-    let mut log = Vec::with_capacity(o.epochs);
     let pb = if o.progress {
         let pb = ProgressBar::with_draw_target(Some(o.epochs as u64), ProgressDrawTarget::stderr());
         pb.set_style(
@@ -337,6 +597,117 @@ pub fn train(
     } else {
         ProgressBar::hidden()
     };
+    let ctx = Prepared {
+        nd: &nd,
+        train_idx: &train_idx,
+        test_idx: &test_idx,
+        mm,
+        n_in,
+        n_out,
+        pb: &pb,
+    };
+    let mut restarts = Vec::new();
+    let mut found = None;
+    for attempt in 0..=o.max_restarts {
+        let seed = attempt_seed(o.seed, attempt);
+        if attempt > 0 {
+            pb.set_position(0);
+            pb.set_message(format!("{} (restart {attempt})", o.method.name()));
+        }
+        match run_attempt(o, &ctx, seed) {
+            Ok(r) => {
+                found = Some(r);
+                break;
+            }
+            Err((epoch, reason)) => restarts.push(Restart {
+                attempt,
+                seed,
+                epoch,
+                reason,
+            }),
+        }
+    }
+    pb.finish_and_clear();
+    let Some((net, log)) = found else {
+        return Err(TrainError::Degenerate { restarts });
+    };
+    let (rmse, mae, r2) = metrics_basic(&net, &nd, &test_idx, mm, n_in);
+    let (attack_worst, attack_mean) = robustness(&net, &nd, &test_idx, o, mm.range[n_in]);
+    let r2_train = metrics_basic(&net, &nd, &train_idx, mm, n_in).2;
+    let metrics = Metrics {
+        rmse,
+        mae,
+        r2,
+        r2_train,
+        attack_worst,
+        attack_mean,
+        n_test: test_idx.len(),
+    };
+    for (name, v) in [
+        ("R^2", r2),
+        ("training R^2", r2_train),
+        ("RMSE", rmse),
+        ("MAE", mae),
+        ("worst attack deviation", attack_worst),
+        ("mean attack deviation", attack_mean),
+    ] {
+        if !v.is_finite() {
+            return Err(TrainError::NonFiniteMetric {
+                metric: name.into(),
+                value: v,
+                n_test: test_idx.len(),
+            });
+        }
+    }
+    let network = to_network(&net, mm, n_in, data);
+    Ok(TrainOutcome {
+        network,
+        metrics,
+        log,
+        init_seed: attempt_seed(o.seed, restarts.len()),
+        restarts,
+    })
+}
+
+/// The data prepared for every attempt.
+struct Prepared<'a> {
+    nd: &'a Normalised,
+    train_idx: &'a [usize],
+    test_idx: &'a [usize],
+    mm: &'a MinMax,
+    n_in: usize,
+    n_out: usize,
+    pb: &'a ProgressBar,
+}
+
+/// Epochs a network may stay dead or constant during training before it is judged
+/// degenerate (Adam's momentum could still move it for a few steps; at initialisation,
+/// where the momentum is zero, a dead network is judged at once).
+pub const DEAD_PATIENCE: usize = 3;
+
+/// One training run from the initialisation drawn with `seed`: the network and its log,
+/// or the epoch (0 = at initialisation) and reason it was found degenerate.
+fn run_attempt(
+    o: &TrainOptions,
+    p: &Prepared,
+    seed: u64,
+) -> Result<(Mlp, Vec<LogRow>), (usize, Degeneracy)> {
+    let (nd, mm, n_in, n_out) = (p.nd, p.mm, p.n_in, p.n_out);
+    let test_idx = p.test_idx;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed.wrapping_add(0x5a5a));
+    let mut net = Mlp::new(&o.arch, o.relu_output, &mut rng);
+    if let Some(d) = degeneracy(&net, nd, p.train_idx, None) {
+        return Err((0, d));
+    }
+    let mut adam = Adam::new(net.params.len(), o.lr);
+    let mut grad = vec![0.0; net.params.len()];
+    let mut scratch = vec![0.0; net.params.len()];
+    let mut cache = net.cache();
+    let mut cache2 = net.cache();
+    let mut gx = vec![0.0; n_in];
+    let mut order = p.train_idx.to_vec();
+    let mut log = Vec::with_capacity(o.epochs);
+    let mut dead_for = 0usize;
     for epoch in 1..=o.epochs {
         order.shuffle(&mut rng);
         let mut epoch_loss = 0.0;
@@ -519,30 +890,87 @@ pub fn train(
             }
             adam.step(&mut net.params, &grad);
         }
-        let test_rmse = metrics_basic(&net, &nd, &test_idx, mm, n_in).0;
+        let loss = epoch_loss / seen.max(1) as f64;
+        if !loss.is_finite() || net.params.iter().any(|v| !v.is_finite()) {
+            return Err((epoch, Degeneracy::Diverged));
+        }
+        let last = epoch == o.epochs;
+        match degeneracy(&net, nd, p.train_idx, last.then_some(o.min_r2)) {
+            Some(d) if last => return Err((epoch, d)),
+            Some(d) => {
+                dead_for += 1;
+                if dead_for >= DEAD_PATIENCE {
+                    return Err((epoch, d));
+                }
+            }
+            None => dead_for = 0,
+        }
+        let test_rmse = metrics_basic(&net, nd, test_idx, mm, n_in).0;
         log.push(LogRow {
             epoch,
-            loss: epoch_loss / seen.max(1) as f64,
+            loss,
             test_rmse,
         });
-        pb.inc(1);
+        p.pb.inc(1);
     }
-    pb.finish_and_clear();
-    let (rmse, mae, r2) = metrics_basic(&net, &nd, &test_idx, mm, n_in);
-    let (attack_worst, attack_mean) = robustness(&net, &nd, &test_idx, o, mm.range[n_in]);
-    let network = to_network(&net, mm, n_in, data);
-    Ok(TrainOutcome {
-        network,
-        metrics: Metrics {
-            rmse,
-            mae,
-            r2,
-            attack_worst,
-            attack_mean,
-            n_test: test_idx.len(),
-        },
-        log,
-    })
+    Ok((net, log))
+}
+
+/// Why `net` is degenerate on the rows `idx` of `nd`, if it is: non-finite outputs, every
+/// output ReLU inactive on every row (dead), the same output on every row (constant),
+/// or, with `min_r2`, R^2 on these rows (pooled over the outputs: 1 - SSE / SST) <= 0
+/// (no better than predicting each output's mean) or below `min_r2`.
+fn degeneracy(
+    net: &Mlp,
+    nd: &Normalised,
+    idx: &[usize],
+    min_r2: Option<f64>,
+) -> Option<Degeneracy> {
+    let mut c = net.cache();
+    let depth = net.depth();
+    let n_out = net.sizes[depth];
+    let mut any_active = false;
+    let mut lo = vec![f64::INFINITY; n_out];
+    let mut hi = vec![f64::NEG_INFINITY; n_out];
+    let mut sse = 0.0;
+    for &i in idx {
+        let y = net.forward(&nd.z[i], &mut c).to_vec();
+        if y.iter().any(|v| !v.is_finite()) {
+            return Some(Degeneracy::Diverged);
+        }
+        any_active |= c.pre[depth - 1].iter().any(|&z| z > 0.0);
+        for k in 0..n_out {
+            lo[k] = lo[k].min(y[k]);
+            hi[k] = hi[k].max(y[k]);
+            sse += (y[k] - nd.t[i][k]).powi(2);
+        }
+    }
+    if net.relu_output && !any_active {
+        return Some(Degeneracy::DeadOutput);
+    }
+    if lo
+        .iter()
+        .zip(&hi)
+        .all(|(a, b)| b - a <= 1e-12 * (1.0 + a.abs().max(b.abs())))
+    {
+        return Some(Degeneracy::Constant { value: lo[0] });
+    }
+    if let Some(min) = min_r2 {
+        let n = idx.len() as f64;
+        let mut sst = 0.0;
+        for k in 0..n_out {
+            let mean = idx.iter().map(|&i| nd.t[i][k]).sum::<f64>() / n;
+            sst += idx
+                .iter()
+                .map(|&i| (nd.t[i][k] - mean).powi(2))
+                .sum::<f64>();
+        }
+        let r2 = 1.0 - sse / sst;
+        if sst > 0.0 && (r2 <= 0.0 || r2 < min) {
+            return Some(Degeneracy::LowR2 { r2, min });
+        }
+    }
+    None
 }
 
 /// RMSE, MAE, R^2 of the first output in raw units over `idx`.
@@ -643,5 +1071,242 @@ fn to_network(net: &Mlp, mm: &MinMax, n_in: usize, data: &Table) -> Network {
             &mm.min[n_in..n_in + n_out],
             &mm.range[n_in..n_in + n_out],
         )),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rows `z` (inputs) and `t` (targets) as the trainer holds them.
+    fn rows(z: Vec<Vec<f64>>, t: Vec<Vec<f64>>) -> (Normalised, Vec<usize>) {
+        let idx = (0..z.len()).collect();
+        (Normalised { z, t }, idx)
+    }
+
+    fn random_rows(n: usize, n_in: usize, seed: u64) -> (Normalised, Vec<usize>) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let z: Vec<Vec<f64>> = (0..n)
+            .map(|_| (0..n_in).map(|_| rng.gen_range(0.0..1.0)).collect())
+            .collect();
+        let t = z
+            .iter()
+            .map(|x| vec![x.iter().sum::<f64>() / 6.0])
+            .collect();
+        rows(z, t)
+    }
+
+    #[test]
+    fn attempt_seeds_are_the_seed_then_splitmix64() {
+        // Reference values: SplitMix64 (Vigna's splitmix64.c) run in Python from states
+        // 0 and 1, independently of this code.
+        assert_eq!(attempt_seed(0, 0), 0);
+        assert_eq!(attempt_seed(1, 0), 1);
+        assert_eq!(attempt_seed(0, 1), 0xe220_a839_7b1d_cdaf);
+        assert_eq!(attempt_seed(0, 2), 0x6e78_9e6a_a1b9_65f4);
+        assert_eq!(attempt_seed(0, 3), 0x06c4_5d18_8009_454f);
+        assert_eq!(attempt_seed(1, 1), 0x910a_2dec_8902_5cc1);
+        assert_eq!(attempt_seed(1, 2), 0xbeeb_8da1_658e_ec67);
+    }
+
+    #[test]
+    fn min_rows_leaves_two_test_and_two_training_rows() {
+        // 0.1: 14 rows hold out round(1.4) = 1 test row, 15 hold out round(1.5) = 2.
+        assert_eq!(min_rows(0.1), 15);
+        // 0.5: 3 rows leave 1 training row, 4 leave 2 and 2.
+        assert_eq!(min_rows(0.5), 4);
+    }
+
+    #[test]
+    fn a_network_with_all_output_preactivations_negative_is_dead() {
+        let mut rng = ChaCha8Rng::seed_from_u64(5);
+        let mut net = Mlp::new(&[6, 6, 4, 1], true, &mut rng);
+        let (nd, idx) = random_rows(50, 6, 1);
+        // Healthy as drawn (output bias 0.5 keeps the output unit active).
+        let last = net.params.len() - 1;
+        net.params[last] = 0.5;
+        assert_eq!(degeneracy(&net, &nd, &idx, None), None);
+        // Output bias -100: |W h| is far below 100 on [0, 1]^6, so every output
+        // pre-activation is negative on every row.
+        net.params[last] = -100.0;
+        let mut c = net.cache();
+        for &i in &idx {
+            net.forward(&nd.z[i], &mut c);
+            assert!(c.pre[2][0] < 0.0);
+        }
+        assert_eq!(
+            degeneracy(&net, &nd, &idx, None),
+            Some(Degeneracy::DeadOutput)
+        );
+        assert!(Degeneracy::DeadOutput.to_string().contains("dead network"));
+    }
+
+    #[test]
+    fn a_network_with_a_dead_hidden_layer_is_constant() {
+        // Linear output, so the output unit cannot be dead; the first hidden layer's
+        // biases at -100 kill all its units and the output is the last bias, 0.3.
+        let mut rng = ChaCha8Rng::seed_from_u64(6);
+        let mut net = Mlp::new(&[6, 6, 4, 1], false, &mut rng);
+        for r in 0..6 {
+            net.params[36 + r] = -100.0;
+        }
+        let last = net.params.len() - 1;
+        net.params[last] = 0.3;
+        let (nd, idx) = random_rows(50, 6, 2);
+        assert_eq!(
+            degeneracy(&net, &nd, &idx, None),
+            Some(Degeneracy::Constant { value: 0.3 })
+        );
+    }
+
+    #[test]
+    fn training_r2_at_or_below_zero_or_below_the_floor_is_degenerate() {
+        // 1-1-1 network: y = w2 relu(w1 x + b1) + b2 (linear output). Targets t = x at
+        // x = 0, 0.25, ..., 1 (mean 0.5, SST = 0.625).
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut net = Mlp::new(&[1, 1, 1], false, &mut rng);
+        let xs = [0.0, 0.25, 0.5, 0.75, 1.0];
+        let (nd, idx) = rows(
+            xs.iter().map(|&x| vec![x]).collect(),
+            xs.iter().map(|&x| vec![x]).collect(),
+        );
+        // params: w1, b1, w2, b2.
+        let set = |net: &mut Mlp, p: [f64; 4]| net.params.copy_from_slice(&p);
+        // y = -x: SSE = sum 4x^2 = 7.5, R^2 = 1 - 7.5/0.625 = -11.
+        set(&mut net, [1.0, 0.0, -1.0, 0.0]);
+        match degeneracy(&net, &nd, &idx, Some(0.0)) {
+            Some(Degeneracy::LowR2 { r2, min: 0.0 }) => assert!((r2 + 11.0).abs() < 1e-12),
+            other => panic!("{other:?}"),
+        }
+        // y = 0.9 x + 0.05: residual 0.1 (x - 0.5), R^2 = 1 - 0.01 = 0.99.
+        set(&mut net, [1.0, 0.0, 0.9, 0.05]);
+        assert_eq!(degeneracy(&net, &nd, &idx, Some(0.9)), None);
+        match degeneracy(&net, &nd, &idx, Some(0.995)) {
+            Some(Degeneracy::LowR2 { r2, .. }) => assert!((r2 - 0.99).abs() < 1e-12),
+            other => panic!("{other:?}"),
+        }
+        // Without an R^2 check (during training) the same network passes.
+        assert_eq!(degeneracy(&net, &nd, &idx, None), None);
+        // A NaN weight is divergence.
+        set(&mut net, [f64::NAN, 0.0, 0.9, 0.05]);
+        assert_eq!(
+            degeneracy(&net, &nd, &idx, None),
+            Some(Degeneracy::Diverged)
+        );
+    }
+
+    fn table(rows: &[[f64; 7]]) -> Table {
+        Table {
+            names: (0..7).map(|j| format!("c{j}")).collect(),
+            cols: 7,
+            values: rows.iter().flatten().copied().collect(),
+        }
+    }
+
+    #[test]
+    fn too_few_rows_and_a_constant_output_are_refused() {
+        let row = |i: usize, out: f64| {
+            let v = i as f64;
+            [v, v * 0.5, 1.0, 2.0, v * v, 3.0 - v, out]
+        };
+        let o = TrainOptions {
+            epochs: 2,
+            ..Default::default()
+        };
+        for n in [1, 14] {
+            let d = table(&(0..n).map(|i| row(i, i as f64)).collect::<Vec<_>>());
+            let e = train(&d, None, &o).unwrap_err();
+            assert!(
+                matches!(e, TrainError::TooFewRows { rows, need: 15, .. } if rows == n),
+                "{e}"
+            );
+            assert!(e.to_string().contains("at least 15"), "{e}");
+        }
+        let d = table(&(0..20).map(|i| row(i, 0.185)).collect::<Vec<_>>());
+        let e = train(&d, None, &o).unwrap_err();
+        assert!(
+            matches!(e, TrainError::ConstantOutput { ref column, rows: 18 } if column == "c6"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn out_of_range_settings_name_the_flag() {
+        let cases: Vec<(TrainOptions, &str)> = vec![
+            (
+                TrainOptions {
+                    epochs: MAX_EPOCHS + 1,
+                    ..Default::default()
+                },
+                "--epochs",
+            ),
+            (
+                TrainOptions {
+                    lr: f64::INFINITY,
+                    ..Default::default()
+                },
+                "--lr",
+            ),
+            (
+                TrainOptions {
+                    eps: f64::NAN,
+                    ..Default::default()
+                },
+                "--eps",
+            ),
+            (
+                TrainOptions {
+                    arch: vec![6, MAX_WIDTH + 1, 1],
+                    ..Default::default()
+                },
+                "--arch",
+            ),
+            (
+                TrainOptions {
+                    arch: vec![6; MAX_LAYERS + 2],
+                    ..Default::default()
+                },
+                "--arch",
+            ),
+            (
+                TrainOptions {
+                    method: Method::Lipschitz {
+                        l: 0.5,
+                        weight: f64::NAN,
+                    },
+                    ..Default::default()
+                },
+                "--weight",
+            ),
+            (
+                TrainOptions {
+                    method: Method::Lipschitz {
+                        l: 0.0,
+                        weight: 1.0,
+                    },
+                    ..Default::default()
+                },
+                "--lipschitz",
+            ),
+            (
+                TrainOptions {
+                    min_r2: 1.0,
+                    ..Default::default()
+                },
+                "--min-r2",
+            ),
+            (
+                TrainOptions {
+                    max_restarts: MAX_RESTARTS_CAP + 1,
+                    ..Default::default()
+                },
+                "--max-restarts",
+            ),
+        ];
+        for (o, flag) in cases {
+            let e = o.validate().unwrap_err().to_string();
+            assert!(e.contains(flag), "{flag}: {e}");
+        }
+        assert_eq!(TrainOptions::default().validate(), Ok(()));
     }
 }

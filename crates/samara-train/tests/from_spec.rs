@@ -1,79 +1,107 @@
-//! Properties taken from the property language (models/alsomitra/alsomitra.spec) agree
-//! with the trainer's built-in P1-P4 (`case_study`): same preconditions, same verdicts on
-//! the output, at random points, in the trainer's own units.
+//! P1-P4 of models/alsomitra/alsomitra.spec as training properties: lowered in the
+//! trainer's units, each is one property whose region and formula are those of the
+//! published statement (checked against the thresholds written out by hand below, an
+//! independent reading of the paper's P1-P4), and editing the spec moves them.
 
-use rand::{Rng, SeedableRng};
 use samara_spec::{Bindings, Spec};
-use samara_train::{case_study, from_query, read_table, rescale_query, MinMax, Units};
-use std::path::Path;
+use samara_train::{case_study_spec, spec_properties, Formula, MinMax, CASE_STUDY_SPEC};
+
+fn units() -> MinMax {
+    // Arbitrary min-max units (not the spec's) to show the lowering uses the trainer's.
+    MinMax {
+        min: vec![1.0, -0.6, -0.4, -1.0, 0.0, -42.0, 0.18],
+        range: vec![2.5, 0.6, 0.5, 1.0, 42.0, 46.0, 0.01],
+    }
+}
+
+fn props(spec: &Spec) -> Vec<samara_train::Property> {
+    spec_properties(
+        spec,
+        &["p1", "p2", "p3", "p4"].map(String::from),
+        &Bindings::default(),
+        &units(),
+        None,
+    )
+    .unwrap()
+}
+
+/// Raw x + y of a normalised point.
+fn xy(mm: &MinMax, z: &[f64]) -> f64 {
+    mm.min[4] + mm.range[4] * z[4] + mm.min[5] + mm.range[5] * z[5]
+}
 
 #[test]
-fn spec_properties_match_the_built_in_ones() {
-    let data = read_table(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/reference/Training_Data.csv"
-    )))
-    .unwrap();
-    let mm = MinMax::of(&data);
-    let spec = Spec::read(Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../models/alsomitra/alsomitra.spec"
-    )))
-    .unwrap();
-    let decl = &spec.networks[0];
-    let inputs: Vec<(f64, f64)> = (0..6)
-        .map(|k| {
-            let (c, s) = decl.input_map(k);
-            (mm.range[k] / s, (mm.min[k] - c) / s)
-        })
-        .collect();
-    let (oc, os) = decl.output_map(0);
-    let outputs = [(mm.range[6] / os, (mm.min[6] - oc) / os)];
-    let units = Units {
-        c: mm.min[..6].to_vec(),
-        s: mm.range[..6].to_vec(),
-        c_out: mm.min[6],
-        s_out: mm.range[6],
+fn case_study_properties_state_the_published_thresholds() {
+    let mm = units();
+    let p = props(&case_study_spec());
+    assert_eq!(
+        p.iter().map(|p| p.name.as_str()).collect::<Vec<_>>(),
+        ["p1", "p2", "p3", "p4"]
+    );
+    let out = |e: f64| (e - mm.min[6]) / mm.range[6];
+    // Points inside the box, on either side of the bands' edges (ystar = 2).
+    let mut z = vec![0.5; 6];
+    z[3] = (-0.76 - mm.min[3]) / mm.range[3]; // theta in P3's range
+    z[2] = (-0.2 - mm.min[2]) / mm.range[2]; // omega <= -0.12
+    z[1] = (-0.4 - mm.min[1]) / mm.range[1]; // v_yp <= -0.3
+    let at = |target: f64| {
+        let mut z = z.clone();
+        z[5] = (target - mm.min[4] - mm.range[4] * z[4] - mm.min[5]) / mm.range[5];
+        z
     };
-    // The built-in properties use the spec's domain box (raw) for a fair comparison.
-    let lo: Vec<f64> = decl.domain.iter().map(|d| d.0).collect();
-    let hi: Vec<f64> = decl.domain.iter().map(|d| d.1).collect();
-    let mut b = Bindings::default();
-    b.params.insert("ystar".into(), 2.0);
-    let builtin = case_study(&units, &lo, &hi, 2.0);
-    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-    for (k, name) in ["p1", "p2", "p3", "p4"].iter().enumerate() {
-        let q = rescale_query(
-            &spec.lower_prove(name, &b).unwrap()[0].query,
-            &inputs,
-            &outputs,
+    for (name, x_plus_y, inside) in [
+        ("p1", 2.5, true),
+        ("p1", 1.5, false),
+        ("p2", -2.5, true),
+        ("p2", -1.5, false),
+        ("p3", 1.9, true),
+        ("p3", -1.9, true),
+        ("p3", 2.1, false),
+        ("p4", 1.9, true),
+        ("p4", -0.1, false),
+        ("p4", 2.1, false),
+    ] {
+        let q = p.iter().find(|p| p.name == name).unwrap();
+        let zz = at(x_plus_y);
+        assert!((xy(&mm, &zz) - x_plus_y).abs() < 1e-9);
+        assert_eq!(
+            q.region.contains(&zz, 0.0),
+            inside,
+            "{name} at x + y = {x_plus_y}"
         );
-        let props = from_query(&q).unwrap();
-        let bi = &builtin[k];
-        let mut checked = 0;
-        for _ in 0..5000 {
-            let z: Vec<f64> = (0..6).map(|_| r.gen_range(-0.2..1.2)).collect();
-            let o = r.gen_range(-0.5..1.5);
-            let pre_spec = props
-                .iter()
-                .filter(|p| p.region.contains(&z, 0.0))
-                .collect::<Vec<_>>();
-            let in_bi = bi.region.contains(&z, 0.0);
-            // Skip points on a boundary within rounding.
-            if props.iter().any(|p| {
-                (p.region.contains(&z, 1e-9) != p.region.contains(&z, -1e-9))
-                    || (bi.region.contains(&z, 1e-9) != bi.region.contains(&z, -1e-9))
-            }) {
-                continue;
-            }
-            // The built-in property is violated iff some spec disjunct is violated.
-            let viol_bi = in_bi && !bi.formula.holds(o);
-            let viol_spec = pre_spec.iter().any(|p| !p.formula.holds(o));
-            if (o - 0.5).abs() > 1e-6 {
-                assert_eq!(viol_bi, viol_spec, "{name} at {z:?} out {o}");
-                checked += 1;
-            }
-        }
-        assert!(checked > 4000);
     }
+    // The output thresholds, in raw ex.
+    let holds = |name: &str, e: f64| {
+        p.iter()
+            .find(|p| p.name == name)
+            .unwrap()
+            .formula
+            .holds(out(e))
+    };
+    assert!(holds("p1", 0.1871) && !holds("p1", 0.1869));
+    assert!(holds("p2", 0.1869) && !holds("p2", 0.1871));
+    assert!(holds("p3", 0.187) && !holds("p3", 0.1839) && !holds("p3", 0.1901));
+    assert!(holds("p4", 0.1869) && !holds("p4", 0.1871));
+    assert!(matches!(p[2].formula, Formula::And(_)));
+}
+
+#[test]
+fn editing_the_spec_moves_the_training_properties() {
+    let mm = units();
+    let edited = CASE_STUDY_SPEC.replace("=> ex >= 0.187", "=> ex >= 0.2");
+    assert_ne!(edited, CASE_STUDY_SPEC);
+    let spec = Spec::parse(&edited, "edited.spec", std::path::Path::new(".")).unwrap();
+    let p = props(&spec);
+    let out = |e: f64| (e - mm.min[6]) / mm.range[6];
+    assert!(!p[0].formula.holds(out(0.19)) && p[0].formula.holds(out(0.2001)));
+    // ystar bound from outside moves the band.
+    let mut b = Bindings::default();
+    b.params.insert("ystar".into(), 5.0);
+    let p5 = spec_properties(&case_study_spec(), &["p1".into()], &b, &mm, None).unwrap();
+    let band = p5[0].region.band.clone().unwrap();
+    let band2 = props(&case_study_spec())[0].region.band.clone().unwrap();
+    assert!(
+        (band.1 - band2.1 - 3.0).abs() < 1e-9,
+        "{band:?} vs {band2:?}"
+    );
 }

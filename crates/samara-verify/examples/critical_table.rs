@@ -2,8 +2,8 @@
 //! `cargo run --release -p samara-verify --example critical_table -- REFERENCE_DIR
 //! [--lp-tighten off|root|depth:N] [--raw NET.onnx ...] [--only-raw]`
 //! (`--raw`: more networks in raw units, e.g. a 6-64-32-1 one trained by samara).
+//! The properties, units and domain are those of models/alsomitra/alsomitra.spec.
 
-use samara_verify::case_study::{p1_to_p4, Units};
 use samara_verify::{optimise, LpTighten, Prepared, Settings};
 use std::collections::HashMap;
 
@@ -43,32 +43,15 @@ fn main() {
         ..Default::default()
     };
     println!("lp_tighten: {tighten:?}");
-    let text = std::fs::read_to_string(dir.join("Normalisation_Constants.csv")).unwrap();
-    let rows: Vec<Vec<f64>> = text
-        .lines()
-        .map(|l| l.split(',').map(|v| v.trim().parse().unwrap()).collect())
-        .collect();
-    let (c, s) = (rows[0][..6].to_vec(), rows[1][..6].to_vec());
-    let lo = c.clone();
-    let hi: Vec<f64> = c.iter().zip(&s).map(|(a, b)| a + b).collect();
     let mut total = 0.0;
     for file in &files {
         let net = samara_nn::onnx::load(dir.join(file)).unwrap();
-        let units = if file.contains("denorm") || !file.contains("_norm") {
-            Units::raw()
-        } else {
-            Units {
-                c: c.clone(),
-                s: s.clone(),
-                c_out: 0.181,
-                s_out: 0.012,
-            }
-        };
+        let raw = file.contains("denorm") || !file.contains("_norm");
         let mut nets = HashMap::new();
         nets.insert("f".to_string(), net);
         let prep = Prepared::new(&nets);
         let t = std::time::Instant::now();
-        for q in p1_to_p4("f", &units, &lo, &hi) {
+        for q in p1_to_p4(raw) {
             let r = optimise(&q, &prep, &settings).unwrap();
             println!(
                 "{file:32} {}: critical {:>12} bound {:>12.6} attained {} complete {} vacuous {} domain {:>10} nodes {} {:.3}s",
@@ -88,4 +71,33 @@ fn main() {
         println!("{file}: table in {secs:.3} s");
     }
     println!("all tables in {total:.3} s");
+}
+
+/// P1-P4 of models/alsomitra/alsomitra.spec as critical queries of `ystar` (P1, P2 hold
+/// above the supremum, P3, P4 below the infimum), for a network in the spec's units or,
+/// with `raw`, one taking raw inputs and giving raw outputs.
+fn p1_to_p4(raw: bool) -> Vec<samara_spec::normal::Query> {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../models/alsomitra/alsomitra.spec");
+    let mut spec = samara_spec::Spec::read(&path).unwrap();
+    if raw {
+        spec.networks[0].in_norm = None;
+        spec.networks[0].out_norm = None;
+    }
+    ["p1", "p2", "p3", "p4"]
+        .iter()
+        .map(|p| {
+            let mut q = spec
+                .lower_critical(p, "ystar", &samara_spec::Bindings::default())
+                .unwrap()
+                .remove(0)
+                .query;
+            if let samara_spec::normal::Goal::Optimise { sense, .. } = &mut q.goal {
+                if *p == "p3" || *p == "p4" {
+                    *sense = samara_spec::normal::Sense::Min;
+                }
+            }
+            q
+        })
+        .collect()
 }

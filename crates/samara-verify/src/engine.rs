@@ -97,9 +97,15 @@ impl Point {
         }
     }
 
-    /// Worst violation of the constraints (<= 0 means all hold, strict ones strictly).
+    /// Worst value of the inequality constraints that involve a variable (<= 0 means
+    /// they all hold, strict ones strictly; the more negative, the deeper inside the
+    /// region the point lies). Equalities and constant constraints (`0 <= 0`, which the
+    /// case splits of `norm` and `|e|` produce) say nothing about depth and are left out
+    /// (check them with [`Point::satisfies`]); with no such inequality the margin is 0.
     pub fn margin(&self, cs: &[Constraint]) -> f64 {
-        cs.iter()
+        let m = cs
+            .iter()
+            .filter(|c| c.cmp != Cmp::Eq && !c.expr.terms.is_empty())
             .map(|c| {
                 let e = c.expr.eval(|v| self.value(v));
                 match c.cmp {
@@ -114,7 +120,81 @@ impl Point {
                     Cmp::Eq => e.abs(),
                 }
             })
-            .fold(f64::NEG_INFINITY, f64::max)
+            .fold(f64::NEG_INFINITY, f64::max);
+        if m == f64::NEG_INFINITY {
+            0.0
+        } else {
+            m
+        }
+    }
+
+    /// The rounding tolerance of a constraint at this point: a bound on the error with
+    /// which the constraint's value was computed, both here (f64 evaluation) and when the
+    /// property was lowered (constants folded in f64, e.g. a data point's raw value
+    /// subtracted from a normalised one): `1e-9 (|constant| + sum |a_i v_i|)`.
+    pub fn tolerance(&self, c: &Constraint) -> f64 {
+        let mag = c.expr.constant.abs()
+            + c.expr
+                .terms
+                .iter()
+                .map(|(v, a)| (a * self.value(*v)).abs())
+                .sum::<f64>();
+        1e-9 * mag
+    }
+
+    /// Whether the point lies in the region beyond rounding: every constraint that
+    /// involves a variable holds with a margin larger than its [`Point::tolerance`]
+    /// (equalities hold exactly, constant constraints hold exactly). `Err((margin,
+    /// tolerance))` of the first constraint that does not clear its tolerance.
+    pub fn robustly_satisfies(&self, cs: &[Constraint]) -> Result<(), (f64, f64)> {
+        for c in cs {
+            let e = c.expr.eval(|v| self.value(v));
+            let ok = match c.cmp {
+                Cmp::Eq => e == 0.0,
+                _ if c.expr.terms.is_empty() => c.holds(|_| 0.0, 0.0),
+                Cmp::Le => e <= 0.0 && (e == 0.0 && self.exact_zero(c) || e < -self.tolerance(c)),
+                Cmp::Lt => e < -self.tolerance(c),
+            };
+            if !ok {
+                return Err((e, self.tolerance(c)));
+            }
+        }
+        Ok(())
+    }
+
+    /// A constraint whose terms all vanish at the point (every variable it uses is 0, or
+    /// pairs of equal values cancel with opposite coefficients) and whose constant is 0:
+    /// its value is exactly 0 whatever the rounding of its coefficients.
+    fn exact_zero(&self, c: &Constraint) -> bool {
+        if c.expr.constant != 0.0 {
+            return false;
+        }
+        if c.expr.terms.iter().all(|(v, _)| self.value(*v) == 0.0) {
+            return true;
+        }
+        // a x + b y with x == y and a == -b (e.g. d_j - d_k between identical points).
+        let mut ts: Vec<(f64, f64)> = c
+            .expr
+            .terms
+            .iter()
+            .map(|(v, a)| (self.value(*v), *a))
+            .filter(|(x, _)| *x != 0.0)
+            .collect();
+        ts.sort_by(|p, q| p.0.total_cmp(&q.0).then(p.1.total_cmp(&q.1)));
+        let mut i = 0;
+        while i < ts.len() {
+            let mut j = i;
+            let mut sum = 0.0;
+            while j < ts.len() && ts[j].0 == ts[i].0 {
+                sum += ts[j].1;
+                j += 1;
+            }
+            if sum != 0.0 {
+                return false;
+            }
+            i = j;
+        }
+        true
     }
 
     /// Whether every constraint holds exactly in f64.
@@ -137,6 +217,8 @@ pub struct BabResult {
     /// Leaves whose LP was feasible but whose point could not be made concrete
     /// (regions thinner than the tolerance).
     pub thin_leaves: usize,
+    /// Which limit stopped an incomplete search (`None` when `complete`).
+    pub stop: Option<crate::UnknownReason>,
 }
 
 /// Limits of a search.
@@ -560,6 +642,47 @@ impl Problem<'_> {
         p
     }
 
+    /// What makes the problem unsearchable (a variable beyond its network's inputs or
+    /// outputs, a box of the wrong length, a network without layers), if anything.
+    fn malformed(&self) -> Option<String> {
+        if self.nets.len() != self.boxes.len() || self.nets.len() != self.plain.len() {
+            return Some("applications, networks and input boxes disagree in number".into());
+        }
+        for (ai, net) in self.nets.iter().enumerate() {
+            if net.maps.is_empty() {
+                return Some(format!("application {ai}: a network without layers"));
+            }
+            if self.boxes[ai].len() != net.n_inputs() {
+                return Some(format!(
+                    "application {ai}: an input box of {} entries for {} inputs",
+                    self.boxes[ai].len(),
+                    net.n_inputs()
+                ));
+            }
+        }
+        let n_out = |ai: usize| self.nets[ai].maps.last().map(|m| m.0.out).unwrap_or(0);
+        let exprs = self
+            .constraints
+            .iter()
+            .map(|c| &c.expr)
+            .chain(&self.objective);
+        for e in exprs {
+            for (v, _) in &e.terms {
+                let ok = match *v {
+                    Var::Input { app, index } => {
+                        app < self.nets.len() && index < self.nets[app].n_inputs()
+                    }
+                    Var::Output { app, index } => app < self.nets.len() && index < n_out(app),
+                    Var::Free(k) => k < self.free.len(),
+                };
+                if !ok {
+                    return Some(format!("variable {v:?} does not exist in the problem"));
+                }
+            }
+        }
+        None
+    }
+
     fn stop_reached(&self, best: &Option<(Point, f64)>) -> bool {
         match (&self.stop_when, best) {
             (Some(cs), Some((p, v))) => *v >= self.floor && p.satisfies(cs),
@@ -577,6 +700,17 @@ impl Problem<'_> {
     /// Run the branch and bound. With no objective, stops at the first witness.
     pub fn solve(mut self, limits: Limits) -> BabResult {
         let t0 = Instant::now();
+        if let Some(what) = self.malformed() {
+            // Never index out of bounds: a malformed problem is not searched.
+            return BabResult {
+                best: None,
+                upper: f64::INFINITY,
+                complete: false,
+                nodes: 0,
+                thin_leaves: 0,
+                stop: Some(crate::UnknownReason::Unsupported { what }),
+            };
+        }
         let (apps, n_net) = self.layout();
         let boxes = self.tightened_boxes();
         let phases0: Vec<Vec<Vec<i8>>> = self
@@ -597,6 +731,7 @@ impl Problem<'_> {
                 complete: true,
                 nodes: 0,
                 thin_leaves: 0,
+                stop: None,
             };
         };
         self.bound_free(&apps, n_net, &lo0, &hi0);
@@ -612,6 +747,7 @@ impl Problem<'_> {
                     complete: true,
                     nodes: 0,
                     thin_leaves: 0,
+                    stop: None,
                 };
             }
             return BabResult {
@@ -620,6 +756,7 @@ impl Problem<'_> {
                 complete: false,
                 nodes: 0,
                 thin_leaves: 0,
+                stop: None,
             };
         }
         let mut best: Option<(Point, f64)> = None;
@@ -655,6 +792,7 @@ impl Problem<'_> {
         let mut nodes = 0usize;
         let mut thin = 0usize;
         let mut complete = true;
+        let mut stop = None;
         'nodes: while let Some(node) = heap.pop() {
             let incumbent = best.as_ref().map(|b| b.1).unwrap_or(f64::NEG_INFINITY);
             if node.upper < self.floor {
@@ -664,8 +802,15 @@ impl Problem<'_> {
                 closed_upper = closed_upper.max(node.upper);
                 continue;
             }
-            if nodes >= limits.nodes || t0.elapsed().as_secs_f64() > limits.seconds {
+            // (A NaN limit counts as reached.)
+            let timed_out = t0.elapsed().as_secs_f64() >= limits.seconds || limits.seconds.is_nan();
+            if nodes >= limits.nodes || timed_out {
                 complete = false;
+                stop = Some(if timed_out {
+                    crate::UnknownReason::Timeout { nodes }
+                } else {
+                    crate::UnknownReason::NodeLimit { nodes }
+                });
                 closed_upper = closed_upper.max(node.upper);
                 for n in heap.drain() {
                     closed_upper = closed_upper.max(n.upper);
@@ -735,6 +880,7 @@ impl Problem<'_> {
                         complete: true,
                         nodes,
                         thin_leaves: thin,
+                        stop: None,
                     };
                 }
                 // Branch on the unstable neuron whose relaxation is most violated at x.
@@ -817,6 +963,7 @@ impl Problem<'_> {
                                         complete: true,
                                         nodes,
                                         thin_leaves: thin,
+                                        stop: None,
                                     };
                                 }
                             }
@@ -836,6 +983,7 @@ impl Problem<'_> {
             complete,
             nodes,
             thin_leaves: thin,
+            stop,
         }
     }
 }

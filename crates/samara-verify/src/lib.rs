@@ -10,12 +10,24 @@
 //! solved by Clarabel; bounds are made sound from the dual ([`lp`]).
 //!
 //! Tolerance policy (stated and tested):
+//! - A result is reported only from a completed argument: a search cut short by the time
+//!   or node limit, a value the encoding cannot take (not finite, or above
+//!   [`MAX_MAGNITUDE`]) or numerical trouble gives `Unknown` (and an incomplete
+//!   [`Critical`]) with a typed [`UnknownReason`], never `Proved` or a critical value.
 //! - A `Violated` verdict always carries a point that violates the property when its
 //!   outputs are recomputed by the plain f64 evaluator (`Network::eval_f64`), strict
-//!   inequalities strictly. Its margin is reported. When the margin is within 1e-6 of
-//!   the boundary (and the networks are piecewise linear) the point is re-checked in
+//!   inequalities strictly, and beyond rounding: every inequality that involves a
+//!   variable holds with a margin larger than `1e-9 (|constant| + sum |a_i v_i|)`
+//!   ([`engine::Point::robustly_satisfies`]; the lowering folds constants in f64, so a
+//!   `0 < 0` can arrive as `-6e-19 < 0`). A point inside only within that tolerance
+//!   gives `Unknown` (`rounding`). Its margin (the worst inequality with a variable;
+//!   equalities and constant rows left out) is reported. When the margin is within 1e-6
+//!   of the boundary (and the networks are piecewise linear) the point is re-checked in
 //!   exact rational arithmetic ([`exact`]); if exact arithmetic disagrees with f64 the
 //!   verdict is `Unknown`, not `Violated`.
+//! - An input box empty by rounding only is widened to contain the exact one (a proof
+//!   carries over; a counterexample becomes `Unknown`); an input box empty beyond
+//!   rounding makes `Proved` vacuous ([`empty_input_box`] says so).
 //! - `Proved` means, for every disjunct, a sound upper bound below 0 of the largest
 //!   slack `s` with which all its inequalities hold (`e_i + s <= 0`): the closure of the
 //!   region is empty. A region that touches its boundary only (the closure is not
@@ -29,7 +41,7 @@
 // Numeric kernels index several arrays (columns, bounds, weights) by one index.
 #![allow(clippy::needless_range_loop)]
 
-pub mod case_study;
+pub mod boxq;
 pub mod engine;
 pub mod exact;
 pub mod lp;
@@ -37,6 +49,7 @@ pub mod lp;
 pub mod milp;
 pub mod net;
 pub mod robustness;
+pub mod route;
 pub mod smooth;
 pub mod tighten;
 
@@ -106,6 +119,116 @@ pub enum VerifyError {
     /// The goal does not fit the call.
     #[error("query `{0}`: {1}")]
     Goal(String, String),
+    /// A constraint or objective names a variable the query does not have (an input or
+    /// output index beyond the network's, an application or free variable that does not
+    /// exist), or an input box of the wrong length.
+    #[error("query `{query}`: {detail}")]
+    Variable {
+        /// Query.
+        query: String,
+        /// What is wrong, naming the variable.
+        detail: String,
+    },
+}
+
+/// Why a search was cut short: the typed reason behind every `Unknown` and every
+/// incomplete critical value. A result is only ever reported from a search that ran to
+/// completion; anything else carries one of these.
+#[derive(Clone, Debug, PartialEq)]
+pub enum UnknownReason {
+    /// The time limit ran out.
+    Timeout {
+        /// Branch-and-bound nodes (or input boxes) explored.
+        nodes: usize,
+    },
+    /// The node limit was reached.
+    NodeLimit {
+        /// Nodes explored.
+        nodes: usize,
+    },
+    /// The region's closure is not empty (sound bound `>= 0`) but no f64 point lies
+    /// strictly inside it, or leaves of the search could not be made concrete: the
+    /// region is thinner than the tolerance.
+    ThinRegion {
+        /// The sound bound of the slack (or of the objective).
+        bound: f64,
+    },
+    /// A candidate counterexample satisfies the region only within the rounding error of
+    /// its constraints (or only in f64, not in exact arithmetic): it need not violate the
+    /// property.
+    Rounding {
+        /// Its margin (worst constraint value).
+        margin: f64,
+        /// The rounding tolerance it did not clear.
+        tolerance: f64,
+    },
+    /// A coefficient, constant or bound is not finite or larger than the encoding handles
+    /// (magnitudes above [`MAX_MAGNITUDE`]).
+    OutOfRange {
+        /// The offending value.
+        value: f64,
+    },
+    /// Numerical trouble: a bound or objective value came out not a number.
+    Numerical {
+        /// What.
+        what: String,
+    },
+    /// Something the engine cannot decide (e.g. smooth activations with a free
+    /// parameter).
+    Unsupported {
+        /// What.
+        what: String,
+    },
+}
+
+/// Largest magnitude of a coefficient, constant or input bound the engine takes: beyond
+/// it the LP encoding's rounding-error bounds swamp the quantities compared.
+pub const MAX_MAGNITUDE: f64 = 1e12;
+
+impl UnknownReason {
+    /// A short machine-readable tag: `timeout`, `node_limit`, `thin_region`,
+    /// `rounding`, `out_of_range`, `numerical` or `unsupported`.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            UnknownReason::Timeout { .. } => "timeout",
+            UnknownReason::NodeLimit { .. } => "node_limit",
+            UnknownReason::ThinRegion { .. } => "thin_region",
+            UnknownReason::Rounding { .. } => "rounding",
+            UnknownReason::OutOfRange { .. } => "out_of_range",
+            UnknownReason::Numerical { .. } => "numerical",
+            UnknownReason::Unsupported { .. } => "unsupported",
+        }
+    }
+}
+
+impl std::fmt::Display for UnknownReason {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            // The input-split route does not count nodes (0 here).
+            UnknownReason::Timeout { nodes: 0 } => {
+                write!(f, "time limit reached (raise --timeout)")
+            }
+            UnknownReason::Timeout { nodes } => write!(
+                f,
+                "time limit reached after {nodes} nodes (raise --timeout)"
+            ),
+            UnknownReason::NodeLimit { nodes } => write!(f, "node limit reached after {nodes} nodes"),
+            UnknownReason::ThinRegion { bound } => write!(
+                f,
+                "the counterexample region's closure is not empty (sound bound {bound:.3e}) but no f64 point strictly inside it was found: it is thinner than the tolerance"
+            ),
+            UnknownReason::Rounding { margin, tolerance } => write!(
+                f,
+                "a point violates the property only at the rounding level (margin {margin:.3e}, rounding tolerance {tolerance:.3e}): the property sits at the rounding level there"
+            ),
+            UnknownReason::OutOfRange { value } => write!(
+                f,
+                "a coefficient, constant or bound ({value:e}) is outside what the encoding handles (finite, magnitude at most {MAX_MAGNITUDE:e}); rescale the property"
+            ),
+            UnknownReason::Numerical { what } => write!(f, "numerical trouble: {what}"),
+            UnknownReason::Unsupported { what } => write!(f, "{what}"),
+        }
+    }
 }
 
 /// A counterexample with its margin (how far inside the counterexample region it is;
@@ -131,7 +254,7 @@ pub enum Verdict {
     /// A concrete, re-evaluated counterexample.
     Violated(Counterexample),
     /// Not settled, with the reason.
-    Unknown(String),
+    Unknown(UnknownReason),
 }
 
 /// The answer to an `optimise` (critical value) query.
@@ -151,8 +274,11 @@ pub struct Critical {
     pub domain_extreme: Option<f64>,
     /// The critical value lies at the edge of what the domain reaches.
     pub vacuous: bool,
-    /// The search finished within its limits.
+    /// The search finished within its limits (and every leaf was settled): only then are
+    /// `value`, `bound` and `vacuous` results. Equivalent to `unknown.is_none()`.
     pub complete: bool,
+    /// Why the search is not complete.
+    pub unknown: Option<UnknownReason>,
     /// Branch-and-bound nodes.
     pub nodes: usize,
     /// Wall time.
@@ -178,6 +304,7 @@ impl<'a> Prepared<'a> {
     }
 
     fn check(&self, q: &Query) -> Result<(), VerifyError> {
+        check_variables(q)?;
         for a in &q.applications {
             let Some(n) = self.plain.get(&a.network) else {
                 return Err(VerifyError::MissingNetwork {
@@ -231,6 +358,115 @@ impl<'a> Prepared<'a> {
     }
 }
 
+/// Check that every variable a query uses exists: each application's input box has its
+/// `n_inputs` entries, and every input, output and free variable in the region and the
+/// objective is within its application's counts (the engine indexes by them).
+pub fn check_variables(q: &Query) -> Result<(), VerifyError> {
+    let err = |detail: String| VerifyError::Variable {
+        query: q.name.clone(),
+        detail,
+    };
+    for (i, a) in q.applications.iter().enumerate() {
+        if a.input_box.len() != a.n_inputs {
+            return Err(err(format!(
+                "application {i} of network `{}` has an input box of {} entries for {} inputs",
+                a.network,
+                a.input_box.len(),
+                a.n_inputs
+            )));
+        }
+    }
+    let objective = match &q.goal {
+        Goal::Optimise { objective, .. } => Some(objective),
+        Goal::Prove => None,
+    };
+    let exprs = q.region.iter().flatten().map(|c| &c.expr).chain(objective);
+    for e in exprs {
+        for (v, _) in &e.terms {
+            let (app, index, what) = match *v {
+                Var::Input { app, index } => (app, index, "input"),
+                Var::Output { app, index } => (app, index, "output"),
+                Var::Free(k) => {
+                    if k >= q.free_vars.len() {
+                        return Err(err(format!(
+                            "free variable {k} is used but the query declares {}",
+                            q.free_vars.len()
+                        )));
+                    }
+                    continue;
+                }
+            };
+            let Some(a) = q.applications.get(app) else {
+                return Err(err(format!(
+                    "{what} {index} of application {app} is used but the query has {} application(s)",
+                    q.applications.len()
+                )));
+            };
+            let n = if what == "input" {
+                a.n_inputs
+            } else {
+                a.n_outputs
+            };
+            if index >= n {
+                return Err(err(format!(
+                    "{what} {index} of network `{}` is used but it has {n} {what}s (indices 0 to {})",
+                    a.network,
+                    n as isize - 1
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The first coefficient, constant or bound of `q` the encoding cannot take (not finite
+/// or of magnitude above [`MAX_MAGNITUDE`]); free-variable bounds may be infinite.
+pub fn out_of_range(q: &Query) -> Option<f64> {
+    let bad = |v: f64| !v.is_finite() || v.abs() > MAX_MAGNITUDE;
+    let objective = match &q.goal {
+        Goal::Optimise { objective, .. } => Some(objective),
+        Goal::Prove => None,
+    };
+    for e in q.region.iter().flatten().map(|c| &c.expr).chain(objective) {
+        if bad(e.constant) {
+            return Some(e.constant);
+        }
+        if let Some(t) = e.terms.iter().find(|t| bad(t.1)) {
+            return Some(t.1);
+        }
+    }
+    for a in &q.applications {
+        for (l, h) in &a.input_box {
+            for v in [*l, *h] {
+                if bad(v) {
+                    return Some(v);
+                }
+            }
+        }
+    }
+    for (_, l, h) in &q.free_vars {
+        for v in [*l, *h] {
+            if v.is_nan() || (v.is_finite() && v.abs() > MAX_MAGNITUDE) {
+                return Some(v);
+            }
+        }
+    }
+    None
+}
+
+/// The first application whose input box is empty (a bound above its other bound, by
+/// more than rounding: `prove` widens boxes empty only by rounding): the query's input
+/// domain is empty, so `Proved` holds vacuously (e.g. a data point outside
+/// the declared domain, whose ball is clipped to it). `(application, input)`.
+pub fn empty_input_box(q: &Query) -> Option<(usize, usize)> {
+    q.applications.iter().enumerate().find_map(|(a, app)| {
+        app.input_box
+            .iter()
+            .position(|(l, h)| l.is_nan() || h.is_nan() || l - h > 1e-9 * (1.0 + l.abs() + h.abs()))
+            .map(|k| (a, k))
+    })
+}
+
 fn limits(s: &Settings, t0: Instant) -> Limits {
     Limits {
         seconds: (s.timeout - t0.elapsed().as_secs_f64()).max(0.0),
@@ -240,9 +476,54 @@ fn limits(s: &Settings, t0: Instant) -> Limits {
     }
 }
 
+/// Boxes empty only by rounding (`lo > hi` by at most `1e-9 (1 + |lo| + |hi|)`, e.g. a
+/// data point on the domain's edge whose ball is clipped to the domain after both went
+/// through a unit conversion) are widened to `[hi, lo]`, which contains the exact box.
+/// Returns the widened query and by how much it was widened (0 if not).
+fn widen_rounding_boxes(q: &Query) -> (std::borrow::Cow<'_, Query>, f64) {
+    let thin = |l: f64, h: f64| l > h && l - h <= 1e-9 * (1.0 + l.abs() + h.abs());
+    let mut by = 0.0f64;
+    for a in &q.applications {
+        for (l, h) in &a.input_box {
+            if thin(*l, *h) {
+                by = by.max(l - h);
+            }
+        }
+    }
+    if by == 0.0 {
+        return (std::borrow::Cow::Borrowed(q), 0.0);
+    }
+    let mut w = q.clone();
+    for a in &mut w.applications {
+        for b in &mut a.input_box {
+            if thin(b.0, b.1) {
+                *b = (b.1, b.0);
+            }
+        }
+    }
+    (std::borrow::Cow::Owned(w), by)
+}
+
 /// Is the counterexample region of `q` empty?
 pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, VerifyError> {
     prep.check(q)?;
+    if let Some(value) = out_of_range(q) {
+        return Ok(Verdict::Unknown(UnknownReason::OutOfRange { value }));
+    }
+    let (w, widened) = widen_rounding_boxes(q);
+    let v = prove_checked(&w, prep, s)?;
+    Ok(match v {
+        // The widened box contains the exact one: a proof carries over; a counterexample
+        // may lie in the sliver outside it.
+        Verdict::Violated(c) if widened > 0.0 => Verdict::Unknown(UnknownReason::Rounding {
+            margin: c.margin,
+            tolerance: widened,
+        }),
+        v => v,
+    })
+}
+
+fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, VerifyError> {
     let t0 = Instant::now();
     let mut unknown = None;
     for d in 0..q.region.len() {
@@ -254,7 +535,7 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
             Err(e) => {
                 // Smooth activations: the interval prover with input splitting.
                 if !q.free_vars.is_empty() {
-                    return Ok(Verdict::Unknown(e));
+                    return Ok(Verdict::Unknown(UnknownReason::Unsupported { what: e }));
                 }
                 let nets: Vec<&Network> = q
                     .applications
@@ -269,6 +550,10 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
                     smooth::SmoothResult::Empty => continue,
                     smooth::SmoothResult::Witness(pt) => {
                         let margin = pt.margin(&q.region[d]);
+                        if let Err((margin, tolerance)) = pt.robustly_satisfies(&q.region[d]) {
+                            unknown = Some(UnknownReason::Rounding { margin, tolerance });
+                            continue;
+                        }
                         return Ok(Verdict::Violated(Counterexample {
                             point: pt,
                             margin,
@@ -305,6 +590,13 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
             pt.free.truncate(k);
             if pt.satisfies(&original) {
                 let margin = pt.margin(&original);
+                // Re-checked concretely beyond rounding: a point that is in the region
+                // only within the rounding error of the lowered constraints (e.g.
+                // `0 < 0` computed as `-6e-19 < 0`) need not violate the property.
+                if let Err((margin, tolerance)) = pt.robustly_satisfies(&original) {
+                    unknown = Some(UnknownReason::Rounding { margin, tolerance });
+                    continue;
+                }
                 let mut exact = None;
                 if margin > -1e-6 {
                     let nets: Vec<&PwlNet> = q
@@ -317,9 +609,10 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
                     }
                 }
                 if exact == Some(false) {
-                    unknown = Some(format!(
-                        "a point violates the property in f64 (margin {margin:.3e}) but not in exact arithmetic: the property sits at the rounding level there"
-                    ));
+                    unknown = Some(UnknownReason::Rounding {
+                        margin,
+                        tolerance: 0.0,
+                    });
                     continue;
                 }
                 return Ok(Verdict::Violated(Counterexample {
@@ -331,15 +624,17 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
             }
         }
         if !r.complete {
-            unknown = Some(format!(
-                "time or node limit reached after {} nodes",
-                r.nodes
-            ));
+            unknown = Some(
+                r.stop
+                    .clone()
+                    .unwrap_or(UnknownReason::Timeout { nodes: r.nodes }),
+            );
+        } else if r.upper.is_nan() {
+            unknown = Some(UnknownReason::Numerical {
+                what: "the sound bound of the slack is not a number".into(),
+            });
         } else if r.upper >= 0.0 {
-            unknown = Some(format!(
-                "the counterexample region's closure is not empty (sound bound {:.3e} >= 0) but no f64 point strictly inside it was found: it is thinner than the tolerance",
-                r.upper
-            ));
+            unknown = Some(UnknownReason::ThinRegion { bound: r.upper });
         }
     }
     Ok(match unknown {
@@ -361,13 +656,31 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
         ));
     };
     let t0 = Instant::now();
+    if let Some(value) = out_of_range(q) {
+        return Ok(Critical {
+            value: None,
+            bound: if *sense == Sense::Max {
+                f64::INFINITY
+            } else {
+                f64::NEG_INFINITY
+            },
+            witness: None,
+            attained: false,
+            domain_extreme: None,
+            vacuous: false,
+            complete: false,
+            unknown: Some(UnknownReason::OutOfRange { value }),
+            nodes: 0,
+            seconds: t0.elapsed().as_secs_f64(),
+        });
+    }
     let sign = if *sense == Sense::Max { 1.0 } else { -1.0 };
     let mut obj = objective.clone();
     obj.terms.iter_mut().for_each(|t| t.1 *= sign);
     obj.constant *= sign;
     let mut best: Option<(Point, f64)> = None;
     let mut upper = f64::NEG_INFINITY;
-    let mut complete = true;
+    let mut unknown: Option<UnknownReason> = None;
     let mut nodes = 0;
     let mut dom = f64::NEG_INFINITY;
     for d in 0..q.region.len() {
@@ -377,7 +690,11 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
         };
         let r = p.solve(limits(s, t0));
         nodes += r.nodes;
-        complete &= r.complete && r.thin_leaves == 0;
+        if !r.complete {
+            unknown.get_or_insert(r.stop.clone().unwrap_or(UnknownReason::Timeout { nodes }));
+        } else if r.thin_leaves > 0 {
+            unknown.get_or_insert(UnknownReason::ThinRegion { bound: r.upper });
+        }
         upper = upper.max(r.upper);
         if let Some((pt, v)) = r.best {
             if best.as_ref().is_none_or(|b| v > b.1) {
@@ -395,7 +712,19 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
                 .any(|(v, _)| matches!(v, Var::Output { .. }))
         });
         let rd = pd.solve(limits(s, t0));
+        if !rd.complete {
+            // Without the domain's extreme, vacuity is not decided.
+            unknown.get_or_insert(rd.stop.clone().unwrap_or(UnknownReason::Timeout { nodes }));
+        }
         dom = dom.max(rd.upper);
+    }
+    if upper.is_nan() || dom.is_nan() || best.as_ref().is_some_and(|b| !b.1.is_finite()) {
+        unknown.get_or_insert(UnknownReason::Numerical {
+            what: format!(
+                "bound {upper:e}, domain extreme {dom:e}, witness value {:?}",
+                best.as_ref().map(|b| b.1)
+            ),
+        });
     }
     let value = best.as_ref().map(|b| b.1);
     let attained = value.is_some_and(|v| upper - v <= s.gap.max(1e-9 * v.abs()));
@@ -407,7 +736,8 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
         attained,
         domain_extreme: dom.is_finite().then_some(sign * dom),
         vacuous,
-        complete,
+        complete: unknown.is_none(),
+        unknown,
         nodes,
         seconds: t0.elapsed().as_secs_f64(),
     })

@@ -38,14 +38,20 @@ pub struct PointBall {
     pub index: usize,
     /// Radius.
     pub eps: f64,
-    /// Exact minimum of the output over the ball.
+    /// Sound lower bound of the output over the ball (exact when the search completed,
+    /// up to the gap).
     pub f_min: f64,
-    /// Exact maximum of the output over the ball.
+    /// Sound upper bound of the output over the ball.
     pub f_max: f64,
     /// Reference value.
     pub reference: f64,
-    /// Largest deviation from the reference.
+    /// Largest deviation from the reference: a sound upper bound, from `f_min`/`f_max`.
     pub max_deviation: f64,
+    /// The largest deviation attained at a concrete point of the ball (the outputs of
+    /// the best witnesses, re-evaluated): a lower bound of the true deviation.
+    pub witnessed_deviation: f64,
+    /// Why the extremes were not settled (the search was cut short), if so.
+    pub unknown: Option<crate::UnknownReason>,
     /// Sound upper bound of the local Lipschitz constant (infinity-norm inputs).
     pub lipschitz_upper: f64,
     /// Lower bound of it.
@@ -229,13 +235,30 @@ fn pattern_meets_box(net: &PwlNet, lo: &[f64], hi: &[f64], ph: &[Vec<i8>]) -> bo
 }
 
 /// Per-point extremes over every ball. `data` rows: inputs (network units) then the
-/// label.
+/// label. Each search has 30 s ([`sweep_with`] takes other settings).
 pub fn sweep(
     net: &Network,
     rows: &[Vec<f64>],
     eps: &[f64],
     reference: Reference,
     domain: Option<&[(f64, f64)]>,
+) -> Result<Vec<PointBall>, String> {
+    let s = Settings {
+        timeout: 30.0,
+        ..Default::default()
+    };
+    sweep_with(net, rows, eps, reference, domain, &s)
+}
+
+/// [`sweep`] with the settings of each point's searches (time and node limits); a
+/// search cut short leaves its point `unknown` in the cells it cannot settle.
+pub fn sweep_with(
+    net: &Network,
+    rows: &[Vec<f64>],
+    eps: &[f64],
+    reference: Reference,
+    domain: Option<&[(f64, f64)]>,
+    settings: &Settings,
 ) -> Result<Vec<PointBall>, String> {
     let pwl = PwlNet::from_network(net).map_err(|e| e.to_string())?;
     if net.n_outputs() != 1 {
@@ -248,6 +271,14 @@ pub fn sweep(
     let mut nets = HashMap::new();
     nets.insert("f".to_string(), net.clone());
     let prep = Prepared::new(&nets);
+    // Each radius once (a repeated radius would count every point twice in its cells).
+    let mut distinct: Vec<f64> = Vec::new();
+    for e in eps {
+        if !distinct.contains(e) {
+            distinct.push(*e);
+        }
+    }
+    let eps = &distinct;
     let tasks: Vec<(usize, f64)> = (0..rows.len())
         .flat_map(|i| eps.iter().map(move |e| (i, *e)))
         .collect();
@@ -291,20 +322,22 @@ pub fn sweep(
                     label: "f".into(),
                 },
             };
-            let s = Settings {
-                timeout: 30.0,
-                ..Default::default()
-            };
+            let s = *settings;
             let hi = optimise(&q, &prep, &s).map_err(|e| e.to_string())?;
             if let Goal::Optimise { sense, .. } = &mut q.goal {
                 *sense = Sense::Min;
             }
             let lo = optimise(&q, &prep, &s).map_err(|e| e.to_string())?;
-            // Sound extremes: the bounds (upper for max, lower for min).
+            // Sound extremes: the bounds (upper for max, lower for min); an incomplete
+            // search keeps its sound bounds (which may still prove a cell) and its
+            // witnesses (which may still refute one), and says why it stopped.
             let (f_max, f_min) = (hi.bound, lo.bound);
-            if !hi.complete || !lo.complete {
-                return Err(format!("point {i}, eps {e}: the search did not finish"));
-            }
+            let unknown = hi.unknown.clone().or(lo.unknown.clone());
+            let witnessed_deviation = [hi.value, lo.value]
+                .iter()
+                .flatten()
+                .map(|v| (v - refv).abs())
+                .fold(f64::NEG_INFINITY, f64::max);
             let (bl, bh): (Vec<f64>, Vec<f64>) = input_box.iter().copied().unzip();
             let (ll, lu) = gradient_bounds(&pwl, &bl, &bh, x);
             Ok(PointBall {
@@ -314,6 +347,8 @@ pub fn sweep(
                 f_max,
                 reference: refv,
                 max_deviation: (f_max - refv).abs().max((refv - f_min).abs()),
+                witnessed_deviation,
+                unknown,
                 lipschitz_upper: lu,
                 lipschitz_lower: ll,
             })
@@ -323,7 +358,8 @@ pub fn sweep(
     out.into_iter().collect()
 }
 
-/// The published-form cell: `dev <= L / eps`.
+/// The published-form cell: `dev <= L / eps`. Each point counts once per distinct
+/// `eps` of the sweep (pass distinct radii to [`sweep`]).
 pub fn published_cell(points: &[PointBall], eps: f64, l: f64) -> Cell {
     let mut c = Cell {
         proved: 0,
@@ -331,10 +367,14 @@ pub fn published_cell(points: &[PointBall], eps: f64, l: f64) -> Cell {
         unknown: 0,
     };
     for p in points.iter().filter(|p| p.eps == eps) {
+        // Proved from the sound bound, violated only from a concrete witness; the gap
+        // between them (or a search cut short) is unknown.
         if p.max_deviation <= l / eps {
             c.proved += 1;
-        } else {
+        } else if p.witnessed_deviation > l / eps {
             c.violated += 1;
+        } else {
+            c.unknown += 1;
         }
     }
     c
@@ -348,7 +388,8 @@ pub fn lipschitz_cell(points: &[PointBall], eps: f64, l: f64) -> Cell {
         unknown: 0,
     };
     for p in points.iter().filter(|p| p.eps == eps) {
-        if p.lipschitz_upper <= l {
+        // A radius-0 ball holds x alone: |f(x) - f(x)| = 0 <= L * 0.
+        if p.eps == 0.0 || p.lipschitz_upper <= l {
             c.proved += 1;
         } else if p.lipschitz_lower > l {
             c.violated += 1;

@@ -135,8 +135,8 @@ pub enum SmoothResult {
     Empty,
     /// A concrete counterexample.
     Witness(Point),
-    /// Budget exhausted.
-    Unknown(String),
+    /// Budget exhausted (time or box limit).
+    Unknown(crate::UnknownReason),
 }
 
 /// Search one conjunction over the applications' boxes (single free of parameters).
@@ -197,9 +197,11 @@ pub fn search(
     while let Some(Item { b, .. }) = heap.pop() {
         n += 1;
         if n > max_boxes || t0.elapsed().as_secs_f64() > seconds {
-            return SmoothResult::Unknown(format!(
-                "smooth activations: {n} input boxes examined without settling the property"
-            ));
+            return SmoothResult::Unknown(if n > max_boxes {
+                crate::UnknownReason::NodeLimit { nodes: n - 1 }
+            } else {
+                crate::UnknownReason::Timeout { nodes: n - 1 }
+            });
         }
         let per = split(&b);
         let outs: Vec<(Vec<f64>, Vec<f64>)> = nets

@@ -6,7 +6,9 @@
 use rand::SeedableRng;
 use samara_nn::{Activation, Network};
 use samara_spec::normal::{Application, Goal, LinExpr, Query, Sense, Var};
-use samara_verify::case_study::{p1_to_p4, Units};
+#[path = "support/case_study.rs"]
+mod case_study;
+use case_study::p1_to_p4;
 use samara_verify::milp::optimise_milp;
 use samara_verify::net::PwlNet;
 use samara_verify::{optimise, Prepared, Settings};
@@ -36,23 +38,6 @@ fn check(q: &Query, nets: &HashMap<String, Network>) {
 #[test]
 fn case_study_critical_values_agree_with_highs() {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference");
-    let c = vec![
-        0.967568147,
-        -0.607397104,
-        -0.356972794,
-        -0.96847853,
-        0.482420778,
-        -41.68140527,
-    ];
-    let s = vec![
-        2.522324921,
-        0.564375713,
-        0.406153017,
-        0.900476013,
-        41.23229622,
-        45.87863879,
-    ];
-    let hi: Vec<f64> = c.iter().zip(&s).map(|(a, b)| a + b).collect();
     for f in [
         "base_model_norm",
         "adversarial_model_norm",
@@ -64,17 +49,7 @@ fn case_study_critical_values_agree_with_highs() {
             "f".to_string(),
             samara_nn::onnx::load(dir.join(format!("{f}.onnx"))).unwrap(),
         );
-        let u = if f.contains("denorm") {
-            Units::raw()
-        } else {
-            Units {
-                c: c.clone(),
-                s: s.clone(),
-                c_out: 0.181,
-                s_out: 0.012,
-            }
-        };
-        for q in p1_to_p4("f", &u, &c, &hi) {
+        for q in p1_to_p4(f.contains("denorm")) {
             check(&q, &nets);
         }
     }

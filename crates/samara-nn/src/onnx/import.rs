@@ -25,16 +25,26 @@ pub const SUPPORTED_OPS: &[&str] = &[
     "Constant",
 ];
 
+/// Widest activation vector (inputs, outputs, hidden layers) the importer builds: the
+/// affine maps are stored dense, so a declared width is a `width x width` allocation.
+/// A file that declares more is refused before anything is allocated.
+pub const MAX_WIDTH: usize = 4096;
+
+/// Most values of one constant tensor (16M, 128 MB as f64).
+pub const MAX_TENSOR_VALUES: usize = 1 << 24;
+
 /// Why a file could not be imported.
 #[derive(Debug, thiserror::Error)]
 pub enum OnnxError {
     /// The file could not be read.
-    #[error("{file}: cannot read: {source}")]
+    // The OS error is part of the message and deliberately not a `source()`: shown both
+    // ways it would be printed twice by `{:#}` (issue 17).
+    #[error("{file}: cannot read: {cause}")]
     Io {
         /// File.
         file: String,
         /// Cause.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// Not a protobuf ModelProto.
     #[error("{file}: not a valid ONNX model ({message}); is the file truncated or not ONNX?")]
@@ -79,9 +89,9 @@ struct Const {
 pub fn load(path: impl AsRef<Path>) -> Result<Network, OnnxError> {
     let path = path.as_ref();
     let file = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| OnnxError::Io {
+    let bytes = std::fs::read(path).map_err(|cause| OnnxError::Io {
         file: file.clone(),
-        source,
+        cause,
     })?;
     from_bytes(&bytes, &file)
 }
@@ -103,7 +113,31 @@ fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, OnnxError> {
         .iter()
         .map(|&d| usize::try_from(d).map_err(|_| err(format!("negative dimension {d}"))))
         .collect::<Result<_, _>>()?;
-    let n: usize = dims.iter().product();
+    let n = dims
+        .iter()
+        .try_fold(1usize, |a, &d| a.checked_mul(d))
+        .filter(|&n| n <= MAX_TENSOR_VALUES)
+        .ok_or_else(|| {
+            err(format!(
+                "shape {dims:?} declares more than {MAX_TENSOR_VALUES} values; samara imports controller-sized networks"
+            ))
+        })?;
+    // The bytes or values the file holds must match the shape before anything is
+    // converted (so a corrupt shape never drives an allocation).
+    let held = match t.data_type {
+        proto::FLOAT | proto::INT32 if !t.raw_data.is_empty() => t.raw_data.len() / 4,
+        proto::DOUBLE | proto::INT64 if !t.raw_data.is_empty() => t.raw_data.len() / 8,
+        proto::FLOAT => t.float_data.len(),
+        proto::DOUBLE => t.double_data.len(),
+        proto::INT64 => t.int64_data.len(),
+        proto::INT32 => t.int32_data.len(),
+        _ => n,
+    };
+    if held != n {
+        return Err(err(format!(
+            "holds {held} values but its shape {dims:?} needs {n}; the file is corrupt or truncated"
+        )));
+    }
     let data: Vec<f64> = match t.data_type {
         proto::FLOAT => {
             if !t.raw_data.is_empty() {
@@ -283,7 +317,16 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                 &format!("input `{}`", input.name),
                 "its last dimension must be a fixed positive number".into(),
             )
-        })? as usize;
+        })?;
+    let in_dim = usize::try_from(in_dim)
+        .ok()
+        .filter(|&d| d <= MAX_WIDTH)
+        .ok_or_else(|| {
+            structure(
+                &format!("input `{}`", input.name),
+                format!("declares {in_dim} entries; samara imports at most {MAX_WIDTH} (is the file corrupt?)"),
+            )
+        })?;
     let mut live = input.name.clone();
     let mut b = Builder {
         file,
@@ -336,6 +379,11 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
             }
         };
         let d = b.dim;
+        let too_wide = |m: usize| {
+            shape_err(format!(
+                "gives {m} entries; samara imports networks at most {MAX_WIDTH} wide"
+            ))
+        };
         match node.op_type.as_str() {
             "Gemm" => {
                 if node.input[0] != live {
@@ -357,6 +405,9 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                 }
                 let (r, c) = (bm.dims[0], bm.dims[1]);
                 let (k, m) = if tb == 0 { (r, c) } else { (c, r) };
+                if m > MAX_WIDTH {
+                    return Err(too_wide(m));
+                }
                 if k != d {
                     return Err(shape_err(format!(
                         "B has {k} rows (after transB) but the activation has {d} entries"
@@ -398,6 +449,9 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                     )));
                 }
                 let m = bm.dims[1];
+                if m > MAX_WIDTH {
+                    return Err(too_wide(m));
+                }
                 let mut w = vec![0.0; m * d];
                 for i in 0..m {
                     for j in 0..d {
@@ -451,6 +505,11 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                 };
                 let lo = bound(1, "min", f64::NEG_INFINITY)?;
                 let hi = bound(2, "max", f64::INFINITY)?;
+                if lo.is_nan() || hi.is_nan() || lo > hi {
+                    return Err(shape_err(format!(
+                        "bounds [{lo}, {hi}] are not an interval; min must be <= max"
+                    )));
+                }
                 b.segs.push(Seg::Act(Activation::Clamp { lo, hi }));
             }
             "Identity" | "Dropout" | "Flatten" | "Squeeze" | "Unsqueeze" => {}

@@ -1,0 +1,23 @@
+//! Sound bounds of piecewise-linear networks, and the input-domain branch and bound built
+//! on them.
+//!
+//! A network here is the chain of affine maps the exact engine already uses
+//! (`samara_verify::net::PwlNet::maps`): `z_k = W_k a_{k-1} + b_k`, each followed by a
+//! ReLU or not, the last one not. Two pieces:
+//!
+//! - [`symbolic`]: forward symbolic interval propagation (Neurify, Wang et al., NeurIPS
+//!   2018; the forward form of DeepPoly, Singh et al., POPL 2019). Every neuron carries a
+//!   lower and an upper linear function of the inputs; a ReLU maps them by monotonicity
+//!   (`relu(L) <= relu(z) <= relu(U)`) and relaxes each by its own range. The cost grows
+//!   with the number of inputs, not the width, which suits low-dimensional inputs (the
+//!   case study's 6, ACAS Xu's 5). Floating point cannot break a bound: every linear
+//!   function carries a slack that provably covers the rounding of the f64 arithmetic
+//!   that built it (Higham's bound `gamma_n = n u / (1 - n u)` per dot product).
+//! - [`search`]: input-domain branch and bound for queries "is there an `x` in a box with
+//!   `f(x)` in a polytope?" (the VNN-LIB shape): a projected-gradient attack first,
+//!   then splitting the box along the input with the largest smear (ReluVal, Wang et al.,
+//!   USENIX Security 2018) until every piece is proved empty or a point is found. Points
+//!   are re-evaluated concretely before they are reported.
+
+pub mod search;
+pub mod symbolic;

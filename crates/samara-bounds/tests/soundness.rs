@@ -1,0 +1,284 @@
+//! Sampling soundness of the bounds and of the search on random ReLU networks: every
+//! bound must contain the network's own f64 evaluation (samara-nn's IR evaluator, an
+//! independent code path from the chain the bounds read) at thousands of points, and
+//! every `Empty` verdict must survive dense sampling; every point found must satisfy its
+//! constraints when re-evaluated.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use samara_bounds::search::{solve, Case, Outcome, OutputConstraint, Settings};
+use samara_bounds::symbolic::{self, Objective};
+use samara_nn::{Activation, Affine, Layer, Network};
+
+fn chain(net: &Network) -> Vec<(Affine, bool)> {
+    let mut maps: Vec<(Affine, bool)> = Vec::new();
+    for l in net.raw_layers() {
+        match l {
+            Layer::Affine(a) => maps.push((a, false)),
+            Layer::Act(Activation::Relu) => maps.last_mut().unwrap().1 = true,
+            other => panic!("unexpected {other:?}"),
+        }
+    }
+    maps
+}
+
+/// Pre-activations of every map, by the IR's layers (affine then ReLU).
+fn pre_activations(net: &Network, x: &[f64]) -> Vec<Vec<f64>> {
+    let mut out = Vec::new();
+    let mut a = x.to_vec();
+    for l in net.raw_layers() {
+        match l {
+            Layer::Affine(m) => {
+                a = m.apply(&a);
+                out.push(a.clone());
+            }
+            Layer::Act(act) => a = a.iter().map(|v| act.apply_f64(*v)).collect(),
+        }
+    }
+    out
+}
+
+fn random_box(rng: &mut ChaCha8Rng, n: usize, scale: f64) -> (Vec<f64>, Vec<f64>) {
+    let mut lo = Vec::new();
+    let mut hi = Vec::new();
+    for _ in 0..n {
+        let c = rng.gen_range(-1.0..1.0) * scale;
+        let w = rng.gen_range(0.0..1.0) * scale;
+        lo.push(c - w);
+        hi.push(c + w);
+    }
+    (lo, hi)
+}
+
+fn sample(rng: &mut ChaCha8Rng, lo: &[f64], hi: &[f64], k: usize) -> Vec<f64> {
+    // Corners now and then: bounds are tightest to break there.
+    lo.iter()
+        .zip(hi)
+        .map(|(a, b)| match k % 7 {
+            0 => *a,
+            1 => *b,
+            _ => rng.gen_range(*a..=*b),
+        })
+        .collect()
+}
+
+#[test]
+fn forward_crown_and_objective_bounds_contain_samples() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let shapes: [&[usize]; 4] = [
+        &[2, 6, 1],
+        &[3, 8, 8, 2],
+        &[5, 10, 10, 10, 3],
+        &[4, 16, 12, 8, 6, 5],
+    ];
+    for trial in 0..48 {
+        let dims = shapes[trial % shapes.len()];
+        let wscale = [0.5, 1.0, 3.0, 1e3][trial % 4];
+        let net = Network::random_mlp(dims, Activation::Relu, wscale, 0.5 * wscale, &mut rng);
+        let maps = chain(&net);
+        let (lo, hi) = random_box(&mut rng, dims[0], [1.0, 1e-3, 10.0][trial % 3]);
+        let (a, last, fwd) = symbolic::hidden(&maps, &lo, &hi, None);
+        let crown = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
+        let objs: Vec<Objective> = (0..3)
+            .map(|_| Objective {
+                c: (0..*dims.last().unwrap())
+                    .map(|_| rng.gen_range(-1.0..1.0))
+                    .collect(),
+                d: rng.gen_range(-1.0..1.0),
+            })
+            .collect();
+        let lbs: Vec<(f64, f64, f64)> = objs
+            .iter()
+            .map(|o| {
+                (
+                    symbolic::objective_lower(&a, last, o, &lo, &hi).min_over(&lo, &hi),
+                    symbolic::backward_lower(&maps, &crown, o, &lo, &hi).min_over(&lo, &hi),
+                    symbolic::alpha_lower(&maps, &crown, o, &lo, &hi, 15).min_over(&lo, &hi),
+                )
+            })
+            .collect();
+        for k in 0..2000 {
+            let x = sample(&mut rng, &lo, &hi, k);
+            let z = pre_activations(&net, &x);
+            for (layer, bounds) in [&fwd, &crown].into_iter().enumerate() {
+                for (j, b) in bounds.iter().enumerate() {
+                    for (i, &(l, u)) in b.iter().enumerate() {
+                        let v = z[j][i];
+                        assert!(
+                            l <= v && v <= u,
+                            "trial {trial} ({}) map {j} neuron {i}: {v} outside [{l}, {u}] at {x:?}",
+                            ["forward", "crown"][layer]
+                        );
+                    }
+                }
+            }
+            let y = net.eval_f64(&x);
+            for (o, (l1, l2, l3)) in objs.iter().zip(&lbs) {
+                let g = o.d + o.c.iter().zip(&y).map(|(c, v)| c * v).sum::<f64>();
+                assert!(
+                    *l1 <= g && *l2 <= g && *l3 <= g,
+                    "trial {trial}: objective {g} below bounds {l1} / {l2} / {l3}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn search_verdicts_survive_sampling_and_points_are_real() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    let (mut empty, mut found) = (0, 0);
+    for trial in 0..40 {
+        let dims: &[usize] = if trial % 2 == 0 {
+            &[3, 10, 10, 2]
+        } else {
+            &[5, 12, 12, 12, 3]
+        };
+        let net = Network::random_mlp(dims, Activation::Relu, 1.0, 0.5, &mut rng);
+        let maps = chain(&net);
+        let (lo, hi) = random_box(&mut rng, dims[0], 1.0);
+        // Threshold near the sampled range of y_0 - y_1, so both answers occur.
+        let ys: Vec<f64> = (0..400)
+            .map(|k| {
+                let y = net.eval_f64(&sample(&mut rng, &lo, &hi, k));
+                y[0] - y[1]
+            })
+            .collect();
+        let min = ys.iter().cloned().fold(f64::INFINITY, f64::min);
+        let max = ys.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let t = min - (max - min) * rng.gen_range(-0.2..0.3);
+        let mut c = vec![0.0; *dims.last().unwrap()];
+        c[0] = 1.0;
+        c[1] = -1.0;
+        // Counterexample region: y_0 - y_1 <= t.
+        let cons = vec![OutputConstraint {
+            obj: Objective {
+                c: c.clone(),
+                d: -t,
+            },
+            strict: false,
+        }];
+        let case = Case {
+            lo: lo.clone(),
+            hi: hi.clone(),
+            constraints: cons.clone(),
+        };
+        let (o, _) = solve(
+            &maps,
+            std::slice::from_ref(&case),
+            &Settings {
+                timeout: None,
+                ..Default::default()
+            },
+        );
+        match o {
+            Outcome::Empty => {
+                empty += 1;
+                for k in 0..20_000 {
+                    let y = net.eval_f64(&sample(&mut rng, &lo, &hi, k));
+                    assert!(
+                        y[0] - y[1] > t - 1e-9,
+                        "trial {trial}: Empty contradicted: {} <= {t}",
+                        y[0] - y[1]
+                    );
+                }
+            }
+            Outcome::Point { x, .. } => {
+                found += 1;
+                assert!(x
+                    .iter()
+                    .zip(lo.iter().zip(&hi))
+                    .all(|(v, (a, b))| a <= v && v <= b));
+                let y = net.eval_f64(&x);
+                assert!(
+                    y[0] - y[1] <= t,
+                    "trial {trial}: point does not satisfy: {} > {t}",
+                    y[0] - y[1]
+                );
+            }
+            Outcome::Unknown(r) => panic!("trial {trial}: no limit was set, yet {r:?}"),
+        }
+    }
+    assert!(
+        empty >= 5 && found >= 5,
+        "both verdicts exercised: {empty} empty, {found} found"
+    );
+}
+
+#[test]
+fn limits_give_unknown_never_a_verdict() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let net = Network::random_mlp(&[5, 20, 20, 20, 2], Activation::Relu, 1.0, 0.5, &mut rng);
+    let maps = chain(&net);
+    let lo = vec![-1.0; 5];
+    let hi = vec![1.0; 5];
+    // A region that the attack cannot hit and the bounds cannot close at once: y_0 - y_1
+    // below its true minimum by a hair (found by sampling).
+    let min = (0..5000)
+        .map(|k| {
+            let y = net.eval_f64(&sample(&mut rng, &lo, &hi, k));
+            y[0] - y[1]
+        })
+        .fold(f64::INFINITY, f64::min);
+    let cons = vec![OutputConstraint {
+        obj: Objective {
+            c: vec![1.0, -1.0],
+            d: -(min - 1e-3),
+        },
+        strict: false,
+    }];
+    let case = Case {
+        lo,
+        hi,
+        constraints: cons,
+    };
+    for s in [
+        Settings {
+            timeout: Some(std::time::Duration::ZERO),
+            ..Default::default()
+        },
+        Settings {
+            timeout: None,
+            max_pieces: 1,
+            batch: 1,
+            ..Default::default()
+        },
+    ] {
+        let (o, _) = solve(&maps, std::slice::from_ref(&case), &s);
+        assert!(
+            matches!(o, Outcome::Unknown(_) | Outcome::Point { .. }),
+            "a limited search claimed {o:?}"
+        );
+        if let Outcome::Point { x, .. } = o {
+            let y = net.eval_f64(&x);
+            assert!(y[0] - y[1] <= min - 1e-3);
+        }
+    }
+}
+
+#[test]
+fn alpha_crown_is_never_looser_than_crown_and_tightens_somewhere() {
+    let mut rng = ChaCha8Rng::seed_from_u64(19);
+    let mut tighter = 0;
+    for _ in 0..30 {
+        let net = Network::random_mlp(&[4, 16, 16, 16, 3], Activation::Relu, 1.0, 0.5, &mut rng);
+        let maps = chain(&net);
+        let (lo, hi) = random_box(&mut rng, 4, 1.0);
+        let (_, _, fwd) = symbolic::hidden(&maps, &lo, &hi, None);
+        let pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
+        let o = Objective {
+            c: vec![1.0, -1.0, 0.5],
+            d: 0.0,
+        };
+        let base = symbolic::backward_lower(&maps, &pre, &o, &lo, &hi).min_over(&lo, &hi);
+        let opt = symbolic::alpha_lower(&maps, &pre, &o, &lo, &hi, 20).min_over(&lo, &hi);
+        assert!(opt >= base, "{opt} < {base}");
+        if opt > base + 1e-9 * (1.0 + base.abs()) {
+            tighter += 1;
+        }
+    }
+    assert!(
+        tighter >= 5,
+        "alpha-CROWN improved only {tighter} of 30 bounds"
+    );
+}

@@ -1,0 +1,141 @@
+//! Simulated trajectories from the initial box (falsification and figures) and the check
+//! that a run's enclosures contain them.
+
+use crate::driver::ReachResult;
+use crate::settings::ReachSettings;
+use rayon::prelude::*;
+use samara_nn::Network;
+use samara_plant::Plant;
+use samara_sim::{fly, Integrator, LoopSettings, NetworkController};
+use serde::Serialize;
+
+/// A simulated trajectory: control instants only.
+#[derive(Clone, Debug, Serialize)]
+pub struct Sample {
+    /// Initial state.
+    pub initial: Vec<f64>,
+    /// States at t = 0, period, 2 period, ...
+    pub states: Vec<Vec<f64>>,
+    /// Dense (x, y) points for figures.
+    pub xy: Vec<(f64, f64)>,
+    /// Dense (t, x + y).
+    pub txy: Vec<(f64, f64)>,
+}
+
+/// Simulate `n` trajectories from the initial box (end points of every parameter
+/// first, then uniform random points) with DOP853 at rtol 1e-10, atol 1e-12.
+pub fn simulate_samples(plant: &Plant, net: &Network, s: &ReachSettings, n: usize) -> Vec<Sample> {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(s.seed);
+    let params: Vec<usize> = (0..s.init.len())
+        .filter(|&i| s.init[i].1 > s.init[i].0)
+        .collect();
+    let mut starts: Vec<Vec<f64>> = Vec::new();
+    for corner in 0..(1usize << params.len().min(6)).min(n) {
+        starts.push(
+            (0..s.init.len())
+                .map(|i| match params.iter().position(|&p| p == i) {
+                    Some(j) => {
+                        if corner >> j & 1 == 1 {
+                            s.init[i].1
+                        } else {
+                            s.init[i].0
+                        }
+                    }
+                    None => s.init[i].0,
+                })
+                .collect(),
+        );
+    }
+    while starts.len() < n {
+        starts.push(
+            s.init
+                .iter()
+                .map(|&(a, b)| if b > a { rng.gen_range(a..=b) } else { a })
+                .collect(),
+        );
+    }
+    let ls = LoopSettings {
+        period: s.period,
+        horizon: s.horizon,
+        integrator: Integrator::Dop853(Default::default()),
+        reset_filter: s.reset_filter,
+        output_step: Some(sample_step(s.period)),
+    };
+    starts
+        .par_iter()
+        .filter_map(|x0| {
+            let mut c = NetworkController::new(net.clone(), s.clip, "net");
+            let f = fly(plant, &mut c, x0, &ls).ok()?;
+            let mut states = vec![x0.clone()];
+            states.extend(f.steps.iter().map(|r| r.state_end.clone()));
+            let xy = f.dense.iter().map(|(_, st, _)| (st[4], st[5])).collect();
+            let txy = f
+                .dense
+                .iter()
+                .map(|(t, st, _)| (t, st[4] + st[5]))
+                .collect();
+            Some(Sample {
+                initial: x0.clone(),
+                states,
+                xy,
+                txy,
+            })
+        })
+        .collect()
+}
+
+/// Output spacing of the sampled trajectories: 0.05, or the nearest finer step that
+/// divides the period when 0.05 does not (a step that does not divide the period makes
+/// every sampled flight fail, leaving no samples at all).
+fn sample_step(period: f64) -> f64 {
+    let q = period / 0.05;
+    if (q - q.round()).abs() <= 1e-9 * q.max(1.0) && q.round() >= 1.0 {
+        0.05
+    } else {
+        period / q.ceil().max(1.0)
+    }
+}
+
+/// Whether the result's enclosures contain a simulated trajectory at every control
+/// instant: the trajectory's initial state selects the sub-box, and the state must lie
+/// in that sub-box's zonotope (parameters exact, noise as a box; needs `keep_sets`) or
+/// its box, with tolerance `tol` for the simulation's own error. Returns the first
+/// instant where containment fails.
+pub fn check_containment(res: &ReachResult, smp: &Sample, tol: f64) -> Result<(), String> {
+    let leaf = res
+        .leaves
+        .iter()
+        .find(|l| {
+            l.init
+                .iter()
+                .zip(&smp.initial)
+                .all(|(r, x)| r[0] <= *x && *x <= r[1])
+        })
+        .ok_or("no sub-box contains the initial state")?;
+    for (k, st) in leaf.steps.iter().enumerate() {
+        let x = &smp.states[k];
+        for (i, b) in st.bbox.iter().enumerate() {
+            if !(b[0] - tol <= x[i] && x[i] <= b[1] + tol) {
+                return Err(format!(
+                    "t = {}: state {} = {} outside [{}, {}]",
+                    st.t, i, x[i], b[0], b[1]
+                ));
+            }
+        }
+        if let Some(z) = &st.set {
+            let xi: Vec<f64> = leaf
+                .params
+                .iter()
+                .map(|&p| {
+                    let (a, b) = (leaf.init[p][0], leaf.init[p][1]);
+                    (smp.initial[p] - 0.5 * (a + b)) / (0.5 * (b - a))
+                })
+                .collect();
+            if !z.contains_with_params(x, &xi, tol) {
+                return Err(format!("t = {}: state outside the zonotope", st.t));
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,200 @@
+//! Settings of a reachability run, the goal, input errors and their validation.
+
+use crate::flow::FlowSettings;
+use samara_nn::Network;
+use samara_plant::Model;
+use serde::Serialize;
+
+/// Largest magnitude of an initial interval's end: the model is nondimensional and the
+/// published states are O(1); beyond this the enclosures mean nothing and the sampling
+/// would overflow.
+pub const MAX_INIT: f64 = 1e3;
+
+/// Largest number of control periods (`horizon / period`) [`reach`] accepts.
+pub const MAX_PERIODS: usize = 100_000;
+
+/// Errors of bad input (verdicts are values, see [`Verdict`]).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ReachError {
+    /// The network does not read the six raw states or does not give one output.
+    #[error("the network has {inputs} inputs and {outputs} outputs; the closed loop needs 6 inputs (v_xp, v_yp, omega, theta, x, y in raw units) and 1 output (ex): pass a raw-unit controller such as *_denorm.onnx")]
+    NetworkShape {
+        /// Inputs found.
+        inputs: usize,
+        /// Outputs found.
+        outputs: usize,
+    },
+    /// An initial interval is empty, inverted or not finite.
+    #[error("initial interval for {name} is [{lo}, {hi}]: give A:B with finite A <= B inside [-1000, 1000]")]
+    BadInterval {
+        /// State name.
+        name: String,
+        /// Lower end.
+        lo: f64,
+        /// Upper end.
+        hi: f64,
+    },
+    /// The initial box has the wrong number of states.
+    #[error("the {model} model has {expected} states; the initial set gives {found}")]
+    InitDim {
+        /// Model name.
+        model: &'static str,
+        /// Expected.
+        expected: usize,
+        /// Found.
+        found: usize,
+    },
+    /// Horizon and period do not fit (or give more than [`MAX_PERIODS`] periods).
+    #[error("horizon {horizon} is not a positive multiple of the period {period} with at most 100000 periods: choose e.g. --horizon 20 --period 0.5")]
+    Horizon {
+        /// Horizon.
+        horizon: f64,
+        /// Period.
+        period: f64,
+    },
+    /// A goal bound that is not a positive finite number, or a start time outside the flight.
+    #[error("goal: {0}")]
+    Goal(String),
+}
+
+/// The goal `|x + y| <= ystar` at `t = T`, or for all `t` in `[from, T]`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Goal {
+    /// Half-width of the band around the line `y = -x`.
+    pub ystar: f64,
+    /// Start of the time window (`None`: only at the horizon).
+    pub from: Option<f64>,
+}
+
+/// Settings of a reachability run. Defaults: the published CORA setting (reduced model,
+/// `y0 ∈ [1.4286, 4.2857]`, horizon 20, period 0.5) with the clip of the simulation.
+#[derive(Clone, Debug)]
+pub struct ReachSettings {
+    /// Model variant.
+    pub model: Model,
+    /// Initial box, one interval per state (`Model::dim` entries).
+    pub init: Vec<(f64, f64)>,
+    /// Control period (0.5).
+    pub period: f64,
+    /// Horizon (20).
+    pub horizon: f64,
+    /// Output clip of the controller (`Some((0.181, 0.193))`; `None` as in CORA).
+    pub clip: Option<(f64, f64)>,
+    /// Restart the filter state E at 0 every period, as the simulation (true).
+    pub reset_filter: bool,
+    /// Goal to decide, if any.
+    pub goal: Option<Goal>,
+    /// Sub-boxes to start from, along the widest parameter; 0 (the default) picks one per
+    /// `auto_piece` of its width, rounded up to a power of two and capped by `max_leaves`
+    /// (64 on the published interval, whose CORA runs used 8-16 pieces cut by hand).
+    pub initial_splits: usize,
+    /// Width per initial sub-box when `initial_splits` is 0 (0.05).
+    pub auto_piece: f64,
+    /// Largest number of sub-boxes (64); sub-boxes that lost their enclosure may use a
+    /// quarter more.
+    pub max_leaves: usize,
+    /// Split a sub-box when the noise part of its `x + y` enclosure exceeds this (0.01).
+    pub max_noise: f64,
+    /// Sub-boxes narrower than this fraction of the initial width are not split (1e-4).
+    pub min_fraction: f64,
+    /// Simulated trajectories for falsification and the figure (200).
+    pub samples: usize,
+    /// Seed of the sampling.
+    pub seed: u64,
+    /// Keep every sub-box's zonotope at every control instant (tests; memory).
+    pub keep_sets: bool,
+    /// Validated integrator settings.
+    pub flow: FlowSettings,
+}
+
+impl ReachSettings {
+    /// The published setting for `model`: `y0 ∈ [1.4286, 4.2857]`, start `(1,0,0,0,0,y0)`.
+    pub fn published(model: Model) -> Self {
+        let mut init = vec![(1.0, 1.0), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)];
+        init.push((0.1 / 0.07, 0.3 / 0.07));
+        if model.has_filter() {
+            init.push((0.0, 0.0));
+        }
+        ReachSettings {
+            model,
+            init,
+            period: 0.5,
+            horizon: 20.0,
+            clip: Some(samara_plant::EX_RANGE),
+            reset_filter: true,
+            goal: None,
+            initial_splits: 0,
+            auto_piece: 0.05,
+            max_leaves: 64,
+            max_noise: 0.01,
+            min_fraction: 1e-4,
+            samples: 200,
+            seed: 1,
+            keep_sets: false,
+            flow: FlowSettings::default(),
+        }
+    }
+
+    fn steps(&self) -> Result<usize, ReachError> {
+        let err = ReachError::Horizon {
+            horizon: self.horizon,
+            period: self.period,
+        };
+        if !(self.period > 0.0 && self.horizon > 0.0 && self.period.is_finite()) {
+            return Err(err);
+        }
+        let k = self.horizon / self.period;
+        if !k.is_finite()
+            || k > MAX_PERIODS as f64 + 0.5
+            || (k - k.round()).abs() > 1e-9 * k.max(1.0)
+            || k.round() < 1.0
+        {
+            return Err(err);
+        }
+        Ok(k.round() as usize)
+    }
+
+    /// Check the settings against the model and network.
+    pub fn validate(&self, net: &Network) -> Result<usize, ReachError> {
+        if net.n_inputs() != 6 || net.n_outputs() != 1 {
+            return Err(ReachError::NetworkShape {
+                inputs: net.n_inputs(),
+                outputs: net.n_outputs(),
+            });
+        }
+        if self.init.len() != self.model.dim() {
+            return Err(ReachError::InitDim {
+                model: self.model.name(),
+                expected: self.model.dim(),
+                found: self.init.len(),
+            });
+        }
+        for (i, &(lo, hi)) in self.init.iter().enumerate() {
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= -MAX_INIT && hi <= MAX_INIT)
+            {
+                return Err(ReachError::BadInterval {
+                    name: samara_plant::STATE_NAMES[i].into(),
+                    lo,
+                    hi,
+                });
+            }
+        }
+        if let Some(g) = &self.goal {
+            if !(g.ystar.is_finite() && g.ystar >= 0.0) {
+                return Err(ReachError::Goal(format!(
+                    "ystar {} must be a finite number >= 0",
+                    g.ystar
+                )));
+            }
+            if let Some(f) = g.from {
+                if !(f >= 0.0 && f <= self.horizon) {
+                    return Err(ReachError::Goal(format!(
+                        "--goal-from {f} must lie in [0, horizon = {}]",
+                        self.horizon
+                    )));
+                }
+            }
+        }
+        self.steps()
+    }
+}

@@ -1,0 +1,135 @@
+//! The goal on the final sets, falsification by simulated trajectories, and the verdict.
+
+use crate::driver::Leaf;
+use crate::sampling::Sample;
+use crate::settings::{Goal, ReachSettings};
+use samara_num::Interval;
+use serde::Serialize;
+
+/// The verdict on the goal.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(tag = "verdict", rename_all = "lowercase")]
+pub enum Verdict {
+    /// Every trajectory from the initial set meets the goal (sound enclosure).
+    Proved,
+    /// A simulated trajectory misses the goal.
+    Violated {
+        /// Its initial state.
+        initial: Vec<f64>,
+        /// Time of the violation.
+        t: f64,
+        /// Its `x + y` there.
+        x_plus_y: f64,
+    },
+    /// Not settled.
+    Unknown {
+        /// Why.
+        reason: String,
+    },
+    /// No goal was given.
+    #[serde(rename = "none")]
+    NoGoal,
+}
+
+impl Verdict {
+    /// `proved`, `violated`, `unknown` or `none`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Verdict::Proved => "proved",
+            Verdict::Violated { .. } => "violated",
+            Verdict::Unknown { .. } => "unknown",
+            Verdict::NoGoal => "none",
+        }
+    }
+}
+
+/// The goal on one sub-box: `Some(true)` every enclosure inside the band, `Some(false)`
+/// some enclosure entirely outside it, `None` undecided.
+pub(crate) fn leaf_goal(l: &Leaf, g: &Goal, s: &ReachSettings) -> Option<bool> {
+    let mut all_in = true;
+    for st in &l.steps {
+        let r = match g.from {
+            None if st.t >= s.horizon - 1e-9 => st.x_plus_y,
+            None => continue,
+            Some(f) if st.t >= f + s.period - 1e-9 => st.x_plus_y_period,
+            Some(f) if st.t >= f - 1e-9 => st.x_plus_y,
+            Some(_) => continue,
+        };
+        if r[0] > g.ystar || r[1] < -g.ystar {
+            return Some(false);
+        }
+        if !(-g.ystar <= r[0] && r[1] <= g.ystar) {
+            all_in = false;
+        }
+    }
+    if l.failure.is_some() {
+        return None;
+    }
+    if all_in {
+        Some(true)
+    } else {
+        None
+    }
+}
+
+/// Falsification: the first simulated trajectory that misses the goal `g`, as a
+/// `Violated` verdict.
+pub(crate) fn first_violation(samples: &[Sample], g: &Goal, s: &ReachSettings) -> Option<Verdict> {
+    for smp in samples {
+        let bad = match g.from {
+            None => {
+                let x = smp.states.last().expect("states");
+                ((x[4] + x[5]).abs() > g.ystar).then_some((s.horizon, x[4] + x[5]))
+            }
+            Some(f) => smp
+                .txy
+                .iter()
+                .find(|(t, v)| *t >= f - 1e-12 && v.abs() > g.ystar)
+                .map(|&(t, v)| (t, v)),
+        };
+        if let Some((t, v)) = bad {
+            return Some(Verdict::Violated {
+                initial: smp.initial.clone(),
+                t,
+                x_plus_y: v,
+            });
+        }
+    }
+    None
+}
+
+/// The verdict of a run: no goal, the falsifying trajectory if there is one, unknown if
+/// a sub-box lost its enclosure, proved if every sub-box's enclosures lie in the band
+/// (`fin`: the hull of `x + y` at the horizon, for the message), unknown otherwise.
+pub(crate) fn decide(
+    s: &ReachSettings,
+    violation: Option<Verdict>,
+    done: &[Leaf],
+    fin: Interval,
+) -> Verdict {
+    match (&s.goal, violation) {
+        (None, _) => Verdict::NoGoal,
+        (Some(_), Some(v)) => v,
+        (Some(g), None) => {
+            if done.iter().any(|l| l.failure.is_some()) {
+                let why = done
+                    .iter()
+                    .find_map(|l| l.failure.clone())
+                    .unwrap_or_default();
+                Verdict::Unknown { reason: why }
+            } else {
+                let ok = done.iter().all(|l| leaf_goal(l, g, s) == Some(true));
+                if ok {
+                    Verdict::Proved
+                } else {
+                    Verdict::Unknown {
+                        reason: format!(
+                            "the enclosure of x + y ({:.4}, {:.4}) is not inside the goal band and no simulated trajectory violates it; refine with more sub-boxes (--max-leaves) or smaller thresholds",
+                            fin.lo, fin.hi
+                        ),
+                    }
+                }
+            }
+        }
+    }
+}

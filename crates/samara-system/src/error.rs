@@ -1,0 +1,117 @@
+//! Errors of the system language: file, line, column, what is wrong, how to fix it.
+
+use std::fmt;
+
+/// A position in the source (1-based line and column; line 0: no position).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Pos {
+    /// Line.
+    pub line: usize,
+    /// Column (in characters).
+    pub col: usize,
+}
+
+/// A system-file error. Displayed as `file:line:col: message`, the source line with a
+/// caret, and `= help: fix`. The CLI exits with [`SystemError::EXIT_CODE`] on it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SystemError {
+    /// File name.
+    pub file: String,
+    /// Position.
+    pub pos: Pos,
+    /// What is wrong.
+    pub message: String,
+    /// How to fix it (may be empty).
+    pub hint: String,
+    /// The offending source line (may be empty).
+    pub source_line: String,
+}
+
+impl SystemError {
+    /// Exit code of a command that fails on a bad system file (a bad input).
+    pub const EXIT_CODE: i32 = 2;
+}
+
+impl fmt::Display for SystemError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.pos.line == 0 {
+            writeln!(f, "{}: {}", self.file, self.message)?;
+        } else {
+            writeln!(
+                f,
+                "{}:{}:{}: {}",
+                self.file, self.pos.line, self.pos.col, self.message
+            )?;
+        }
+        if !self.source_line.is_empty() {
+            const WIDTH: usize = 120;
+            let chars: Vec<char> = self.source_line.chars().collect();
+            let col = self.pos.col.saturating_sub(1).min(chars.len());
+            let start = col.saturating_sub(WIDTH / 2);
+            let end = (start + WIDTH).min(chars.len());
+            let mut shown: String = chars[start..end].iter().collect();
+            let mut caret = col - start;
+            if start > 0 {
+                shown.insert_str(0, "...");
+                caret += 3;
+            }
+            if end < chars.len() {
+                shown.push_str("...");
+            }
+            writeln!(f, "  | {shown}")?;
+            writeln!(f, "  | {}^", " ".repeat(caret))?;
+        }
+        if !self.hint.is_empty() {
+            write!(f, "  = help: {}", self.hint)?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for SystemError {}
+
+/// Edit distance (insertions, deletions, substitutions), for "did you mean" hints.
+fn levenshtein(a: &str, b: &str) -> usize {
+    let a: Vec<char> = a.chars().collect();
+    let b: Vec<char> = b.chars().collect();
+    let mut prev: Vec<usize> = (0..=b.len()).collect();
+    let mut cur = vec![0; b.len() + 1];
+    for i in 1..=a.len() {
+        cur[0] = i;
+        for j in 1..=b.len() {
+            let sub = prev[j - 1] + usize::from(a[i - 1] != b[j - 1]);
+            cur[j] = sub.min(prev[j] + 1).min(cur[j - 1] + 1);
+        }
+        std::mem::swap(&mut prev, &mut cur);
+    }
+    prev[b.len()]
+}
+
+/// The closest candidate to `name` (distance at most a third of its length, at least
+/// 1, or a case-insensitive match); names over 128 characters get no suggestion.
+pub(crate) fn closest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> Option<String> {
+    if name.chars().count() > 128 {
+        return None;
+    }
+    let limit = (name.chars().count() / 3).max(1);
+    let mut best: Option<(usize, &str)> = None;
+    for c in candidates {
+        if c.chars().count() > 128 {
+            continue;
+        }
+        let d = if c.eq_ignore_ascii_case(name) {
+            0
+        } else {
+            levenshtein(name, c)
+        };
+        let better = match best {
+            None => true,
+            // Ties go to the alphabetically first name: suggestions are deterministic.
+            Some((bd, bc)) => d < bd || (d == bd && c < bc),
+        };
+        if d <= limit && better {
+            best = Some((d, c));
+        }
+    }
+    best.map(|(_, c)| c.to_string())
+}

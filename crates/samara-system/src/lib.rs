@@ -1,0 +1,364 @@
+//! The samara system language (docs/system.md): a plant, its controller interface,
+//! initial set, horizon and goal in one text file, checked and compiled once into an
+//! expression [`Graph`] that is evaluated generically over [`Scalar`], so `f64`,
+//! [`samara_num::Dual`], [`samara_num::Interval`], [`samara_num::IDual`] and
+//! [`samara_num::Series`] all run the same equations.
+//!
+//! ```
+//! let src = "state x, v\ninput u\nx' = v\nv' = -sin(x) + u\nperiod 0.1\nhorizon 1\n\
+//!            actuate u = net[0] clip [-1, 1]\ninit x in [0, 0.1]\ninit v = 0\n\
+//!            goal reach x in [-0.5, 0.5] at end\n";
+//! let sys = samara_system::System::parse(src, "pendulum.sys").unwrap();
+//! let mut dx = [0.0; 2];
+//! sys.rhs(&[0.5, 1.0], &[0.25], &mut dx);
+//! assert_eq!(dx, [1.0, -(0.5f64.sin()) + 0.25]);
+//! ```
+
+mod compile;
+mod error;
+mod graph;
+mod lex;
+mod parse;
+pub mod sim;
+
+pub use error::{Pos, SystemError};
+pub use graph::{Affine, Bin2, Cond, Graph, Op, Un};
+pub use lex::MAX_SOURCE_BYTES;
+pub use parse::MAX_NESTING;
+
+use samara_num::{Dual, Interval, Scalar};
+
+/// A plant's continuous dynamics `x' = f(x, u)`, evaluable over any [`Scalar`]. The
+/// simulator and the reachability code can take either the built-in plant or a
+/// [`System`] through this trait.
+pub trait Dynamics {
+    /// Number of states.
+    fn dim(&self) -> usize;
+    /// Number of inputs (held constant over a control period).
+    fn n_inputs(&self) -> usize;
+    /// `out = f(x, u)`; `x` has [`Dynamics::dim`] entries, `u` [`Dynamics::n_inputs`].
+    fn rhs<S: Scalar>(&self, x: &[S], u: &[S], out: &mut [S]);
+    /// As [`Dynamics::rhs`], with a caller-owned value buffer that an interpreted
+    /// implementation reuses between calls (the default ignores it).
+    fn rhs_buffered<S: Scalar>(&self, scratch: &mut Vec<S>, x: &[S], u: &[S], out: &mut [S]) {
+        let _ = scratch;
+        self.rhs(x, u, out)
+    }
+}
+
+impl Dynamics for samara_plant::Plant {
+    fn dim(&self) -> usize {
+        samara_plant::Plant::dim(self)
+    }
+    fn n_inputs(&self) -> usize {
+        1
+    }
+    fn rhs<S: Scalar>(&self, x: &[S], u: &[S], out: &mut [S]) {
+        samara_plant::Plant::rhs(self, x, &u[0], out)
+    }
+}
+
+/// When a goal is checked.
+#[derive(Clone, Debug, PartialEq)]
+pub enum When {
+    /// At the horizon.
+    End,
+    /// At every time of `[t1, t2]`.
+    Always(f64, f64),
+    /// At some time of `[t1, t2]`.
+    Eventually(f64, f64),
+}
+
+/// What a goal asks of the state at a checked time.
+#[derive(Clone, Debug, PartialEq)]
+pub enum GoalKind {
+    /// Inside the box (one interval per state; unconstrained states are `(-inf, inf)`).
+    Reach(Vec<(f64, f64)>),
+    /// Not inside the box.
+    Avoid(Vec<(f64, f64)>),
+    /// `lo <= g(x) <= hi` (an end may be infinite); `linear` is `(a, b)` with
+    /// `g(x) = a.x + b` when `g` is affine.
+    Band {
+        /// The expression `g` over the states (one output).
+        graph: Graph,
+        /// Lower bound (may be `-inf`).
+        lo: f64,
+        /// Upper bound (may be `inf`).
+        hi: f64,
+        /// The affine form of `g`, if it is affine.
+        linear: Option<(Vec<f64>, f64)>,
+    },
+}
+
+/// A goal: what, when, and its source text.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Goal {
+    /// The predicate.
+    pub kind: GoalKind,
+    /// When it is checked.
+    pub when: When,
+    /// The goal line of the file (for reports).
+    pub text: String,
+    /// Where it is in the file.
+    pub pos: Pos,
+}
+
+impl Goal {
+    /// Whether the predicate holds at one state.
+    pub fn holds(&self, x: &[f64]) -> bool {
+        let inside = |b: &[(f64, f64)]| x.iter().zip(b).all(|(v, (l, h))| l <= v && v <= h);
+        match &self.kind {
+            GoalKind::Reach(b) => inside(b),
+            GoalKind::Avoid(b) => !inside(b),
+            GoalKind::Band { graph, lo, hi, .. } => {
+                let mut o = [0.0];
+                graph.eval(x, &[], &mut o);
+                *lo <= o[0] && o[0] <= *hi
+            }
+        }
+    }
+
+    /// Whether the predicate holds on a whole box of states: `Some(true)` at every
+    /// point, `Some(false)` at no point, `None` undecided (sound, by intervals).
+    pub fn decide(&self, x: &[Interval]) -> Option<bool> {
+        let boxed = |b: &[(f64, f64)]| -> Option<bool> {
+            if x.iter().zip(b).all(|(v, (l, h))| *l <= v.lo && v.hi <= *h) {
+                Some(true)
+            } else if x.iter().zip(b).any(|(v, (l, h))| v.hi < *l || v.lo > *h) {
+                Some(false)
+            } else {
+                None
+            }
+        };
+        match &self.kind {
+            GoalKind::Reach(b) => boxed(b),
+            GoalKind::Avoid(b) => boxed(b).map(|v| !v),
+            GoalKind::Band { graph, lo, hi, .. } => {
+                let mut o = [Interval::point(0.0)];
+                graph.eval(x, &[], &mut o);
+                let g = o[0];
+                if g.lo.is_nan() || g.hi.is_nan() {
+                    None
+                } else if *lo <= g.lo && g.hi <= *hi {
+                    Some(true)
+                } else if g.hi < *lo || g.lo > *hi {
+                    Some(false)
+                } else {
+                    None
+                }
+            }
+        }
+    }
+}
+
+/// A checked, compiled system file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct System {
+    /// The `system` name (empty if none).
+    pub name: String,
+    /// The file name given to the parser.
+    pub file: String,
+    /// State names, in order.
+    pub states: Vec<String>,
+    /// Input names, in order.
+    pub inputs: Vec<String>,
+    /// Parameters and their values (after overrides), in file order.
+    pub params: Vec<(String, f64)>,
+    /// Control period.
+    pub period: f64,
+    /// Horizon (a whole number of periods).
+    pub horizon: f64,
+    /// Initial set: one interval per state.
+    pub init: Vec<(f64, f64)>,
+    /// Network inputs as functions of the states (default: the states in order).
+    pub observe: Graph,
+    /// Inputs as functions of the network outputs (read as the graph's inputs).
+    pub actuate: Graph,
+    /// Optional clip of each input, applied after `actuate`.
+    pub clips: Vec<Option<(f64, f64)>>,
+    /// Number of network outputs read (`1 + ` the largest `net[i]`).
+    pub n_net_outputs: usize,
+    /// States restored to a value at every control instant.
+    pub resets: Vec<(usize, f64)>,
+    /// Goals (all must hold).
+    pub goals: Vec<Goal>,
+    rhs: Graph,
+    src: String,
+}
+
+impl System {
+    /// Parse, check and compile a system file's text (`file` names it in errors).
+    pub fn parse(src: &str, file: &str) -> Result<System, SystemError> {
+        Self::parse_with(src, file, &[])
+    }
+
+    /// As [`System::parse`], with parameter values overriding the file's
+    /// (parameters defined from an overridden one follow it).
+    pub fn parse_with(
+        src: &str,
+        file: &str,
+        overrides: &[(&str, f64)],
+    ) -> Result<System, SystemError> {
+        let toks = lex::lex(src, file)?;
+        let stmts = parse::parse(&toks, file, src)?;
+        compile::compile(&stmts, file, src, overrides)
+    }
+
+    /// Read, parse, check and compile a file.
+    pub fn from_file(path: &std::path::Path) -> Result<System, SystemError> {
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|e| SystemError {
+            file: file.clone(),
+            pos: Pos::default(),
+            message: format!("cannot read the file: {e}"),
+            hint: "check the path".into(),
+            source_line: String::new(),
+        })?;
+        let src = std::str::from_utf8(&bytes).map_err(|e| {
+            let ok = &bytes[..e.valid_up_to()];
+            let line = ok.iter().filter(|b| **b == b'\n').count() + 1;
+            SystemError {
+                file: file.clone(),
+                pos: Pos { line, col: 1 },
+                message: "the file is not UTF-8 text".into(),
+                hint: "save the file as UTF-8".into(),
+                source_line: String::new(),
+            }
+        })?;
+        Self::parse(src, &file)
+    }
+
+    /// The same file recompiled with parameter overrides (relative to the file's own
+    /// values; earlier overrides are not kept).
+    pub fn with_params(&self, overrides: &[(&str, f64)]) -> Result<System, SystemError> {
+        Self::parse_with(&self.src, &self.file, overrides)
+    }
+
+    /// The value of a parameter.
+    pub fn param(&self, name: &str) -> Option<f64> {
+        self.params.iter().find(|(n, _)| n == name).map(|p| p.1)
+    }
+
+    /// Index of a state by name.
+    pub fn state_index(&self, name: &str) -> Option<usize> {
+        self.states.iter().position(|s| s == name)
+    }
+
+    /// The compiled right-hand side (one output per state).
+    pub fn rhs_graph(&self) -> &Graph {
+        &self.rhs
+    }
+
+    /// `out = f(x, u)` reusing `scratch` (no allocation once it has grown).
+    pub fn rhs_with<S: Scalar>(&self, scratch: &mut Vec<S>, x: &[S], u: &[S], out: &mut [S]) {
+        self.rhs.eval_with(scratch, x, u, out)
+    }
+
+    /// Number of network inputs (outputs of `observe`).
+    pub fn n_observed(&self) -> usize {
+        self.observe.outputs.len()
+    }
+
+    /// Network inputs for a state.
+    pub fn observe<S: Scalar>(&self, x: &[S], out: &mut [S]) {
+        self.observe.eval(x, &[], out)
+    }
+
+    /// Plant inputs for the network outputs: the actuation map, then the clips.
+    pub fn actuate<S: Scalar>(&self, net_out: &[S], u: &mut [S]) {
+        self.actuate.eval(&[], net_out, u);
+        for (v, c) in u.iter_mut().zip(&self.clips) {
+            if let Some((lo, hi)) = c {
+                *v = v.clamp_to(*lo, *hi);
+            }
+        }
+    }
+
+    /// The observation as an affine map of the states, if it is affine.
+    pub fn observe_affine(&self) -> Option<Affine> {
+        self.observe.affine(self.dim(), 0)
+    }
+
+    /// The actuation (before clipping) as an affine map of the network outputs
+    /// (`Affine::input`), if it is affine.
+    pub fn actuate_affine(&self) -> Option<Affine> {
+        self.actuate.affine(0, self.n_net_outputs)
+    }
+
+    /// Apply the `reset` statements (at a control instant).
+    pub fn apply_resets<S: Scalar>(&self, x: &mut [S]) {
+        for &(i, v) in &self.resets {
+            x[i] = S::cst(v);
+        }
+    }
+
+    /// Number of control periods in the horizon.
+    pub fn steps(&self) -> usize {
+        (self.horizon / self.period).round() as usize
+    }
+
+    /// Jacobians `df/dx` (row-major `dim x dim`) and `df/du` (`dim x n_inputs`) at a
+    /// point, by forward-mode AD through the same graph (8 directions per pass).
+    pub fn jacobian(&self, x: &[f64], u: &[f64]) -> (Vec<f64>, Vec<f64>) {
+        let (n, m) = (self.dim(), self.n_inputs());
+        let mut jx = vec![0.0; n * n];
+        let mut ju = vec![0.0; n * m];
+        let mut scratch = Vec::new();
+        let mut out = vec![Dual::<8>::constant(0.0); n];
+        let mut start = 0;
+        while start < n + m {
+            let seed = |k: usize, v: f64| {
+                if k >= start && k < start + 8 {
+                    Dual::<8>::var(v, k - start)
+                } else {
+                    Dual::<8>::constant(v)
+                }
+            };
+            let xs: Vec<Dual<8>> = x.iter().enumerate().map(|(k, &v)| seed(k, v)).collect();
+            let us: Vec<Dual<8>> = u.iter().enumerate().map(|(k, &v)| seed(n + k, v)).collect();
+            self.rhs.eval_with(&mut scratch, &xs, &us, &mut out);
+            for i in 0..n {
+                for k in start..(start + 8).min(n + m) {
+                    let d = out[i].d[k - start];
+                    if k < n {
+                        jx[i * n + k] = d;
+                    } else {
+                        ju[i * m + (k - n)] = d;
+                    }
+                }
+            }
+            start += 8;
+        }
+        (jx, ju)
+    }
+}
+
+impl Dynamics for System {
+    fn dim(&self) -> usize {
+        self.states.len()
+    }
+    fn n_inputs(&self) -> usize {
+        self.inputs.len()
+    }
+    fn rhs<S: Scalar>(&self, x: &[S], u: &[S], out: &mut [S]) {
+        self.rhs.eval(x, u, out)
+    }
+    fn rhs_buffered<S: Scalar>(&self, scratch: &mut Vec<S>, x: &[S], u: &[S], out: &mut [S]) {
+        self.rhs.eval_with(scratch, x, u, out)
+    }
+}
+
+impl System {
+    /// Number of states (also [`Dynamics::dim`]).
+    pub fn dim(&self) -> usize {
+        self.states.len()
+    }
+    /// Number of inputs (also [`Dynamics::n_inputs`]).
+    pub fn n_inputs(&self) -> usize {
+        self.inputs.len()
+    }
+    /// `out = f(x, u)` (also [`Dynamics::rhs`]).
+    pub fn rhs<S: Scalar>(&self, x: &[S], u: &[S], out: &mut [S]) {
+        self.rhs.eval(x, u, out)
+    }
+}

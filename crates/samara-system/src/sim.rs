@@ -1,0 +1,157 @@
+//! Closed-loop simulation of a system file: at each control instant the resets are
+//! applied, the network reads the observed states, its outputs are mapped to the plant's
+//! inputs (affine map, then clip) and held for one period, over which the equations are
+//! integrated by samara-sim's DOP853 (rtol 1e-10, atol 1e-12, the step carried over from
+//! period to period as the built-in closed loop does). The same sample-and-hold protocol
+//! as `samara_sim::closed_loop::fly`, so the Alsomitra system files reproduce the
+//! built-in model's flights.
+
+use crate::{System, When};
+use samara_sim::dop853;
+use samara_sim::Tolerances;
+
+/// A simulated flight of a system.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SystemFlight {
+    /// Output times.
+    pub t: Vec<f64>,
+    /// States at the output times (one row per time).
+    pub states: Vec<Vec<f64>>,
+    /// Plant inputs held over the stretch that ends at each output time (row 0: the
+    /// first period's).
+    pub inputs: Vec<Vec<f64>>,
+}
+
+/// Why a flight could not be computed.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SimError {
+    /// The initial state has the wrong length.
+    #[error("the initial state has {found} entries; the system has {expected} states")]
+    StateDim {
+        /// States of the system.
+        expected: usize,
+        /// Entries given.
+        found: usize,
+    },
+    /// The controller gave the wrong number of outputs.
+    #[error("the network gives {found} outputs; the system reads {expected} (net[0..{expected}])")]
+    NetOutputs {
+        /// Outputs the system reads.
+        expected: usize,
+        /// Outputs given.
+        found: usize,
+    },
+    /// More states than the integrators' fixed buffers hold.
+    #[error("the system has {0} states; the closed-loop integrator handles at most {max} (samara_sim::MAX_DIM)", max = samara_sim::MAX_DIM)]
+    TooManyStates(usize),
+    /// The state left the finite numbers.
+    #[error("the state became NaN or infinite in the control period ending at t = {t}")]
+    NonFinite {
+        /// End of the period.
+        t: f64,
+    },
+}
+
+/// Fly `sys` under the controller `net` (network inputs -> outputs) from `x0`, with
+/// `per_period` output times per control period (at least 1: the control instants).
+pub fn fly(
+    sys: &System,
+    net: &dyn Fn(&[f64]) -> Vec<f64>,
+    x0: &[f64],
+    per_period: usize,
+) -> Result<SystemFlight, SimError> {
+    let n = sys.dim();
+    if x0.len() != n {
+        return Err(SimError::StateDim {
+            expected: n,
+            found: x0.len(),
+        });
+    }
+    if n > samara_sim::MAX_DIM {
+        return Err(SimError::TooManyStates(n));
+    }
+    let m = per_period.max(1);
+    let period = sys.period;
+    let out_times: Vec<f64> = (0..=m)
+        .map(|i| {
+            if i == m {
+                period
+            } else {
+                i as f64 * period / m as f64
+            }
+        })
+        .collect();
+    let mut x = x0.to_vec();
+    let mut flight = SystemFlight {
+        t: Vec::new(),
+        states: Vec::new(),
+        inputs: Vec::new(),
+    };
+    let mut obs = vec![0.0; sys.n_observed()];
+    let mut u = vec![0.0; sys.n_inputs()];
+    let mut scratch = Vec::new();
+    let mut buf = Vec::new();
+    let mut h_next = 0.0f64;
+    for k in 0..sys.steps() {
+        sys.apply_resets(&mut x);
+        sys.observe(&x, &mut obs);
+        let y = net(&obs);
+        if y.len() < sys.n_net_outputs {
+            return Err(SimError::NetOutputs {
+                expected: sys.n_net_outputs,
+                found: y.len(),
+            });
+        }
+        sys.actuate(&y, &mut u);
+        if k == 0 {
+            flight.t.push(0.0);
+            flight.states.push(x.clone());
+            flight.inputs.push(u.clone());
+        }
+        buf.clear();
+        let uu = u.clone();
+        let stats = dop853::integrate_from(
+            |s: &[f64], d: &mut [f64]| sys.rhs_with(&mut scratch, s, &uu, d),
+            &mut x,
+            0.0,
+            period,
+            Tolerances::default(),
+            (h_next > 0.0).then_some(h_next),
+            &out_times,
+            Some(&mut buf),
+        );
+        h_next = stats.h_next;
+        if x.iter().any(|v| !v.is_finite()) {
+            return Err(SimError::NonFinite {
+                t: (k + 1) as f64 * period,
+            });
+        }
+        let t0 = k as f64 * period;
+        for row in buf.chunks_exact(n + 1) {
+            flight.t.push(t0 + row[0]);
+            flight.states.push(row[1..].to_vec());
+            flight.inputs.push(u.clone());
+        }
+    }
+    Ok(flight)
+}
+
+/// Whether every goal of `sys` holds along the flight (at its output times: a window
+/// goal is checked at the recorded times inside the window).
+pub fn goals_hold(sys: &System, f: &SystemFlight) -> Vec<bool> {
+    let eps = 1e-9 * sys.horizon.max(1.0);
+    sys.goals
+        .iter()
+        .map(|g| {
+            let at = |i: usize| g.holds(&f.states[i]);
+            let inside = |t1: f64, t2: f64| {
+                (0..f.t.len()).filter(move |&i| f.t[i] >= t1 - eps && f.t[i] <= t2 + eps)
+            };
+            match g.when {
+                When::End => f.t.last().map(|_| at(f.t.len() - 1)).unwrap_or(false),
+                When::Always(t1, t2) => inside(t1, t2).all(at),
+                When::Eventually(t1, t2) => inside(t1, t2).any(at),
+            }
+        })
+        .collect()
+}

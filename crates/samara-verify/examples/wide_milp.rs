@@ -1,0 +1,64 @@
+//! P1-P4 critical values of raw-unit 6-input networks by samara's exact engine and by the
+//! HiGHS big-M MILP (`samara_verify::milp`), with times (bench/verify/wide.sh).
+//! Usage: cargo run --release -p samara-verify --features highs --example wide_milp -- NET.onnx...
+
+#[path = "../tests/support/case_study.rs"]
+mod case_study;
+
+use case_study::p1_to_p4;
+use samara_verify::milp::optimise_milp;
+use samara_verify::net::PwlNet;
+use samara_verify::{optimise, Prepared, Settings};
+use std::collections::HashMap;
+use std::time::Instant;
+
+fn main() {
+    println!(
+        "network,property,samara_value,samara_bound,samara_complete,samara_s,highs_value,highs_s"
+    );
+    for path in std::env::args().skip(1) {
+        let net = samara_nn::onnx::load(&path).expect("an ONNX network");
+        let mut nets = HashMap::new();
+        nets.insert("f".to_string(), net);
+        let prep = Prepared::new(&nets);
+        let pwl: HashMap<String, PwlNet> = nets
+            .iter()
+            .map(|(k, v)| (k.clone(), PwlNet::from_network(v).expect("a ReLU network")))
+            .collect();
+        let name = std::path::Path::new(&path)
+            .file_stem()
+            .unwrap()
+            .to_string_lossy()
+            .into_owned();
+        // P1-P4 lowered from models/alsomitra/alsomitra.spec, with the network in raw units
+        // (these networks carry their own normalisation layers).
+        for q in p1_to_p4(true) {
+            let t = Instant::now();
+            let ours = optimise(
+                &q,
+                &prep,
+                &Settings {
+                    timeout: 600.0,
+                    ..Default::default()
+                },
+            )
+            .expect("a well-formed query");
+            let ts = t.elapsed().as_secs_f64();
+            let t = Instant::now();
+            let theirs = optimise_milp(&q, &pwl);
+            let th = t.elapsed().as_secs_f64();
+            let fmt = |v: Option<f64>| v.map_or("empty".into(), |v| format!("{v:.9}"));
+            println!(
+                "{name},{},{},{:.9},{},{ts:.3},{},{th:.3}",
+                q.name,
+                fmt(ours.value),
+                ours.bound,
+                ours.complete,
+                match theirs {
+                    Ok(v) => fmt(v),
+                    Err(e) => format!("error: {e}"),
+                }
+            );
+        }
+    }
+}

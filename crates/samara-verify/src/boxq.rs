@@ -1,0 +1,163 @@
+//! The input-split route for box-shaped queries (the VNN-COMP shape): one network, no
+//! free variables, `Prove`, and every disjunct of the counterexample region made of
+//! bounds on single inputs plus linear constraints over the outputs only. Such queries
+//! go to [`samara_bounds::search`] (symbolic and CROWN bounds, input splitting, an attack
+//! first), which suits low-dimensional inputs; anything else stays with the ReLU-phase
+//! branch and bound of [`crate::engine`].
+//!
+//! Contract, as for every verdict of this crate: a point is reported only after its
+//! outputs are recomputed in exact rational arithmetic ([`crate::exact`]) and every
+//! constraint of its disjunct (input bounds included, strict ones strictly) holds there;
+//! `Proved` only from the search's sound bounds having closed every piece; anything cut
+//! short is `Unknown` with its reason.
+
+use crate::engine::Point;
+use crate::exact::exact_satisfies;
+use crate::net::PwlNet;
+use crate::Counterexample;
+use samara_bounds::search::{self, Case, Outcome, OutputConstraint, StopReason};
+use samara_bounds::symbolic::Objective;
+use samara_spec::normal::{Cmp, Goal, Query, Var};
+use std::time::Duration;
+
+/// The answer of the input-split route.
+#[derive(Clone, Debug, PartialEq)]
+pub enum BoxAnswer {
+    /// Every disjunct is empty.
+    Proved,
+    /// A point re-checked in exact arithmetic.
+    Violated(Counterexample),
+    /// Cut short, or a found point that exact arithmetic did not confirm.
+    Unknown(BoxUnknown),
+}
+
+/// Why the input-split route gave no verdict.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BoxUnknown {
+    /// The search stopped (time, piece budget, or a piece too thin to split).
+    Stopped(StopReason),
+    /// The point found satisfied the constraints in f64 but not in exact arithmetic.
+    NotConfirmed,
+}
+
+/// The query as input-split cases (one per non-empty disjunct, with the disjunct's
+/// index), or `None` when it is not box-shaped (see the module doc).
+pub fn to_cases(q: &Query) -> Option<Vec<(usize, Case)>> {
+    if q.applications.len() != 1 || !q.free_vars.is_empty() || q.goal != Goal::Prove {
+        return None;
+    }
+    let app = &q.applications[0];
+    let mut cases = Vec::new();
+    for (di, conj) in q.region.iter().enumerate() {
+        let mut lo: Vec<f64> = app.input_box.iter().map(|b| b.0).collect();
+        let mut hi: Vec<f64> = app.input_box.iter().map(|b| b.1).collect();
+        let mut cons = Vec::new();
+        for c in conj {
+            let e = c.expr.clone().normalised();
+            let n_in = e
+                .terms
+                .iter()
+                .filter(|t| matches!(t.0, Var::Input { .. }))
+                .count();
+            if e.terms.iter().any(|t| matches!(t.0, Var::Free(_))) {
+                return None;
+            }
+            if n_in == 1 && e.terms.len() == 1 {
+                // k x_i + d (cmp) 0: a bound on x_i (strict bounds widened to closed
+                // ones; a point on the edge is caught by the final re-check).
+                let (Var::Input { index, .. }, k) = e.terms[0] else {
+                    return None;
+                };
+                let v = -e.constant / k;
+                if index >= lo.len() || !v.is_finite() {
+                    return None;
+                }
+                if k > 0.0 || c.cmp == Cmp::Eq {
+                    hi[index] = hi[index].min(v);
+                }
+                if k < 0.0 || c.cmp == Cmp::Eq {
+                    lo[index] = lo[index].max(v);
+                }
+                continue;
+            }
+            if n_in > 0 {
+                return None;
+            }
+            let mut coef = vec![0.0; app.n_outputs];
+            for (v, k) in &e.terms {
+                match v {
+                    Var::Output { index, .. } if *index < app.n_outputs => coef[*index] += k,
+                    _ => return None,
+                }
+            }
+            if c.cmp == Cmp::Eq {
+                cons.push(OutputConstraint {
+                    obj: Objective {
+                        c: coef.iter().map(|v| -v).collect(),
+                        d: -e.constant,
+                    },
+                    strict: false,
+                });
+            }
+            cons.push(OutputConstraint {
+                obj: Objective {
+                    c: coef,
+                    d: e.constant,
+                },
+                strict: c.cmp == Cmp::Lt,
+            });
+        }
+        if lo.iter().chain(&hi).any(|v| !v.is_finite()) {
+            return None;
+        }
+        if lo.iter().zip(&hi).any(|(a, b)| a > b) {
+            continue; // an empty disjunct
+        }
+        cases.push((
+            di,
+            Case {
+                lo,
+                hi,
+                constraints: cons,
+            },
+        ));
+    }
+    Some(cases)
+}
+
+/// Decide a box-shaped query on `net` (`None` when the query is not box-shaped).
+pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxAnswer> {
+    let cases = to_cases(q)?;
+    if cases.is_empty() {
+        return Some(BoxAnswer::Proved);
+    }
+    let plain: Vec<Case> = cases.iter().map(|c| c.1.clone()).collect();
+    let settings = search::Settings {
+        timeout: timeout.map(|t| Duration::from_secs_f64(t.max(0.0))),
+        ..Default::default()
+    };
+    let (outcome, _) = search::solve(&net.maps, &plain, &settings);
+    Some(match outcome {
+        Outcome::Empty => BoxAnswer::Proved,
+        Outcome::Unknown(r) => BoxAnswer::Unknown(BoxUnknown::Stopped(r)),
+        Outcome::Point { case, x, .. } => {
+            let disjunct = cases[case].0;
+            let point = Point {
+                outputs: vec![net.eval(&x)],
+                inputs: vec![x],
+                free: vec![],
+            };
+            let cs = &q.region[disjunct];
+            let exact = exact_satisfies(&[net], &point, cs);
+            if exact != Some(true) {
+                return Some(BoxAnswer::Unknown(BoxUnknown::NotConfirmed));
+            }
+            BoxAnswer::Violated(Counterexample {
+                margin: point.margin(cs),
+                point,
+                exact,
+                disjunct,
+            })
+        }
+    })
+}

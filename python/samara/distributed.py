@@ -1,0 +1,218 @@
+"""Scale-out on Ray: the P5 robustness table with its points sharded over tasks, and a
+reachability analysis with its initial height interval partitioned over tasks.
+
+Each task runs the same Rust code as one process (networks travel as exact float64
+ONNX bytes), and the merge is exact: the table's counts and per-point results, and the
+partition's enclosures, are identical to running the same shards in one process.
+
+Ray is optional (``pip install ray``). The functions use the Ray the caller started with
+``ray.init(...)``; when none is running they start a local one with
+:func:`local_cluster` settings (loopback only, no dashboard) and leave it running for
+the process (call ``ray.shutdown()`` to stop it). To use a cluster::
+
+    import ray
+    ray.init(address="ray://head-node:10001")   # or address="auto" on a cluster node
+    table = samara.distributed.robustness(net, data, shards=64)
+
+Every worker needs the ``samara`` wheel installed (the same version).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
+
+import numpy as np
+
+from . import Network, ReachResult, RobustnessResult, reach as _reach, read_table, robustness as _robustness
+
+__all__ = ["local_cluster", "robustness", "reach_partition", "merge_robustness", "merge_reach", "shard_rows"]
+
+
+def _loopback_only() -> None:
+    """Make a Ray started here use 127.0.0.1: Ray replaces a loopback node address by
+    the machine's routable one unless its cluster mode is off (its setting
+    RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER=0, read when ray is imported; set on the loaded
+    module as well if ray was imported already)."""
+    os.environ["RAY_ENABLE_WINDOWS_OR_OSX_CLUSTER"] = "0"
+    os.environ.setdefault("RAY_USAGE_STATS_ENABLED", "0")
+    import sys
+
+    rc = sys.modules.get("ray._private.ray_constants")
+    if rc is not None and hasattr(rc, "ENABLE_RAY_CLUSTER"):
+        rc.ENABLE_RAY_CLUSTER = False
+
+
+def _ray():
+    try:
+        import ray  # noqa: F401
+    except ImportError as e:  # pragma: no cover
+        raise ImportError("samara.distributed needs Ray: pip install 'ray>=2.9'") from e
+    return ray
+
+
+def _local_init_args(num_cpus: Optional[int]) -> Dict[str, Any]:
+    return dict(
+        num_cpus=num_cpus,
+        include_dashboard=False,
+        _node_ip_address="127.0.0.1",
+        configure_logging=False,
+        log_to_driver=False,
+    )
+
+
+@contextlib.contextmanager
+def local_cluster(num_cpus: Optional[int] = 2) -> Iterator[Any]:
+    """A local Ray for the ``with`` block: bound to 127.0.0.1, no dashboard, no usage
+    statistics, ``num_cpus`` workers; shut down on exit."""
+    _loopback_only()
+    ray = _ray()
+    _loopback_only()
+    ray.init(**_local_init_args(num_cpus))
+    try:
+        yield ray
+    finally:
+        ray.shutdown()
+
+
+def _ensure() -> Any:
+    ray = _ray()
+    if not ray.is_initialized():
+        _loopback_only()
+        ray.init(**_local_init_args(None))
+    return ray
+
+
+def shard_rows(n: int, shards: int) -> List[Tuple[int, int]]:
+    """`shards` contiguous [start, end) ranges covering 0..n (none empty)."""
+    shards = max(1, min(int(shards), n)) if n > 0 else 1
+    bounds = np.linspace(0, n, shards + 1).round().astype(int)
+    return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:]) if b > a] or [(0, 0)]
+
+
+def merge_robustness(parts: Sequence[Tuple[int, RobustnessResult]], points: int) -> RobustnessResult:
+    """Merge the tables of shards (each with its first row's index): counts add,
+    success rates are recomputed over all points, per-point rows are re-indexed;
+    ``seconds`` is the sum of the shards' times."""
+    first = parts[0][1].as_dict()
+    table = [[dict(c, proved=0, violated=0, unknown=0) for c in row] for row in first["table"]]
+    per_point: List[Dict[str, Any]] = []
+    seconds = 0.0
+    for offset, r in parts:
+        d = r.as_dict()
+        seconds += d["seconds"]
+        for i, row in enumerate(d["table"]):
+            for j, c in enumerate(row):
+                for k in ("proved", "violated", "unknown"):
+                    table[i][j][k] += c[k]
+        per_point.extend(dict(p, index=p["index"] + offset) for p in d["per_point"])
+    for row in table:
+        for c in row:
+            c["success_rate"] = c["proved"] / max(points, 1)
+    # shards in order: per-point rows by index, then eps, as one process gives them
+    return RobustnessResult(
+        {"form": first["form"], "points": points, "seconds": seconds, "table": table, "per_point": per_point}
+    )
+
+
+def _robust_task(net: Network, rows: np.ndarray, kw: Dict[str, Any]) -> RobustnessResult:
+    return _robustness(net, rows, **kw)
+
+
+def robustness(
+    network: Network,
+    data: Any,
+    eps: Sequence[float] = (1e-5, 1e-4, 1e-3, 1e-2),
+    lipschitz: Sequence[float] = (1e-5, 1e-4, 1e-3, 1e-2),
+    reference: str = "label",
+    form: str = "published",
+    timeout: float = 30.0,
+    max_nodes: int = 200_000,
+    shards: Optional[int] = None,
+) -> RobustnessResult:
+    """:func:`samara.robustness` (the P5 table) with the points in ``shards`` Ray tasks
+    (default: twice the cluster's CPUs), merged with :func:`merge_robustness`."""
+    ray = _ensure()
+    if isinstance(data, (str, os.PathLike)):
+        data = read_table(data)
+    a = np.ascontiguousarray(np.asarray(data, dtype=np.float64))
+    if a.ndim != 2:
+        raise ValueError(f"data: shape {a.shape}, expected (rows, columns)")
+    if shards is None:
+        shards = 2 * int(ray.cluster_resources().get("CPU", 1))
+    kw = dict(eps=list(eps), lipschitz=list(lipschitz), reference=reference, form=form,
+              timeout=timeout, max_nodes=max_nodes)
+    task = ray.remote(_robust_task)
+    net_ref = ray.put(network)
+    ranges = shard_rows(a.shape[0], shards)
+    futures = [task.remote(net_ref, a[s:e], kw) for s, e in ranges]
+    parts = list(zip([s for s, _ in ranges], ray.get(futures)))
+    return merge_robustness(parts, a.shape[0])
+
+
+def _split(lo: float, hi: float, pieces: int) -> List[Tuple[float, float]]:
+    edges = [lo + (hi - lo) * i / pieces for i in range(pieces + 1)]
+    edges[-1] = hi
+    return list(zip(edges[:-1], edges[1:]))
+
+
+def merge_reach(parts: Sequence[ReachResult]) -> Dict[str, Any]:
+    """Merge the reach results of a partition of the initial set: the verdict is
+    ``proved`` only if every piece is proved, ``violated`` if any is, else ``unknown``
+    (``none`` without a goal); enclosures are interval hulls over the pieces."""
+    kinds = [p.verdict["verdict"] for p in parts]
+    if all(k == "proved" for k in kinds):
+        verdict = "proved"
+    elif any(k == "violated" for k in kinds):
+        verdict = "violated"
+    elif all(k == "none" for k in kinds):
+        verdict = "none"
+    else:
+        verdict = "unknown"
+
+    def hull(arrs: List[np.ndarray]) -> np.ndarray:
+        s = np.stack(arrs)
+        return np.stack([s[..., 0].min(axis=0), s[..., 1].max(axis=0)], axis=-1)
+
+    ex = np.stack([p.ex for p in parts])
+    return {
+        "verdict": verdict,
+        "pieces": [p.verdict for p in parts],
+        "t": parts[0].t.copy(),
+        "bbox": hull([p.bbox for p in parts]),
+        "x_plus_y": hull([p.x_plus_y for p in parts]),
+        "x_plus_y_period": hull([p.x_plus_y_period for p in parts]),
+        "ex": np.stack([np.fmin.reduce(ex[..., 0], axis=0), np.fmax.reduce(ex[..., 1], axis=0)], axis=-1),
+        "final_x_plus_y": [min(p.final_x_plus_y[0] if p.final_x_plus_y[0] is not None else -np.inf for p in parts),
+                           max(p.final_x_plus_y[1] if p.final_x_plus_y[1] is not None else np.inf for p in parts)],
+        "sampled_x_plus_y": [min(p.sampled_x_plus_y[0] for p in parts), max(p.sampled_x_plus_y[1] for p in parts)],
+        "subproblems": sum(p.subproblems for p in parts),
+        "seconds": sum(p.seconds for p in parts),
+    }
+
+
+def _reach_task(net: Network, y0: Tuple[float, float], kw: Dict[str, Any]) -> ReachResult:
+    return _reach(net, y0=y0, **kw)
+
+
+def reach_partition(
+    network: Network,
+    y0: Tuple[float, float] = (0.1 / 0.07, 0.3 / 0.07),
+    pieces: int = 8,
+    local: bool = False,
+    **kwargs: Any,
+) -> Tuple[Dict[str, Any], List[ReachResult]]:
+    """:func:`samara.reach` over ``pieces`` equal parts of the height interval ``y0``, one
+    Ray task each (``local=True``: in this process, one after the other — the same
+    work). ``kwargs`` go to :func:`samara.reach`. Returns the merged result
+    (:func:`merge_reach`) and the pieces' results."""
+    ys = _split(float(y0[0]), float(y0[1]), int(pieces))
+    if local:
+        parts = [_reach(network, y0=y, **kwargs) for y in ys]
+    else:
+        ray = _ensure()
+        task = ray.remote(_reach_task)
+        net_ref = ray.put(network)
+        parts = ray.get([task.remote(net_ref, y, kwargs) for y in ys])
+    return merge_reach(parts), parts

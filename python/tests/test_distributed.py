@@ -1,0 +1,82 @@
+"""samara.distributed on a local Ray (127.0.0.1, no dashboard, 2 CPUs, shut down at the
+end of the module): the P5 table with its points sharded, and a reach partition, give
+results identical to one process doing the same work."""
+
+import os
+
+import numpy as np
+import pytest
+
+ray = pytest.importorskip("ray")
+
+import samara  # noqa: E402
+import samara.distributed as sd  # noqa: E402
+from conftest import reference  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    with sd.local_cluster(num_cpus=2) as r:
+        assert r.is_initialized()
+        yield r
+    assert not ray.is_initialized()
+
+
+def strip(d):
+    d = dict(d)
+    d.pop("seconds", None)
+    return d
+
+
+def test_shards_cover_rows():
+    assert sd.shard_rows(10, 3) == [(0, 3), (3, 7), (7, 10)]
+    assert sd.shard_rows(2, 5) == [(0, 1), (1, 2)]
+
+
+def test_p5_table_sharded_equals_one_process(cluster):
+    net = samara.Network.from_onnx(reference("base_model_norm.onnx"))
+    data = samara.read_table(reference("Training_Data_Normalised.csv"))[:60]
+    kw = dict(eps=[1e-3, 1e-2], lipschitz=[1e-3, 1e-2, 1e-1], max_nodes=20_000)
+    one = samara.robustness(net, data, **kw)
+    dist = sd.robustness(net, data, shards=5, **kw)
+    assert strip(dist.as_dict()) == strip(one.as_dict())
+    assert np.array_equal(dist.success_rate, one.success_rate)
+    # the merge alone (shards run here) is the same
+    parts = [(s, samara.robustness(net, data[s:e], **kw)) for s, e in sd.shard_rows(60, 4)]
+    assert strip(sd.merge_robustness(parts, 60).as_dict()) == strip(one.as_dict())
+
+
+def test_reach_partition_equals_one_process(cluster):
+    net = samara.Network.from_onnx(reference("base_model_denorm.onnx"))
+    kw = dict(horizon=2.0, goal_ystar=5.0, max_leaves=4, samples=20)
+    merged, parts = sd.reach_partition(net, y0=(2.0, 2.4), pieces=3, **kw)
+    local, lparts = sd.reach_partition(net, y0=(2.0, 2.4), pieces=3, local=True, **kw)
+    assert merged["verdict"] == "proved" == local["verdict"]
+    for k in ("t", "bbox", "x_plus_y", "x_plus_y_period", "ex"):
+        assert np.array_equal(merged[k], local[k], equal_nan=True), k
+    assert merged["final_x_plus_y"] == local["final_x_plus_y"]
+    assert [p.leaves for p in parts] == [p.leaves for p in lparts]
+    # the pieces' union encloses the whole interval's sampled flights
+    whole = samara.reach(net, y0=(2.0, 2.4), **kw)
+    lo, hi = whole.sampled_x_plus_y
+    assert merged["final_x_plus_y"][0] <= lo <= hi <= merged["final_x_plus_y"][1]
+
+
+def test_local_cluster_binds_loopback(cluster):
+    nodes = ray.nodes()
+    assert nodes and all(n["NodeManagerAddress"] == "127.0.0.1" for n in nodes)
+    # no listening TCP socket of this Ray on a non-loopback address
+    try:
+        import psutil
+    except ImportError:
+        return
+    me = psutil.Process()
+    procs = [me] + me.children(recursive=True)
+    for p in procs:
+        try:
+            conns = p.net_connections(kind="tcp")
+        except (psutil.Error, AttributeError):
+            continue
+        for c in conns:
+            if c.status == psutil.CONN_LISTEN:
+                assert c.laddr.ip in ("127.0.0.1", "::1", "::ffff:127.0.0.1"), (p.name(), c.laddr)
