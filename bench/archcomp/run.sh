@@ -1,0 +1,164 @@
+#!/usr/bin/env bash
+# Run `samara reach` on the ARCH-COMP AINNCS benchmarks and print a markdown table:
+# benchmark | samara verdict | samara seconds | expected verdict | best published tool (time) | ratio.
+#
+# Usage: bench/archcomp/run.sh BENCHMARKS_DIR [ARCH2024_BENCHMARKS_DIR]
+#   BENCHMARKS_DIR          the extracted `benchmarks/` folder of verivital/ARCH-COMP2023
+#                           (or the repository root that holds it)
+#   ARCH2024_BENCHMARKS_DIR optional: `benchmarks/` of verivital/ARCH-COMP2024, for the
+#                           networks that exist only there (NAV, CartPole)
+# Environment:
+#   SAMARA   samara binary (default: `samara` on PATH, else target/release/samara)
+#   TIMEOUT  seconds per benchmark (default 1800)
+#   OUT      output folder (default out/archcomp); one sub-folder per benchmark
+#   ORDER    passed as --order K when set;  MAX_LEAVES  passed as --max-leaves N when set
+#   ONLY     run only the benchmarks whose name contains this string
+# Exit code: 0 when every run ended (whatever the verdicts), 2 on a usage error.
+set -u
+
+here=$(cd "$(dirname "$0")" && pwd)
+root=$(cd "$here/../.." && pwd)
+sysdir="$root/examples/archcomp"
+published="$here/published.csv"
+
+if [ $# -lt 1 ] || [ ! -d "$1" ]; then
+    echo "usage: $0 BENCHMARKS_DIR [ARCH2024_BENCHMARKS_DIR]  (the benchmarks/ folder of verivital/ARCH-COMP2023)" >&2
+    exit 2
+fi
+b23=$1
+[ -d "$b23/benchmarks" ] && b23="$b23/benchmarks"
+b24=${2:-}
+[ -n "$b24" ] && [ -d "$b24/benchmarks" ] && b24="$b24/benchmarks"
+
+samara=${SAMARA:-}
+if [ -z "$samara" ]; then
+    if command -v samara >/dev/null 2>&1; then samara=samara; else samara="$root/target/release/samara"; fi
+fi
+timeout_s=${TIMEOUT:-1800}
+out=${OUT:-out/archcomp}
+mkdir -p "$out"
+
+# name | system file | network paths, ';'-separated alternatives, relative to the 2023 folder,
+#        then to the 2024 folder (`txt:PATH:HIDDEN:OUTPUT` = a POLAR text network, converted
+#        to ONNX by polar_txt_to_onnx.py) | expected verdict | published.csv benchmark | instance
+benchmarks='acc|acc.sys|ACC/controller_5_20.onnx|verified|ACC|safe-distance (ReLU)
+tora|tora.sys|Benchmark9-Tora/controllerTora.onnx|verified|TORA|remain (ReLU)
+tora_het_relu_tanh|tora_heterogeneous.sys|Tora_Heterogeneous/nn_tora_relu_tanh.onnx;txt:Tora_Heterogeneous/nn_tora_relu_tanh.txt:relu:tanh|verified|TORA Heterogeneous|reach-tanh (ReLU/tanh)
+tora_het_sigmoid|tora_heterogeneous.sys|Tora_Heterogeneous/nn_tora_sigmoid.onnx;txt:Tora_Heterogeneous/nn_tora_sigmoid.txt:sigmoid:sigmoid|verified|TORA Heterogeneous|reach-sigmoid
+unicycle|unicycle.sys|Benchmark10-Unicycle/controllerB.onnx|verified|Unicycle|reach
+single_pendulum|single_pendulum.sys|Single_Pendulum/controller_single_pendulum.onnx|verified|Single Pendulum|reach
+double_pendulum_less|double_pendulum.sys|Double_Pendulum/controller_double_pendulum_less_robust.onnx|verified|Double Pendulum|less-robust
+double_pendulum_more|double_pendulum_more_robust.sys|Double_Pendulum/controller_double_pendulum_more_robust.onnx|falsified|Double Pendulum|more-robust
+airplane|airplane.sys|Airplane/controller_airplane.onnx|falsified|Airplane|continuous (t in [0,2])
+attitude_control|attitude_control.sys|Aircraft/Attitude Control/attitude_control_3_64_torch.onnx;Attitude-Control/attitude_control_3_64_torch.onnx|verified|Attitude Control|avoid
+quadrotor|quadrotor.sys|Aircraft/QUAD/quad_controller_3_64_torch.onnx;QUAD/quad_controller_3_64_torch.onnx|verified|QUAD|reach
+spacecraft_docking|spacecraft_docking.sys|Docking/model.onnx|verified|Docking|constraint
+nav_standard|nav.sys|NAV/networks/nn-nav-point.onnx|unknown|NAV|standard
+nav_robust|nav.sys|NAV/networks/nn-nav-set.onnx|verified|NAV|robust
+cartpole|cartpole.sys|CartPole/model.onnx|unknown|Balancing (CartPole)|reach'
+
+find_net() {  # $1: ';'-separated relative paths; prints the first that exists
+    local IFS=';' rel base txt act_h act_o onnx
+    for rel in $1; do
+        for base in "$b23" ${b24:+"$b24"}; do
+            case "$rel" in
+            txt:*)
+                IFS=: read -r _ txt act_h act_o <<<"$rel"
+                [ -f "$base/$txt" ] || continue
+                mkdir -p "$out/nets"
+                onnx="$out/nets/$(basename "$txt" .txt).onnx"
+                python3 "$here/polar_txt_to_onnx.py" "$base/$txt" "$onnx" \
+                    --hidden "$act_h" --output "$act_o" >/dev/null || continue
+                printf '%s\n' "$onnx"; return 0 ;;
+            *)
+                if [ -f "$base/$rel" ]; then printf '%s\n' "$base/$rel"; return 0; fi ;;
+            esac
+        done
+    done
+    return 1
+}
+
+# Fields of a reach JSON summary: verdict and seconds ('' when missing).
+json_field() {  # $1: file, $2: verdict|seconds
+    python3 - "$1" "$2" <<'PY'
+import json, sys
+try:
+    d = json.load(open(sys.argv[1]))
+except Exception:
+    print(""); sys.exit(0)
+if sys.argv[2] == "verdict":
+    v = d.get("verdict")
+    v = v.get("verdict") if isinstance(v, dict) else v
+    print({"proved": "verified", "violated": "falsified"}.get(v, v or ""))
+else:
+    s = d.get("seconds")
+    print("" if s is None else "%.3g" % float(s))
+PY
+}
+
+# Best published 2024 time for a benchmark/instance among the tools whose verdict matches.
+best_published() {  # $1: benchmark, $2: instance, $3: expected verdict; prints "tool|seconds" or "|"
+    python3 - "$published" "$1" "$2" "$3" <<'PY'
+import csv, sys
+path, bench, inst, exp = sys.argv[1:5]
+best = None
+try:
+    rows = list(csv.DictReader(open(path, newline="")))
+except OSError:
+    rows = []
+for r in rows:
+    if r["benchmark"] != bench or r["instance"] != inst or r["year"] != "2024":
+        continue
+    if not r["tool_seconds"] or (exp in ("verified", "falsified") and r["tool_verdict"] != exp):
+        continue
+    s = float(r["tool_seconds"])
+    if best is None or s < best[1]:
+        best = (r["tool"], s)
+print("%s|%g" % best if best else "|")
+PY
+}
+
+echo "| benchmark | samara verdict | samara s | expected | best published (s) | ratio |"
+echo "|---|---|---|---|---|---|"
+notes=""
+while IFS='|' read -r name sys nets expected pbench pinst; do
+    [ -n "${ONLY:-}" ] && case "$name" in *"$ONLY"*) ;; *) continue ;; esac
+    bp=$(best_published "$pbench" "$pinst" "$expected")
+    btool=${bp%%|*}; bsec=${bp#*|}
+    best="n/a"; [ -n "$btool" ] && best="$btool ($bsec)"
+    if ! net=$(find_net "$nets"); then
+        echo "| $name | no network | | $expected | $best | |"
+        notes="$notes\n- $name: no loadable network found ($nets); see bench/archcomp/README.md"
+        continue
+    fi
+    dir="$out/$name"
+    rm -rf "$dir"
+    extra=()
+    [ -n "${ORDER:-}" ] && extra+=(--order "$ORDER")
+    [ -n "${MAX_LEAVES:-}" ] && extra+=(--max-leaves "$MAX_LEAVES")
+    start=$(date +%s.%N)
+    timeout "$timeout_s" "$samara" reach --system "$sysdir/$sys" --network "$net" \
+        --out "$dir" --json "${extra[@]}" </dev/null >"$out/$name.json" 2>"$out/$name.err"
+    rc=$?
+    wall=$(python3 -c "import sys; print('%.3g' % (float(sys.argv[2]) - float(sys.argv[1])))" "$start" "$(date +%s.%N)")
+    verdict=$(json_field "$out/$name.json" verdict)
+    secs=$(json_field "$out/$name.json" seconds)
+    if [ "$rc" -eq 124 ]; then
+        verdict="timeout"; secs=">$timeout_s"
+    elif [ "$rc" -ge 2 ] || [ -z "$verdict" ]; then
+        verdict="error (exit $rc)"; secs=""
+        notes="$notes\n- $name: $(head -n 1 "$out/$name.err")"
+    fi
+    [ -z "$secs" ] && [ "$rc" -lt 2 ] && secs=$wall
+    ratio=""
+    if [ -n "$bsec" ] && [ -n "$secs" ] && [ "${secs#>}" = "$secs" ]; then
+        ratio=$(python3 -c "import sys; print('%.2g' % (float(sys.argv[1]) / float(sys.argv[2])))" "$secs" "$bsec")
+    fi
+    echo "| $name | $verdict | $secs | $expected | $best | $ratio |"
+done <<EOF
+$benchmarks
+EOF
+if [ -n "$notes" ]; then
+    printf '\nNotes:%b\n' "$notes"
+fi
+exit 0
