@@ -44,7 +44,8 @@ mkdir -p "$out"
 benchmarks='acc|acc.sys|ACC/controller_5_20.onnx|verified|ACC|safe-distance (ReLU)
 tora|tora.sys|Benchmark9-Tora/controllerTora.onnx|verified|TORA|remain (ReLU)
 tora_het_relu_tanh|tora_heterogeneous.sys|Tora_Heterogeneous/nn_tora_relu_tanh.onnx;txt:Tora_Heterogeneous/nn_tora_relu_tanh.txt:relu:tanh|verified|TORA Heterogeneous|reach-tanh (ReLU/tanh)
-tora_het_sigmoid|tora_heterogeneous.sys|Tora_Heterogeneous/nn_tora_sigmoid.onnx;txt:Tora_Heterogeneous/nn_tora_sigmoid.txt:sigmoid:sigmoid|verified|TORA Heterogeneous|reach-sigmoid
+tora_het_sigmoid|tora_heterogeneous_sigmoid.sys|Tora_Heterogeneous/nn_tora_sigmoid.onnx;txt:Tora_Heterogeneous/nn_tora_sigmoid.txt:sigmoid:sigmoid|verified|TORA Heterogeneous|reach-sigmoid
+tora_het_sigmoid_11N|tora_heterogeneous.sys|Tora_Heterogeneous/nn_tora_sigmoid.onnx;txt:Tora_Heterogeneous/nn_tora_sigmoid.txt:sigmoid:sigmoid|verified|TORA Heterogeneous|reach-sigmoid
 unicycle|unicycle.sys|Benchmark10-Unicycle/controllerB.onnx|verified|Unicycle|reach
 single_pendulum|single_pendulum.sys|Single_Pendulum/controller_single_pendulum.onnx|verified|Single Pendulum|reach
 double_pendulum_less|double_pendulum.sys|Double_Pendulum/controller_double_pendulum_less_robust.onnx|verified|Double Pendulum|less-robust
