@@ -13,11 +13,15 @@
 //!   case study's 6, ACAS Xu's 5). Floating point cannot break a bound: every linear
 //!   function carries a slack that provably covers the rounding of the f64 arithmetic
 //!   that built it (Higham's bound `gamma_n = n u / (1 - n u)` per dot product).
+//! - [`linset`]: CROWN (Zhang et al., NeurIPS 2018) over a linear set with input noise,
+//!   for ReLU, Clamp, Tanh and Sigmoid networks with normalisation: affine bounds of the
+//!   outputs in the set's parameters, with the same rigorous rounding.
 //! - [`search`]: input-domain branch and bound for queries "is there an `x` in a box with
 //!   `f(x)` in a polytope?" (the VNN-LIB shape): a projected-gradient attack first,
 //!   then splitting the box along the input with the largest smear (ReluVal, Wang et al.,
 //!   USENIX Security 2018) until every piece is proved empty or a point is found. Points
 //!   are re-evaluated concretely before they are reported.
 
+pub mod linset;
 pub mod search;
 pub mod symbolic;

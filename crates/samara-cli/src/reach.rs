@@ -9,7 +9,7 @@ use anyhow::{anyhow, bail, Context, Result};
 use samara_plant::{Model, STATE_NAMES};
 use samara_reach::{Goal, ReachResult, ReachSettings, Verdict};
 use samara_report::{write_atomic, TrajectoryFigure};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use crate::simulate::{limits, num as fmt_num};
@@ -85,6 +85,20 @@ pub struct ReachArgs {
     /// Print a JSON summary on stdout instead of the human line.
     #[arg(long)]
     pub json: bool,
+    /// A system file (docs/system.md, e.g. examples/archcomp/tora.sys): any plant with
+    /// its initial set, period, horizon, actuation and goals; the sets are Taylor models
+    /// and --network is its controller (`.onnx` or `.nnet`).
+    #[arg(long)]
+    pub system: Option<PathBuf>,
+    /// Order of the Taylor models with --system or --sets taylor, 1 to 8 (default 4).
+    #[arg(long, allow_hyphen_values = true)]
+    pub order: Option<usize>,
+    /// Set representation of the built-in glider setting: `zonotope` (affine sets with
+    /// interval remainders, the Lohner flow) or `taylor` (Taylor models in the initial-set
+    /// parameters: the same setting run as the shipped system file). --system always uses
+    /// Taylor models.
+    #[arg(long, default_value = "zonotope")]
+    pub sets: String,
 }
 
 /// Parse `A:B` or `A` into a finite, non-inverted interval; `what` names the flag and
@@ -290,6 +304,27 @@ fn plan(a: &ReachArgs) -> Result<Plan> {
 
 /// Run `samara reach`.
 pub fn run(a: &ReachArgs) -> Result<ExitCode> {
+    if let Some(sys) = &a.system {
+        return crate::reach_system::run(a, sys);
+    }
+    match a.sets.as_str() {
+        "zonotope" => {
+            if a.order.is_some() {
+                bail!("--order applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no order");
+            }
+        }
+        "taylor" => {
+            let plan = plan(a)?;
+            let sys = crate::reach_system::builtin_system(&plan.settings)?;
+            return crate::reach_system::run_system(
+                a,
+                &sys,
+                Path::new("built-in setting"),
+                &plan.net,
+            );
+        }
+        other => bail!("--sets {other}: give zonotope or taylor"),
+    }
     let plan = plan(a)?;
     if let Some(n) = a.threads {
         rayon::ThreadPoolBuilder::new()

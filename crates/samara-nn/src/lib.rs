@@ -1,10 +1,11 @@
 //! Neural networks for samara: an intermediate representation (a sequence of layers with
 //! named inputs and outputs), evaluation generic over [`samara_num::Scalar`], and ONNX
-//! import and export ([`onnx`]).
+//! import and export ([`onnx`]), and the NNet text format of ACAS Xu ([`nnet`]).
 #![warn(missing_docs)]
 
 pub mod data;
 pub mod ir;
+pub mod nnet;
 pub mod onnx;
 
 pub use ir::{Activation, Affine, Layer, Network};

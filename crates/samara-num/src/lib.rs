@@ -15,9 +15,11 @@ mod idual;
 mod interval;
 mod scalar;
 mod series;
+mod tm;
 
 pub use dual::Dual;
 pub use idual::IDual;
 pub use interval::Interval;
 pub use scalar::{Scalar, Sign};
 pub use series::Series;
+pub use tm::Tm;

@@ -2,7 +2,8 @@
 //! Taylor-mode automatic differentiation by the classical recurrences (Moore, 1966;
 //! Griewank & Walther, *Evaluating Derivatives*, ch. 13). Running the plant's right-hand
 //! side on `Series<Interval, K>` yields the solution's Taylor coefficients; on
-//! `Series<IDual<N>, K>` also their Jacobians over a box.
+//! `Series<IDual<N>, K>` also their Jacobians over a box; on `Series<Tm, K>` (coefficients
+//! that are not `Copy`) Taylor models of them in the initial-state parameters.
 //!
 //! A series is only meaningful where the function is analytic. Branches (`abs`, the
 //! hull of two pieces, `relu`) are taken only when the constant coefficient decides them
@@ -17,7 +18,7 @@ use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 
 /// `sum_i c[i] t^i`, the first `n` coefficients valid (`n <= K`).
 #[derive(Clone, Copy, Debug)]
-pub struct Series<S: Scalar + Copy, const K: usize> {
+pub struct Series<S: Scalar, const K: usize> {
     /// Coefficients (normalised: `c[i] = x^(i)(0) / i!`).
     pub c: [S; K],
     /// Number of valid coefficients.
@@ -28,10 +29,10 @@ pub struct Series<S: Scalar + Copy, const K: usize> {
     pub konst: bool,
 }
 
-impl<S: Scalar + Copy, const K: usize> Series<S, K> {
+impl<S: Scalar, const K: usize> Series<S, K> {
     /// A variable with constant term `v` and no higher terms known yet (`n = 1`).
     pub fn var(v: S) -> Self {
-        let mut c = [S::cst(0.0); K];
+        let mut c: [S; K] = std::array::from_fn(|_| S::cst(0.0));
         c[0] = v;
         Series {
             c,
@@ -43,7 +44,7 @@ impl<S: Scalar + Copy, const K: usize> Series<S, K> {
 
     /// A constant (all higher coefficients zero, valid to any order).
     pub fn constant(v: S) -> Self {
-        let mut c = [S::cst(0.0); K];
+        let mut c: [S; K] = std::array::from_fn(|_| S::cst(0.0));
         c[0] = v;
         Series {
             c,
@@ -55,7 +56,7 @@ impl<S: Scalar + Copy, const K: usize> Series<S, K> {
 
     fn zero_like(n: usize, bad: bool) -> Self {
         Series {
-            c: [S::cst(0.0); K],
+            c: std::array::from_fn(|_| S::cst(0.0)),
             n,
             bad,
             konst: false,
@@ -66,23 +67,23 @@ impl<S: Scalar + Copy, const K: usize> Series<S, K> {
         let n = self.n.min(o.n);
         let mut r = Self::zero_like(n, self.bad || o.bad);
         if self.konst && o.konst {
-            r.c[0] = f(self.c[0], o.c[0]);
+            r.c[0] = f(self.c[0].clone(), o.c[0].clone());
             r.konst = true;
             return r;
         }
         for i in 0..n {
-            r.c[i] = f(self.c[i], o.c[i]);
+            r.c[i] = f(self.c[i].clone(), o.c[i].clone());
         }
         r
     }
 
     fn map(mut self, f: impl Fn(S) -> S) -> Self {
         if self.konst {
-            self.c[0] = f(self.c[0]);
+            self.c[0] = f(self.c[0].clone());
             return self;
         }
         for i in 0..self.n {
-            self.c[i] = f(self.c[i]);
+            self.c[i] = f(self.c[i].clone());
         }
         self
     }
@@ -90,55 +91,55 @@ impl<S: Scalar + Copy, const K: usize> Series<S, K> {
     /// `sum_{j=1}^{i} (j / i) a_j b_{i-j}`, the convolution of the recurrences.
     #[inline]
     fn dconv(a: &[S; K], b: &[S; K], i: usize) -> S {
-        let mut acc = a[1] * b[i - 1] * (1.0 / i as f64);
+        let mut acc = a[1].clone() * b[i - 1].clone() * (1.0 / i as f64);
         for j in 2..=i {
-            acc += a[j] * b[i - j] * (j as f64 / i as f64);
+            acc += a[j].clone() * b[i - j].clone() * (j as f64 / i as f64);
         }
         acc
     }
 }
 
-impl<S: Scalar + Copy, const K: usize> Add for Series<S, K> {
+impl<S: Scalar, const K: usize> Add for Series<S, K> {
     type Output = Self;
     fn add(self, o: Self) -> Self {
         self.zip(o, |a, b| a + b)
     }
 }
-impl<S: Scalar + Copy, const K: usize> Sub for Series<S, K> {
+impl<S: Scalar, const K: usize> Sub for Series<S, K> {
     type Output = Self;
     fn sub(self, o: Self) -> Self {
         self.zip(o, |a, b| a - b)
     }
 }
-impl<S: Scalar + Copy, const K: usize> Mul for Series<S, K> {
+impl<S: Scalar, const K: usize> Mul for Series<S, K> {
     type Output = Self;
     fn mul(self, o: Self) -> Self {
         let n = self.n.min(o.n);
         let mut r = Self::zero_like(n, self.bad || o.bad);
         if self.konst || o.konst {
             let (k, other) = if self.konst {
-                (self.c[0], o)
+                (self.c[0].clone(), o)
             } else {
-                (o.c[0], self)
+                (o.c[0].clone(), self)
             };
             r.konst = other.konst;
             let m = if other.konst { 1 } else { n };
             for i in 0..m {
-                r.c[i] = other.c[i] * k;
+                r.c[i] = other.c[i].clone() * k.clone();
             }
             return r;
         }
         for i in 0..n {
-            let mut acc = self.c[0] * o.c[i];
+            let mut acc = self.c[0].clone() * o.c[i].clone();
             for j in 1..=i {
-                acc += self.c[j] * o.c[i - j];
+                acc += self.c[j].clone() * o.c[i - j].clone();
             }
             r.c[i] = acc;
         }
         r
     }
 }
-impl<S: Scalar + Copy, const K: usize> Div for Series<S, K> {
+impl<S: Scalar, const K: usize> Div for Series<S, K> {
     type Output = Self;
     fn div(self, o: Self) -> Self {
         let n = self.n.min(o.n);
@@ -147,65 +148,65 @@ impl<S: Scalar + Copy, const K: usize> Div for Series<S, K> {
             r.konst = self.konst;
             let m = if self.konst { 1 } else { n };
             for i in 0..m {
-                r.c[i] = self.c[i] / o.c[0];
+                r.c[i] = self.c[i].clone() / o.c[0].clone();
             }
             return r;
         }
         for i in 0..n {
-            let mut acc = self.c[i];
+            let mut acc = self.c[i].clone();
             for j in 1..=i {
-                acc -= o.c[j] * r.c[i - j];
+                acc -= o.c[j].clone() * r.c[i - j].clone();
             }
-            r.c[i] = acc / o.c[0];
+            r.c[i] = acc / o.c[0].clone();
         }
         r
     }
 }
-impl<S: Scalar + Copy, const K: usize> Neg for Series<S, K> {
+impl<S: Scalar, const K: usize> Neg for Series<S, K> {
     type Output = Self;
     fn neg(self) -> Self {
         self.map(|a| -a)
     }
 }
-impl<S: Scalar + Copy, const K: usize> Add<f64> for Series<S, K> {
+impl<S: Scalar, const K: usize> Add<f64> for Series<S, K> {
     type Output = Self;
     fn add(mut self, o: f64) -> Self {
-        self.c[0] = self.c[0] + o;
+        self.c[0] = self.c[0].clone() + o;
         self
     }
 }
-impl<S: Scalar + Copy, const K: usize> Sub<f64> for Series<S, K> {
+impl<S: Scalar, const K: usize> Sub<f64> for Series<S, K> {
     type Output = Self;
     fn sub(mut self, o: f64) -> Self {
-        self.c[0] = self.c[0] - o;
+        self.c[0] = self.c[0].clone() - o;
         self
     }
 }
-impl<S: Scalar + Copy, const K: usize> Mul<f64> for Series<S, K> {
+impl<S: Scalar, const K: usize> Mul<f64> for Series<S, K> {
     type Output = Self;
     fn mul(self, o: f64) -> Self {
         self.map(|a| a * o)
     }
 }
-impl<S: Scalar + Copy, const K: usize> Div<f64> for Series<S, K> {
+impl<S: Scalar, const K: usize> Div<f64> for Series<S, K> {
     type Output = Self;
     fn div(self, o: f64) -> Self {
         self.map(|a| a / o)
     }
 }
-impl<S: Scalar + Copy, const K: usize> AddAssign for Series<S, K> {
+impl<S: Scalar, const K: usize> AddAssign for Series<S, K> {
     fn add_assign(&mut self, o: Self) {
-        *self = *self + o;
+        *self = self.clone() + o;
     }
 }
-impl<S: Scalar + Copy, const K: usize> SubAssign for Series<S, K> {
+impl<S: Scalar, const K: usize> SubAssign for Series<S, K> {
     fn sub_assign(&mut self, o: Self) {
-        *self = *self - o;
+        *self = self.clone() - o;
     }
 }
-impl<S: Scalar + Copy, const K: usize> MulAssign for Series<S, K> {
+impl<S: Scalar, const K: usize> MulAssign for Series<S, K> {
     fn mul_assign(&mut self, o: Self) {
-        *self = *self * o;
+        *self = self.clone() * o;
     }
 }
 
@@ -216,7 +217,7 @@ fn strict(s: Sign) -> Sign {
     }
 }
 
-impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
+impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
     fn cst(c: f64) -> Self {
         Series::constant(S::cst(c))
     }
@@ -232,7 +233,7 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
     fn sin_cos(&self) -> (Self, Self) {
         if self.konst {
             let (a, b) = self.c[0].sin_cos();
-            let (mut s, mut c) = (*self, *self);
+            let (mut s, mut c) = (self.clone(), self.clone());
             s.c[0] = a;
             c.c[0] = b;
             return (s, c);
@@ -250,7 +251,7 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
     }
     fn tanh(&self) -> Self {
         if self.konst {
-            let mut r = *self;
+            let mut r = self.clone();
             r.c[0] = self.c[0].tanh();
             return r;
         }
@@ -260,9 +261,9 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
         w.c[0] = -t.c[0].sqr() + 1.0;
         for i in 1..self.n {
             t.c[i] = Self::dconv(&self.c, &w.c, i);
-            let mut acc = t.c[0] * t.c[i];
+            let mut acc = t.c[0].clone() * t.c[i].clone();
             for j in 1..=i {
-                acc += t.c[j] * t.c[i - j];
+                acc += t.c[j].clone() * t.c[i - j].clone();
             }
             w.c[i] = -acc;
         }
@@ -270,7 +271,7 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
     }
     fn atan(&self) -> Self {
         if self.konst {
-            let mut r = *self;
+            let mut r = self.clone();
             r.c[0] = self.c[0].atan();
             return r;
         }
@@ -278,40 +279,40 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
         let q = self.sqr() + 1.0;
         let mut u = Self::zero_like(self.n, self.bad);
         u.c[0] = self.c[0].atan();
-        let mut d = [S::cst(0.0); K];
+        let mut d: [S; K] = std::array::from_fn(|_| S::cst(0.0));
         for i in 1..self.n {
             // d_{i-1} = (a'_{i-1} - sum_{j=1}^{i-1} q_j d_{i-1-j}) / q_0, a'_k = (k+1) a_{k+1}.
             let k = i - 1;
-            let mut acc = self.c[k + 1] * (k as f64 + 1.0);
+            let mut acc = self.c[k + 1].clone() * (k as f64 + 1.0);
             for j in 1..=k {
-                acc -= q.c[j] * d[k - j];
+                acc -= q.c[j].clone() * d[k - j].clone();
             }
-            d[k] = acc / q.c[0];
-            u.c[i] = d[k] / i as f64;
+            d[k] = acc / q.c[0].clone();
+            u.c[i] = d[k].clone() / i as f64;
         }
         u
     }
     fn sqrt(&self) -> Self {
         if self.konst {
-            let mut r = *self;
+            let mut r = self.clone();
             r.c[0] = self.c[0].sqrt();
             return r;
         }
         let mut r = Self::zero_like(self.n, self.bad);
         r.c[0] = self.c[0].sqrt();
-        let two_r0 = r.c[0] * 2.0;
+        let two_r0 = r.c[0].clone() * 2.0;
         for i in 1..self.n {
-            let mut acc = self.c[i];
+            let mut acc = self.c[i].clone();
             for j in 1..i {
-                acc -= r.c[j] * r.c[i - j];
+                acc -= r.c[j].clone() * r.c[i - j].clone();
             }
-            r.c[i] = acc / two_r0;
+            r.c[i] = acc / two_r0.clone();
         }
         r
     }
     fn exp(&self) -> Self {
         if self.konst {
-            let mut r = *self;
+            let mut r = self.clone();
             r.c[0] = self.c[0].exp();
             return r;
         }
@@ -324,7 +325,7 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
     }
     fn ln(&self) -> Self {
         if self.konst {
-            let mut r = *self;
+            let mut r = self.clone();
             r.c[0] = self.c[0].ln();
             return r;
         }
@@ -332,21 +333,21 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
         let mut u = Self::zero_like(self.n, self.bad);
         u.c[0] = self.c[0].ln();
         for i in 1..self.n {
-            let mut acc = self.c[i];
+            let mut acc = self.c[i].clone();
             for j in 1..i {
-                acc -= u.c[j] * self.c[i - j] * (j as f64 / i as f64);
+                acc -= u.c[j].clone() * self.c[i - j].clone() * (j as f64 / i as f64);
             }
-            u.c[i] = acc / self.c[0];
+            u.c[i] = acc / self.c[0].clone();
         }
         u
     }
     fn abs(&self) -> Self {
         match strict(self.c[0].sign()) {
-            Sign::Positive => *self,
-            Sign::Negative => -*self,
+            Sign::Positive => self.clone(),
+            Sign::Negative => -self.clone(),
             _ => Series {
                 bad: true,
-                ..self.map(|a| a.abs())
+                ..self.clone().map(|a| a.abs())
             },
         }
     }
@@ -354,7 +355,7 @@ impl<S: Scalar + Copy, const K: usize> Scalar for Series<S, K> {
         strict(self.c[0].sign())
     }
     fn hull(&self, o: &Self) -> Self {
-        let mut r = self.zip(*o, |a, b| a.hull(&b));
+        let mut r = self.clone().zip(o.clone(), |a, b| a.hull(&b));
         r.bad = true;
         r
     }

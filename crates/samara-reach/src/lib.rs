@@ -30,6 +30,8 @@ pub mod flow;
 pub mod netstep;
 pub mod sampling;
 pub mod settings;
+pub mod system;
+pub mod tmflow;
 pub mod verdict;
 pub mod zonotope;
 

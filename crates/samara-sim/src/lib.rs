@@ -37,4 +37,4 @@ pub use control::{ConstantController, Controller, NetworkController, PidControll
 pub use explicit_rk::{Stats, Tolerances};
 
 /// Largest state dimension handled by the fixed-size integrator buffers.
-pub const MAX_DIM: usize = 8;
+pub const MAX_DIM: usize = 12;

@@ -1,0 +1,819 @@
+//! CROWN over a linear set with input noise: sound affine bounds of a network's outputs
+//! as functions of the set's parameters.
+//!
+//! The input set is `x = c + sum_k xi_k g_k + diag(noise) eta` with `xi in [-1, 1]^p` and
+//! `eta in [-1, 1]^n` (a zonotope-like linear set plus a box of noise). The input is the
+//! affine image of `v = (xi, eta)`, so the network composed with that map is bounded over
+//! the box `v in [-1, 1]^(p + n)` by CROWN (Zhang, Weng, Chen, Hsieh, Daniel, "Efficient
+//! Neural Network Robustness Certification with General Activation Functions", NeurIPS
+//! 2018): every activation is replaced by a lower and an upper line valid over its
+//! pre-activation range, and the ranges of every layer are found by back-substitution of
+//! the layer's neurons through the relaxations of the earlier layers (the backward form
+//! of DeepPoly, Singh et al., POPL 2019). The final lower and upper linear functions of
+//! `(xi, eta)` lose `eta` by the magnitudes of its coefficients; what is returned is their
+//! midpoint over `xi` and a deviation covering both.
+//!
+//! Relaxations (each sound for *any* slope: the intercept is a rigorous bound of
+//! `f(z) - a z` over the range, so the slope choice only affects tightness):
+//!
+//! - ReLU and Clamp: a range inside one linear piece is passed exactly; otherwise
+//!   `f(z) - a z` is piecewise linear, its extremes lie at the range ends and the kinks,
+//!   and the slope is chosen among 0, 1 and the chords between those points by the area
+//!   between the line and the function (CROWN's criterion; for ReLU this gives the chord
+//!   above and DeepPoly/CROWN's adaptive 0-or-1 slope below).
+//! - Tanh and Sigmoid: convex on `z <= 0`, concave on `z >= 0`. On a piece where
+//!   `h(z) = +-(f(z) - a z)` is convex, its maximum is at the piece's ends; where it is
+//!   concave, it lies below its tangent at (a floating-point approximation of) its
+//!   maximiser, which is rigorous at any point. Slopes: CROWN's chord over a range of
+//!   fixed curvature on the chord side and the tangent at the midpoint on the other; on
+//!   a range containing the inflection point (CROWN's mixed case) the best slope for the
+//!   area criterion is searched among the chord, the end and midpoint derivatives and a
+//!   ternary search over the slope range (the optimum is CROWN's tangent through an end
+//!   point, reached up to the search's resolution; every candidate is sound).
+//!
+//! Rounding (the discipline of [`crate::symbolic`]): every f64 dot product of the
+//! back-substitution has its error bounded by `(k + 2) * EPSILON` (twice Higham's
+//! `gamma_k`) times the sum of the magnitudes of its terms times a bound of the variable
+//! it multiplies; the activation functions are evaluated in `samara_num::Interval`
+//! (outward rounding, libm widened by 4 ulps); the error terms are inflated by `1e-9`
+//! relative and rounded up; concrete bounds are rounded outward with `next_up` /
+//! `next_down`. The guarantee holds in exact real arithmetic over the stored f64 weights.
+
+use rayon::prelude::*;
+use samara_nn::ir::IrError;
+use samara_nn::{Activation, Affine, Layer, Network};
+use samara_num::{Interval, Scalar};
+
+/// Affine bounds of the outputs over a linear set: for every `xi in [-1, 1]^p`, every
+/// input of the set and every output `j`, `|y_j - (cst_j + coef_j . xi)| <= dev_j`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LinearSetBound {
+    /// Constant term per output.
+    pub cst: Vec<f64>,
+    /// Coefficients over `xi`, `n_out` rows of `p` values.
+    pub coef: Vec<Vec<f64>>,
+    /// Non-negative deviation per output (covers the relaxations, the noise, the rounding).
+    pub dev: Vec<f64>,
+}
+
+/// Why [`bound_over_linear_set`] could not run.
+#[derive(Debug, thiserror::Error, PartialEq)]
+pub enum LinsetError {
+    /// The centre's length is not the network's input count.
+    #[error("the centre has {found} entries but the network has {expected} inputs")]
+    Center {
+        /// Network inputs.
+        expected: usize,
+        /// Entries given.
+        found: usize,
+    },
+    /// A generator's length is not the network's input count.
+    #[error("generator {index} has {found} entries but the network has {expected} inputs")]
+    Generator {
+        /// Which generator (0-based).
+        index: usize,
+        /// Network inputs.
+        expected: usize,
+        /// Entries given.
+        found: usize,
+    },
+    /// The noise vector's length is not the network's input count.
+    #[error("the noise has {found} radii but the network has {expected} inputs")]
+    Noise {
+        /// Network inputs.
+        expected: usize,
+        /// Radii given.
+        found: usize,
+    },
+    /// A NaN or infinite entry of the set.
+    #[error("{what} is {value}, not finite; the set must be finite")]
+    NonFinite {
+        /// Which entry (e.g. `centre[2]`, `generator 1 [0]`, `noise[3]`).
+        what: String,
+        /// Its value.
+        value: f64,
+    },
+    /// A negative noise radius.
+    #[error("noise[{index}] is {value}; radii must be >= 0")]
+    NegativeNoise {
+        /// Input index.
+        index: usize,
+        /// The radius.
+        value: f64,
+    },
+    /// The network is structurally invalid.
+    #[error("invalid network: {0}")]
+    Network(#[from] IrError),
+    /// A layer this bound cannot handle.
+    #[error("layer {layer} (raw layers, normalisation counted): unsupported: {what}")]
+    Unsupported {
+        /// Index in [`Network::raw_layers`].
+        layer: usize,
+        /// What is unsupported.
+        what: String,
+    },
+    /// Intermediate bounds overflowed f64 (weights or inputs far too large).
+    #[error("layer {layer} (raw layers, normalisation counted): the bounds overflow f64; the weights or the input set are too large")]
+    Overflow {
+        /// Index in [`Network::raw_layers`].
+        layer: usize,
+    },
+}
+
+/// `(k + 2) * EPSILON`, at least twice Higham's `gamma_k` (as in [`crate::symbolic`]).
+fn gamma(k: usize) -> f64 {
+    (k as f64 + 2.0) * f64::EPSILON
+}
+
+/// Inflate a non-negative error by `1e-9` relative and round up.
+fn inflate(e: f64) -> f64 {
+    (e * (1.0 + 1e-9)).next_up()
+}
+
+/// Lower and upper lines of one activation over its pre-activation range:
+/// `al z + bl <= f(z) <= au z + bu` for every real `z` in the range, exactly.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Relax {
+    al: f64,
+    bl: f64,
+    au: f64,
+    bu: f64,
+}
+
+enum Op {
+    Aff(Affine),
+    Act(Activation),
+}
+
+/// Sound affine bounds of `net`'s outputs (raw units: `input_norm`, body,
+/// `output_denorm`, the semantics of [`Network::eval_f64`] in exact arithmetic) over the
+/// linear set `x = c + sum_k xi_k gens[k] + diag(noise) eta`, `xi in [-1, 1]^p`,
+/// `eta in [-1, 1]^n`, by CROWN (Zhang et al., NeurIPS 2018) on the network composed with
+/// the set's affine map; see the module documentation for the relaxations and the
+/// rounding. `gens` may be empty (`p = 0`). `dev_j = (B_u - B_l)/2 + sum_k |a_u - a_l|_k
+/// / 2` for the final lower and upper functions `a_l . xi + B_l`, `a_u . xi + B_u`
+/// (noise eliminated), rounded up; when plain interval propagation of the last layer
+/// (from CROWN's bounds of the layer before) is narrower than that affine form's range
+/// over the whole set by more than 10%, the output gets the constant form of that
+/// interval instead (`coef_j = 0`).
+pub fn bound_over_linear_set(
+    net: &Network,
+    c: &[f64],
+    gens: &[Vec<f64>],
+    noise: &[f64],
+) -> Result<LinearSetBound, LinsetError> {
+    let n = net.n_inputs();
+    if c.len() != n {
+        return Err(LinsetError::Center {
+            expected: n,
+            found: c.len(),
+        });
+    }
+    for (k, g) in gens.iter().enumerate() {
+        if g.len() != n {
+            return Err(LinsetError::Generator {
+                index: k,
+                expected: n,
+                found: g.len(),
+            });
+        }
+    }
+    if noise.len() != n {
+        return Err(LinsetError::Noise {
+            expected: n,
+            found: noise.len(),
+        });
+    }
+    let finite = |what: String, v: f64| {
+        if v.is_finite() {
+            Ok(())
+        } else {
+            Err(LinsetError::NonFinite { what, value: v })
+        }
+    };
+    for (i, &v) in c.iter().enumerate() {
+        finite(format!("centre[{i}]"), v)?;
+    }
+    for (k, g) in gens.iter().enumerate() {
+        for (i, &v) in g.iter().enumerate() {
+            finite(format!("generator {k} [{i}]"), v)?;
+        }
+    }
+    for (i, &v) in noise.iter().enumerate() {
+        finite(format!("noise[{i}]"), v)?;
+        if v < 0.0 {
+            return Err(LinsetError::NegativeNoise { index: i, value: v });
+        }
+    }
+    net.validate()?;
+    let p = gens.len();
+    let m = p + n;
+
+    // Op 0: the set's map v -> x; then the raw layers.
+    let mut w0 = vec![0.0; n * m];
+    for i in 0..n {
+        for (k, g) in gens.iter().enumerate() {
+            w0[i * m + k] = g[i];
+        }
+        w0[i * m + p + i] = noise[i];
+    }
+    let mut ops = vec![Op::Aff(Affine::new(m, n, w0, c.to_vec()))];
+    for (k, l) in net.raw_layers().into_iter().enumerate() {
+        ops.push(match l {
+            Layer::Affine(a) => Op::Aff(a),
+            Layer::Act(act) => {
+                if let Activation::Clamp { lo, hi } = act {
+                    if lo.is_nan() || hi.is_nan() || lo > hi {
+                        return Err(LinsetError::Unsupported {
+                            layer: k,
+                            what: format!("Clamp with lo = {lo} > hi = {hi} (or NaN)"),
+                        });
+                    }
+                }
+                Op::Act(act)
+            }
+        });
+    }
+
+    let mut st = State {
+        ops,
+        inmag: Vec::new(),
+        rel: Vec::new(),
+    };
+    // bounds[k]: bounds of the output of op k.
+    let mut bounds: Vec<Vec<(f64, f64)>> = Vec::new();
+    let last = st.ops.len() - 1;
+    for k in 0..st.ops.len() {
+        // Bound of |input of op k|.
+        let inmag: Vec<f64> = if k == 0 {
+            vec![1.0; m]
+        } else {
+            bounds[k - 1]
+                .iter()
+                .map(|&(l, u)| l.abs().max(u.abs()))
+                .collect()
+        };
+        st.inmag.push(inmag);
+        let rel = match &st.ops[k] {
+            Op::Act(act) => bounds[k - 1]
+                .iter()
+                .map(|&(l, u)| relax(*act, l, u))
+                .collect(),
+            Op::Aff(_) => Vec::new(),
+        };
+        st.rel.push(rel);
+        if k == last {
+            break;
+        }
+        let b: Vec<(f64, f64)> = match &st.ops[k] {
+            Op::Act(act) => bounds[k - 1]
+                .iter()
+                .map(|&(l, u)| act_range(*act, l, u))
+                .collect(),
+            Op::Aff(a) => (0..a.out)
+                .into_par_iter()
+                .map(|i| {
+                    let mut e = vec![0.0; a.out];
+                    e[i] = 1.0;
+                    let lo = st.pull(k, e.clone()).min_over_box();
+                    e[i] = -1.0;
+                    let hi = -st.pull(k, e).min_over_box();
+                    // Intersect with plain interval propagation from the previous
+                    // layer's bounds (both are sound; intervals win where relaxations
+                    // stack up, e.g. saturated tanh).
+                    match k.checked_sub(1).map(|q| forward_interval(a, i, &bounds[q])) {
+                        Some(f) => (lo.max(f.lo), hi.min(f.hi)),
+                        None => (lo, hi),
+                    }
+                })
+                .collect(),
+        };
+        if b.iter().any(|&(l, u)| !l.is_finite() || !u.is_finite()) {
+            return Err(LinsetError::Overflow {
+                layer: k.saturating_sub(1),
+            });
+        }
+        bounds.push(b);
+    }
+
+    // Final lower and upper functions of every output.
+    let n_out = net.n_outputs();
+    let rows: Vec<(f64, Vec<f64>, f64)> = (0..n_out)
+        .into_par_iter()
+        .map(|j| {
+            let mut e = vec![0.0; n_out];
+            e[j] = 1.0;
+            let lower = st.pull(last, e.clone());
+            e[j] = -1.0;
+            let neg = st.pull(last, e);
+            finish(&lower, &neg, p)
+        })
+        .collect();
+    let mut out = LinearSetBound {
+        cst: Vec::with_capacity(n_out),
+        coef: Vec::with_capacity(n_out),
+        dev: Vec::with_capacity(n_out),
+    };
+    for (j, (mut cst, mut coef, mut dev)) in rows.into_iter().enumerate() {
+        // Where plain interval propagation of the last layer from the previous layer's
+        // bounds gives a narrower range than the affine form over the whole set, return
+        // that range as a constant form (sound either way; the affine form keeps the
+        // xi-dependence, so it is kept unless the interval is 10% narrower).
+        if last >= 1 {
+            let f = match &st.ops[last] {
+                Op::Aff(a) => forward_interval(a, j, &bounds[last - 1]),
+                Op::Act(act) => {
+                    let (l, u) = act_range(*act, bounds[last - 1][j].0, bounds[last - 1][j].1);
+                    Interval::new(l, u)
+                }
+            };
+            let aff_half = coef.iter().map(|v| v.abs()).sum::<f64>() + dev;
+            let half = (0.5 * f.hi - 0.5 * f.lo).next_up();
+            if f.lo.is_finite() && f.hi.is_finite() && half < 0.9 * aff_half {
+                let mid = 0.5 * f.lo + 0.5 * f.hi;
+                let d = ((f.hi - mid).next_up()).max((mid - f.lo).next_up());
+                cst = mid;
+                coef = vec![0.0; p];
+                dev = d;
+            }
+        }
+        if !dev.is_finite() || !cst.is_finite() || coef.iter().any(|v| !v.is_finite()) {
+            return Err(LinsetError::Overflow {
+                layer: last.saturating_sub(1),
+            });
+        }
+        out.cst.push(cst);
+        out.coef.push(coef);
+        out.dev.push(dev);
+    }
+    Ok(out)
+}
+
+/// Outward-rounded interval of row `i` of `a` over the box `b` of its input.
+fn forward_interval(a: &Affine, i: usize, b: &[(f64, f64)]) -> Interval {
+    let row = &a.w[i * a.inp..(i + 1) * a.inp];
+    let mut acc = Interval::point(a.b[i]);
+    for (&w, &(l, u)) in row.iter().zip(b) {
+        if w != 0.0 {
+            acc += Interval::new(l, u) * Interval::point(w);
+        }
+    }
+    acc
+}
+
+/// A linear function `coef . v + cst` of `v in [-1, 1]^m` with an error bound `err`:
+/// the pulled-back quantity is `>= coef . v + cst - err` in exact arithmetic.
+struct Pulled {
+    coef: Vec<f64>,
+    cst: f64,
+    err: f64,
+}
+
+impl Pulled {
+    /// A sound lower bound over the whole box `[-1, 1]^m`.
+    fn min_over_box(&self) -> f64 {
+        let (s, mag) = sum_minus_abs(self.cst, &self.coef);
+        (s - inflate(gamma(self.coef.len() + 1) * mag + self.err)).next_down()
+    }
+}
+
+/// `cst - sum |coef|` in f64 and the sum of the magnitudes of the terms.
+fn sum_minus_abs(cst: f64, coef: &[f64]) -> (f64, f64) {
+    let mut s = cst;
+    let mut mag = cst.abs();
+    for c in coef {
+        s -= c.abs();
+        mag += c.abs();
+    }
+    (s, mag)
+}
+
+/// Midpoint form from the pulled-back lower bounds of `y_j` (`lower`) and of `-y_j`
+/// (`neg`): `(cst, coef over xi, dev)`.
+fn finish(lower: &Pulled, neg: &Pulled, p: usize) -> (f64, Vec<f64>, f64) {
+    // y >= a_l . xi + B_l, eta eliminated.
+    let (s, mag) = sum_minus_abs(lower.cst, &lower.coef[p..]);
+    let bl = (s - inflate(gamma(lower.coef.len() + 1) * mag + lower.err)).next_down();
+    let al = &lower.coef[..p];
+    // -y >= a_n . xi + B_n  =>  y <= -a_n . xi - B_n.
+    let (s, mag) = sum_minus_abs(neg.cst, &neg.coef[p..]);
+    let bn = (s - inflate(gamma(neg.coef.len() + 1) * mag + neg.err)).next_down();
+    let bu = -bn;
+    let au: Vec<f64> = neg.coef[..p].iter().map(|v| -v).collect();
+    let coef: Vec<f64> = al.iter().zip(&au).map(|(a, b)| 0.5 * a + 0.5 * b).collect();
+    let cst = 0.5 * bl + 0.5 * bu;
+    // dev >= sum |a_u - coef| + (B_u - cst) and >= sum |coef - a_l| + (cst - B_l),
+    // every operation rounded up.
+    let side = |a: &[f64], b_gap: f64| {
+        let mut d = b_gap;
+        for (x, y) in a.iter().zip(&coef) {
+            d = (d + (x - y).abs().next_up()).next_up();
+        }
+        d
+    };
+    let up = side(&au, (bu - cst).next_up());
+    let dn = side(al, (cst - bl).next_up());
+    (cst, coef, up.max(dn).max(0.0))
+}
+
+struct State {
+    ops: Vec<Op>,
+    /// Per op, bounds of `|input|`.
+    inmag: Vec<Vec<f64>>,
+    /// Per op, the relaxations of an activation op (empty for affine ops).
+    rel: Vec<Vec<Relax>>,
+}
+
+impl State {
+    /// CROWN's back-substitution of `lam . (output of op top)` to a lower bound linear
+    /// in `v`, with every rounding error bounded.
+    fn pull(&self, top: usize, mut lam: Vec<f64>) -> Pulled {
+        let mut cst = 0.0f64;
+        let mut err = 0.0f64;
+        for j in (0..=top).rev() {
+            let inmag = &self.inmag[j];
+            match &self.ops[j] {
+                Op::Aff(a) => {
+                    let mut nu = vec![0.0; a.inp];
+                    let mut mag = vec![0.0; a.inp];
+                    let mut cmag = cst.abs();
+                    for (i, &li) in lam.iter().enumerate() {
+                        if li == 0.0 {
+                            continue;
+                        }
+                        let p = li * a.b[i];
+                        cst += p;
+                        cmag += p.abs();
+                        let row = &a.w[i * a.inp..(i + 1) * a.inp];
+                        for ((nt, mt), &w) in nu.iter_mut().zip(mag.iter_mut()).zip(row) {
+                            if w != 0.0 {
+                                let p = li * w;
+                                *nt += p;
+                                *mt += p.abs();
+                            }
+                        }
+                    }
+                    let g = gamma(a.out + 1);
+                    err += g * cmag;
+                    for (mt, im) in mag.iter().zip(inmag) {
+                        if *mt > 0.0 {
+                            err += g * mt * im;
+                        }
+                    }
+                    lam = nu;
+                }
+                Op::Act(_) => {
+                    let rel = &self.rel[j];
+                    let mut cmag = cst.abs();
+                    for ((lt, r), im) in lam.iter_mut().zip(rel).zip(inmag) {
+                        let l = *lt;
+                        if l == 0.0 {
+                            continue;
+                        }
+                        let (a, b) = if l > 0.0 { (r.al, r.bl) } else { (r.au, r.bu) };
+                        let nl = l * a;
+                        if nl != 0.0 {
+                            err += f64::EPSILON * nl.abs() * im;
+                        }
+                        if b != 0.0 {
+                            let p = l * b;
+                            cst += p;
+                            cmag += p.abs();
+                        }
+                        *lt = nl;
+                    }
+                    err += gamma(lam.len() + 1) * cmag;
+                }
+            }
+        }
+        Pulled {
+            coef: lam,
+            cst,
+            err: inflate(err),
+        }
+    }
+}
+
+/// Sound range of `f(z)` for `z in [l, u]` (every activation here is monotone).
+fn act_range(act: Activation, l: f64, u: f64) -> (f64, f64) {
+    match act {
+        Activation::Relu => (l.max(0.0), u.max(0.0)),
+        Activation::Clamp { lo, hi } => (l.max(lo).min(hi), u.max(lo).min(hi)),
+        Activation::Tanh | Activation::Sigmoid => {
+            let (a, b) = (smooth_f(act, l), smooth_f(act, u));
+            let (lo, hi) = if act == Activation::Tanh {
+                (-1.0, 1.0)
+            } else {
+                (0.0, 1.0)
+            };
+            (a.lo.max(lo), b.hi.min(hi))
+        }
+    }
+}
+
+/// Enclosure of `tanh(z)` or `sigmoid(z)`.
+fn smooth_f(act: Activation, z: f64) -> Interval {
+    let x = Interval::point(z);
+    if act == Activation::Tanh {
+        x.tanh()
+    } else {
+        x.sigmoid()
+    }
+}
+
+/// Enclosure of the derivative of `tanh` or `sigmoid` at `z`.
+fn smooth_df(act: Activation, z: f64) -> Interval {
+    let f = smooth_f(act, z);
+    let one = Interval::point(1.0);
+    if act == Activation::Tanh {
+        one - f.sqr()
+    } else {
+        f * (one - f)
+    }
+}
+
+/// An approximate non-negative solution of `f'(z) = a` (`+inf` when `a <= 0`, 0 when
+/// `a` is at least the maximum of `f'`); only used to place a tangent, never for soundness.
+fn smooth_dinv(act: Activation, a: f64) -> f64 {
+    if a <= 0.0 {
+        return f64::INFINITY;
+    }
+    if act == Activation::Tanh {
+        if a >= 1.0 {
+            0.0
+        } else {
+            (1.0 - a).sqrt().atanh()
+        }
+    } else if a >= 0.25 {
+        0.0
+    } else {
+        let s = 0.5 * (1.0 + (1.0 - 4.0 * a).sqrt());
+        (s / (1.0 - s)).ln()
+    }
+}
+
+/// A rigorous upper bound of `h(z) = s (f(z) - a z)` over `[l, u]` for `f` = tanh or
+/// sigmoid, `s = +-1`: split at the inflection point 0; on a convex piece the maximum is
+/// at an end; on a concave piece `h` lies below its tangent at any point, taken near the
+/// maximiser.
+fn smooth_max(act: Activation, s: f64, a: f64, l: f64, u: f64) -> f64 {
+    let h = |z: f64| (smooth_f(act, z) - Interval::point(a) * Interval::point(z)) * s;
+    let piece = |p: f64, q: f64| -> f64 {
+        // f is convex on z <= 0; s = -1 flips the curvature.
+        let convex = (q <= 0.0) == (s > 0.0);
+        if convex {
+            return h(p).hi.max(h(q).hi);
+        }
+        let zs = smooth_dinv(act, a);
+        let mut z1 = if q <= 0.0 { -zs } else { zs };
+        if z1.is_nan() {
+            z1 = 0.5 * p + 0.5 * q;
+        }
+        let z1 = z1.clamp(p, q);
+        let dh = (smooth_df(act, z1) - Interval::point(a)) * s;
+        let t1 = dh * (Interval::point(p) - Interval::point(z1));
+        let t2 = dh * (Interval::point(q) - Interval::point(z1));
+        (h(z1) + t1).hi.max((h(z1) + t2).hi)
+    };
+    let r = if l < 0.0 && u > 0.0 {
+        piece(l, 0.0).max(piece(0.0, u))
+    } else {
+        piece(l, u)
+    };
+    if r.is_nan() {
+        f64::INFINITY
+    } else {
+        r
+    }
+}
+
+/// Sound lines for one activation over `[l, u]` (module doc).
+fn relax(act: Activation, l: f64, u: f64) -> Relax {
+    match act {
+        Activation::Relu => pwl_relax(|z| z.max(0.0), &[0.0], l, u),
+        Activation::Clamp { lo, hi } => {
+            let bps: Vec<f64> = [lo, hi].into_iter().filter(|b| b.is_finite()).collect();
+            pwl_relax(|z| z.max(lo).min(hi), &bps, l, u)
+        }
+        Activation::Tanh | Activation::Sigmoid => smooth_relax(act, l, u),
+    }
+}
+
+/// Piecewise-linear `f` with slopes 0 or 1 and kinks `bps` (sorted).
+fn pwl_relax(f: impl Fn(f64) -> f64, bps: &[f64], l: f64, u: f64) -> Relax {
+    let inside: Vec<f64> = bps.iter().copied().filter(|&b| b > l && b < u).collect();
+    if inside.is_empty() {
+        // One linear piece, passed exactly: the identity (the only slope-1 piece of ReLU
+        // and Clamp) or a constant.
+        let (fl, fu) = (f(l), f(u));
+        if fl == l && fu == u {
+            return Relax {
+                al: 1.0,
+                bl: 0.0,
+                au: 1.0,
+                bu: 0.0,
+            };
+        }
+        debug_assert!(fl == fu);
+        return Relax {
+            al: 0.0,
+            bl: fl.min(fu),
+            au: 0.0,
+            bu: fl.max(fu),
+        };
+    }
+    let mut pts = vec![l];
+    pts.extend_from_slice(&inside);
+    pts.push(u);
+    let g = |a: f64, z: f64| sub_prod(f(z), a, z);
+    let upper = |a: f64| {
+        pts.iter()
+            .map(|&z| g(a, z).hi)
+            .fold(f64::NEG_INFINITY, f64::max)
+    };
+    let lower = |a: f64| {
+        pts.iter()
+            .map(|&z| g(a, z).lo)
+            .fold(f64::INFINITY, f64::min)
+    };
+    let mut cands = vec![0.0, 1.0];
+    for (i, &x) in pts.iter().enumerate() {
+        for &y in &pts[i + 1..] {
+            let s = (f(y) - f(x)) / (y - x);
+            if s.is_finite() {
+                cands.push(s);
+            }
+        }
+    }
+    let mid = 0.5 * l + 0.5 * u;
+    pick(&cands, mid, upper, lower)
+}
+
+/// Enclosure of `f - a z`: the exact value when the f64 operations are exact (checked
+/// with an FMA residual and a two-sum error term), else outward interval arithmetic.
+fn sub_prod(f: f64, a: f64, z: f64) -> Interval {
+    let p = a * z;
+    let tiny = p.abs() < 1e-290 && !(a == 0.0 || z == 0.0);
+    if !tiny && p.is_finite() && f.is_finite() {
+        let e = a.mul_add(z, -p); // a z = p + e exactly (no underflow)
+        let s = f - p;
+        let bp = s - f;
+        let t = (f - (s - bp)) + (-p - bp); // f - p = s + t exactly
+        if e == 0.0 && t == 0.0 {
+            return Interval::point(s);
+        }
+    }
+    Interval::point(f) - Interval::point(a) * Interval::point(z)
+}
+
+/// Among slopes `cands`, the upper line with the least value at `mid` and the lower line
+/// with the greatest (CROWN's area criterion); the intercepts are `upper(a)`, `lower(a)`.
+fn pick(cands: &[f64], mid: f64, upper: impl Fn(f64) -> f64, lower: impl Fn(f64) -> f64) -> Relax {
+    let mut best_u = (f64::INFINITY, 0.0, f64::INFINITY);
+    let mut best_l = (f64::NEG_INFINITY, 0.0, f64::NEG_INFINITY);
+    for &a in cands {
+        let bu = upper(a);
+        let vu = bu + a * mid;
+        if vu < best_u.0 {
+            best_u = (vu, a, bu);
+        }
+        let bl = lower(a);
+        let vl = bl + a * mid;
+        if vl > best_l.0 {
+            best_l = (vl, a, bl);
+        }
+    }
+    Relax {
+        al: best_l.1,
+        bl: best_l.2,
+        au: best_u.1,
+        bu: best_u.2,
+    }
+}
+
+/// CROWN-style lines for tanh or sigmoid over `[l, u]` (module doc).
+fn smooth_relax(act: Activation, l: f64, u: f64) -> Relax {
+    let upper = |a: f64| smooth_max(act, 1.0, a, l, u);
+    let lower = |a: f64| -smooth_max(act, -1.0, a, l, u);
+    let mid = 0.5 * l + 0.5 * u;
+    let d = |z: f64| smooth_df(act, z).value();
+    let (fl, fu) = (smooth_f(act, l).value(), smooth_f(act, u).value());
+    let mut cands = vec![0.0, d(l), d(u), d(mid)];
+    let chord = (fu - fl) / (u - l);
+    if chord.is_finite() {
+        cands.push(chord);
+    }
+    let mut r = pick(&cands, mid, upper, lower);
+    if l < 0.0 && u > 0.0 {
+        // Mixed curvature: ternary search of the slope for each line, over
+        // [0, max f'] (f' is largest at 0).
+        let amax = d(0.0);
+        let search = |val: &dyn Fn(f64) -> f64| -> f64 {
+            let (mut a, mut b) = (0.0, amax);
+            for _ in 0..48 {
+                let m1 = a + (b - a) / 3.0;
+                let m2 = b - (b - a) / 3.0;
+                if val(m1) <= val(m2) {
+                    b = m2;
+                } else {
+                    a = m1;
+                }
+            }
+            0.5 * (a + b)
+        };
+        let au = search(&|a| upper(a) + a * mid);
+        let al = search(&|a| -(lower(a) + a * mid));
+        let (bu, bl) = (upper(au), lower(al));
+        if bu + au * mid < r.bu + r.au * mid {
+            r.au = au;
+            r.bu = bu;
+        }
+        if bl + al * mid > r.bl + r.al * mid {
+            r.al = al;
+            r.bl = bl;
+        }
+    }
+    r
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// Every relaxation is checked on a dense grid and at random points, in f64 with a
+    /// tolerance far below the margins involved (1e-12 absolute on values in [-1e2, 1e2]).
+    #[test]
+    fn relaxations_are_sound_on_grids() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+        let acts = [
+            Activation::Relu,
+            Activation::Tanh,
+            Activation::Sigmoid,
+            Activation::Clamp { lo: -0.5, hi: 1.5 },
+            Activation::Clamp {
+                lo: f64::NEG_INFINITY,
+                hi: 0.25,
+            },
+            Activation::Clamp {
+                lo: 0.0,
+                hi: f64::INFINITY,
+            },
+        ];
+        for _ in 0..3000 {
+            let act = acts[rng.gen_range(0..acts.len())];
+            let scale: f64 = [0.01, 1.0, 5.0, 40.0][rng.gen_range(0..4)];
+            let (a, b): (f64, f64) = (rng.gen_range(-scale..scale), rng.gen_range(-scale..scale));
+            let (l, u) = if rng.gen_bool(0.05) {
+                (a, a)
+            } else {
+                (a.min(b), a.max(b))
+            };
+            let r = relax(act, l, u);
+            for t in 0..=200 {
+                let z = if t < 200 {
+                    l + (u - l) * t as f64 / 200.0
+                } else {
+                    u
+                };
+                let z = z.clamp(l, u);
+                let f = act.apply_f64(z);
+                let lo = r.al * z + r.bl;
+                let hi = r.au * z + r.bu;
+                assert!(
+                    lo <= f + 1e-12 && f <= hi + 1e-12,
+                    "{act:?} on [{l}, {u}] at {z}: {lo} <= {f} <= {hi} ({r:?})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn relu_relaxation_is_crowns() {
+        // Intercepts are rounded outward by an ulp even when exact.
+        let r = relax(Activation::Relu, -1.0, 3.0);
+        assert!(r.al == 1.0 && r.bl.abs() < 1e-300, "{r:?}");
+        assert!((r.au - 0.75).abs() < 1e-15 && (r.bu - 0.75).abs() < 1e-15);
+        let r = relax(Activation::Relu, -3.0, 1.0);
+        assert!(r.al == 0.0 && r.bl.abs() < 1e-300, "{r:?}");
+        let r = relax(Activation::Relu, 0.5, 3.0);
+        assert_eq!(
+            r,
+            Relax {
+                al: 1.0,
+                bl: 0.0,
+                au: 1.0,
+                bu: 0.0
+            }
+        );
+    }
+
+    #[test]
+    fn tanh_chord_in_convex_region() {
+        let (l, u) = (-3.0f64, -1.0f64);
+        let r = relax(Activation::Tanh, l, u);
+        let chord = (u.tanh() - l.tanh()) / (u - l);
+        assert!((r.au - chord).abs() < 1e-12, "{r:?} vs {chord}");
+        assert!((r.au * l + r.bu - l.tanh()).abs() < 1e-12);
+    }
+}

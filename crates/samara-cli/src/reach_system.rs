@@ -1,0 +1,229 @@
+//! `samara reach --system FILE --network NET`: sound reachable sets of any closed loop
+//! written as a system file (docs/system.md), with Taylor-model sets
+//! (`samara_reach::system`). Writes `DIR/reach.json` (settings, verdict, the hull of the
+//! state at each control instant and over each period, the sub-boxes) and prints one
+//! line, or the JSON summary with `--json`.
+
+use crate::reach::ReachArgs;
+use anyhow::{anyhow, bail, Context, Result};
+use samara_reach::system::{reach_system, SystemReach, SystemReachSettings, SystemVerdict};
+use samara_report::write_atomic;
+use std::path::Path;
+use std::process::ExitCode;
+
+/// Files `reach --system` writes.
+const WRITES: [&str; 1] = ["reach.json"];
+
+/// Load a controller by its extension: `.nnet` (NNet text format), else ONNX.
+pub fn load_controller(path: &Path) -> Result<samara_nn::Network> {
+    let is_nnet = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("nnet"));
+    if is_nnet {
+        samara_nn::nnet::load(path).map_err(|e| anyhow!("{e}"))
+    } else {
+        samara_nn::onnx::load(path).map_err(|e| anyhow!("{e}"))
+    }
+    .with_context(|| format!("--network {}", path.display()))
+}
+
+/// Flags of the built-in glider setting that do not apply to a system file (which
+/// states its own initial set, period, horizon, clip and goals).
+fn refuse_builtin_flags(a: &ReachArgs) -> Result<()> {
+    let given: Vec<&str> = [
+        (a.y0.is_some(), "--y0"),
+        (!a.init.is_empty(), "--init"),
+        (a.goal_ystar.is_some(), "--goal-ystar"),
+        (a.goal_from.is_some(), "--goal-from"),
+        (a.no_clip, "--no-clip"),
+        (a.model != "reduced", "--model"),
+    ]
+    .iter()
+    .filter(|(on, _)| *on)
+    .map(|(_, n)| *n)
+    .collect();
+    if !given.is_empty() {
+        bail!(
+            "{} do(es) not apply with --system: the system file states its model, initial set (`init`), goals (`goal`), clip and period; edit the file",
+            given.join(", ")
+        );
+    }
+    Ok(())
+}
+
+/// Run `samara reach --system`.
+pub fn run(a: &ReachArgs, path: &Path) -> Result<ExitCode> {
+    refuse_builtin_flags(a)?;
+    if a.sets != "zonotope" {
+        bail!("--sets does not apply with --system: system files always use Taylor-model sets");
+    }
+    let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
+    let net = load_controller(&a.network)?;
+    run_system(a, &sys, path, &net)
+}
+
+/// Reachability of a checked system under a loaded controller; `path` names the
+/// system in messages and the report.
+pub fn run_system(
+    a: &ReachArgs,
+    sys: &samara_system::System,
+    path: &Path,
+    net: &samara_nn::Network,
+) -> Result<ExitCode> {
+    if net.n_inputs() != sys.n_observed() || net.n_outputs() < sys.n_net_outputs {
+        bail!(
+            "--network {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
+            a.network.display(),
+            net.n_inputs(),
+            net.n_outputs(),
+            path.display(),
+            sys.n_observed(),
+            sys.n_net_outputs
+        );
+    }
+    let mut s = SystemReachSettings::default();
+    if let Some(k) = a.order {
+        if !(1..=8).contains(&k) {
+            bail!("--order {k}: give 1 to 8 (3-5 is usual; higher orders cost more per step)");
+        }
+        s.order = k;
+    }
+    if let Some(n) = a.max_leaves {
+        if n == 0 || n > 100_000 {
+            bail!("--max-leaves {n}: give 1 to 100000 sub-boxes");
+        }
+        s.max_boxes = n;
+    }
+    if let Some(n) = a.samples {
+        if n == 0 || n > 100_000 {
+            bail!("--samples {n}: give 1 to 100000 simulated starts");
+        }
+        s.samples = n;
+    }
+    if let Some(n) = a.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| anyhow!("--threads {n}: cannot start the thread pool: {e}"))?;
+    }
+    samara_report::guard::check_output_dir(
+        "--out",
+        &a.out,
+        &WRITES,
+        &if path.is_file() {
+            vec![("--system", path), ("--network", a.network.as_path())]
+        } else {
+            vec![("--network", a.network.as_path())]
+        },
+    )?;
+    let out = samara_report::guard::OutDir::prepare(&a.out)?;
+    let res = reach_system(sys, net, &s).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let report = serde_json::json!({
+        "system": path.display().to_string(),
+        "network": a.network.display().to_string(),
+        "settings": {"order": s.order, "max_boxes": s.max_boxes, "samples": s.samples},
+        "result": &res,
+    });
+    write_atomic(
+        &a.out.join("reach.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    out.keep();
+    if a.json {
+        println!("{}", serde_json::to_string_pretty(&summary(&res))?);
+    } else {
+        println!("{}", human_line(path, &res));
+        eprintln!("wrote {}", a.out.display());
+    }
+    Ok(match res.verdict {
+        SystemVerdict::Proved | SystemVerdict::NoGoal => ExitCode::SUCCESS,
+        _ => ExitCode::from(1),
+    })
+}
+
+fn summary(r: &SystemReach) -> serde_json::Value {
+    serde_json::json!({
+        "system": r.system,
+        "verdict": &r.verdict,
+        "boxes": r.boxes,
+        "order": r.order,
+        "seconds": r.seconds,
+        "final": r.instants.last(),
+    })
+}
+
+fn human_line(path: &Path, r: &SystemReach) -> String {
+    let what = match &r.verdict {
+        SystemVerdict::Proved => "proved: every goal holds on the sound enclosure".to_string(),
+        SystemVerdict::Violated { initial, goal } => {
+            format!("violated: the flight from {initial:?} misses `{goal}`")
+        }
+        SystemVerdict::Unknown { reason } => format!("unknown: {reason}"),
+        SystemVerdict::NoGoal => "no goal in the file; sets computed".to_string(),
+    };
+    format!(
+        "{}: {what} ({} sub-boxes, Taylor models of order {}, {:.2} s)",
+        path.display(),
+        r.boxes,
+        r.order,
+        r.seconds
+    )
+}
+
+/// The built-in glider setting (`--model`, `--y0`, `--init`, `--period`, `--horizon`,
+/// clip, goal) as a system: the shipped `examples/archcomp/alsomitra_<model>.sys`
+/// (embedded; bit-identical to the built-in right-hand sides, see docs/system.md) with
+/// its period, horizon, actuation, initial set and goal lines replaced by the flags'.
+pub fn builtin_system(s: &samara_reach::ReachSettings) -> Result<samara_system::System> {
+    use samara_plant::Model;
+    let (file, text) = match s.model {
+        Model::Reduced => (
+            "alsomitra_reduced.sys",
+            include_str!("../../../examples/archcomp/alsomitra_reduced.sys"),
+        ),
+        Model::Plate6 => (
+            "alsomitra_plate6.sys",
+            include_str!("../../../examples/archcomp/alsomitra_plate6.sys"),
+        ),
+        Model::Full => (
+            "alsomitra_full.sys",
+            include_str!("../../../examples/archcomp/alsomitra_full.sys"),
+        ),
+    };
+    let replaced = ["period", "horizon", "actuate", "init", "goal", "reset"];
+    let mut src: String = text
+        .lines()
+        .filter(|l| {
+            let w = l.split_whitespace().next().unwrap_or("");
+            !replaced.contains(&w)
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let names = ["v_xp", "v_yp", "omega", "theta", "x", "y", "E"];
+    src.push_str(&format!("period {:?}\nhorizon {:?}\n", s.period, s.horizon));
+    match s.clip {
+        Some((lo, hi)) => src.push_str(&format!("actuate ex = net[0] clip [{lo:?}, {hi:?}]\n")),
+        None => src.push_str("actuate ex = net[0]\n"),
+    }
+    if s.init.len() == 7 && s.reset_filter {
+        src.push_str("reset E = 0\n");
+    }
+    for (n, (lo, hi)) in names.iter().zip(&s.init) {
+        if lo == hi {
+            src.push_str(&format!("init {n} = {lo:?}\n"));
+        } else {
+            src.push_str(&format!("init {n} in [{lo:?}, {hi:?}]\n"));
+        }
+    }
+    if let Some(g) = &s.goal {
+        match g.from {
+            None => src.push_str(&format!("goal band |x + y| <= {:?} at end\n", g.ystar)),
+            Some(f) => src.push_str(&format!(
+                "goal band |x + y| <= {:?} always [{f:?}, {:?}]\n",
+                g.ystar, s.horizon
+            )),
+        }
+    }
+    samara_system::System::parse(&src, &format!("{file} (built-in setting)"))
+        .map_err(|e| anyhow!("the built-in setting as a system file: {e}"))
+}

@@ -1,0 +1,1001 @@
+//! Multivariate Taylor models over the parameter box `[-1, 1]^n` (Makino & Berz,
+//! "Taylor models and other validated functional inclusion methods", *Int. J. Pure Appl.
+//! Math.* 4(4), 2003).
+//!
+//! A [`Tm`] is a pair `(p, r)`: a polynomial `p` with `f64` coefficients in `n` parameters
+//! `xi in [-1, 1]^n` of total degree `<= order`, and an [`Interval`] remainder `r`. It
+//! *encloses* a function `g` when `g(xi) - p(xi) in r` for every `xi` in the box, where
+//! `p(xi)` is evaluated in exact real arithmetic from the stored coefficients. Every
+//! operation maps enclosures of its operands to an enclosure of the exact real result.
+//!
+//! # Rounding policy
+//!
+//! Coefficients are computed in IEEE 754 binary64 with round-to-nearest (the platform
+//! default, which Rust does not change). Each such operation `c = fl(a op b)` satisfies
+//! `|c - a op b| <= u |c| + eta` with `u = 2^-53`, `eta = 2^-1074` (the `eta` term only
+//! for `*` and `/`, where the result may underflow; sums of floats are exact when they
+//! underflow). The error bounds are accumulated in `f64` with every step rounded upward
+//! (`next_up`), and added to the remainder as `[-e, e]` through the outward-rounded
+//! [`Interval`] operations:
+//!
+//! * sums and scalings: `e = u * sum |c_k| + (number of products) * eta`;
+//! * products: each output coefficient is a recursive sum of at most `m` products, with
+//!   `m` the largest number of monomial pairs that map to one monomial (precomputed per
+//!   `(n, order)`), so `e = gamma_m * sum |a_i b_j| + 2 (pairs) eta`, `gamma_m = m u / (1 - m u)`
+//!   (Higham, *Accuracy and Stability of Numerical Algorithms*, 2002, sec. 3.1).
+//!
+//! Terms of total degree `> order` are bounded over the box and moved into the
+//! remainder: in products by `|a_i| sum_{deg b_j > order - deg a_i} |b_j|` (symmetric);
+//! when a model is converted to a lower order by `[0, c]` (resp. `[c, 0]`) for monomials
+//! with all exponents even and `[-|c|, |c|]` otherwise. The polynomial range used by
+//! [`Tm::bound`] is the same monomial-wise bound. A coefficient that overflows (or turns
+//! NaN) makes the whole model the *entire* model: zero polynomial, remainder `(-inf, inf)`;
+//! no model ever holds a non-finite coefficient or a NaN remainder end.
+//!
+//! # Elementary functions
+//!
+//! `f(x)` is expanded about the constant coefficient `c` of `x`: with `h = x - c` and
+//! `H = bound(h)`, `f(c + h) = sum_{k <= d} a_k h^k + a_{d+1}(c + theta h) h^{d+1}`
+//! (Lagrange), `d = min(order, 8)`. The `a_k = f^(k)(c) / k!` are enclosed by running `f` on
+//! a `Series<Interval, 10>` seeded at the point `[c, c]`; the polynomial uses `mid(a_k)`
+//! (Horner, with the sound products above) and `rad(a_k) |H|^k` goes to the remainder.
+//! The Lagrange coefficient is enclosed by the same series seeded with the interval
+//! `c + H` (its `k`-th coefficient encloses `f^(k)(xi) / k!` over the interval), times
+//! `H^(d+1)`. When a series coefficient is not finite (the range leaves the domain: a
+//! pole of `tan` or `1/x`, `sqrt`/`ln` at or below 0, overflow of `exp`), the result falls
+//! back to the interval function of [`Tm::bound`] as a constant-plus-remainder model, with
+//! the conventions of [`Interval`] (`sqrt` of a range reaching below 0 encloses the square
+//! roots of its non-negative part, `ln` of a range touching 0 has lower end `-inf`); an
+//! interval result that is NaN (the range lies wholly outside the domain) becomes the
+//! entire model.
+
+// Numeric kernels index several arrays by one index; the explicit forms mirror the formulas.
+#![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
+
+use crate::interval::Interval;
+use crate::scalar::{Scalar, Sign};
+use crate::series::Series;
+use std::borrow::Cow;
+use std::cell::RefCell;
+use std::collections::HashMap;
+use std::fmt;
+use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
+use std::sync::{Mutex, OnceLock};
+
+/// Unit roundoff of binary64, round-to-nearest.
+const U: f64 = f64::EPSILON * 0.5;
+/// Smallest positive subnormal, `2^-1074`.
+const ETA: f64 = f64::MIN_POSITIVE * f64::EPSILON;
+/// Largest Taylor degree of the elementary-function expansions (the series hold 10 terms).
+const MAX_DEG: u32 = 8;
+/// Largest supported order (exponents are stored as `u8`).
+const MAX_ORDER: u32 = 64;
+
+type S10 = Series<Interval, 10>;
+
+#[inline(always)]
+fn up(x: f64) -> f64 {
+    if x.is_nan() {
+        f64::INFINITY
+    } else {
+        x.next_up()
+    }
+}
+
+#[inline(always)]
+fn dn(x: f64) -> f64 {
+    if x.is_nan() {
+        f64::NEG_INFINITY
+    } else {
+        x.next_down()
+    }
+}
+
+/// Upper bound of `a + b`: the float sum, raised by one ulp only when TwoSum shows it
+/// is below the exact sum (Knuth's TwoSum is exact in round-to-nearest).
+#[inline(always)]
+fn sum_up(a: f64, b: f64) -> f64 {
+    let s = a + b;
+    if !s.is_finite() {
+        return if s.is_nan() { f64::INFINITY } else { s };
+    }
+    let bb = s - a;
+    let e = (a - (s - bb)) + (b - bb);
+    if e > 0.0 {
+        s.next_up()
+    } else {
+        s
+    }
+}
+
+/// Lower bound of `a + b` (see [`sum_up`]).
+#[inline(always)]
+fn sum_dn(a: f64, b: f64) -> f64 {
+    let s = a + b;
+    if !s.is_finite() {
+        return if s.is_nan() { f64::NEG_INFINITY } else { s };
+    }
+    let bb = s - a;
+    let e = (a - (s - bb)) + (b - bb);
+    if e < 0.0 {
+        s.next_down()
+    } else {
+        s
+    }
+}
+
+/// Interval sum, each end rounded outward only when inexact.
+#[inline(always)]
+fn iadd(a: Interval, b: Interval) -> Interval {
+    Interval {
+        lo: sum_dn(a.lo, b.lo),
+        hi: sum_up(a.hi, b.hi),
+    }
+}
+
+#[inline(always)]
+fn sym(e: f64) -> Interval {
+    Interval { lo: -e, hi: e }
+}
+
+#[inline(always)]
+fn is_zero(i: &Interval) -> bool {
+    i.lo == 0.0 && i.hi == 0.0
+}
+
+#[inline(always)]
+fn has_nan(i: &Interval) -> bool {
+    i.lo.is_nan() || i.hi.is_nan()
+}
+
+/// Upper bound of the radius of `i` about its midpoint `i.value()`.
+fn rad(i: &Interval) -> f64 {
+    let m = i.value();
+    up(i.hi - m).max(up(m - i.lo))
+}
+
+/// Monomial and multiplication tables for one `(n, order)`.
+struct Table {
+    n: usize,
+    order: u32,
+    /// Total degree of each monomial (graded order: degree-`d` monomials precede
+    /// degree-`d+1` ones; the degree-1 monomials are `xi_0, ..., xi_{n-1}`).
+    deg: Vec<u32>,
+    /// Whether every exponent of the monomial is even (its range over the box is `[0, 1]`).
+    even: Vec<bool>,
+    /// Exponents, `n` per monomial.
+    exps: Vec<u8>,
+    /// `pre[d]`: number of monomials of degree `<= d`.
+    pre: Vec<usize>,
+    /// Start of row `i` in `mul`.
+    row: Vec<usize>,
+    /// `mul[row[i] + j]`: index of `m_i m_j` for `j < pre[order - deg_i]`.
+    mul: Vec<u32>,
+    /// `gamma_m` for the largest number `m` of pairs mapping to one monomial (rounded up).
+    gamma: f64,
+    /// Exponent vector to index.
+    index: HashMap<Vec<u8>, u32>,
+}
+
+fn gen_monomials(n: usize, d: u32, cur: &mut Vec<u8>, out: &mut Vec<Vec<u8>>) {
+    if cur.len() == n {
+        if d == 0 {
+            out.push(cur.clone());
+        }
+        return;
+    }
+    if cur.len() + 1 == n {
+        cur.push(d as u8);
+        out.push(cur.clone());
+        cur.pop();
+        return;
+    }
+    for e in (0..=d).rev() {
+        cur.push(e as u8);
+        gen_monomials(n, d - e, cur, out);
+        cur.pop();
+    }
+}
+
+impl Table {
+    fn build(n: usize, order: u32) -> Table {
+        assert!(order <= MAX_ORDER, "Tm order {order} exceeds {MAX_ORDER}");
+        let mut mons: Vec<Vec<u8>> = Vec::new();
+        let mut pre = Vec::with_capacity(order as usize + 1);
+        let mut deg = Vec::new();
+        for d in 0..=order {
+            let before = mons.len();
+            gen_monomials(n, d, &mut Vec::with_capacity(n), &mut mons);
+            deg.extend(std::iter::repeat_n(d, mons.len() - before));
+            pre.push(mons.len());
+        }
+        let len = mons.len();
+        assert!(len < u32::MAX as usize, "Tm table too large");
+        let index: HashMap<Vec<u8>, u32> = mons
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (e.clone(), i as u32))
+            .collect();
+        let even = mons.iter().map(|e| e.iter().all(|&k| k % 2 == 0)).collect();
+        let mut row = Vec::with_capacity(len + 1);
+        let mut mul = Vec::new();
+        let mut count = vec![0usize; len];
+        let mut key = vec![0u8; n];
+        for i in 0..len {
+            row.push(mul.len());
+            for j in 0..pre[(order - deg[i]) as usize] {
+                for k in 0..n {
+                    key[k] = mons[i][k] + mons[j][k];
+                }
+                let idx = index[&key];
+                count[idx as usize] += 1;
+                mul.push(idx);
+            }
+        }
+        row.push(mul.len());
+        let m = count.iter().copied().max().unwrap_or(1).max(1) as f64;
+        let gamma = up(up(m * U) / dn(1.0 - m * U));
+        let exps = mons.concat();
+        Table {
+            n,
+            order,
+            deg,
+            even,
+            exps,
+            pre,
+            row,
+            mul,
+            gamma,
+            index,
+        }
+    }
+
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.deg.len()
+    }
+
+    fn exps(&self, i: usize) -> &[u8] {
+        &self.exps[i * self.n..(i + 1) * self.n]
+    }
+}
+
+/// The table for `(n, order)`, built once per process and leaked (one per pair in use);
+/// a per-thread cache keeps lookups free of lock traffic.
+fn table(n: usize, order: u32) -> &'static Table {
+    thread_local! {
+        static CACHE: RefCell<Vec<&'static Table>> = const { RefCell::new(Vec::new()) };
+    }
+    static REG: OnceLock<Mutex<HashMap<(usize, u32), &'static Table>>> = OnceLock::new();
+    CACHE.with(|cache| {
+        if let Some(t) = cache.borrow().iter().find(|t| t.n == n && t.order == order) {
+            return *t;
+        }
+        let t: &'static Table = REG
+            .get_or_init(Default::default)
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .entry((n, order))
+            .or_insert_with(|| Box::leak(Box::new(Table::build(n, order))));
+        cache.borrow_mut().push(t);
+        t
+    })
+}
+
+/// A Taylor model `p(xi) + r` over `xi in [-1, 1]^n` (see the module documentation).
+///
+/// Models made by [`Scalar::cst`] and [`Tm::from_interval`] have no parameters and no
+/// order of their own: combined with another model they adopt its order. Binary
+/// operations between models with different `n` treat the one with fewer parameters as
+/// independent of the extra ones (the result has the larger `n`); the result order is the
+/// smaller of the operands' explicit orders.
+#[derive(Clone)]
+pub struct Tm {
+    t: &'static Table,
+    /// Whether the order was given explicitly (false for `cst`/`from_interval` models).
+    fixed: bool,
+    c: Vec<f64>,
+    rem: Interval,
+}
+
+impl fmt::Debug for Tm {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let terms: Vec<(Vec<u8>, f64)> = (0..self.t.len())
+            .filter(|&i| self.c[i] != 0.0)
+            .map(|i| (self.t.exps(i).to_vec(), self.c[i]))
+            .collect();
+        f.debug_struct("Tm")
+            .field("n", &self.t.n)
+            .field("order", &self.t.order)
+            .field("fixed", &self.fixed)
+            .field("terms", &terms)
+            .field("rem", &self.rem)
+            .finish()
+    }
+}
+
+/// The common table and fixedness of a binary operation.
+fn common(a: &Tm, b: &Tm) -> (&'static Table, bool) {
+    if std::ptr::eq(a.t, b.t) {
+        return (a.t, a.fixed || b.fixed);
+    }
+    let n = a.t.n.max(b.t.n);
+    let (order, fixed) = match (a.fixed, b.fixed) {
+        (true, true) => (a.t.order.min(b.t.order), true),
+        (true, false) => (a.t.order, true),
+        (false, true) => (b.t.order, true),
+        (false, false) => (a.t.order.min(b.t.order), false),
+    };
+    if a.t.n == n && a.t.order == order {
+        (a.t, fixed)
+    } else if b.t.n == n && b.t.order == order {
+        (b.t, fixed)
+    } else {
+        (table(n, order), fixed)
+    }
+}
+
+/// `[0, c]` or `[c, 0]`-style bound accumulation: adds the range of `c * m` (`m` a
+/// monomial, `even` when its range is `[0, 1]`) to the upward bounds `(sn, sp)` of the
+/// downward and upward extent.
+#[inline(always)]
+fn acc_range(c: f64, even: bool, sn: &mut f64, sp: &mut f64) {
+    if even {
+        if c > 0.0 {
+            *sp = sum_up(*sp, c);
+        } else {
+            *sn = sum_up(*sn, -c); // NaN lands here and gives +inf
+        }
+    } else {
+        let a = c.abs();
+        *sp = sum_up(*sp, a);
+        *sn = sum_up(*sn, a);
+    }
+}
+
+impl Tm {
+    fn raw(t: &'static Table, fixed: bool, c: Vec<f64>, rem: Interval) -> Tm {
+        Tm { t, fixed, c, rem }
+    }
+
+    /// The entire model on `t`: zero polynomial, remainder the whole line.
+    fn entire_on(t: &'static Table, fixed: bool) -> Tm {
+        Tm::raw(t, fixed, vec![0.0; t.len()], Interval::entire())
+    }
+
+    /// Enforces the invariant: finite coefficients, NaN-free remainder.
+    fn finish(self) -> Tm {
+        if has_nan(&self.rem) || !self.c.iter().all(|v| v.is_finite()) {
+            Tm::entire_on(self.t, self.fixed)
+        } else {
+            self
+        }
+    }
+
+    fn constant_on(t: &'static Table, fixed: bool, v: f64) -> Tm {
+        let mut c = vec![0.0; t.len()];
+        c[0] = v;
+        Tm::raw(t, fixed, c, Interval::point(0.0)).finish()
+    }
+
+    fn from_interval_on(t: &'static Table, fixed: bool, i: Interval) -> Tm {
+        if has_nan(&i) {
+            return Tm::entire_on(t, fixed);
+        }
+        let mut c = vec![0.0; t.len()];
+        let rem = if i.lo.is_finite() && i.hi.is_finite() {
+            let m = 0.5 * i.lo + 0.5 * i.hi;
+            c[0] = m;
+            Interval {
+                lo: sum_dn(i.lo, -m).min(0.0),
+                hi: sum_up(i.hi, -m).max(0.0),
+            }
+        } else {
+            i
+        };
+        Tm::raw(t, fixed, c, rem)
+    }
+
+    /// The constant `c` as a model in `n` parameters of order `order`.
+    pub fn constant(c: f64, n: usize, order: u32) -> Tm {
+        Tm::constant_on(table(n, order), true, c)
+    }
+
+    /// The parameter `xi_k` (`k < n`) as a model in `n` parameters of order `order`
+    /// (for `order = 0` the parameter goes into the remainder as `[-1, 1]`).
+    pub fn var(k: usize, n: usize, order: u32) -> Tm {
+        assert!(k < n, "Tm::var: parameter {k} out of {n}");
+        let mut coef = vec![0.0; n];
+        coef[k] = 1.0;
+        Tm::affine(0.0, &coef, order)
+    }
+
+    /// `cst + sum_k coef[k] xi_k`, a model in `n = coef.len()` parameters of order `order`
+    /// (for `order = 0` the linear terms are bounded into the remainder).
+    pub fn affine(cst: f64, coef: &[f64], order: u32) -> Tm {
+        let n = coef.len();
+        let t = table(n, order);
+        let mut c = vec![0.0; t.len()];
+        c[0] = cst;
+        let mut rem = Interval::point(0.0);
+        if order >= 1 {
+            c[1..=n].copy_from_slice(coef);
+        } else {
+            let mut s = 0.0;
+            for &v in coef {
+                s = up(s + v.abs());
+            }
+            rem = sym(s);
+        }
+        Tm::raw(t, true, c, rem).finish()
+    }
+
+    /// A model without parameters whose value is any point of `i` (like [`Scalar::cst`],
+    /// it adopts the order of the models it is combined with). An interval with a NaN
+    /// end gives the entire model.
+    pub fn from_interval(i: Interval) -> Tm {
+        Tm::from_interval_on(table(0, 0), false, i)
+    }
+
+    /// Adds `r` to the remainder (interval sum, outward rounded).
+    pub fn with_rem(mut self, r: Interval) -> Tm {
+        self.rem = iadd(self.rem, r);
+        self.finish()
+    }
+
+    /// The remainder interval.
+    pub fn rem(&self) -> Interval {
+        self.rem
+    }
+
+    /// Number of parameters `n`.
+    pub fn n_vars(&self) -> usize {
+        self.t.n
+    }
+
+    /// The order (largest total degree of the polynomial part). Models without an
+    /// explicit order (from [`Scalar::cst`], [`Tm::from_interval`]) report 0.
+    pub fn order(&self) -> u32 {
+        self.t.order
+    }
+
+    /// Range bound of the polynomial terms with index `>= start` (without the constant
+    /// term, which is added exactly by the caller).
+    fn poly_range_from(&self, start: usize, c0: f64) -> Interval {
+        let (mut sn, mut sp) = (0.0, 0.0);
+        for i in start.max(1)..self.t.len() {
+            let v = self.c[i];
+            if v != 0.0 {
+                acc_range(v, self.t.even[i], &mut sn, &mut sp);
+            }
+        }
+        if sn == 0.0 && sp == 0.0 {
+            return Interval::point(c0);
+        }
+        Interval {
+            lo: sum_dn(c0, -sn),
+            hi: sum_up(c0, sp),
+        }
+    }
+
+    /// Range of the polynomial part over the box (without the remainder).
+    fn poly_range(&self) -> Interval {
+        self.poly_range_from(1, self.c[0])
+    }
+
+    /// A sound range of the model over the box: the polynomial's range (monomial-wise,
+    /// `[0, 1]` for monomials with all exponents even) plus the remainder.
+    pub fn bound(&self) -> Interval {
+        let p = self.poly_range();
+        iadd(p, self.rem)
+    }
+
+    /// `(constant coefficient, degree-1 coefficients)`; the vector has length `n` (zeros
+    /// for an order-0 model).
+    pub fn linear_part(&self) -> (f64, Vec<f64>) {
+        let n = self.t.n;
+        let lin = if self.t.order >= 1 {
+            self.c[1..=n].to_vec()
+        } else {
+            vec![0.0; n]
+        };
+        (self.c[0], lin)
+    }
+
+    /// A sound range of `self - constant - linear terms` over the box: the terms of
+    /// degree `>= 2` plus the remainder.
+    pub fn nonlinear_bound(&self) -> Interval {
+        let start = if self.t.order >= 1 { self.t.n + 1 } else { 1 };
+        iadd(self.poly_range_from(start, 0.0), self.rem)
+    }
+
+    /// A sound enclosure of the model's value at the parameter point `xi` (length `n`):
+    /// `p(xi)` in outward-rounded interval arithmetic, plus the remainder.
+    pub fn eval_at(&self, xi: &[f64]) -> Interval {
+        let n = self.t.n;
+        assert!(
+            xi.len() >= n,
+            "Tm::eval_at: {} coordinates for {n} parameters",
+            xi.len()
+        );
+        let ord = self.t.order as usize;
+        let w = ord + 1;
+        let mut pw = vec![Interval::point(1.0); n * w];
+        for k in 0..n {
+            for e in 1..=ord {
+                pw[k * w + e] = pw[k * w + e - 1] * Interval::point(xi[k]);
+            }
+        }
+        let mut acc = Interval::point(0.0);
+        for i in 0..self.t.len() {
+            let v = self.c[i];
+            if v == 0.0 {
+                continue;
+            }
+            let mut m = Interval::point(v);
+            for (k, &e) in self.t.exps(i).iter().enumerate() {
+                if e > 0 {
+                    m = m * pw[k * w + e as usize];
+                }
+            }
+            acc = acc + m;
+        }
+        acc + self.rem
+    }
+
+    /// This model on table `t` (more parameters and/or lower order); terms above the new
+    /// order are bounded into the remainder.
+    fn convert(&self, t: &'static Table, fixed: bool) -> Cow<'_, Tm> {
+        if std::ptr::eq(self.t, t) {
+            if self.fixed == fixed {
+                return Cow::Borrowed(self);
+            }
+            let mut r = self.clone();
+            r.fixed = fixed;
+            return Cow::Owned(r);
+        }
+        debug_assert!(self.t.n <= t.n);
+        let mut c = vec![0.0; t.len()];
+        let (mut sn, mut sp) = (0.0, 0.0);
+        let mut key = vec![0u8; t.n];
+        for i in 0..self.t.len() {
+            let v = self.c[i];
+            if v == 0.0 {
+                continue;
+            }
+            if self.t.deg[i] <= t.order {
+                key[..self.t.n].copy_from_slice(self.t.exps(i));
+                c[t.index[&key] as usize] = v;
+            } else {
+                acc_range(v, self.t.even[i], &mut sn, &mut sp);
+            }
+        }
+        let mut rem = self.rem;
+        if sn != 0.0 || sp != 0.0 {
+            rem = rem + Interval { lo: -sn, hi: sp };
+        }
+        Cow::Owned(Tm::raw(t, fixed, c, rem).finish())
+    }
+
+    fn into_table(self, t: &'static Table, fixed: bool) -> Tm {
+        if std::ptr::eq(self.t, t) {
+            Tm { fixed, ..self }
+        } else {
+            self.convert(t, fixed).into_owned()
+        }
+    }
+
+    /// `self + s * o` for `s = +-1`.
+    fn add_signed(self, o: &Tm, s: f64) -> Tm {
+        let (t, fixed) = common(&self, o);
+        let mut a = self.into_table(t, fixed);
+        let b = o.convert(t, fixed);
+        let mut sa = 0.0;
+        for (x, &y) in a.c.iter_mut().zip(&b.c) {
+            if y != 0.0 {
+                let z = *x + s * y;
+                if *x != 0.0 {
+                    sa = up(sa + z.abs());
+                }
+                *x = z;
+            }
+        }
+        let br = if s > 0.0 { b.rem } else { -b.rem };
+        a.rem = iadd(a.rem, br);
+        if sa != 0.0 {
+            a.rem = a.rem + sym(up(sa * U));
+        }
+        a.finish()
+    }
+
+    /// `s * self` for a float `s`.
+    fn scale(mut self, s: f64) -> Tm {
+        if s == 1.0 {
+            return self;
+        }
+        let (mut sa, mut cnt) = (0.0, 0usize);
+        for v in self.c.iter_mut() {
+            if *v != 0.0 {
+                *v *= s;
+                sa = up(sa + v.abs());
+                cnt += 1;
+            }
+        }
+        self.rem = self.rem * s;
+        if cnt > 0 && (s.abs() != 1.0 && s != 0.0) {
+            self.rem = self.rem + sym(up(up(sa * U) + cnt as f64 * ETA));
+        }
+        self.finish()
+    }
+
+    /// `self / s` for a float `s`.
+    fn div_f64(mut self, s: f64) -> Tm {
+        let (mut sa, mut cnt) = (0.0, 0usize);
+        for v in self.c.iter_mut() {
+            if *v != 0.0 {
+                *v /= s;
+                sa = up(sa + v.abs());
+                cnt += 1;
+            }
+        }
+        self.rem = self.rem / s;
+        if cnt > 0 && s.abs() != 1.0 {
+            self.rem = self.rem + sym(up(up(sa * U) + cnt as f64 * ETA));
+        }
+        self.finish()
+    }
+
+    /// `self + s` for a float `s`.
+    fn add_f64(mut self, s: f64) -> Tm {
+        let x = self.c[0];
+        let z = x + s;
+        self.c[0] = z;
+        if x != 0.0 && s != 0.0 {
+            self.rem = self.rem + sym(up(z.abs() * U));
+        }
+        self.finish()
+    }
+
+    /// The product of two models (references; the result on the common table).
+    fn mul_ref(a: &Tm, b: &Tm) -> Tm {
+        let (t, fixed) = common(a, b);
+        if a.t.len() == 1 {
+            return Tm::mul_const(b.convert(t, fixed).into_owned(), a.c[0], a.rem);
+        }
+        if b.t.len() == 1 {
+            return Tm::mul_const(a.convert(t, fixed).into_owned(), b.c[0], b.rem);
+        }
+        let a = a.convert(t, fixed);
+        let b = b.convert(t, fixed);
+        let len = t.len();
+        let ord = t.order as usize;
+        // Upward sums of |b_j| by degree, then by degree <= d and >= d.
+        let mut le = [0.0f64; MAX_ORDER as usize + 2];
+        let mut ge = [0.0f64; MAX_ORDER as usize + 2];
+        for j in 0..len {
+            let v = b.c[j];
+            if v != 0.0 {
+                let d = t.deg[j] as usize;
+                le[d] = up(le[d] + v.abs());
+            }
+        }
+        ge[..=ord].copy_from_slice(&le[..=ord]);
+        for d in 1..=ord {
+            le[d] = up(le[d] + le[d - 1]);
+        }
+        for d in (0..ord).rev() {
+            ge[d] = up(ge[d] + ge[d + 1]);
+        }
+        let mut r = vec![0.0; len];
+        let (mut kept, mut trunc, mut pairs) = (0.0f64, 0.0f64, 0usize);
+        for i in 0..len {
+            let ai = a.c[i];
+            if ai == 0.0 {
+                continue;
+            }
+            let keep = ord - t.deg[i] as usize;
+            let m = t.pre[keep];
+            let row = &t.mul[t.row[i]..t.row[i] + m];
+            for (&bj, &k) in b.c[..m].iter().zip(row) {
+                r[k as usize] += ai * bj;
+            }
+            let aa = ai.abs();
+            kept = up(kept + up(aa * le[keep]));
+            if keep < ord {
+                trunc = up(trunc + up(aa * ge[keep + 1]));
+            }
+            pairs += m;
+        }
+        let err = up(up(t.gamma * kept) + 2.0 * pairs as f64 * ETA);
+        let mut rem = sym(up(err + trunc));
+        if !is_zero(&a.rem) || !is_zero(&b.rem) {
+            let (pa, pb) = (a.poly_range(), b.poly_range());
+            rem = rem + a.rem * pb + b.rem * pa + a.rem * b.rem;
+        }
+        Tm::raw(t, fixed, r, rem).finish()
+    }
+
+    /// `x * (s + r)` for a float `s` and an interval `r`.
+    fn mul_const(x: Tm, s: f64, r: Interval) -> Tm {
+        if is_zero(&r) {
+            return x.scale(s);
+        }
+        let b = x.bound();
+        x.scale(s).with_rem(r * b)
+    }
+
+    /// Taylor expansion of `f` about the constant coefficient (module documentation);
+    /// `fs` is `f` on series, `fi` on intervals (the fallback).
+    fn expand(&self, fs: impl Fn(&S10) -> S10, fi: impl Fn(&Interval) -> Interval) -> Tm {
+        let x = self.bound();
+        let fallback = || Tm::from_interval_on(self.t, self.fixed, fi(&x));
+        if self.t.len() == 1 {
+            return fallback();
+        }
+        let c = self.c[0];
+        let mut h = self.clone();
+        h.c[0] = 0.0;
+        let hb = h.bound();
+        if !(c.is_finite() && hb.lo.is_finite() && hb.hi.is_finite()) {
+            return fallback();
+        }
+        // The Lagrange point c + theta h lies in c + conv(0, H).
+        let hz = Interval {
+            lo: hb.lo.min(0.0),
+            hi: hb.hi.max(0.0),
+        };
+        let deg = self.t.order.min(MAX_DEG) as usize;
+        let seed = |v: Interval, n: usize| {
+            let mut s = S10::var(v);
+            s.c[1] = Interval::point(1.0);
+            s.n = n;
+            s
+        };
+        let pa = fs(&seed(Interval::point(c), deg + 1));
+        let pr = fs(&seed(Interval::point(c) + hz, deg + 2));
+        let fin = |i: &Interval| i.lo.is_finite() && i.hi.is_finite();
+        let lag = pr.c[deg + 1];
+        if pa.bad || pr.bad || !fin(&lag) || !pa.c[..=deg].iter().all(fin) {
+            return fallback();
+        }
+        let mag = (-hb.lo).max(hb.hi);
+        let mut p = Tm::constant_on(self.t, self.fixed, pa.c[deg].value());
+        for k in (0..deg).rev() {
+            p = Tm::mul_ref(&p, &h).add_f64(pa.c[k].value());
+        }
+        let (mut rs, mut mk) = (0.0f64, 1.0f64);
+        for k in 0..=deg {
+            rs = up(rs + up(rad(&pa.c[k]) * mk));
+            mk = up(mk * mag);
+        }
+        let r = sym(rs) + lag * hb.powi(deg as u32 + 1);
+        let out = p.with_rem(r);
+        if out.rem.lo.is_finite() && out.rem.hi.is_finite() {
+            out
+        } else {
+            fallback()
+        }
+    }
+
+    /// `1 / self`.
+    fn recip(&self) -> Tm {
+        self.expand(|s| S10::cst(1.0) / *s, |i| Interval::point(1.0) / *i)
+    }
+}
+
+// ---------------------------------------------------------------------------------------
+// Operators.
+
+impl Add for Tm {
+    type Output = Tm;
+    fn add(self, o: Tm) -> Tm {
+        self.add_signed(&o, 1.0)
+    }
+}
+impl Sub for Tm {
+    type Output = Tm;
+    fn sub(self, o: Tm) -> Tm {
+        self.add_signed(&o, -1.0)
+    }
+}
+impl Mul for Tm {
+    type Output = Tm;
+    fn mul(self, o: Tm) -> Tm {
+        Tm::mul_ref(&self, &o)
+    }
+}
+impl Div for Tm {
+    type Output = Tm;
+    fn div(self, o: Tm) -> Tm {
+        Tm::mul_ref(&self, &o.recip())
+    }
+}
+impl<'a> Add<&'a Tm> for &'a Tm {
+    type Output = Tm;
+    /// Sum without consuming the operands.
+    fn add(self, o: &Tm) -> Tm {
+        self.clone().add_signed(o, 1.0)
+    }
+}
+impl<'a> Sub<&'a Tm> for &'a Tm {
+    type Output = Tm;
+    /// Difference without consuming the operands.
+    fn sub(self, o: &Tm) -> Tm {
+        self.clone().add_signed(o, -1.0)
+    }
+}
+impl<'a> Mul<&'a Tm> for &'a Tm {
+    type Output = Tm;
+    /// Product without consuming (or cloning) the operands.
+    fn mul(self, o: &Tm) -> Tm {
+        Tm::mul_ref(self, o)
+    }
+}
+impl Neg for Tm {
+    type Output = Tm;
+    fn neg(mut self) -> Tm {
+        for v in self.c.iter_mut() {
+            *v = -*v;
+        }
+        self.rem = -self.rem;
+        self
+    }
+}
+impl Add<f64> for Tm {
+    type Output = Tm;
+    fn add(self, o: f64) -> Tm {
+        self.add_f64(o)
+    }
+}
+impl Sub<f64> for Tm {
+    type Output = Tm;
+    fn sub(self, o: f64) -> Tm {
+        self.add_f64(-o)
+    }
+}
+impl Mul<f64> for Tm {
+    type Output = Tm;
+    fn mul(self, o: f64) -> Tm {
+        self.scale(o)
+    }
+}
+impl Div<f64> for Tm {
+    type Output = Tm;
+    fn div(self, o: f64) -> Tm {
+        self.div_f64(o)
+    }
+}
+impl AddAssign for Tm {
+    fn add_assign(&mut self, o: Tm) {
+        let a = std::mem::take(&mut self.c);
+        let me = Tm::raw(self.t, self.fixed, a, self.rem);
+        *self = me.add_signed(&o, 1.0);
+    }
+}
+impl SubAssign for Tm {
+    fn sub_assign(&mut self, o: Tm) {
+        let a = std::mem::take(&mut self.c);
+        let me = Tm::raw(self.t, self.fixed, a, self.rem);
+        *self = me.add_signed(&o, -1.0);
+    }
+}
+impl MulAssign for Tm {
+    fn mul_assign(&mut self, o: Tm) {
+        *self = Tm::mul_ref(self, &o);
+    }
+}
+
+impl Scalar for Tm {
+    /// The constant `c` with no parameters and no order of its own.
+    fn cst(c: f64) -> Self {
+        Tm::constant_on(table(0, 0), false, c)
+    }
+    /// The constant coefficient.
+    fn value(&self) -> f64 {
+        self.c[0]
+    }
+    fn sin(&self) -> Self {
+        self.expand(|s| s.sin(), |i| i.sin())
+    }
+    fn cos(&self) -> Self {
+        self.expand(|s| s.cos(), |i| i.cos())
+    }
+    fn tanh(&self) -> Self {
+        self.expand(|s| s.tanh(), |i| i.tanh())
+    }
+    fn atan(&self) -> Self {
+        self.expand(|s| s.atan(), |i| i.atan())
+    }
+    fn sqrt(&self) -> Self {
+        self.expand(|s| s.sqrt(), |i| i.sqrt())
+    }
+    fn exp(&self) -> Self {
+        self.expand(|s| s.exp(), |i| i.exp())
+    }
+    fn ln(&self) -> Self {
+        self.expand(|s| s.ln(), |i| i.ln())
+    }
+    fn tan(&self) -> Self {
+        self.expand(|s| s.tan(), |i| i.tan())
+    }
+    fn sigmoid(&self) -> Self {
+        self.expand(|s| s.sigmoid(), |i| i.sigmoid())
+    }
+    /// `+-self` when the sign is decided, otherwise the interval `|bound|` as a constant
+    /// plus remainder.
+    fn abs(&self) -> Self {
+        match self.sign() {
+            Sign::Positive | Sign::NonNegative | Sign::Zero => self.clone(),
+            Sign::Negative | Sign::NonPositive => -self.clone(),
+            Sign::Mixed => Tm::from_interval_on(self.t, self.fixed, self.bound().abs()),
+        }
+    }
+    fn sqr(&self) -> Self {
+        Tm::mul_ref(self, self)
+    }
+    /// `max(self, 0)`. Undecided: `self + [0, max(0, -min self)]` (as `max(x, 0) - x =
+    /// max(-x, 0)`) or the interval `[0, max self]`, whichever is narrower.
+    fn relu(&self) -> Self {
+        let b = self.bound();
+        match b.sign() {
+            Sign::Positive | Sign::NonNegative | Sign::Zero => self.clone(),
+            Sign::Negative | Sign::NonPositive => Tm::constant_on(self.t, self.fixed, 0.0),
+            Sign::Mixed => {
+                if -b.lo <= b.hi {
+                    self.clone().with_rem(Interval { lo: 0.0, hi: -b.lo })
+                } else {
+                    Tm::from_interval_on(self.t, self.fixed, Interval { lo: 0.0, hi: b.hi })
+                }
+            }
+        }
+    }
+    /// `min(self, other)`; undecided: `self - relu(self - other)`.
+    fn smin(&self, other: &Self) -> Self {
+        let d = self.clone() - other.clone();
+        match d.sign() {
+            Sign::Negative | Sign::Zero | Sign::NonPositive => self.clone(),
+            Sign::Positive | Sign::NonNegative => other.clone(),
+            Sign::Mixed => self.clone() - d.relu(),
+        }
+    }
+    /// `max(self, other)`; undecided: `other + relu(self - other)`.
+    fn smax(&self, other: &Self) -> Self {
+        let d = self.clone() - other.clone();
+        match d.sign() {
+            Sign::Positive | Sign::Zero | Sign::NonNegative => self.clone(),
+            Sign::Negative | Sign::NonPositive => other.clone(),
+            Sign::Mixed => other.clone() + d.relu(),
+        }
+    }
+    /// Clamp into `[lo, hi]`; undecided ends through `relu` as in `smax`/`smin`.
+    fn clamp_to(&self, lo: f64, hi: f64) -> Self {
+        let low = match self.sign_minus(lo) {
+            Sign::Negative | Sign::Zero | Sign::NonPositive => {
+                return Tm::constant_on(self.t, self.fixed, lo).smin(&Tm::cst(hi));
+            }
+            Sign::Positive | Sign::NonNegative => self.clone(),
+            Sign::Mixed => (self.clone() - lo).relu() + lo,
+        };
+        match low.sign_minus(hi) {
+            Sign::Positive | Sign::Zero | Sign::NonNegative => {
+                Tm::constant_on(self.t, self.fixed, hi)
+            }
+            Sign::Negative | Sign::NonPositive => low,
+            Sign::Mixed => -((-low + hi).relu()) + hi,
+        }
+    }
+    fn sign(&self) -> Sign {
+        self.bound().sign()
+    }
+    /// `self + conv(0, bound(other - self))`: encloses every value between `self(xi)` and
+    /// `other(xi)` for every `xi`.
+    fn hull(&self, other: &Self) -> Self {
+        let d = (other.clone() - self.clone()).bound();
+        let (t, fixed) = common(self, other);
+        let r = Interval {
+            lo: d.lo.min(0.0),
+            hi: d.hi.max(0.0),
+        };
+        self.convert(t, fixed).into_owned().with_rem(r)
+    }
+}

@@ -1,0 +1,684 @@
+//! Soundness and usefulness of the Taylor-model number type [`Tm`].
+//!
+//! Arithmetic is checked against exact rational arithmetic (`num-rational`): random
+//! expression trees over random polynomial leaves are evaluated once as Taylor models
+//! and once exactly at random parameter points, and the exact value must lie in both
+//! `eval_at` and `bound`. Elementary functions are checked against `f64` libm values of
+//! `f(g(xi))` (with `g(xi)` exact), with a slack of a few ulps: the reference interval
+//! contains the true value, so it must meet the model's enclosure.
+
+use num_bigint::BigInt;
+use num_rational::BigRational;
+use num_traits::{ToPrimitive, Zero};
+use samara_num::{Interval, Scalar, Series, Sign, Tm};
+use std::time::Instant;
+
+/// SplitMix64: a small seeded generator (no dependency, reproducible).
+struct Rng(u64);
+
+impl Rng {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+    /// Uniform in [0, 1).
+    fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+    fn below(&mut self, n: u64) -> u64 {
+        self.next_u64() % n
+    }
+    fn range(&mut self, lo: f64, hi: f64) -> f64 {
+        lo + (hi - lo) * self.unit()
+    }
+    /// A coefficient: zero, a small integer, or a full-mantissa number of magnitude
+    /// 2^-40 .. 2^12.
+    fn coef(&mut self) -> f64 {
+        match self.below(10) {
+            0 => 0.0,
+            1 => self.below(7) as f64 - 3.0,
+            _ => {
+                let m = self.range(-1.0, 1.0);
+                let e = self.below(53) as i32 - 40;
+                m * 2f64.powi(e)
+            }
+        }
+    }
+    /// A parameter point in [-1, 1] (sometimes an end point).
+    fn param(&mut self) -> f64 {
+        match self.below(8) {
+            0 => 1.0,
+            1 => -1.0,
+            2 => 0.0,
+            _ => self.range(-1.0, 1.0),
+        }
+    }
+}
+
+fn q(x: f64) -> BigRational {
+    BigRational::from_float(x).expect("finite")
+}
+
+/// Whether the exact `v` lies in `i` (infinite ends are open-ended).
+fn contains_exact(i: &Interval, v: &BigRational) -> bool {
+    let lo_ok = i.lo == f64::NEG_INFINITY || (i.lo.is_finite() && q(i.lo) <= *v);
+    let hi_ok = i.hi == f64::INFINITY || (i.hi.is_finite() && *v <= q(i.hi));
+    lo_ok && hi_ok
+}
+
+/// Expression trees evaluated both as Taylor models and exactly.
+#[derive(Clone, Debug)]
+enum Expr {
+    /// `c + sum coef[k] xi_k` with the given order.
+    Affine(f64, Vec<f64>, u32),
+    /// `Scalar::cst`.
+    Cst(f64),
+    /// `Tm::from_interval(i)`; the function is the constant `delta in i`.
+    FromInterval(Interval, f64),
+    /// `Tm::var(k, n, order)`.
+    Var(usize, usize, u32),
+    /// `e.with_rem(r)`; the function is `e + delta`, `delta in r`.
+    WithRem(Box<Expr>, Interval, f64),
+    Add(Box<Expr>, Box<Expr>),
+    Sub(Box<Expr>, Box<Expr>),
+    Mul(Box<Expr>, Box<Expr>),
+    /// Divisor is bounded away from 0 (checked when generated).
+    Div(Box<Expr>, Box<Expr>),
+    Sqr(Box<Expr>),
+    Powi(Box<Expr>, u32),
+    Neg(Box<Expr>),
+    AddF(Box<Expr>, f64),
+    SubF(Box<Expr>, f64),
+    MulF(Box<Expr>, f64),
+    DivF(Box<Expr>, f64),
+}
+
+impl Expr {
+    fn tm(&self) -> Tm {
+        match self {
+            Expr::Affine(c, coef, o) => Tm::affine(*c, coef, *o),
+            Expr::Cst(c) => Tm::cst(*c),
+            Expr::FromInterval(i, _) => Tm::from_interval(*i),
+            Expr::Var(k, n, o) => Tm::var(*k, *n, *o),
+            Expr::WithRem(e, r, _) => e.tm().with_rem(*r),
+            Expr::Add(a, b) => a.tm() + b.tm(),
+            Expr::Sub(a, b) => a.tm() - b.tm(),
+            Expr::Mul(a, b) => a.tm() * b.tm(),
+            Expr::Div(a, b) => a.tm() / b.tm(),
+            Expr::Sqr(a) => a.tm().sqr(),
+            Expr::Powi(a, k) => a.tm().powi(*k),
+            Expr::Neg(a) => -a.tm(),
+            Expr::AddF(a, f) => a.tm() + *f,
+            Expr::SubF(a, f) => a.tm() - *f,
+            Expr::MulF(a, f) => a.tm() * *f,
+            Expr::DivF(a, f) => a.tm() / *f,
+        }
+    }
+
+    fn exact(&self, xi: &[BigRational]) -> BigRational {
+        match self {
+            Expr::Affine(c, coef, _) => {
+                let mut s = q(*c);
+                for (k, &a) in coef.iter().enumerate() {
+                    s += q(a) * &xi[k];
+                }
+                s
+            }
+            Expr::Cst(c) => q(*c),
+            Expr::FromInterval(_, d) => q(*d),
+            Expr::Var(k, _, _) => xi[*k].clone(),
+            Expr::WithRem(e, _, d) => e.exact(xi) + q(*d),
+            Expr::Add(a, b) => a.exact(xi) + b.exact(xi),
+            Expr::Sub(a, b) => a.exact(xi) - b.exact(xi),
+            Expr::Mul(a, b) => a.exact(xi) * b.exact(xi),
+            Expr::Div(a, b) => {
+                let d = b.exact(xi);
+                assert!(
+                    !d.is_zero(),
+                    "divisor enclosure excluded 0 but the exact value is 0"
+                );
+                a.exact(xi) / d
+            }
+            Expr::Sqr(a) => {
+                let v = a.exact(xi);
+                &v * &v
+            }
+            Expr::Powi(a, k) => {
+                let v = a.exact(xi);
+                let mut r = BigRational::from_integer(BigInt::from(1));
+                for _ in 0..*k {
+                    r *= &v;
+                }
+                r
+            }
+            Expr::Neg(a) => -a.exact(xi),
+            Expr::AddF(a, f) => a.exact(xi) + q(*f),
+            Expr::SubF(a, f) => a.exact(xi) - q(*f),
+            Expr::MulF(a, f) => a.exact(xi) * q(*f),
+            Expr::DivF(a, f) => a.exact(xi) / q(*f),
+        }
+    }
+}
+
+/// A point of a finite interval, chosen at random (an end sometimes).
+fn point_in(rng: &mut Rng, i: &Interval) -> f64 {
+    match rng.below(4) {
+        0 => i.lo,
+        1 => i.hi,
+        _ => (i.lo + (i.hi - i.lo) * rng.unit()).clamp(i.lo, i.hi),
+    }
+}
+
+fn rand_leaf(rng: &mut Rng, n: usize, order: u32) -> Expr {
+    match rng.below(10) {
+        0 => Expr::Cst(rng.coef()),
+        1 => {
+            let c = rng.coef();
+            let w = rng.coef().abs() * 1e-3;
+            let i = Interval::new(c - w, c + w);
+            let d = point_in(rng, &i);
+            Expr::FromInterval(i, d)
+        }
+        2 => Expr::Var(rng.below(n as u64) as usize, n, order),
+        _ => {
+            // Fewer parameters sometimes (mixed n), another order sometimes.
+            let nl = if rng.below(4) == 0 {
+                1 + rng.below(n as u64) as usize
+            } else {
+                n
+            };
+            let ol = if rng.below(6) == 0 {
+                1 + rng.below(6) as u32
+            } else {
+                order
+            };
+            let coef = (0..nl).map(|_| rng.coef()).collect();
+            let e = Expr::Affine(rng.coef(), coef, ol);
+            if rng.below(4) == 0 {
+                let a = rng.coef().abs() * 1e-6;
+                let r = Interval::new(-a * rng.unit(), a * rng.unit());
+                let d = point_in(rng, &r);
+                Expr::WithRem(Box::new(e), r, d)
+            } else {
+                e
+            }
+        }
+    }
+}
+
+fn rand_expr(rng: &mut Rng, n: usize, order: u32, depth: u32) -> Expr {
+    if depth == 0 || rng.below(5) == 0 {
+        return rand_leaf(rng, n, order);
+    }
+    let sub = |rng: &mut Rng| Box::new(rand_expr(rng, n, order, depth - 1));
+    match rng.below(13) {
+        0 | 1 => Expr::Add(sub(rng), sub(rng)),
+        2 | 3 => Expr::Sub(sub(rng), sub(rng)),
+        4..=6 => Expr::Mul(sub(rng), sub(rng)),
+        7 => {
+            let num = sub(rng);
+            // A divisor whose enclosure excludes 0; else an affine one dominated by its
+            // constant.
+            let den = sub(rng);
+            let b = den.tm().bound();
+            let ok = b.lo.is_finite() && b.hi.is_finite() && (b.lo > 1e-3 || b.hi < -1e-3);
+            let den = if ok {
+                den
+            } else {
+                let coef: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+                let s: f64 = coef.iter().map(|c| c.abs()).sum();
+                let c0 = (s + rng.range(0.1, 3.0)) * if rng.below(2) == 0 { 1.0 } else { -1.0 };
+                Box::new(Expr::Affine(c0, coef, order))
+            };
+            Expr::Div(num, den)
+        }
+        8 => Expr::Sqr(sub(rng)),
+        9 => Expr::Powi(sub(rng), rng.below(5) as u32),
+        10 => Expr::Neg(sub(rng)),
+        11 => match rng.below(4) {
+            0 => Expr::AddF(sub(rng), rng.coef()),
+            1 => Expr::SubF(sub(rng), rng.coef()),
+            2 => Expr::MulF(sub(rng), rng.coef()),
+            _ => {
+                let f = rng.coef();
+                let f = if f == 0.0 { 3.0 } else { f };
+                Expr::DivF(sub(rng), f)
+            }
+        },
+        _ => rand_leaf(rng, n, order),
+    }
+}
+
+#[test]
+fn arithmetic_encloses_exact_rational_values() {
+    let mut rng = Rng(0x5EED_0001);
+    let (mut checked, mut finite_results) = (0usize, 0usize);
+    let start = Instant::now();
+    for case in 0..3000 {
+        let n = 1 + rng.below(4) as usize;
+        let order = 1 + rng.below(6) as u32;
+        let depth = 1 + rng.below(4) as u32;
+        let e = rand_expr(&mut rng, n, order, depth);
+        let t = e.tm();
+        assert!(t.n_vars() <= n);
+        let b = t.bound();
+        assert!(!b.lo.is_nan() && !b.hi.is_nan(), "NaN bound: {e:?}");
+        if b.lo.is_finite() && b.hi.is_finite() {
+            finite_results += 1;
+        }
+        for _ in 0..6 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+            let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+            let v = e.exact(&xq);
+            let at = t.eval_at(&xi);
+            assert!(
+                contains_exact(&at, &v),
+                "case {case}: exact {} not in eval_at {at:?}\n{e:?}\n{t:?}",
+                v.to_f64().unwrap_or(f64::NAN)
+            );
+            assert!(
+                contains_exact(&b, &v),
+                "case {case}: exact {} not in bound {b:?}\n{e:?}\n{t:?}",
+                v.to_f64().unwrap_or(f64::NAN)
+            );
+            checked += 1;
+        }
+    }
+    // The models must be informative, not the whole line.
+    assert!(
+        finite_results > 2700,
+        "only {finite_results} finite results"
+    );
+    eprintln!(
+        "arithmetic: {checked} point checks, {finite_results}/3000 finite, {:?}",
+        start.elapsed()
+    );
+}
+
+/// Exact polynomial identities hold with tiny remainders: `(x + y)^2 = x^2 + 2xy + y^2`.
+#[test]
+fn products_are_exact_up_to_rounding_when_the_order_suffices() {
+    let x = Tm::affine(0.5, &[0.25, 0.0], 4);
+    let y = Tm::affine(-0.125, &[0.0, 0.75], 4);
+    let lhs = (x.clone() + y.clone()).sqr();
+    let rhs = x.sqr() + x.clone() * y.clone() * 2.0 + y.sqr();
+    let d = lhs - rhs;
+    let b = d.bound();
+    assert!(b.lo <= 0.0 && b.hi >= 0.0 && b.width() < 1e-14, "{b:?}");
+    // Dyadic coefficients: the product is exact; only the a-priori rounding bound
+    // (gamma_m sum |a_i b_j|) enters the remainder.
+    let p = x.clone() * y.clone();
+    assert!(p.rem().width() < 1e-14, "{p:?}");
+    // Truncation: x^3 at order 2 moves the cubic term into the remainder.
+    let z = Tm::var(0, 1, 2);
+    let c = z.clone() * z.clone() * z;
+    assert!(c.rem().lo <= -1.0 && c.rem().hi >= 1.0);
+}
+
+type Fun = (&'static str, fn(&Tm) -> Tm, fn(f64) -> f64);
+
+fn funs() -> Vec<(Fun, f64, f64)> {
+    // (function, range of the argument's constant term)
+    vec![
+        (("exp", |t| t.exp(), f64::exp), -3.0, 3.0),
+        (("sin", |t| t.sin(), f64::sin), -4.0, 4.0),
+        (("cos", |t| t.cos(), f64::cos), -4.0, 4.0),
+        (("tanh", |t| t.tanh(), f64::tanh), -3.0, 3.0),
+        (("atan", |t| t.atan(), f64::atan), -3.0, 3.0),
+        (("sqrt", |t| t.sqrt(), f64::sqrt), 1.0, 5.0),
+        (("ln", |t| t.ln(), f64::ln), 1.0, 5.0),
+        (("tan", |t| t.tan(), f64::tan), -0.9, 0.9),
+        (
+            ("sigmoid", |t| t.sigmoid(), |x| 1.0 / (1.0 + (-x).exp())),
+            -4.0,
+            4.0,
+        ),
+        (
+            ("recip", |t| Tm::cst(1.0) / t.clone(), |x| 1.0 / x),
+            1.0,
+            4.0,
+        ),
+    ]
+}
+
+/// Reference enclosure of `f(y)` for the exact `y`: `f` at `y`'s neighbours (the
+/// conversion to f64 is within 1 ulp), widened by 4 ulps plus an absolute 1e-300.
+fn reference(f: fn(f64) -> f64, y: &BigRational) -> Interval {
+    let yf = y.to_f64().unwrap();
+    let pts = [yf.next_down().next_down(), yf, yf.next_up().next_up()];
+    let vals = pts.map(f);
+    let mut lo = vals.iter().cloned().fold(f64::INFINITY, f64::min);
+    let mut hi = vals.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    for _ in 0..4 {
+        lo = lo.next_down();
+        hi = hi.next_up();
+    }
+    Interval::new(lo - 1e-300, hi + 1e-300)
+}
+
+fn meets(a: &Interval, b: &Interval) -> bool {
+    a.lo <= b.hi && b.lo <= a.hi
+}
+
+#[test]
+fn elementary_functions_enclose_libm_values() {
+    let mut rng = Rng(0x5EED_0002);
+    let mut checks = 0usize;
+    for case in 0..1500 {
+        for ((name, ft, ff), lo, hi) in funs() {
+            let n = 1 + rng.below(4) as usize;
+            let order = 1 + rng.below(6) as u32;
+            // g = c + small random polynomial (+ remainder sometimes), range radius <= 0.6.
+            let scale = [0.6, 0.1, 0.01][rng.below(3) as usize];
+            let c = rng.range(lo, hi);
+            let coef: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+            let s: f64 = coef.iter().map(|v| v.abs()).sum();
+            let lin = Expr::Affine(
+                0.0,
+                coef.iter().map(|v| v * scale / (2.0 * s)).collect(),
+                order,
+            );
+            let quad = Expr::MulF(
+                Box::new(Expr::Mul(Box::new(lin.clone()), Box::new(lin.clone()))),
+                rng.range(-1.0, 1.0),
+            );
+            let mut g = Expr::AddF(Box::new(Expr::Add(Box::new(lin), Box::new(quad))), c);
+            if rng.below(3) == 0 {
+                let r = Interval::new(-1e-4 * scale * rng.unit(), 1e-4 * scale * rng.unit());
+                let d = point_in(&mut rng, &r);
+                g = Expr::WithRem(Box::new(g), r, d);
+            }
+            let gt = g.tm();
+            let ftm = ft(&gt);
+            let b = ftm.bound();
+            assert!(
+                b.lo.is_finite() && b.hi.is_finite(),
+                "{name} case {case}: not finite {ftm:?} of {gt:?}"
+            );
+            for _ in 0..4 {
+                let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+                let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+                let y = g.exact(&xq);
+                let r = reference(ff, &y);
+                let at = ftm.eval_at(&xi);
+                assert!(
+                    meets(&at, &r),
+                    "{name} case {case}: f(g) in {r:?}, eval_at {at:?}\n{ftm:?}\n{gt:?}"
+                );
+                assert!(
+                    meets(&b, &r),
+                    "{name} case {case}: bound {b:?} misses {r:?}"
+                );
+                checks += 1;
+            }
+        }
+    }
+    eprintln!("elementary: {checks} point checks");
+}
+
+/// Compositions (f of an arithmetic expression of Taylor models) stay sound too.
+#[test]
+fn compositions_enclose_libm_values() {
+    let mut rng = Rng(0x5EED_0003);
+    for case in 0..400 {
+        let n = 1 + rng.below(3) as usize;
+        let order = 2 + rng.below(4) as u32;
+        let x = Tm::affine(rng.range(-1.0, 1.0), &vec![0.2; n], order);
+        let y = x.sin() * x.exp() + x.atan().sqr();
+        let z = (y.clone() * 0.1).tanh() / (x.cos() + 2.0);
+        for _ in 0..4 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+            // Independent: interval evaluation at the point (Interval is separate code).
+            let xv = x.eval_at(&xi);
+            let yv = xv.sin() * xv.exp() + xv.atan().sqr();
+            let zv = (yv * 0.1).tanh() / (xv.cos() + 2.0);
+            assert!(meets(&y.eval_at(&xi), &yv), "case {case}: {y:?} vs {yv:?}");
+            assert!(meets(&z.eval_at(&xi), &zv), "case {case}: {z:?} vs {zv:?}");
+            assert!(meets(&z.bound(), &zv));
+        }
+    }
+}
+
+/// The remainders stay small enough for the type to be useful.
+#[test]
+fn remainders_are_small() {
+    // |H| <= 0.1, order 5: Lagrange term ~ e^0.4 0.1^6 / 720.
+    let g = Tm::affine(0.3, &[0.05, 0.03, 0.02], 5) + Tm::var(0, 3, 5) * Tm::var(1, 3, 5) * 0.0;
+    for (name, f) in [
+        ("exp", (|t: &Tm| t.exp()) as fn(&Tm) -> Tm),
+        ("sin", |t| t.sin()),
+        ("cos", |t| t.cos()),
+        ("tanh", |t| t.tanh()),
+        ("atan", |t| t.atan()),
+        ("sigmoid", |t| t.sigmoid()),
+        ("sqrt", |t| (t.clone() + 1.0).sqrt()),
+        ("ln", |t| (t.clone() + 1.0).ln()),
+        ("tan", |t| t.tan()),
+        ("recip", |t| Tm::cst(1.0) / (t.clone() + 1.0)),
+    ] {
+        let r = f(&g);
+        assert!(r.rem().width() < 1e-6, "{name}: remainder {:?}", r.rem());
+        assert_eq!(r.order(), 5);
+        assert_eq!(r.n_vars(), 3);
+    }
+    // The remainder shrinks with the order (order 8, |H| <= 0.1: ~1e-12).
+    let g8 = Tm::affine(0.3, &[0.05, 0.03, 0.02], 8);
+    assert!(g8.exp().rem().width() < 1e-10, "{:?}", g8.exp().rem());
+    // The linear part of exp(c + h) is exp(c) (1 + h).
+    let (c0, lin) = g.exp().linear_part();
+    let e = 0.3f64.exp();
+    assert!((c0 - e).abs() < 1e-12 && (lin[0] - 0.05 * e).abs() < 1e-12);
+    assert!(g.exp().nonlinear_bound().width() < 0.02);
+}
+
+/// Out-of-domain arguments give non-finite (never wrong finite) enclosures.
+#[test]
+fn domain_violations_are_not_finite() {
+    let x = Tm::affine(0.0, &[1.0], 3); // [-1, 1]
+    let s = x.sqrt(); // Interval convention: sqrt of the non-negative part, [0, 1]
+    assert!(s.bound().lo <= 0.0 && s.bound().hi >= 1.0);
+    assert_eq!(x.ln().bound().lo, f64::NEG_INFINITY);
+    let neg = Tm::affine(-3.0, &[1.0], 3);
+    assert_eq!(neg.sqrt().bound(), Interval::entire());
+    assert_eq!(neg.ln().bound(), Interval::entire());
+    assert_eq!((Tm::cst(1.0) / x.clone()).bound(), Interval::entire());
+    let pole = Tm::affine(1.5, &[0.2], 3);
+    assert_eq!(pole.tan().bound(), Interval::entire());
+    let big = Tm::affine(800.0, &[1.0], 3);
+    assert!(big.exp().bound().hi == f64::INFINITY);
+    assert!((x.clone() / 0.0).bound() == Interval::entire());
+    // Overflowing coefficients make the entire model, never NaN.
+    let huge = Tm::affine(1e300, &[1e300], 3);
+    let p = huge.clone() * huge;
+    assert_eq!(p.bound(), Interval::entire());
+    assert_eq!(p.eval_at(&[0.5]), Interval::entire());
+}
+
+#[test]
+fn constructors_accessors_and_mixing() {
+    let a = Tm::affine(1.0, &[2.0, -3.0], 3);
+    assert_eq!(a.n_vars(), 2);
+    assert_eq!(a.order(), 3);
+    assert_eq!(a.linear_part(), (1.0, vec![2.0, -3.0]));
+    assert_eq!(a.bound(), Interval::new(-4.0, 6.0));
+    assert_eq!(a.nonlinear_bound(), Interval::point(0.0));
+    assert_eq!(a.value(), 1.0);
+    // x^2 over [-1, 1] is [0, 1]: the all-even bound.
+    let x = Tm::var(0, 1, 2);
+    let close =
+        |a: Interval, b: Interval| (a.lo - b.lo).abs() < 1e-15 && (a.hi - b.hi).abs() < 1e-15;
+    assert!(
+        close(x.sqr().bound(), Interval::new(0.0, 1.0)),
+        "{:?}",
+        x.sqr()
+    );
+    assert!(close(x.sqr().nonlinear_bound(), Interval::new(0.0, 1.0)));
+    // cst and from_interval adopt the other operand's n and order.
+    let c = Tm::cst(2.0) * a.clone();
+    assert_eq!((c.n_vars(), c.order()), (2, 3));
+    let i = Tm::from_interval(Interval::new(1.0, 2.0)) + a.clone();
+    assert_eq!((i.n_vars(), i.order()), (2, 3));
+    assert!(i.bound().lo <= -3.0 && i.bound().hi >= 8.0);
+    // Different n: result n = max; different explicit orders: the minimum.
+    let b = Tm::var(0, 1, 5) * Tm::var(0, 3, 2);
+    assert_eq!((b.n_vars(), b.order()), (3, 2));
+    let e = Tm::var(0, 1, 5).powi(4) + Tm::constant(0.0, 3, 2);
+    assert_eq!((e.n_vars(), e.order()), (3, 2));
+    assert!(
+        e.rem().lo <= 0.0 && e.rem().hi >= 1.0,
+        "x^4 at order 2: {e:?}"
+    );
+    // with_rem, eval_at, order 0.
+    let w = a.clone().with_rem(Interval::new(-0.5, 0.25));
+    assert_eq!(w.rem(), Interval::new(-0.5, 0.25));
+    let v = w.eval_at(&[0.5, 0.5]);
+    assert!(v.contains(0.5 - 0.5) && v.contains(0.5 + 0.25));
+    let z = Tm::affine(1.0, &[0.5], 0);
+    assert_eq!(z.linear_part(), (1.0, vec![0.0]));
+    assert!(z.bound().contains(0.5) && z.bound().contains(1.5));
+    assert_eq!(Tm::constant(3.0, 2, 4).bound(), Interval::point(3.0));
+    assert_eq!(
+        Tm::from_interval(Interval::new(1.0, 3.0)).bound(),
+        Interval::new(1.0, 3.0)
+    );
+}
+
+/// The point function a set operation must enclose.
+type PointFn = Box<dyn Fn(f64, f64) -> f64>;
+
+#[test]
+fn sign_hull_abs_relu_clamp_are_sound() {
+    let mut rng = Rng(0x5EED_0004);
+    let x = Tm::affine(0.0, &[1.0], 3);
+    assert_eq!(x.sign(), Sign::Mixed);
+    assert_eq!(
+        Tm::from_interval(Interval::new(0.0, 1.0)).sign(),
+        Sign::NonNegative
+    );
+    // relu of a square whose bound dips below 0 by rounding stays tight.
+    let r = x.sqr().relu();
+    assert!(
+        r.bound().lo >= -1e-15 && r.bound().hi <= 1.0 + 1e-15,
+        "{r:?}"
+    );
+    assert_eq!((x.clone() + 2.0).sign(), Sign::Positive);
+    assert_eq!((x.clone() - 2.0).sign(), Sign::Negative);
+    assert_eq!(Tm::cst(0.0).sign(), Sign::Zero);
+    for _ in 0..300 {
+        let n = 1 + rng.below(3) as usize;
+        let o = 1 + rng.below(4) as u32;
+        let coef: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+        let coef2: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+        let a = Tm::affine(rng.range(-1.0, 1.0), &coef, o);
+        let a = a.clone() * a.clone() - 0.3;
+        let b = Tm::affine(rng.range(-1.0, 1.0), &coef2, o);
+        let (lo, hi) = (rng.range(-0.5, 0.0), rng.range(0.0, 0.5));
+        let ops: Vec<(Tm, PointFn)> = vec![
+            (a.abs(), Box::new(|u, _| u.abs())),
+            (a.relu(), Box::new(|u, _| u.max(0.0))),
+            (a.smin(&b), Box::new(|u, v| u.min(v))),
+            (a.smax(&b), Box::new(|u, v| u.max(v))),
+            (a.clamp_to(lo, hi), Box::new(move |u, _| u.clamp(lo, hi))),
+            (a.hull(&b), Box::new(|u, v| 0.5 * (u + v))),
+        ];
+        for _ in 0..5 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+            let (u, v) = (a.eval_at(&xi), b.eval_at(&xi));
+            for (t, f) in &ops {
+                // f is monotone or 1-Lipschitz: its value at the enclosures' mid points
+                // lies within the enclosure widths of the true value.
+                let want = f(u.value(), v.value());
+                let slack = u.width() + v.width() + 1e-12;
+                let got = t.eval_at(&xi);
+                assert!(
+                    got.lo <= want + slack && want - slack <= got.hi,
+                    "{got:?} vs {want}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn series_of_taylor_models_gives_exp_coefficients() {
+    // exp(t) about t0 = 0: coefficients 1/k!.
+    let seed = Tm::constant(0.0, 2, 4);
+    let mut t = Series::<Tm, 8>::var(seed);
+    t.c[1] = Tm::cst(1.0);
+    t.n = 8;
+    let e = t.exp();
+    let mut fact = BigRational::from_integer(BigInt::from(1));
+    for k in 0..8 {
+        if k > 0 {
+            fact *= BigRational::from_integer(BigInt::from(k));
+        }
+        let want = BigRational::from_integer(BigInt::from(1)) / &fact;
+        let got = e.c[k].eval_at(&[0.3, -0.7]);
+        assert!(contains_exact(&got, &want), "k={k}: {got:?}");
+        assert!(e.c[k].bound().width() < 1e-14, "k={k}: {:?}", e.c[k]);
+        assert_eq!(e.c[k].n_vars(), 2);
+    }
+    // About a Taylor model x0(xi) = 0.2 + 0.1 xi_0: coefficient k is exp(x0(xi)) / k!.
+    let x0 = Tm::affine(0.2, &[0.1], 5);
+    let mut t = Series::<Tm, 6>::var(x0);
+    t.c[1] = Tm::cst(1.0);
+    t.n = 6;
+    let e = t.exp();
+    let mut rng = Rng(7);
+    for _ in 0..50 {
+        let xi = [rng.param()];
+        let y = q(0.2) + q(0.1) * q(xi[0]);
+        let mut f = 1.0;
+        for k in 0..6 {
+            if k > 0 {
+                f *= k as f64;
+            }
+            let r = reference(|v| v.exp(), &y);
+            let r = Interval::new((r.lo / f).next_down(), (r.hi / f).next_up());
+            assert!(
+                meets(&e.c[k].eval_at(&xi), &r),
+                "k={k}: {:?} vs {r:?}",
+                e.c[k]
+            );
+            assert!(e.c[k].rem().width() < 1e-6);
+        }
+    }
+    // Series<Interval> is still Copy (the relaxed bound keeps it).
+    fn is_copy<T: Copy>() {}
+    is_copy::<Series<Interval, 4>>();
+}
+
+#[test]
+fn tm_is_send_and_sync() {
+    fn check<T: Send + Sync>() {}
+    check::<Tm>();
+    let h = std::thread::spawn(|| (Tm::var(0, 4, 4) * Tm::var(1, 4, 4)).bound());
+    let b = h.join().unwrap();
+    assert!(b.lo <= -1.0 && b.hi >= 1.0 && b.width() < 2.0 + 1e-14);
+}
+
+/// Timing of the product of two dense n = 4, order 4 models (70 terms); printed, and
+/// checked loosely so that the test is not flaky on a loaded machine.
+#[test]
+fn product_timing() {
+    let mut rng = Rng(0x5EED_0005);
+    let mk = |rng: &mut Rng| {
+        let coef: Vec<f64> = (0..4).map(|_| rng.range(-0.3, 0.3)).collect();
+        let a = Tm::affine(rng.range(-1.0, 1.0), &coef, 4);
+        (a.clone() * a.clone() * a.clone() * a.clone() + a).with_rem(Interval::new(-1e-9, 1e-9))
+    };
+    let (a, b) = (mk(&mut rng), mk(&mut rng));
+    let reps = 20_000;
+    let start = Instant::now();
+    let mut acc = 0.0;
+    for _ in 0..reps {
+        let p = std::hint::black_box(&a) * std::hint::black_box(&b);
+        acc += p.value();
+    }
+    let per = start.elapsed().as_secs_f64() / reps as f64;
+    eprintln!("product n=4 order=4: {:.3} us ({acc})", per * 1e6);
+    assert!(per < 1e-4, "product takes {per} s");
+}

@@ -1,0 +1,670 @@
+//! Sound reachable sets of any closed loop written as a system file (`samara-system`):
+//! Taylor-model sets in the initial-set parameters, the plant integrated by the
+//! validated Taylor-model flowpipe ([`crate::tmflow`]), the network bounded over each
+//! set by CROWN with the set's linear part kept symbolic ([`samara_bounds::linset`]).
+//!
+//! Data flow of one sub-box `B` of the initial set (states with a non-zero width are
+//! the parameters `xi in [-1, 1]^n`, `x_i = mid_i + rad_i xi_i`):
+//! 1. at each control instant: the resets; the network's inputs `observe(x)` as Taylor
+//!    models; their linear part `c + G xi` goes to CROWN, the rest (higher-order terms
+//!    and remainders) as a noise box; the network's outputs come back as
+//!    `coef . xi + cst +- dev` (Taylor models of order 1 with an interval remainder) —
+//!    or, for networks without ReLU, the network evaluated on the Taylor models
+//!    themselves (Taylor expansion of tanh / sigmoid), whichever is narrower;
+//! 2. the inputs `actuate(outputs)` then the clips, on Taylor models (a clip that is
+//!    inactive over the set stays exact);
+//! 3. one control period of the plant by the flowpipe, which also returns the boxes of
+//!    every step inside the period (for goals over time windows);
+//! 4. the goals decided on the sets: a band with an affine `g(x)` on the Taylor models
+//!    themselves (the dependence kept), boxes on the interval hull.
+//!
+//! Sub-boxes whose enclosure is lost or whose goal is undecided are cut in two along the
+//! widest parameter (relative to the initial set) and flown again from `t = 0`, within a
+//! budget; the frontier is flown in parallel (`rayon`). Before any of it, simulated
+//! flights (the initial box's corners, its centre and random starts) look for a
+//! counterexample.
+//!
+//! Verdicts: `proved` only when every sub-box's sets decide every goal true; `violated`
+//! only with a simulated flight that misses a goal; `unknown` with the reason otherwise.
+
+use crate::tmflow::{tm_period, TmFlowSettings};
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use samara_nn::Network;
+use samara_num::{Interval, Scalar, Tm};
+use samara_system::sim::{fly, goals_hold, SystemFlight};
+use samara_system::{GoalKind, System, When};
+use serde::Serialize;
+use std::time::Instant;
+
+/// Settings of a system reachability run.
+#[derive(Clone, Debug)]
+pub struct SystemReachSettings {
+    /// Order of the Taylor models (default 4).
+    pub order: usize,
+    /// Largest number of sub-boxes of the initial set (default 256).
+    pub max_boxes: usize,
+    /// Simulated flights for falsification before the sets (default 200).
+    pub samples: usize,
+    /// Seed of the random starts.
+    pub seed: u64,
+    /// The flowpipe's settings.
+    pub flow: TmFlowSettings,
+    /// Wall-clock budget in seconds; the run stops splitting and reports `unknown`
+    /// when it is spent (default: none).
+    pub timeout: Option<f64>,
+}
+
+impl Default for SystemReachSettings {
+    fn default() -> Self {
+        SystemReachSettings {
+            order: 4,
+            max_boxes: 256,
+            samples: 200,
+            seed: 1,
+            flow: TmFlowSettings::default(),
+            timeout: None,
+        }
+    }
+}
+
+/// Why a run could not start.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SystemReachError {
+    /// The network does not fit the system.
+    #[error("the network has {n_in} inputs and {n_out} outputs; the system observes {obs} values and reads {reads} network outputs: use the controller made for this system")]
+    Shape {
+        /// Network inputs.
+        n_in: usize,
+        /// Network outputs.
+        n_out: usize,
+        /// Values the system observes.
+        obs: usize,
+        /// Network outputs the system reads.
+        reads: usize,
+    },
+    /// A setting is out of range.
+    #[error("{0}")]
+    Setting(String),
+    /// The simulation of a start failed.
+    #[error("simulating a start failed: {0}")]
+    Simulation(String),
+}
+
+/// The verdict of a system run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(tag = "verdict", rename_all = "lowercase")]
+pub enum SystemVerdict {
+    /// Every flight from the initial set meets every goal (sound enclosure).
+    Proved,
+    /// A simulated flight misses a goal.
+    Violated {
+        /// Its initial state.
+        initial: Vec<f64>,
+        /// The goal it misses (its text in the file).
+        goal: String,
+    },
+    /// Not settled.
+    Unknown {
+        /// Why.
+        reason: String,
+    },
+    /// The file states no goal.
+    #[serde(rename = "none")]
+    NoGoal,
+}
+
+impl SystemVerdict {
+    /// `proved`, `violated`, `unknown` or `none`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            SystemVerdict::Proved => "proved",
+            SystemVerdict::Violated { .. } => "violated",
+            SystemVerdict::Unknown { .. } => "unknown",
+            SystemVerdict::NoGoal => "none",
+        }
+    }
+}
+
+/// The sets of one sub-box.
+#[derive(Clone, Debug, Serialize)]
+pub struct SystemLeaf {
+    /// The sub-box of the initial set.
+    pub init: Vec<[f64; 2]>,
+    /// Interval hull of the state at each control instant reached (row 0: t = 0).
+    pub instants: Vec<Vec<[f64; 2]>>,
+    /// Interval hull of the state over each control period (row k: period k).
+    pub periods: Vec<Vec<[f64; 2]>>,
+    /// Why the enclosure stopped early, if it did (with the time).
+    pub failure: Option<String>,
+    /// The goals on this sub-box: `Some(true)` proved, `Some(false)` refuted by the
+    /// sets (some instant's set misses it entirely), `None` undecided.
+    #[serde(skip)]
+    pub decided: Vec<Option<bool>>,
+}
+
+/// The result of a system run.
+#[derive(Clone, Debug, Serialize)]
+pub struct SystemReach {
+    /// The system's name.
+    pub system: String,
+    /// The verdict.
+    pub verdict: SystemVerdict,
+    /// Hull over the sub-boxes of the state at each control instant.
+    pub instants: Vec<Vec<[f64; 2]>>,
+    /// Hull over the sub-boxes of the state over each control period.
+    pub periods: Vec<Vec<[f64; 2]>>,
+    /// Sub-boxes of the final partition.
+    pub boxes: usize,
+    /// Taylor-model order used.
+    pub order: usize,
+    /// Wall time in seconds.
+    pub seconds: f64,
+    /// The sub-boxes.
+    pub leaves: Vec<SystemLeaf>,
+    /// Simulated flights (falsification; also what containment tests check).
+    #[serde(skip)]
+    pub flights: Vec<(Vec<f64>, SystemFlight)>,
+}
+
+/// The starts of the falsification flights: the initial box's centre, its corners (up
+/// to 64 of them) and random points.
+pub fn starts(sys: &System, n: usize, seed: u64) -> Vec<Vec<f64>> {
+    let init = &sys.init;
+    let mut out = vec![init.iter().map(|(l, h)| 0.5 * (l + h)).collect::<Vec<_>>()];
+    let free: Vec<usize> = (0..init.len()).filter(|&i| init[i].0 < init[i].1).collect();
+    let corners = if free.len() <= 6 {
+        1usize << free.len()
+    } else {
+        64
+    };
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    for c in 0..corners {
+        let mut x: Vec<f64> = init.iter().map(|(l, _)| *l).collect();
+        for (b, &i) in free.iter().enumerate() {
+            let hi = if free.len() <= 6 {
+                (c >> b) & 1 == 1
+            } else {
+                rng.gen_bool(0.5)
+            };
+            x[i] = if hi { init[i].1 } else { init[i].0 };
+        }
+        out.push(x);
+    }
+    while out.len() < n {
+        out.push(init.iter().map(|(l, h)| rng.gen_range(*l..=*h)).collect());
+    }
+    out
+}
+
+/// The network as the closed loop reads it (f64).
+fn controller(net: &Network) -> impl Fn(&[f64]) -> Vec<f64> + Sync + '_ {
+    move |x: &[f64]| net.eval_f64(x)
+}
+
+/// Sound reachable sets of `sys` under the controller `net`, and the verdict on the
+/// file's goals.
+pub fn reach_system(
+    sys: &System,
+    net: &Network,
+    s: &SystemReachSettings,
+) -> Result<SystemReach, SystemReachError> {
+    let t0 = Instant::now();
+    if net.n_inputs() != sys.n_observed() || net.n_outputs() < sys.n_net_outputs {
+        return Err(SystemReachError::Shape {
+            n_in: net.n_inputs(),
+            n_out: net.n_outputs(),
+            obs: sys.n_observed(),
+            reads: sys.n_net_outputs,
+        });
+    }
+    if !(1..=8).contains(&s.order) {
+        return Err(SystemReachError::Setting(format!(
+            "the Taylor-model order must be 1 to 8 (got {}); 3-5 is usual",
+            s.order
+        )));
+    }
+    if s.max_boxes == 0 {
+        return Err(SystemReachError::Setting(
+            "the sub-box budget must be at least 1".into(),
+        ));
+    }
+    let mut s = s.clone();
+    s.flow.order = s.order as u32;
+    let s = &s;
+    // Falsification first.
+    let eval = controller(net);
+    let flights: Vec<(Vec<f64>, Result<SystemFlight, String>)> = starts(sys, s.samples, s.seed)
+        .into_par_iter()
+        .map(|x0| {
+            let f = fly(sys, &eval, &x0, 10).map_err(|e| e.to_string());
+            (x0, f)
+        })
+        .collect();
+    let mut ok_flights = Vec::with_capacity(flights.len());
+    let mut violation = None;
+    for (x0, f) in flights {
+        let f = f.map_err(SystemReachError::Simulation)?;
+        if violation.is_none() {
+            if let Some(gi) = goals_hold(sys, &f).iter().position(|h| !h) {
+                violation = Some(SystemVerdict::Violated {
+                    initial: x0.clone(),
+                    goal: sys.goals[gi].text.clone(),
+                });
+            }
+        }
+        ok_flights.push((x0, f));
+    }
+    let init: Vec<Interval> = sys
+        .init
+        .iter()
+        .map(|&(l, h)| Interval { lo: l, hi: h })
+        .collect();
+    let mut leaves: Vec<SystemLeaf> = Vec::new();
+    let mut verdict = if let Some(v) = violation {
+        // The sets are still computed once (for the figure), without refinement.
+        let leaf = fly_box(sys, net, &init, s);
+        leaves.push(leaf);
+        v
+    } else if sys.goals.is_empty() {
+        leaves.push(fly_box(sys, net, &init, s));
+        SystemVerdict::NoGoal
+    } else {
+        let mut frontier = vec![init.clone()];
+        let mut reason = None;
+        let mut violation_from_sets = None;
+        loop {
+            let flown: Vec<SystemLeaf> = frontier
+                .par_iter()
+                .map(|b| fly_box(sys, net, b, s))
+                .collect();
+            let mut next = Vec::new();
+            let mut refuted = None;
+            for l in flown {
+                if l.decided.contains(&Some(false)) {
+                    let gi = l.decided.iter().position(|d| *d == Some(false)).unwrap();
+                    let centre: Vec<f64> = l.init.iter().map(|v| 0.5 * (v[0] + v[1])).collect();
+                    refuted = Some((sys.goals[gi].text.clone(), centre));
+                }
+                if l.decided.iter().all(|d| *d == Some(true)) {
+                    leaves.push(l);
+                } else {
+                    next.push(l);
+                }
+            }
+            if let Some((g, centre)) = refuted {
+                // The sets show a sub-box missing the goal entirely at some instant:
+                // every flight from it misses it; its centre's flight is the witness.
+                if let Ok(f) = fly(sys, &eval, &centre, 10) {
+                    if goals_hold(sys, &f).iter().any(|h| !h) {
+                        violation_from_sets = Some(SystemVerdict::Violated {
+                            initial: centre,
+                            goal: g,
+                        });
+                        leaves.extend(next);
+                        break;
+                    }
+                }
+                reason = Some(format!(
+                    "the enclosure of a sub-box lies outside the goal `{g}`, but no simulated flight from the starts tried missed it"
+                ));
+                leaves.extend(next);
+                break;
+            }
+            if next.is_empty() {
+                break;
+            }
+            let budget_left = s.max_boxes.saturating_sub(leaves.len() + 2 * next.len());
+            let timed_out = s.timeout.is_some_and(|t| t0.elapsed().as_secs_f64() > t);
+            if budget_left == 0 || timed_out {
+                let lost = next.iter().filter(|l| l.failure.is_some()).count();
+                reason = Some(if timed_out {
+                    format!(
+                        "timeout after {:.1} s with {} sub-boxes undecided",
+                        t0.elapsed().as_secs_f64(),
+                        next.len()
+                    )
+                } else if lost > 0 {
+                    format!(
+                        "{lost} of {} sub-boxes lost their enclosure ({}) within the budget of {} sub-boxes (--max-boxes)",
+                        leaves.len() + next.len(),
+                        next.iter().find_map(|l| l.failure.clone()).unwrap_or_default(),
+                        s.max_boxes
+                    )
+                } else {
+                    format!(
+                        "{} of {} sub-boxes leave a goal undecided within the budget of {} sub-boxes (--max-boxes)",
+                        next.len(),
+                        leaves.len() + next.len(),
+                        s.max_boxes
+                    )
+                });
+                leaves.extend(next);
+                break;
+            }
+            frontier = next
+                .iter()
+                .flat_map(|l| {
+                    let b: Vec<Interval> = l
+                        .init
+                        .iter()
+                        .map(|v| Interval { lo: v[0], hi: v[1] })
+                        .collect();
+                    let (a, c) = bisect(&b, &init);
+                    [a, c]
+                })
+                .collect();
+        }
+        match (violation_from_sets, reason) {
+            (Some(v), _) => v,
+            (None, Some(r)) => SystemVerdict::Unknown { reason: r },
+            (None, None) => SystemVerdict::Proved,
+        }
+    };
+    if matches!(verdict, SystemVerdict::Proved) && leaves.iter().any(|l| l.failure.is_some()) {
+        verdict = SystemVerdict::Unknown {
+            reason: "an enclosure was lost".into(),
+        };
+    }
+    let hull = |rows: &dyn Fn(&SystemLeaf) -> &Vec<Vec<[f64; 2]>>| -> Vec<Vec<[f64; 2]>> {
+        let n = leaves.iter().map(|l| rows(l).len()).min().unwrap_or(0);
+        (0..n)
+            .map(|k| {
+                (0..sys.dim())
+                    .map(|i| {
+                        leaves
+                            .iter()
+                            .fold([f64::INFINITY, f64::NEG_INFINITY], |a, l| {
+                                let v = rows(l)[k][i];
+                                [a[0].min(v[0]), a[1].max(v[1])]
+                            })
+                    })
+                    .collect()
+            })
+            .collect()
+    };
+    let instants = hull(&|l: &SystemLeaf| &l.instants);
+    let periods = hull(&|l: &SystemLeaf| &l.periods);
+    Ok(SystemReach {
+        system: sys.name.clone(),
+        verdict,
+        instants,
+        periods,
+        boxes: leaves.len(),
+        order: s.order,
+        seconds: t0.elapsed().as_secs_f64(),
+        leaves,
+        flights: ok_flights,
+    })
+}
+
+/// Cut `b` in two along the parameter widest relative to the initial set `init`.
+fn bisect(b: &[Interval], init: &[Interval]) -> (Vec<Interval>, Vec<Interval>) {
+    let rel = |i: usize| {
+        let w0 = init[i].hi - init[i].lo;
+        if w0 > 0.0 {
+            (b[i].hi - b[i].lo) / w0
+        } else {
+            0.0
+        }
+    };
+    let j = (0..b.len())
+        .max_by(|&p, &q| rel(p).total_cmp(&rel(q)))
+        .unwrap_or(0);
+    let m = 0.5 * (b[j].lo + b[j].hi);
+    let mut lo = b.to_vec();
+    let mut hi = b.to_vec();
+    lo[j].hi = m;
+    hi[j].lo = m;
+    (lo, hi)
+}
+
+fn to_pairs(v: &[Interval]) -> Vec<[f64; 2]> {
+    v.iter().map(|i| [i.lo, i.hi]).collect()
+}
+
+/// The Taylor models of a box: `x_i = mid_i + rad_i xi_k` for the `k`-th state of
+/// non-zero width, constants otherwise. The midpoint and radius are rounded so that the
+/// model's range contains the box: `rad` rounded up and both ends checked.
+fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
+    let free: Vec<usize> = (0..b.len()).filter(|&i| b[i].hi > b[i].lo).collect();
+    let n = free.len();
+    b.iter()
+        .enumerate()
+        .map(|(i, v)| match free.iter().position(|&j| j == i) {
+            None => Tm::constant(v.lo, n, order),
+            Some(k) => {
+                let mid = 0.5 * (v.lo + v.hi);
+                let mut rad = (0.5 * (v.hi - v.lo)).next_up();
+                while mid - rad > v.lo || mid + rad < v.hi {
+                    rad = rad.next_up();
+                }
+                Tm::var(k, n, order) * rad + mid
+            }
+        })
+        .collect()
+}
+
+/// The network over a set of inputs given as Taylor models: CROWN on the linear part,
+/// the rest as a noise box (any network `samara_bounds::linset` supports); for networks
+/// without piecewise-linear layers also the network evaluated on the Taylor models,
+/// keeping the narrower result per output.
+fn network_over(net: &Network, obs: &[Tm], n_params: usize, order: u32) -> Vec<Tm> {
+    let mut c = Vec::with_capacity(obs.len());
+    let mut g = Vec::with_capacity(obs.len());
+    let mut noise = Vec::with_capacity(obs.len());
+    for o in obs {
+        let (c0, mut grad) = o.linear_part();
+        grad.resize(n_params, 0.0);
+        // Everything that is not linear (higher-order terms, remainder), as a box
+        // centred on the linear part's constant shifted by the box's midpoint; the
+        // rounding of that shift goes into the box's radius.
+        let rest = o.nonlinear_bound();
+        let mid = 0.5 * rest.lo + 0.5 * rest.hi;
+        let centre = c0 + mid;
+        let shift_err = (centre - c0 - mid).abs() + f64::EPSILON * centre.abs();
+        let rad = ((rest.hi - mid).max(mid - rest.lo) + 2.0 * shift_err).next_up();
+        c.push(centre);
+        noise.push(rad);
+        g.push(grad);
+    }
+    // linset takes the generators: one per parameter, each over the network's inputs.
+    let gens: Vec<Vec<f64>> = (0..n_params)
+        .map(|k| g.iter().map(|row: &Vec<f64>| row[k]).collect())
+        .collect();
+    let crown = samara_bounds::linset::bound_over_linear_set(net, &c, &gens, &noise).ok();
+    let smooth = !net
+        .layers
+        .iter()
+        .any(|l| matches!(l, samara_nn::Layer::Act(a) if a.is_piecewise_linear()));
+    let direct: Option<Vec<Tm>> = if smooth {
+        Some(net.eval::<Tm>(obs))
+    } else {
+        None
+    };
+    let n_out = net.n_outputs();
+    (0..n_out)
+        .map(|j| {
+            let from_crown = crown.as_ref().map(|e| {
+                Tm::affine(e.cst[j], &e.coef[j], order).with_rem(Interval {
+                    lo: -e.dev[j],
+                    hi: e.dev[j],
+                })
+            });
+            let from_direct = direct.as_ref().map(|d| d[j].clone());
+            match (from_crown, from_direct) {
+                (Some(a), Some(b)) => {
+                    let (wa, wb) = (a.bound().width(), b.bound().width());
+                    if wb < wa {
+                        b
+                    } else {
+                        a
+                    }
+                }
+                (Some(a), None) => a,
+                (None, Some(b)) => b,
+                (None, None) => {
+                    // Not supported by CROWN: interval evaluation over the hull.
+                    let bb: Vec<Interval> = obs.iter().map(|o| o.bound()).collect();
+                    Tm::from_interval(net.eval::<Interval>(&bb)[j])
+                }
+            }
+        })
+        .collect()
+}
+
+/// Fly one sub-box over the horizon and decide the goals on its sets.
+fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings) -> SystemLeaf {
+    let n_params = b.iter().filter(|v| v.hi > v.lo).count();
+    let mut x = box_models(b, s.order as u32);
+    let mut leaf = SystemLeaf {
+        init: to_pairs(b),
+        instants: Vec::new(),
+        periods: Vec::new(),
+        failure: None,
+        decided: vec![None; sys.goals.len()],
+    };
+    // Per goal: proved so far over the instants and periods seen (Always, End), or
+    // met at some instant (Eventually).
+    let mut ok: Vec<bool> = vec![true; sys.goals.len()];
+    let mut met: Vec<bool> = vec![false; sys.goals.len()];
+    let mut refuted: Vec<bool> = vec![false; sys.goals.len()];
+    let steps = sys.steps();
+    let mut obs = vec![Tm::cst(0.0); sys.n_observed()];
+    let mut u = vec![Tm::cst(0.0); sys.n_inputs()];
+    for k in 0..=steps {
+        let t = k as f64 * sys.period;
+        sys.apply_resets(&mut x);
+        let hull: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
+        leaf.instants.push(to_pairs(&hull));
+        check_goals(sys, &x, &hull, t, t, &mut ok, &mut met, &mut refuted);
+        if k == steps {
+            break;
+        }
+        sys.observe(&x, &mut obs);
+        let y = network_over(net, &obs, n_params, s.order as u32);
+        sys.actuate(&y, &mut u);
+        match tm_period(sys, &x, &u, sys.period, &s.flow) {
+            Ok((next, boxes)) => {
+                let mut ph = boxes.first().cloned().unwrap_or_else(|| hull.clone());
+                for bx in &boxes {
+                    for (a, v) in ph.iter_mut().zip(bx) {
+                        *a = Scalar::hull(a, v);
+                    }
+                }
+                leaf.periods.push(to_pairs(&ph));
+                let empty: Vec<Tm> = Vec::new();
+                check_goals(
+                    sys,
+                    &empty,
+                    &ph,
+                    t,
+                    t + sys.period,
+                    &mut ok,
+                    &mut met,
+                    &mut refuted,
+                );
+                x = next;
+            }
+            Err(e) => {
+                leaf.failure = Some(format!("{e} (period starting at t = {t})"));
+                break;
+            }
+        }
+    }
+    for (gi, g) in sys.goals.iter().enumerate() {
+        leaf.decided[gi] = if refuted[gi] {
+            Some(false)
+        } else if leaf.failure.is_some() {
+            None
+        } else {
+            match g.when {
+                When::Eventually(..) => met[gi].then_some(true),
+                _ => ok[gi].then_some(true),
+            }
+        };
+    }
+    leaf
+}
+
+/// Update the per-goal state with the set over `[t1, t2]` (an instant when equal):
+/// `x` the Taylor models at an instant (empty over a period: then only the hull).
+#[allow(clippy::too_many_arguments)]
+fn check_goals(
+    sys: &System,
+    x: &[Tm],
+    hull: &[Interval],
+    t1: f64,
+    t2: f64,
+    ok: &mut [bool],
+    met: &mut [bool],
+    refuted: &mut [bool],
+) {
+    let eps = 1e-9 * sys.horizon.max(1.0);
+    for (gi, g) in sys.goals.iter().enumerate() {
+        // Does [t1, t2] meet the goal's window?
+        let (w1, w2) = match g.when {
+            When::End => (sys.horizon, sys.horizon),
+            When::Always(a, b) | When::Eventually(a, b) => (a, b),
+        };
+        if t2 < w1 - eps || t1 > w2 + eps {
+            continue;
+        }
+        let instant = t1 == t2;
+        // A period that meets the window only at one of its ends: that instant's set
+        // is checked on its own (sharper than the period's hull), nothing else to check.
+        if !instant && (t2 <= w1 + eps || t1 >= w2 - eps) {
+            continue;
+        }
+        // An instant's set inside the window decides an "eventually" goal; a period's
+        // hull only counts for "always" (it covers times inside and outside the window,
+        // which is conservative for "always").
+        let d = decide_on(g, x, hull);
+        match g.when {
+            When::End | When::Always(..) => {
+                if d != Some(true) {
+                    ok[gi] = false;
+                }
+                if d == Some(false) && instant {
+                    refuted[gi] = true;
+                }
+            }
+            When::Eventually(..) => {
+                if instant && d == Some(true) {
+                    met[gi] = true;
+                }
+            }
+        }
+    }
+}
+
+/// A goal on a set: by the Taylor models for an affine band (the dependence kept),
+/// else by the interval hull.
+fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<bool> {
+    if let (
+        GoalKind::Band {
+            lo,
+            hi,
+            linear: Some((a, b)),
+            ..
+        },
+        false,
+    ) = (&g.kind, x.is_empty())
+    {
+        let mut v = Tm::cst(*b);
+        for (ai, xi) in a.iter().zip(x) {
+            if *ai != 0.0 {
+                v += xi.clone() * *ai;
+            }
+        }
+        let r = v.bound();
+        return if *lo <= r.lo && r.hi <= *hi {
+            Some(true)
+        } else if r.hi < *lo || r.lo > *hi {
+            Some(false)
+        } else {
+            None
+        };
+    }
+    g.decide(hull)
+}

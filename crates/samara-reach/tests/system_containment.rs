@@ -1,0 +1,171 @@
+//! The Taylor-model reachable sets of system files contain simulated flights: for each
+//! benchmark, flights from random starts (samara_system::sim, DOP853 at rtol 1e-10 /
+//! atol 1e-12: an independent integrator, f64, no sets) must lie, at every control
+//! instant, inside the enclosure of the sub-box their start belongs to, and at every
+//! output time inside that sub-box's box of the period. Tolerance: 1e-7 absolute plus
+//! 1e-7 relative, far above the simulation's own error (~1e-9 over these horizons) and
+//! far below the enclosures' widths.
+//!
+//! Fixtures: ARCH-COMP AINNCS controllers (tests/data/archcomp/README.md) and the
+//! published Alsomitra controller (../shared/reference).
+
+use rand::{Rng, SeedableRng};
+use samara_reach::system::{reach_system, SystemReach, SystemReachSettings, SystemVerdict};
+use samara_system::sim::fly;
+use samara_system::System;
+use std::path::{Path, PathBuf};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn system(name: &str) -> System {
+    System::from_file(&root().join("examples/archcomp").join(name)).unwrap()
+}
+
+fn fixture(name: &str) -> samara_nn::Network {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data/archcomp")
+        .join(name);
+    samara_nn::onnx::load(&p).unwrap()
+}
+
+fn close(v: f64, lo: f64, hi: f64) -> bool {
+    let tol = 1e-7 * (1.0 + v.abs());
+    v >= lo - tol && v <= hi + tol
+}
+
+/// `n` random flights inside the sets of `r`; returns the number of points checked.
+fn check_contains(
+    sys: &System,
+    net: &samara_nn::Network,
+    r: &SystemReach,
+    n: usize,
+    seed: u64,
+) -> usize {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let eval = |x: &[f64]| net.eval_f64(x);
+    let per = 10;
+    let mut checked = 0;
+    for _ in 0..n {
+        let x0: Vec<f64> = sys
+            .init
+            .iter()
+            .map(|&(l, h)| if l < h { rng.gen_range(l..=h) } else { l })
+            .collect();
+        let leaf = r
+            .leaves
+            .iter()
+            .find(|l| {
+                l.init
+                    .iter()
+                    .zip(&x0)
+                    .all(|(b, v)| b[0] <= *v && *v <= b[1])
+            })
+            .expect("the sub-boxes cover the initial set");
+        let f = fly(sys, &eval, &x0, per).unwrap();
+        // Output times: row 0 is t = 0, then `per` rows per period.
+        for (row, (t, x)) in f.t.iter().zip(&f.states).enumerate() {
+            let k = (t / sys.period).round() as usize;
+            let at_instant = (t - k as f64 * sys.period).abs() < 1e-9;
+            if at_instant && k < leaf.instants.len() {
+                for (i, v) in x.iter().enumerate() {
+                    let [lo, hi] = leaf.instants[k][i];
+                    assert!(
+                        close(*v, lo, hi),
+                        "{}: start {x0:?}: state {i} = {v} at t = {t} outside [{lo}, {hi}]",
+                        sys.name
+                    );
+                }
+                checked += 1;
+            }
+            // The period containing this output time (an instant ends one period).
+            if row > 0 {
+                let p = ((t / sys.period) - 1e-9).floor().max(0.0) as usize;
+                if p < leaf.periods.len() {
+                    for (i, v) in x.iter().enumerate() {
+                        let [lo, hi] = leaf.periods[p][i];
+                        assert!(
+                            close(*v, lo, hi),
+                            "{}: start {x0:?}: state {i} = {v} at t = {t} outside period {p}'s box [{lo}, {hi}]",
+                            sys.name
+                        );
+                    }
+                    checked += 1;
+                }
+            }
+        }
+    }
+    checked
+}
+
+#[test]
+fn single_pendulum_sets_contain_flights_and_decide_the_goal() {
+    let sys = system("single_pendulum.sys");
+    let net = fixture("controller_single_pendulum.onnx");
+    let r = reach_system(&sys, &net, &SystemReachSettings::default()).unwrap();
+    assert_eq!(r.instants.len(), sys.steps() + 1, "every instant enclosed");
+    let n = check_contains(&sys, &net, &r, 300, 7);
+    assert!(n > 300 * sys.steps());
+    // ARCH-COMP: verified by the tools (JuliaReach, CORA, ...).
+    assert_eq!(r.verdict, SystemVerdict::Proved, "{:?}", r.verdict);
+}
+
+#[test]
+fn double_pendulum_more_robust_is_falsified_by_a_real_flight() {
+    let sys = system("double_pendulum_more_robust.sys");
+    let net = fixture("controller_double_pendulum_more_robust.onnx");
+    let r = reach_system(&sys, &net, &SystemReachSettings::default()).unwrap();
+    match &r.verdict {
+        SystemVerdict::Violated { initial, goal } => {
+            // Re-fly the witness independently: it must miss the goal.
+            let eval = |x: &[f64]| net.eval_f64(x);
+            let f = fly(&sys, &eval, initial, 10).unwrap();
+            let holds = samara_system::sim::goals_hold(&sys, &f);
+            assert!(
+                holds.iter().any(|h| !h),
+                "witness {initial:?} meets `{goal}`"
+            );
+        }
+        v => panic!("expected violated (ARCH-COMP: falsified), got {v:?}"),
+    }
+}
+
+#[test]
+fn double_pendulum_less_robust_sets_contain_flights() {
+    let sys = system("double_pendulum.sys");
+    let net = fixture("controller_double_pendulum_less_robust.onnx");
+    let s = SystemReachSettings {
+        max_boxes: 16,
+        ..Default::default()
+    };
+    let r = reach_system(&sys, &net, &s).unwrap();
+    // Whatever the verdict, every instant the sets reached contains the flights.
+    let n = check_contains(&sys, &net, &r, 200, 11);
+    assert!(n > 0);
+    assert_ne!(r.verdict.name(), "violated", "ARCH-COMP: verified");
+}
+
+/// The published Alsomitra setting through the system path (the shipped
+/// alsomitra_reduced.sys with the simulation's clip): 2,000 flights inside the sets.
+#[test]
+#[ignore = "about a minute in debug; run with --ignored (release recommended)"]
+fn alsomitra_reduced_sets_contain_2000_flights() {
+    let text = std::fs::read_to_string(root().join("examples/archcomp/alsomitra_reduced.sys"))
+        .unwrap()
+        .replace(
+            "actuate ex = net[0]",
+            "actuate ex = net[0] clip [0.181, 0.193]",
+        );
+    let sys = System::parse(&text, "alsomitra_reduced.sys").unwrap();
+    let p = root().join("../shared/reference/base_model_denorm.onnx");
+    let net = samara_nn::onnx::load(&p).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e}; the published networks live in ../shared/reference (see its README)",
+            p.display()
+        )
+    });
+    let r = reach_system(&sys, &net, &SystemReachSettings::default()).unwrap();
+    let n = check_contains(&sys, &net, &r, 2000, 3);
+    assert!(n > 2000 * sys.steps());
+}
