@@ -770,10 +770,19 @@ impl Tm {
         }
         let r = sym(rs) + lag * hb.powi(deg as u32 + 1);
         let out = p.with_rem(r);
-        if out.rem.lo.is_finite() && out.rem.hi.is_finite() {
-            out
-        } else {
+        if !(out.rem.lo.is_finite() && out.rem.hi.is_finite()) {
+            return fallback();
+        }
+        // Where the expansion diverges (the range is wide against the distance to a
+        // singularity, e.g. sqrt near 0), its remainder can exceed the plain interval
+        // enclosure of f over the range: then the interval, sound too, is the tighter model.
+        // (Compared by the remainder alone: the polynomial part keeps the dependence
+        // even where its range bound is loose.)
+        let fb = fi(&x);
+        if fb.hi - fb.lo < out.rem.hi - out.rem.lo {
             fallback()
+        } else {
+            out
         }
     }
 

@@ -123,22 +123,27 @@ fn step(
 ) -> Option<(Vec<Tm>, Vec<Interval>)> {
     let bz: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
     let b = apriori_by(|x| rhs_box(sys, x, bu), &bz, h)?;
-    let p = s.time_order.clamp(1, K - 2);
-    let tb = taylor::<Interval>(sys, &b, bu, p + 1);
-    let tx = taylor::<Tm>(sys, x, u, p);
-    match (tb, tx) {
-        (Some(tb), Some(tx)) => {
+    let pmax = s.time_order.clamp(1, K - 2);
+    let tb = taylor::<Interval>(sys, &b, bu, pmax + 1);
+    let tx = taylor::<Tm>(sys, x, u, pmax);
+    if let (Some(tb), Some(tx)) = (&tb, &tx) {
+        // The highest time order first; where its remainder over B overflows (the
+        // interval recurrences grow fast on stiff terms), lower orders, whose
+        // coefficients are the same, with their own remainder h^{p+1} x_{p+1}(B).
+        let mut orders = vec![pmax, pmax / 2, 1];
+        orders.dedup();
+        for p in orders.into_iter().filter(|&p| p >= 1) {
             let hp = pow_up(h, p + 1);
             let rem: Vec<Interval> = tb.iter().map(|c| c.c[p + 1] * hp).collect();
             if !finite(&rem) {
-                return None;
+                continue;
             }
             let too_wide = rem
                 .iter()
                 .zip(&bz)
                 .any(|(r, bx)| r.hi - r.lo > s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo)));
             if too_wide && !last_chance {
-                return None;
+                continue;
             }
             let next: Vec<Tm> = tx
                 .iter()
@@ -151,8 +156,11 @@ fn step(
                     acc.with_rem(*r)
                 })
                 .collect();
-            Some((next, b))
+            return Some((next, b));
         }
+    }
+    match (tb, tx) {
+        (Some(_), Some(_)) if !last_chance => None,
         _ => {
             // Not analytic over the set: x(h) in x0 + h f(B, U) (mean-value form of
             // the integral; the increment is an interval).
