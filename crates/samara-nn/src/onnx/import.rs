@@ -8,6 +8,7 @@ use std::path::Path;
 pub const SUPPORTED_OPS: &[&str] = &[
     "Gemm",
     "MatMul",
+    "Conv",
     "Add",
     "Sub",
     "Mul",
@@ -18,6 +19,7 @@ pub const SUPPORTED_OPS: &[&str] = &[
     "Clip",
     "Flatten",
     "Reshape",
+    "Transpose",
     "Identity",
     "Squeeze",
     "Unsqueeze",
@@ -29,6 +31,9 @@ pub const SUPPORTED_OPS: &[&str] = &[
 /// affine maps are stored dense, so a declared width is a `width x width` allocation.
 /// A file that declares more is refused before anything is allocated.
 pub const MAX_WIDTH: usize = 4096;
+
+/// Most dimensions of a tensor (constant or activation).
+pub const MAX_RANK: usize = 32;
 
 /// Most values of one constant tensor (16M, 128 MB as f64).
 pub const MAX_TENSOR_VALUES: usize = 1 << 24;
@@ -107,6 +112,12 @@ fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, OnnxError> {
             "external data is not supported; re-save the model with the weights inside the file"
                 .into(),
         ));
+    }
+    if t.dims.len() > MAX_RANK {
+        return Err(err(format!(
+            "has {} dimensions; samara imports tensors of at most {MAX_RANK}",
+            t.dims.len()
+        )));
     }
     let dims: Vec<usize> = t
         .dims
@@ -258,6 +269,75 @@ fn diag(d: &[f64], bias: &[f64]) -> Affine {
     Affine::new(n, n, w, bias.to_vec())
 }
 
+/// Number of entries of a tensor of this shape (`None` on overflow).
+fn numel(shape: &[usize]) -> Option<usize> {
+    shape.iter().try_fold(1usize, |a, &d| a.checked_mul(d))
+}
+
+/// Multidirectional (numpy) broadcast of two shapes, `None` if they do not broadcast.
+fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Vec<usize>> {
+    let r = a.len().max(b.len());
+    let at = |s: &[usize], k: usize| {
+        if k + s.len() >= r {
+            s[k + s.len() - r]
+        } else {
+            1
+        }
+    };
+    (0..r)
+        .map(|k| match (at(a, k), at(b, k)) {
+            (x, y) if x == y => Some(x),
+            (1, y) => Some(y),
+            (x, 1) => Some(x),
+            _ => None,
+        })
+        .collect()
+}
+
+/// For each entry (row-major) of a tensor of shape `out`, the entry of a tensor of shape
+/// `src` that numpy broadcasting reads there (`src` right-aligned, size-1 dimensions
+/// repeated). `src` must broadcast to `out`; `out` must be small (its entries are listed).
+fn broadcast_gather(out: &[usize], src: &[usize]) -> Vec<usize> {
+    let r = out.len();
+    let off = r - src.len();
+    let mut strides = vec![0usize; src.len()];
+    let mut s = 1usize;
+    for k in (0..src.len()).rev() {
+        strides[k] = if src[k] == 1 { 0 } else { s };
+        s *= src[k];
+    }
+    let n = numel(out).unwrap_or(0);
+    (0..n)
+        .map(|flat| {
+            let (mut rem, mut idx) = (flat, 0);
+            for k in (0..r).rev() {
+                let i = rem % out[k];
+                rem /= out[k];
+                if k >= off {
+                    idx += i * strides[k - off];
+                }
+            }
+            idx
+        })
+        .collect()
+}
+
+/// The integer values of a constant (shapes, axes).
+fn const_ints(c: &Const) -> Option<Vec<i64>> {
+    c.data
+        .iter()
+        .map(|&v| (v.fract() == 0.0 && v.abs() < 9.0e15).then_some(v as i64))
+        .collect()
+}
+
+/// An axis in `[-r, r)` (or `[-r, r]` with `inclusive`) as an index.
+fn norm_axis(a: i64, r: usize, inclusive: bool) -> Option<usize> {
+    let r = r as i64;
+    let a = if a < 0 { a + r } else { a };
+    let hi = if inclusive { r } else { r - 1 };
+    (0..=hi).contains(&a).then_some(a as usize)
+}
+
 /// Decode and convert an ONNX model held in memory; `file` names it in errors.
 pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
     let model = ModelProto::decode(bytes).map_err(|e| OnnxError::Decode {
@@ -273,20 +353,20 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
         file: file.into(),
         message: "the model has no graph".into(),
     })?;
-    if let Some(op) = model
+    // The default-domain opset decides the semantics of the legacy attributes (opsets
+    // 1 to 6: `broadcast`/`axis` of the binary operators and Gemm, Reshape's `shape`
+    // attribute). A model without one is read with the current semantics.
+    let opset = model
         .opset_import
         .iter()
         .find(|o| o.domain.is_empty() || o.domain == "ai.onnx")
-    {
-        if op.version < 7 {
-            return Err(structure(
-                "opset_import",
-                format!(
-                    "opset {} is older than 7; re-export with a newer opset",
-                    op.version
-                ),
-            ));
-        }
+        .map(|o| o.version)
+        .unwrap_or(i64::MAX);
+    if opset < 1 {
+        return Err(structure(
+            "opset_import",
+            format!("opset {opset} does not exist (ONNX opsets start at 1); the file is corrupt"),
+        ));
     }
     let mut consts: HashMap<String, Const> = HashMap::new();
     for t in &graph.initializer {
@@ -304,27 +384,52 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
         ));
     }
     let input = inputs[0];
-    let in_dim = input
+    let in_place = format!("input `{}`", input.name);
+    let dims = input
         .r#type
         .as_ref()
         .and_then(|t| t.tensor_type.as_ref())
         .and_then(|t| t.shape.as_ref())
-        .and_then(|s| s.dim.last())
+        .map(|s| s.dim.as_slice())
+        .unwrap_or(&[]);
+    if dims.len() > MAX_RANK {
+        return Err(structure(
+            &in_place,
+            format!(
+                "has {} dimensions; samara imports at most {MAX_RANK}",
+                dims.len()
+            ),
+        ));
+    }
+    dims.last()
         .and_then(|d| d.dim_value)
         .filter(|&d| d > 0)
         .ok_or_else(|| {
             structure(
-                &format!("input `{}`", input.name),
+                &in_place,
                 "its last dimension must be a fixed positive number".into(),
             )
         })?;
-    let in_dim = usize::try_from(in_dim)
-        .ok()
+    // One sample is evaluated: the first dimension of an input of rank 2 or more is the
+    // batch dimension (whatever size it declares), and a symbolic or unset dimension is 1.
+    // Samara's network is then the per-sample function; a constant that depends on the
+    // batch size no longer broadcasts and is refused.
+    let in_shape: Vec<usize> = dims
+        .iter()
+        .enumerate()
+        .map(|(k, d)| match d.dim_value {
+            Some(v) if v > 0 && !(k == 0 && dims.len() >= 2) => {
+                usize::try_from(v).unwrap_or(usize::MAX)
+            }
+            _ => 1,
+        })
+        .collect();
+    let in_dim = numel(&in_shape)
         .filter(|&d| d <= MAX_WIDTH)
         .ok_or_else(|| {
             structure(
-                &format!("input `{}`", input.name),
-                format!("declares {in_dim} entries; samara imports at most {MAX_WIDTH} (is the file corrupt?)"),
+                &in_place,
+                format!("declares shape {in_shape:?}, more entries than samara imports (at most {MAX_WIDTH}); is the file corrupt?"),
             )
         })?;
     let mut live = input.name.clone();
@@ -333,6 +438,9 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
         segs: Vec::new(),
         dim: in_dim,
     };
+    // Shape of the live tensor (symbolic dimensions as 1); its row-major entries are the
+    // activation vector, so the product of `shape` is always `b.dim`.
+    let mut shape = in_shape;
 
     for (idx, node) in graph.node.iter().enumerate() {
         let nname = if node.name.is_empty() {
@@ -384,18 +492,31 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                 "gives {m} entries; samara imports networks at most {MAX_WIDTH} wide"
             ))
         };
-        match node.op_type.as_str() {
+        let int_attr = |name: &str, default: i64| attr(node, name).map(|a| a.i).unwrap_or(default);
+        // A single row: every dimension but the last is 1 (the activation is one sample).
+        let one_row = |what: &str| -> Result<(), OnnxError> {
+            if shape.len() > 1 && numel(&shape[..shape.len() - 1]) != Some(1) {
+                return Err(unsupported(format!(
+                    " with {what} of shape {shape:?} (several rows; samara imports networks evaluated on one sample)"
+                )));
+            }
+            Ok(())
+        };
+        let new_shape: Vec<usize> = match node.op_type.as_str() {
             "Gemm" => {
                 if node.input[0] != live {
                     return Err(unsupported(" with the activation as second operand".into()));
                 }
-                let ta = attr(node, "transA").map(|a| a.i).unwrap_or(0);
-                let tb = attr(node, "transB").map(|a| a.i).unwrap_or(0);
+                let ta = int_attr("transA", 0);
+                let tb = int_attr("transB", 0);
                 let alpha = attr(node, "alpha").map(|a| a.f as f64).unwrap_or(1.0);
                 let beta = attr(node, "beta").map(|a| a.f as f64).unwrap_or(1.0);
                 if ta != 0 {
                     return Err(unsupported(" with transA = 1".into()));
                 }
+                // A is the activation as one row [1, K] (a vector, a [1, K] matrix, or a
+                // tensor whose leading dimensions are all 1, as MATLAB's converter writes).
+                one_row("A")?;
                 let bm = other_const(1)?.ok_or_else(|| shape_err("missing B".into()))?;
                 if bm.dims.len() != 2 {
                     return Err(shape_err(format!(
@@ -426,21 +547,46 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                 }
                 let bias = match other_const(2)? {
                     None => vec![0.0; m],
-                    Some(cv) if cv.data.len() == 1 => vec![beta * cv.data[0]; m],
-                    Some(cv) if cv.data.len() == m => cv.data.iter().map(|v| beta * v).collect(),
                     Some(cv) => {
-                        return Err(shape_err(format!(
-                            "C has {} values, expected 1 or {m}",
-                            cv.data.len()
-                        )))
+                        // C is added to the [1, m] product. Opsets 7 and later broadcast
+                        // it unidirectionally; opsets 1 to 6 only with `broadcast = 1`
+                        // (which then allows the same shapes for one row), else C must be
+                        // [1, m].
+                        let legacy_exact = opset < 7 && int_attr("broadcast", 0) == 0;
+                        let fits = if legacy_exact {
+                            cv.dims == [1, m]
+                        } else {
+                            cv.dims.len() <= 2
+                                && broadcast_shapes(&cv.dims, &[1, m]).as_deref() == Some(&[1, m])
+                        };
+                        if !fits {
+                            return Err(shape_err(if legacy_exact {
+                                format!(
+                                    "C has shape {:?}; without broadcast = 1 (opset {opset}) it must be [1, {m}]",
+                                    cv.dims
+                                )
+                            } else {
+                                format!(
+                                    "C has shape {:?}, which does not broadcast to the output [1, {m}]",
+                                    cv.dims
+                                )
+                            }));
+                        }
+                        if cv.data.len() == 1 {
+                            vec![beta * cv.data[0]; m]
+                        } else {
+                            cv.data.iter().map(|v| beta * v).collect()
+                        }
                     }
                 };
                 b.push_affine(Affine::new(d, m, w, bias), false);
+                vec![1, m]
             }
             "MatMul" => {
                 if node.input[0] != live {
                     return Err(unsupported(" with the activation as second operand".into()));
                 }
+                one_row("A")?;
                 let bm = other_const(1)?.ok_or_else(|| shape_err("missing B".into()))?;
                 if bm.dims.len() != 2 || bm.dims[0] != d {
                     return Err(shape_err(format!(
@@ -459,15 +605,52 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                     }
                 }
                 b.push_affine(Affine::new(d, m, w, vec![0.0; m]), false);
+                let mut s = shape.clone();
+                if let Some(l) = s.last_mut() {
+                    *l = m;
+                }
+                s
             }
+            "Conv" => conv(
+                node,
+                &shape,
+                d,
+                &live,
+                &other_const,
+                &unsupported,
+                &shape_err,
+            )
+            .and_then(|(a, s)| {
+                if a.out > MAX_WIDTH {
+                    return Err(too_wide(a.out));
+                }
+                b.push_affine(a, false);
+                Ok(s)
+            })?,
             "Add" | "Sub" | "Mul" | "Div" => {
                 let live_first = node.input[0] == live;
                 let c = other_const(if live_first { 1 } else { 0 })?
                     .ok_or_else(|| shape_err("missing constant operand".into()))?;
-                let vals: Vec<f64> = match c.data.len() {
-                    1 => vec![c.data[0]; d],
-                    n if n == d => c.data.clone(),
-                    n => return Err(shape_err(format!("constant has {n} values; it must broadcast to the activation's {d} (1 or {d})"))),
+                let (vals, out) = if opset < 7 {
+                    legacy_broadcast(node, &shape, c, live_first, d, &unsupported, &shape_err)?
+                } else {
+                    let out = broadcast_shapes(&shape, &c.dims).ok_or_else(|| {
+                        shape_err(format!(
+                            "the constant of shape {:?} does not broadcast with the activation of shape {shape:?}",
+                            c.dims
+                        ))
+                    })?;
+                    if numel(&out) != Some(d) {
+                        return Err(unsupported(format!(
+                            " broadcasting the activation of shape {shape:?} to the larger {out:?} (the constant has shape {:?})",
+                            c.dims
+                        )));
+                    }
+                    let vals: Vec<f64> = broadcast_gather(&out, &c.dims)
+                        .into_iter()
+                        .map(|i| c.data[i])
+                        .collect();
+                    (vals, out)
                 };
                 let (scale, bias): (Vec<f64>, Vec<f64>) = match (node.op_type.as_str(), live_first)
                 {
@@ -488,10 +671,20 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                     }
                 };
                 b.push_affine(diag(&scale, &bias), true);
+                out
             }
-            "Relu" => b.segs.push(Seg::Act(Activation::Relu)),
-            "Sigmoid" => b.segs.push(Seg::Act(Activation::Sigmoid)),
-            "Tanh" => b.segs.push(Seg::Act(Activation::Tanh)),
+            "Relu" => {
+                b.segs.push(Seg::Act(Activation::Relu));
+                shape.clone()
+            }
+            "Sigmoid" => {
+                b.segs.push(Seg::Act(Activation::Sigmoid));
+                shape.clone()
+            }
+            "Tanh" => {
+                b.segs.push(Seg::Act(Activation::Tanh));
+                shape.clone()
+            }
             "Clip" => {
                 let bound = |k: usize, name: &str, default: f64| -> Result<f64, OnnxError> {
                     if let Some(c) = other_const(k)? {
@@ -511,23 +704,138 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
                     )));
                 }
                 b.segs.push(Seg::Act(Activation::Clamp { lo, hi }));
+                shape.clone()
             }
-            "Identity" | "Dropout" | "Flatten" | "Squeeze" | "Unsqueeze" => {}
-            "Reshape" => {
-                let sh = other_const(1)?.ok_or_else(|| shape_err("missing shape".into()))?;
-                let last = sh.data.last().copied().unwrap_or(-1.0);
-                let others_trivial = sh.data[..sh.data.len().saturating_sub(1)]
-                    .iter()
-                    .all(|v| [1.0, -1.0, 0.0].contains(v));
-                if !(others_trivial && (last == d as f64 || last == -1.0)) {
-                    return Err(unsupported(format!(
-                        " to shape {:?} (only reshapes that keep a vector of {d} are supported)",
-                        sh.data
-                    )));
+            "Identity" | "Dropout" => shape.clone(),
+            "Flatten" => {
+                let a = int_attr("axis", 1);
+                let k = norm_axis(a, shape.len(), true).ok_or_else(|| {
+                    shape_err(format!("axis {a} is out of range for shape {shape:?}"))
+                })?;
+                let lead = numel(&shape[..k]).unwrap_or(usize::MAX);
+                vec![lead, d / lead.max(1)]
+            }
+            "Squeeze" | "Unsqueeze" => {
+                let axes: Option<Vec<i64>> = match other_const(1)? {
+                    Some(c) => Some(
+                        const_ints(c).ok_or_else(|| shape_err("axes must be integers".into()))?,
+                    ),
+                    None => attr(node, "axes").map(|a| a.ints.clone()),
+                };
+                let squeeze = node.op_type == "Squeeze";
+                let r = if squeeze {
+                    shape.len()
+                } else {
+                    shape.len() + axes.as_ref().map_or(0, |a| a.len())
+                };
+                let mut ks = Vec::new();
+                for &a in axes.iter().flatten() {
+                    let k = norm_axis(a, r, false).ok_or_else(|| {
+                        shape_err(format!("axis {a} is out of range for rank {r}"))
+                    })?;
+                    if ks.contains(&k) {
+                        return Err(shape_err(format!("axis {a} is repeated")));
+                    }
+                    ks.push(k);
+                }
+                if squeeze {
+                    if axes.is_none() {
+                        shape.iter().copied().filter(|&s| s != 1).collect()
+                    } else {
+                        if let Some(&k) = ks.iter().find(|&&k| shape[k] != 1) {
+                            return Err(shape_err(format!(
+                                "axis {k} of shape {shape:?} is not 1 and cannot be squeezed"
+                            )));
+                        }
+                        (0..shape.len())
+                            .filter(|k| !ks.contains(k))
+                            .map(|k| shape[k])
+                            .collect()
+                    }
+                } else {
+                    if axes.is_none() {
+                        return Err(shape_err("missing axes".into()));
+                    }
+                    let mut rest = shape.iter().copied();
+                    (0..r)
+                        .map(|k| {
+                            if ks.contains(&k) {
+                                1
+                            } else {
+                                rest.next().unwrap_or(1)
+                            }
+                        })
+                        .collect()
                 }
             }
+            "Reshape" => {
+                // Opsets 1 to 4 give the target shape as an attribute, later ones as a
+                // constant second input.
+                let target: Vec<i64> = match other_const(1)? {
+                    Some(c) => const_ints(c)
+                        .ok_or_else(|| shape_err("the shape must be integers".into()))?,
+                    None if opset < 5 => attr(node, "shape")
+                        .map(|a| a.ints.clone())
+                        .ok_or_else(|| shape_err("missing shape".into()))?,
+                    None => return Err(shape_err("missing shape".into())),
+                };
+                reshape(&shape, &target, d, int_attr("allowzero", 0) != 0).ok_or_else(|| {
+                    unsupported(format!(
+                        " to shape {target:?}: not a valid reshape of the activation of shape {shape:?}"
+                    ))
+                })?
+            }
+            "Transpose" => {
+                let r = shape.len();
+                let perm: Vec<usize> = match attr(node, "perm") {
+                    None => (0..r).rev().collect(),
+                    Some(a) => a
+                        .ints
+                        .iter()
+                        .map(|&p| usize::try_from(p).ok().filter(|&p| p < r))
+                        .collect::<Option<_>>()
+                        .filter(|p: &Vec<usize>| p.len() == r && (0..r).all(|k| p.contains(&k)))
+                        .ok_or_else(|| {
+                            shape_err(format!(
+                                "perm {:?} is not a permutation of the {r} axes of shape {shape:?}",
+                                a.ints
+                            ))
+                        })?,
+                };
+                let out: Vec<usize> = perm.iter().map(|&p| shape[p]).collect();
+                // Entry `flat` of the output reads the input entry at the permuted index.
+                let mut strides = vec![1usize; r];
+                for k in (0..r.saturating_sub(1)).rev() {
+                    strides[k] = strides[k + 1] * shape[k + 1];
+                }
+                let src: Vec<usize> = (0..d)
+                    .map(|flat| {
+                        let (mut rem, mut idx) = (flat, 0);
+                        for k in (0..r).rev() {
+                            idx += (rem % out[k]) * strides[perm[k]];
+                            rem /= out[k];
+                        }
+                        idx
+                    })
+                    .collect();
+                if src.iter().enumerate().any(|(i, &j)| i != j) {
+                    let mut w = vec![0.0; d * d];
+                    for (i, &j) in src.iter().enumerate() {
+                        w[i * d + j] = 1.0;
+                    }
+                    b.push_affine(Affine::new(d, d, w, vec![0.0; d]), false);
+                }
+                out
+            }
             _ => return Err(unsupported(String::new())),
+        };
+        if new_shape.len() > MAX_RANK || numel(&new_shape) != Some(b.dim) {
+            return Err(shape_err(format!(
+                "gives shape {new_shape:?}, which does not hold the {} entries computed",
+                b.dim
+            )));
         }
+        shape = new_shape;
         live = node
             .output
             .first()
@@ -598,4 +906,204 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
     net.validate()
         .map_err(|e| structure("network", e.to_string()))?;
     Ok(net)
+}
+
+/// The values a legacy (opsets 1 to 6) `Add`/`Sub`/`Mul`/`Div` combines with each entry
+/// of the activation, and the result's shape. Without `broadcast = 1` both operands have
+/// the same shape. With it, the second operand B is broadcast to the first, A: B holds
+/// one value, or B's shape equals A's dimensions from `axis` on (default: A's trailing
+/// dimensions), with no expansion of size-1 dimensions. The activation may be B only
+/// when that does not enlarge it.
+#[allow(clippy::type_complexity)]
+fn legacy_broadcast(
+    node: &NodeProto,
+    shape: &[usize],
+    c: &Const,
+    live_first: bool,
+    d: usize,
+    unsupported: &dyn Fn(String) -> OnnxError,
+    shape_err: &dyn Fn(String) -> OnnxError,
+) -> Result<(Vec<f64>, Vec<usize>), OnnxError> {
+    let (a, bs): (&[usize], &[usize]) = if live_first {
+        (shape, &c.dims)
+    } else {
+        (&c.dims, shape)
+    };
+    let broadcast = attr(node, "broadcast").map(|x| x.i).unwrap_or(0);
+    let padded: Vec<usize> = if broadcast == 0 {
+        if a != bs {
+            return Err(shape_err(format!(
+                "operands of shapes {a:?} and {bs:?}: without broadcast = 1 (opsets before 7) they must have the same shape"
+            )));
+        }
+        bs.to_vec()
+    } else if numel(bs) == Some(1) && bs.len() <= a.len() {
+        vec![1; a.len()]
+    } else {
+        let (ra, rb) = (a.len(), bs.len());
+        let axis = match attr(node, "axis") {
+            Some(x) => usize::try_from(x.i).ok(),
+            None => ra.checked_sub(rb),
+        }
+        .filter(|&s| s + rb <= ra)
+        .ok_or_else(|| {
+            shape_err(format!(
+                "B of shape {bs:?} does not fit in A of shape {a:?}{} (legacy broadcasting)",
+                attr(node, "axis").map_or(String::new(), |x| format!(" from axis {}", x.i))
+            ))
+        })?;
+        if a[axis..axis + rb] != *bs {
+            return Err(shape_err(format!(
+                "B of shape {bs:?} is not A's dimensions {:?} from axis {axis} (A has shape {a:?}); \
+                 legacy broadcasting (opsets before 7) does not expand size-1 dimensions",
+                &a[axis..axis + rb]
+            )));
+        }
+        let mut p = vec![1; ra];
+        p[axis..axis + rb].copy_from_slice(bs);
+        p
+    };
+    if live_first {
+        let vals = broadcast_gather(a, &padded)
+            .into_iter()
+            .map(|i| c.data[i])
+            .collect();
+        Ok((vals, a.to_vec()))
+    } else {
+        // The result has A's (the constant's) shape; the activation B is not enlarged
+        // only when A holds as many entries, and then B's entries map one to one.
+        if numel(a) != Some(d) {
+            return Err(unsupported(format!(
+                " broadcasting the activation of shape {bs:?} to the larger constant shape {a:?}"
+            )));
+        }
+        Ok((c.data.clone(), a.to_vec()))
+    }
+}
+
+/// A `Conv` that is exactly a dense layer: its kernel covers the whole spatial extent of
+/// the input (no padding, stride 1, dilation 1, one group), so the output is
+/// `[1, M, 1, ..., 1]` with `y[m] = sum_{c,h,w} W[m,c,h,w] x[c,h,w] + B[m]`, which in the
+/// row-major order of the activation is the matrix `W` reshaped to `[M, C*H*W]`.
+#[allow(clippy::type_complexity)]
+fn conv<'c>(
+    node: &NodeProto,
+    shape: &[usize],
+    d: usize,
+    live: &str,
+    other_const: &dyn Fn(usize) -> Result<Option<&'c Const>, OnnxError>,
+    unsupported: &dyn Fn(String) -> OnnxError,
+    shape_err: &dyn Fn(String) -> OnnxError,
+) -> Result<(Affine, Vec<usize>), OnnxError> {
+    const DENSE: &str = "only a Conv whose kernel covers the whole input image, with no padding, stride 1, dilation 1 and group 1, is a dense layer";
+    if node.input.first().map(String::as_str) != Some(live) {
+        return Err(unsupported(" with the activation as the kernel".into()));
+    }
+    if shape.len() < 3 {
+        return Err(shape_err(format!(
+            "the input has shape {shape:?}; Conv needs [N, C, spatial...]"
+        )));
+    }
+    if shape[0] != 1 {
+        return Err(unsupported(format!(
+            " on a batch of {} images (samara imports networks evaluated on one sample)",
+            shape[0]
+        )));
+    }
+    let spatial = &shape[2..];
+    let ch = shape[1];
+    let w = other_const(1)?.ok_or_else(|| shape_err("missing the kernel W".into()))?;
+    if w.dims.len() != shape.len() || w.dims[1] != ch {
+        return Err(shape_err(format!(
+            "the kernel W has shape {:?}; for the input of shape {shape:?} it must be [M, {ch}, ...] with {} spatial dimensions",
+            w.dims,
+            spatial.len()
+        )));
+    }
+    let m = w.dims[0];
+    let kernel = &w.dims[2..];
+    let group = attr(node, "group").map(|a| a.i).unwrap_or(1);
+    if group != 1 {
+        return Err(unsupported(format!(" with group = {group} ({DENSE})")));
+    }
+    if let Some(a) = attr(node, "kernel_shape") {
+        if a.ints.len() != kernel.len() || a.ints.iter().zip(kernel).any(|(&k, &w)| k != w as i64) {
+            return Err(shape_err(format!(
+                "kernel_shape {:?} disagrees with the kernel W of shape {:?}",
+                a.ints, w.dims
+            )));
+        }
+    }
+    if kernel != spatial {
+        return Err(unsupported(format!(
+            " with a {kernel:?} kernel over a {spatial:?} input image (a sliding window; {DENSE})"
+        )));
+    }
+    let ones = |name: &str, want: i64| -> Result<(), OnnxError> {
+        if let Some(a) = attr(node, name) {
+            if a.ints.iter().any(|&v| v != want) {
+                return Err(unsupported(format!(" with {name} {:?} ({DENSE})", a.ints)));
+            }
+        }
+        Ok(())
+    };
+    ones("pads", 0)?;
+    ones("strides", 1)?;
+    ones("dilations", 1)?;
+    if let Some(a) = attr(node, "auto_pad") {
+        let s = String::from_utf8_lossy(&a.s);
+        let pads_nothing = kernel.iter().all(|&k| k == 1);
+        if !(s.is_empty() || s == "NOTSET" || s == "VALID" || pads_nothing) {
+            return Err(unsupported(format!(" with auto_pad {s} ({DENSE})")));
+        }
+    }
+    // The kernel's entries per output channel are C*H*W = d (as the input's).
+    let bias = match other_const(2)? {
+        None => vec![0.0; m],
+        Some(c) if c.data.len() == m && c.dims.len() == 1 => c.data.clone(),
+        Some(c) => {
+            return Err(shape_err(format!(
+                "the bias B has shape {:?}, expected [{m}]",
+                c.dims
+            )))
+        }
+    };
+    if w.data.len() != m * d {
+        return Err(shape_err(format!(
+            "the kernel W of shape {:?} does not match the input of {d} entries",
+            w.dims
+        )));
+    }
+    let mut out = vec![1usize; shape.len()];
+    out[1] = m;
+    Ok((Affine::new(d, m, w.data.clone(), bias), out))
+}
+
+/// The shape a `Reshape` to `target` gives a tensor of `shape` (`d` entries): `0` copies
+/// the input's dimension (unless `allowzero`), `-1` is inferred. `None` if invalid.
+fn reshape(shape: &[usize], target: &[i64], d: usize, allowzero: bool) -> Option<Vec<usize>> {
+    if target.len() > MAX_RANK {
+        return None;
+    }
+    let mut out = Vec::with_capacity(target.len());
+    let mut infer = None;
+    for (k, &t) in target.iter().enumerate() {
+        match t {
+            -1 if infer.is_none() => {
+                infer = Some(k);
+                out.push(1);
+            }
+            0 if !allowzero => out.push(*shape.get(k)?),
+            t if t >= 0 => out.push(usize::try_from(t).ok().filter(|&t| t <= d)?),
+            _ => return None,
+        }
+    }
+    let known = numel(&out)?;
+    if let Some(k) = infer {
+        if known == 0 || !d.is_multiple_of(known) {
+            return None;
+        }
+        out[k] = d / known;
+    }
+    (numel(&out)? == d).then_some(out)
 }
