@@ -99,6 +99,11 @@ pub struct ReachArgs {
     /// Taylor models.
     #[arg(long, default_value = "zonotope")]
     pub sets: String,
+    /// Wall-clock budget in seconds for Taylor-model runs (--system, --sets taylor),
+    /// finite and positive: when spent, the run stops splitting and reports `unknown`
+    /// with the reason (checked between splitting rounds).
+    #[arg(long, allow_hyphen_values = true)]
+    pub timeout: Option<f64>,
 }
 
 /// Parse `A:B` or `A` into a finite, non-inverted interval; `what` names the flag and
@@ -311,6 +316,9 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         "zonotope" => {
             if a.order.is_some() {
                 bail!("--order applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no order");
+            }
+            if a.timeout.is_some() {
+                bail!("--timeout applies to Taylor-model sets (--sets taylor or --system); bound the zonotope run with --max-leaves");
             }
         }
         "taylor" => {

@@ -88,6 +88,12 @@ pub fn run_system(
         }
         s.order = k;
     }
+    if let Some(t) = a.timeout {
+        if !(t.is_finite() && t > 0.0 && t <= 1e7) {
+            bail!("--timeout {t}: give a number of seconds, positive and at most 1e7");
+        }
+        s.timeout = Some(t);
+    }
     if let Some(n) = a.max_leaves {
         if n == 0 || n > 100_000 {
             bail!("--max-leaves {n}: give 1 to 100000 sub-boxes");

@@ -75,3 +75,116 @@ fn bad_system_inputs_exit_2_and_leave_nothing() {
         assert!(!out.exists(), "{sys}: output folder left behind");
     }
 }
+
+/// The ARCH-COMP single pendulum with the competition's own controller (a network the
+/// field hands out, in `crates/samara-reach/tests/data/archcomp`): proved, with the sets
+/// written; the JSON summary and reach.json agree.
+#[test]
+fn reach_system_proves_the_single_pendulum() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let sys = repo().join("examples/archcomp/single_pendulum.sys");
+    let ctl =
+        repo().join("crates/samara-reach/tests/data/archcomp/controller_single_pendulum.onnx");
+    let (code, stdout, stderr) = run(&[
+        "reach",
+        "--system",
+        sys.to_str().unwrap(),
+        "--network",
+        ctl.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["verdict"]["verdict"], "proved");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("reach.json")).unwrap()).unwrap();
+    assert_eq!(r["result"]["verdict"]["verdict"], "proved");
+    // 20 periods: 21 instants, 20 period hulls, two states each.
+    assert_eq!(r["result"]["instants"].as_array().unwrap().len(), 21);
+    assert_eq!(r["result"]["periods"].as_array().unwrap().len(), 20);
+    // The goal theta in [0, 1] over [0.5, 1] holds on the final hull.
+    let th = &r["result"]["instants"][20][0];
+    assert!(
+        th[0].as_f64().unwrap() >= 0.0 && th[1].as_f64().unwrap() <= 1.0,
+        "{th}"
+    );
+}
+
+#[test]
+fn bad_reach_system_inputs_exit_2_and_leave_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let sys = repo().join("examples/archcomp/single_pendulum.sys");
+    let ctl =
+        repo().join("crates/samara-reach/tests/data/archcomp/controller_single_pendulum.onnx");
+    let (s, c, o) = (
+        sys.to_str().unwrap(),
+        ctl.to_str().unwrap(),
+        out.to_str().unwrap(),
+    );
+    let glider = net();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["--order", "9"], "--order 9"),
+        (vec!["--order", "0"], "--order 0"),
+        (vec!["--timeout", "nan"], "--timeout"),
+        (vec!["--timeout", "-1"], "--timeout"),
+        (vec!["--y0", "1:2"], "do(es) not apply with --system"),
+        (vec!["--max-leaves", "0"], "--max-leaves 0"),
+    ];
+    for (extra, needle) in cases {
+        let mut args = vec!["reach", "--system", s, "--network", c, "--out", o];
+        args.extend(extra.iter());
+        let (code, _, stderr) = run(&args);
+        assert_eq!(code, 2, "{extra:?}: {stderr}");
+        assert!(stderr.contains(needle), "{extra:?}: {stderr}");
+        assert!(!out.exists(), "{extra:?}: output folder left behind");
+    }
+    // A controller that does not fit the system, a missing system file, and --timeout
+    // on the zonotope path.
+    for (args, needle) in [
+        (
+            vec![
+                "reach",
+                "--system",
+                s,
+                "--network",
+                glider.to_str().unwrap(),
+                "--out",
+                o,
+            ],
+            "use the controller made for this system",
+        ),
+        (
+            vec![
+                "reach",
+                "--system",
+                "/nonexistent/x.sys",
+                "--network",
+                c,
+                "--out",
+                o,
+            ],
+            "cannot read",
+        ),
+        (
+            vec![
+                "reach",
+                "--network",
+                glider.to_str().unwrap(),
+                "--timeout",
+                "5",
+                "--out",
+                o,
+            ],
+            "--timeout applies to Taylor-model sets",
+        ),
+    ] {
+        let (code, _, stderr) = run(&args);
+        assert_eq!(code, 2, "{args:?}: {stderr}");
+        assert!(stderr.contains(needle), "{args:?}: {stderr}");
+        assert!(!out.exists(), "{args:?}: output folder left behind");
+    }
+}
