@@ -53,6 +53,9 @@ pub struct SystemReachSettings {
     /// Wall-clock budget in seconds; the run stops splitting and reports `unknown`
     /// when it is spent (default: none).
     pub timeout: Option<f64>,
+    /// Re-parameterise the set at a control instant when its remainders have grown
+    /// ([`precondition`]; default on).
+    pub precondition: bool,
 }
 
 impl Default for SystemReachSettings {
@@ -64,6 +67,7 @@ impl Default for SystemReachSettings {
             seed: 1,
             flow: TmFlowSettings::default(),
             timeout: None,
+            precondition: true,
         }
     }
 }
@@ -449,7 +453,10 @@ fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
 /// the rest as a noise box (any network `samara_bounds::linset` supports); for networks
 /// without piecewise-linear layers also the network evaluated on the Taylor models,
 /// keeping the narrower result per output.
-fn network_over(net: &Network, obs: &[Tm], n_params: usize, order: u32) -> Vec<Tm> {
+fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
+    // Every parameter any input depends on (after a re-parameterisation there are more
+    // than the initial set's).
+    let n_params = obs.iter().map(|o| o.n_vars()).max().unwrap_or(0);
     let mut c = Vec::with_capacity(obs.len());
     let mut g = Vec::with_capacity(obs.len());
     let mut noise = Vec::with_capacity(obs.len());
@@ -515,7 +522,6 @@ fn network_over(net: &Network, obs: &[Tm], n_params: usize, order: u32) -> Vec<T
 
 /// Fly one sub-box over the horizon and decide the goals on its sets.
 fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings) -> SystemLeaf {
-    let n_params = b.iter().filter(|v| v.hi > v.lo).count();
     let mut x = box_models(b, s.order as u32);
     let mut leaf = SystemLeaf {
         init: to_pairs(b),
@@ -541,8 +547,11 @@ fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings)
         if k == steps {
             break;
         }
+        if s.precondition && needs_precondition(&x) {
+            x = precondition(&x, s.order as u32);
+        }
         sys.observe(&x, &mut obs);
-        let y = network_over(net, &obs, n_params, s.order as u32);
+        let y = network_over(net, &obs, s.order as u32);
         sys.actuate(&y, &mut u);
         match tm_period(sys, &x, &u, sys.period, &s.flow) {
             Ok((next, boxes)) => {
@@ -667,4 +676,138 @@ fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<boo
         };
     }
     g.decide(hull)
+}
+
+/// Whether the interval remainders of `x` are large enough, against the sets' own
+/// widths, that turning them into parameters pays ([`precondition`]).
+fn needs_precondition(x: &[Tm]) -> bool {
+    x.iter().any(|v| {
+        let (r, b) = (v.rem(), v.bound());
+        let w = b.hi - b.lo;
+        w > 0.0 && (r.hi - r.lo) > 0.05 * w
+    })
+}
+
+/// Orthonormal basis of `R^d` whose leading vectors span the columns of `l` (`d x n`,
+/// columns taken in order of decreasing norm): modified Gram-Schmidt over those columns,
+/// then the unit vectors.
+fn basis(l: &[Vec<f64>], d: usize) -> Vec<Vec<f64>> {
+    let n = l.first().map_or(0, |r| r.len());
+    let mut cols: Vec<Vec<f64>> = (0..n).map(|k| (0..d).map(|i| l[i][k]).collect()).collect();
+    let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
+    cols.sort_by(|a, b| norm(b).total_cmp(&norm(a)));
+    cols.extend((0..d).map(|j| (0..d).map(|i| if i == j { 1.0 } else { 0.0 }).collect()));
+    let mut q: Vec<Vec<f64>> = Vec::with_capacity(d);
+    for mut v in cols {
+        if q.len() == d {
+            break;
+        }
+        let n0 = norm(&v);
+        if !(n0.is_finite() && n0 > 0.0) {
+            continue;
+        }
+        for _ in 0..2 {
+            for u in &q {
+                let dot: f64 = u.iter().zip(&v).map(|(a, b)| a * b).sum();
+                for (vi, ui) in v.iter_mut().zip(u) {
+                    *vi -= dot * ui;
+                }
+            }
+        }
+        let n1 = norm(&v);
+        if n1 > 1e-8 * n0 {
+            q.push(v.iter().map(|a| a / n1).collect());
+        }
+    }
+    q // q[k] is the k-th basis vector
+}
+
+/// Re-parameterise a set of Taylor models as a parallelotope in fresh parameters
+/// `zeta in [-1, 1]^d` (Lohner's QR method, *Einschliessung der Loesung gewoehnlicher
+/// Anfangs- und Randwertaufgaben*, 1988; the preconditioning of Makino & Berz, 2009):
+/// with `c` the constant coefficients, `Q` an orthonormal basis aligned with the
+/// linear part, `y = Q^T (x - c)` is bounded in Taylor-model arithmetic by boxes
+/// `m_k +- r_k`, and `x = c + Q y + (I - Q Q^T)(x - c)`; the new models are
+/// `c + Q (m + r zeta)` with every rounding of their f64 coefficients, and the
+/// non-orthogonality term `(I - Q Q^T)(x - c)` of the floating-point `Q`, enclosed by
+/// interval arithmetic in the remainders. The remainders and higher-order terms become
+/// parameters, so the network and the dynamics see them as directions they can map
+/// (and feedback can contract), at the price of the higher-order dependence.
+pub fn precondition(x: &[Tm], order: u32) -> Vec<Tm> {
+    let d = x.len();
+    let c: Vec<f64> = x.iter().map(|v| v.linear_part().0).collect();
+    let n = x.iter().map(|v| v.n_vars()).max().unwrap_or(0);
+    let l: Vec<Vec<f64>> = x
+        .iter()
+        .map(|v| {
+            let mut g = v.linear_part().1;
+            g.resize(n, 0.0);
+            g
+        })
+        .collect();
+    let q = basis(&l, d);
+    if q.len() != d {
+        return x.to_vec();
+    }
+    // Centred models and their boxes.
+    let dx: Vec<Tm> = x.iter().zip(&c).map(|(v, ci)| v.clone() - *ci).collect();
+    let dbox: Vec<Interval> = dx.iter().map(|v| v.bound()).collect();
+    if dbox.iter().any(|b| !(b.lo.is_finite() && b.hi.is_finite())) {
+        return x.to_vec();
+    }
+    // y_k = sum_i q[k][i] dx_i, bounded.
+    let yk: Vec<Interval> = q
+        .iter()
+        .map(|qk| {
+            let mut acc = Tm::cst(0.0);
+            for (qi, dxi) in qk.iter().zip(&dx) {
+                if *qi != 0.0 {
+                    acc += dxi.clone() * *qi;
+                }
+            }
+            acc.bound()
+        })
+        .collect();
+    let mid_rad: Vec<(f64, Interval)> = yk
+        .iter()
+        .map(|b| {
+            let m = 0.5 * b.lo + 0.5 * b.hi;
+            let mut r = (b.hi - m).max(m - b.lo).max(0.0).next_up();
+            while m - r > b.lo || m + r < b.hi {
+                r = r.next_up();
+            }
+            (m, Interval::point(r))
+        })
+        .collect();
+    (0..d)
+        .map(|i| {
+            // Exact x_i = c_i + sum_k Q_ik y_k + e_i with e = (I - Q Q^T)(x - c).
+            let mut e = Interval::point(0.0);
+            for j in 0..d {
+                let mut mij = Interval::point(if i == j { 1.0 } else { 0.0 });
+                for qk in &q {
+                    mij -= Interval::point(qk[i]) * qk[j];
+                }
+                e += mij * dbox[j];
+            }
+            let mut cst = Interval::point(c[i]);
+            let mut coef = Vec::with_capacity(d);
+            let mut slack = Interval::point(0.0);
+            for (k, qk) in q.iter().enumerate() {
+                let (m, r) = mid_rad[k];
+                cst += Interval::point(qk[i]) * m;
+                let ck = r * qk[i];
+                let mid = 0.5 * ck.lo + 0.5 * ck.hi;
+                coef.push(mid);
+                // (ck - mid) zeta_k with |zeta_k| <= 1.
+                let dev = (ck.hi - mid).max(mid - ck.lo).max(0.0);
+                slack += Interval::new(-dev, dev);
+            }
+            let cm = 0.5 * cst.lo + 0.5 * cst.hi;
+            let cdev = (cst.hi - cm).max(cm - cst.lo).max(0.0);
+            let rem = e + slack + Interval::new(-cdev, cdev);
+            Tm::affine(cm, &coef, order)
+                .with_rem(Interval::new(rem.lo.next_down(), rem.hi.next_up()))
+        })
+        .collect()
 }

@@ -1,0 +1,104 @@
+//! The re-parameterisation of Taylor-model sets at control instants
+//! (`samara_reach::system::precondition`) must enclose the set it replaces: points of
+//! the old set (a sampled parameter, a sampled point of the remainder) are found inside
+//! the new parallelotope, by solving for its parameters independently in the test.
+
+#![allow(clippy::needless_range_loop)] // Gaussian elimination reads clearest indexed
+
+use rand::{Rng, SeedableRng};
+use samara_num::{Interval, Scalar, Tm};
+use samara_reach::system::precondition;
+
+/// Solve `a z = b` (d x d) by Gaussian elimination with partial pivoting.
+fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
+    let d = b.len();
+    for c in 0..d {
+        let p = (c..d)
+            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
+            .unwrap();
+        a.swap(c, p);
+        b.swap(c, p);
+        for r in c + 1..d {
+            let f = a[r][c] / a[c][c];
+            for k in c..d {
+                a[r][k] -= f * a[c][k];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut z = vec![0.0; d];
+    for c in (0..d).rev() {
+        let s: f64 = (c + 1..d).map(|k| a[c][k] * z[k]).sum();
+        z[c] = (b[c] - s) / a[c][c];
+    }
+    z
+}
+
+#[test]
+fn the_new_parallelotope_contains_the_old_set() {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+    let mut checked = 0;
+    for case in 0..200 {
+        let d = 2 + case % 3;
+        let n = 1 + case % 3;
+        let order = 3;
+        // A nonlinear set in n parameters with remainders.
+        let x: Vec<Tm> = (0..d)
+            .map(|_| {
+                let mut t = Tm::cst(rng.gen_range(-5.0..5.0));
+                for k in 0..n {
+                    let v = Tm::var(k, n, order);
+                    t += v.clone() * rng.gen_range(-1.0..1.0);
+                    t += v.sqr() * rng.gen_range(-0.2..0.2);
+                    t += v.clone() * Tm::var((k + 1) % n, n, order) * rng.gen_range(-0.1..0.1);
+                }
+                let r = rng.gen_range(0.0..0.3);
+                t.with_rem(Interval::new(-r, rng.gen_range(0.0..0.3)))
+            })
+            .collect();
+        let y = precondition(&x, order);
+        assert_eq!(y.len(), d);
+        // The new models are affine in d parameters: y_i = c_i + a_i . zeta + rem_i.
+        let lin: Vec<(f64, Vec<f64>)> = y
+            .iter()
+            .map(|t| {
+                let (c, mut g) = t.linear_part();
+                g.resize(d, 0.0);
+                (c, g)
+            })
+            .collect();
+        for _ in 0..200 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..=1.0)).collect();
+            // A point of the old set: inside the enclosure at xi (shrunk by a hair so
+            // that eval_at's own outward rounding does not matter).
+            let z: Vec<f64> = x
+                .iter()
+                .map(|t| {
+                    let e = t.eval_at(&xi);
+                    let w = e.hi - e.lo;
+                    e.lo + 1e-9 * w + rng.gen_range(0.0..=1.0) * (1.0 - 2e-9) * w
+                })
+                .collect();
+            // Parameters of the new set that reproduce the point's linear part.
+            let a: Vec<Vec<f64>> = lin.iter().map(|(_, g)| g.clone()).collect();
+            let b: Vec<f64> = z.iter().zip(&lin).map(|(zi, (c, _))| zi - c).collect();
+            let zeta = solve(a, b);
+            assert!(
+                zeta.iter().all(|v| v.abs() <= 1.0 + 1e-7),
+                "case {case}: parameters {zeta:?} outside [-1, 1]"
+            );
+            let zc: Vec<f64> = zeta.iter().map(|v| v.clamp(-1.0, 1.0)).collect();
+            for (i, t) in y.iter().enumerate() {
+                let e = t.eval_at(&zc);
+                let tol = 1e-7 * (1.0 + z[i].abs());
+                assert!(
+                    e.lo - tol <= z[i] && z[i] <= e.hi + tol,
+                    "case {case}: state {i}: {} not in {e:?}",
+                    z[i]
+                );
+            }
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 40_000);
+}
