@@ -145,6 +145,19 @@ pub struct SystemLeaf {
     /// sets (some instant's set misses it entirely), `None` undecided.
     #[serde(skip)]
     pub decided: Vec<Option<bool>>,
+    /// Where the flight of the sets stopped because a goal that must hold at every
+    /// time (or at the end) was already not proved on them: this sub-box can no longer
+    /// prove it, so it is split rather than flown on (its rows end there).
+    pub stopped_at: Option<f64>,
+}
+
+/// Whether a goal that must hold over a window (or at the end) has already failed to
+/// be proved on the sets: flying on cannot prove it.
+fn undecidable(sys: &System, ok: &[bool]) -> bool {
+    sys.goals
+        .iter()
+        .zip(ok)
+        .any(|(g, ok)| !ok && !matches!(g.when, When::Eventually(..)))
 }
 
 /// The result of a system run.
@@ -529,6 +542,7 @@ fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings)
         periods: Vec::new(),
         failure: None,
         decided: vec![None; sys.goals.len()],
+        stopped_at: None,
     };
     // Per goal: proved so far over the instants and periods seen (Always, End), or
     // met at some instant (Eventually).
@@ -545,6 +559,10 @@ fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings)
         leaf.instants.push(to_pairs(&hull));
         check_goals(sys, &x, &hull, t, t, &mut ok, &mut met, &mut refuted);
         if k == steps {
+            break;
+        }
+        if undecidable(sys, &ok) {
+            leaf.stopped_at = Some(t);
             break;
         }
         if s.precondition && needs_precondition(&x) {
@@ -574,6 +592,10 @@ fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings)
                     &mut refuted,
                 );
                 x = next;
+                if undecidable(sys, &ok) {
+                    leaf.stopped_at = Some(t + sys.period);
+                    break;
+                }
             }
             Err(e) => {
                 leaf.failure = Some(format!("{e} (period starting at t = {t})"));
