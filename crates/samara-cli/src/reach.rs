@@ -231,22 +231,11 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
         }
         (None, None) => {}
     }
+    check_budget(a, s.max_leaves)?;
     if let Some(n) = a.max_leaves {
-        if n == 0 {
-            bail!("--max-leaves 0: give at least 1 (default 64)");
-        }
-        if n > MAX_LEAVES {
-            bail!("--max-leaves {n}: at most {MAX_LEAVES} sub-boxes are allowed (each is a full reachability run; the default is 64)");
-        }
         s.max_leaves = n;
     }
     if let Some(n) = a.samples {
-        if n == 0 {
-            bail!("--samples 0: give at least 1 (default 200); falsification needs trajectories");
-        }
-        if n > MAX_SAMPLES {
-            bail!("--samples {n}: at most {MAX_SAMPLES} trajectories are allowed (each is kept in memory; the default is 200)");
-        }
         s.samples = n;
     }
     // Sampled trajectories are recorded every 0.05 (or the finest step above that which
@@ -265,14 +254,47 @@ fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
             a.horizon
         );
     }
+    Ok(s)
+}
+
+/// `--max-leaves`, `--samples` and `--threads`, checked the same way for both paths
+/// (the built-in glider and system files); `default_leaves` is the path's sub-box
+/// budget, named in the messages.
+pub(crate) fn check_budget(a: &ReachArgs, default_leaves: usize) -> Result<()> {
+    if let Some(n) = a.max_leaves {
+        if n == 0 {
+            bail!("--max-leaves 0: give at least 1 (default {default_leaves})");
+        }
+        if n > MAX_LEAVES {
+            bail!("--max-leaves {n}: at most {MAX_LEAVES} sub-boxes are allowed (each is a full reachability run; the default is {default_leaves})");
+        }
+    }
+    if let Some(n) = a.samples {
+        if n == 0 {
+            bail!("--samples 0: give at least 1 (default 200); falsification needs trajectories");
+        }
+        if n > MAX_SAMPLES {
+            bail!("--samples {n}: at most {MAX_SAMPLES} trajectories are allowed (each is kept in memory; the default is 200)");
+        }
+    }
     match a.threads {
         Some(0) => bail!("--threads 0: give at least 1 (or leave it out to use all cores)"),
         Some(n) if n > MAX_THREADS => bail!(
             "--threads {n}: at most {MAX_THREADS} worker threads are allowed (more than the cores only costs memory); leave it out to use all cores"
         ),
-        _ => {}
+        _ => Ok(()),
     }
-    Ok(s)
+}
+
+/// Start the global worker pool with `--threads` workers (all cores without it).
+pub(crate) fn start_threads(a: &ReachArgs) -> Result<()> {
+    if let Some(n) = a.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+            .map_err(|e| anyhow!("--threads {n}: cannot start the thread pool: {e}"))?;
+    }
+    Ok(())
 }
 
 /// The files a run writes into `--out`.
@@ -334,12 +356,7 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         other => bail!("--sets {other}: give zonotope or taylor"),
     }
     let plan = plan(a)?;
-    if let Some(n) = a.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .map_err(|e| anyhow!("--threads {n}: cannot start the thread pool: {e}"))?;
-    }
+    start_threads(a)?;
     // Output directory: create and probe before the (possibly long) analysis; a failed
     // run removes the folders it created.
     let out = samara_report::guard::OutDir::prepare(&a.out)?;

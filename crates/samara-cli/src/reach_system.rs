@@ -70,17 +70,7 @@ pub fn run_system(
     path: &Path,
     net: &samara_nn::Network,
 ) -> Result<ExitCode> {
-    if net.n_inputs() != sys.n_observed() || net.n_outputs() < sys.n_net_outputs {
-        bail!(
-            "--network {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
-            a.network.display(),
-            net.n_inputs(),
-            net.n_outputs(),
-            path.display(),
-            sys.n_observed(),
-            sys.n_net_outputs
-        );
-    }
+    crate::simulate::check_fits("--network", &a.network, net, sys, path)?;
     let mut s = SystemReachSettings::default();
     if let Some(k) = a.order {
         if !(1..=8).contains(&k) {
@@ -94,24 +84,14 @@ pub fn run_system(
         }
         s.timeout = Some(t);
     }
+    crate::reach::check_budget(a, s.max_boxes)?;
     if let Some(n) = a.max_leaves {
-        if n == 0 || n > 100_000 {
-            bail!("--max-leaves {n}: give 1 to 100000 sub-boxes");
-        }
         s.max_boxes = n;
     }
     if let Some(n) = a.samples {
-        if n == 0 || n > 100_000 {
-            bail!("--samples {n}: give 1 to 100000 simulated starts");
-        }
         s.samples = n;
     }
-    if let Some(n) = a.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .map_err(|e| anyhow!("--threads {n}: cannot start the thread pool: {e}"))?;
-    }
+    crate::reach::start_threads(a)?;
     samara_report::guard::check_output_dir(
         "--out",
         &a.out,

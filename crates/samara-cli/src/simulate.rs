@@ -462,6 +462,29 @@ const SYSTEM_WRITES: [&str; 1] = ["trajectories.csv"];
 
 /// `simulate --system FILE --controller NET.onnx`: closed-loop flights of a system file
 /// from starts in its initial set, goals checked along each (a falsification run).
+/// Refuse a network that does not fit a system file (`flag` names the network's flag in
+/// the message, for `simulate` and `reach`).
+pub fn check_fits(
+    flag: &str,
+    net_path: &Path,
+    net: &samara_nn::Network,
+    sys: &samara_system::System,
+    sys_path: &Path,
+) -> Result<()> {
+    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
+        bail!(
+            "{flag} {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
+            net_path.display(),
+            net.n_inputs(),
+            net.n_outputs(),
+            sys_path.display(),
+            sys.n_observed(),
+            sys.n_net_outputs
+        );
+    }
+    Ok(())
+}
+
 fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
     use rand::{Rng, SeedableRng};
     if a.y0.is_some() {
@@ -481,17 +504,7 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
     let net_path = Path::new(&a.controller);
     let net = samara_nn::onnx::load(net_path)
         .with_context(|| format!("--controller {}", net_path.display()))?;
-    if net.n_inputs() != sys.n_observed() || net.n_outputs() < sys.n_net_outputs {
-        bail!(
-            "--controller {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
-            net_path.display(),
-            net.n_inputs(),
-            net.n_outputs(),
-            path.display(),
-            sys.n_observed(),
-            sys.n_net_outputs
-        );
-    }
+    check_fits("--controller", net_path, &net, &sys, path)?;
     let rows = (a.samples as f64) * (sys.steps() as f64 * 10.0 + 1.0);
     if rows > limits::MAX_ROWS {
         bail!(

@@ -227,7 +227,7 @@ pub fn reach_system(
     s: &SystemReachSettings,
 ) -> Result<SystemReach, SystemReachError> {
     let t0 = Instant::now();
-    if net.n_inputs() != sys.n_observed() || net.n_outputs() < sys.n_net_outputs {
+    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
         return Err(SystemReachError::Shape {
             n_in: net.n_inputs(),
             n_out: net.n_outputs(),
@@ -440,9 +440,41 @@ fn to_pairs(v: &[Interval]) -> Vec<[f64; 2]> {
     v.iter().map(|i| [i.lo, i.hi]).collect()
 }
 
+/// A midpoint `m` and radius `r` with `[m - r, m + r]` containing `i` in exact
+/// arithmetic (the ends checked with outward-rounded interval sums); `(lo, 0)` for a
+/// point.
+fn mid_rad(i: Interval) -> (f64, f64) {
+    if i.lo == i.hi {
+        return (i.lo, 0.0);
+    }
+    let m = 0.5 * i.lo + 0.5 * i.hi;
+    let mut r = (i.hi - m).max(m - i.lo).max(0.0).next_up();
+    let (pm, pr) = (Interval::point(m), Interval::point(r));
+    let (mut lo, mut hi) = ((pm - pr).hi, (pm + pr).lo);
+    while lo > i.lo || hi < i.hi {
+        r = r.next_up();
+        let pr = Interval::point(r);
+        (lo, hi) = ((pm - pr).hi, (pm + pr).lo);
+    }
+    (m, r)
+}
+
+/// The constant coefficients of `x` and their degree-1 coefficients over every
+/// parameter any of them depends on (rows padded to that count).
+fn linear_parts(x: &[Tm]) -> (Vec<f64>, Vec<Vec<f64>>) {
+    let n = x.iter().map(|v| v.n_vars()).max().unwrap_or(0);
+    x.iter()
+        .map(|v| {
+            let (c, mut g) = v.linear_part();
+            g.resize(n, 0.0);
+            (c, g)
+        })
+        .unzip()
+}
+
 /// The Taylor models of a box: `x_i = mid_i + rad_i xi_k` for the `k`-th state of
-/// non-zero width, constants otherwise. The midpoint and radius are rounded so that the
-/// model's range contains the box: `rad` rounded up and both ends checked.
+/// non-zero width, constants otherwise; [`mid_rad`] makes the model's range contain the
+/// box.
 fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
     let free: Vec<usize> = (0..b.len()).filter(|&i| b[i].hi > b[i].lo).collect();
     let n = free.len();
@@ -451,11 +483,7 @@ fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
         .map(|(i, v)| match free.iter().position(|&j| j == i) {
             None => Tm::constant(v.lo, n, order),
             Some(k) => {
-                let mid = 0.5 * (v.lo + v.hi);
-                let mut rad = (0.5 * (v.hi - v.lo)).next_up();
-                while mid - rad > v.lo || mid + rad < v.hi {
-                    rad = rad.next_up();
-                }
+                let (mid, rad) = mid_rad(*v);
                 Tm::var(k, n, order) * rad + mid
             }
         })
@@ -467,26 +495,21 @@ fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
 /// without piecewise-linear layers also the network evaluated on the Taylor models,
 /// keeping the narrower result per output.
 fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
-    // Every parameter any input depends on (after a re-parameterisation there are more
-    // than the initial set's).
-    let n_params = obs.iter().map(|o| o.n_vars()).max().unwrap_or(0);
+    // Linear parts over every parameter any input depends on (after a
+    // re-parameterisation there are more than the initial set's).
+    let (c0s, g) = linear_parts(obs);
+    let n_params = g.first().map_or(0, |r| r.len());
     let mut c = Vec::with_capacity(obs.len());
-    let mut g = Vec::with_capacity(obs.len());
     let mut noise = Vec::with_capacity(obs.len());
-    for o in obs {
-        let (c0, mut grad) = o.linear_part();
-        grad.resize(n_params, 0.0);
+    for (o, c0) in obs.iter().zip(c0s) {
         // Everything that is not linear (higher-order terms, remainder), as a box
         // centred on the linear part's constant shifted by the box's midpoint; the
         // rounding of that shift goes into the box's radius.
-        let rest = o.nonlinear_bound();
-        let mid = 0.5 * rest.lo + 0.5 * rest.hi;
+        let (mid, r0) = mid_rad(o.nonlinear_bound());
         let centre = c0 + mid;
         let shift_err = (centre - c0 - mid).abs() + f64::EPSILON * centre.abs();
-        let rad = ((rest.hi - mid).max(mid - rest.lo) + 2.0 * shift_err).next_up();
         c.push(centre);
-        noise.push(rad);
-        g.push(grad);
+        noise.push((r0 + 2.0 * shift_err).next_up());
     }
     // linset takes the generators: one per parameter, each over the network's inputs.
     let gens: Vec<Vec<f64>> = (0..n_params)
@@ -565,7 +588,7 @@ fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings)
             leaf.stopped_at = Some(t);
             break;
         }
-        if s.precondition && needs_precondition(&x) {
+        if s.precondition && needs_precondition(&x, &hull) {
             x = precondition(&x, s.order as u32);
         }
         sys.observe(&x, &mut obs);
@@ -701,10 +724,11 @@ fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<boo
 }
 
 /// Whether the interval remainders of `x` are large enough, against the sets' own
-/// widths, that turning them into parameters pays ([`precondition`]).
-fn needs_precondition(x: &[Tm]) -> bool {
-    x.iter().any(|v| {
-        let (r, b) = (v.rem(), v.bound());
+/// widths (`hull`, the models' bounds), that turning them into parameters pays
+/// ([`precondition`]).
+fn needs_precondition(x: &[Tm], hull: &[Interval]) -> bool {
+    x.iter().zip(hull).any(|(v, b)| {
+        let r = v.rem();
         let w = b.hi - b.lo;
         w > 0.0 && (r.hi - r.lo) > 0.05 * w
     })
@@ -757,16 +781,7 @@ fn basis(l: &[Vec<f64>], d: usize) -> Vec<Vec<f64>> {
 /// (and feedback can contract), at the price of the higher-order dependence.
 pub fn precondition(x: &[Tm], order: u32) -> Vec<Tm> {
     let d = x.len();
-    let c: Vec<f64> = x.iter().map(|v| v.linear_part().0).collect();
-    let n = x.iter().map(|v| v.n_vars()).max().unwrap_or(0);
-    let l: Vec<Vec<f64>> = x
-        .iter()
-        .map(|v| {
-            let mut g = v.linear_part().1;
-            g.resize(n, 0.0);
-            g
-        })
-        .collect();
+    let (c, l) = linear_parts(x);
     let q = basis(&l, d);
     if q.len() != d {
         return x.to_vec();
@@ -790,14 +805,10 @@ pub fn precondition(x: &[Tm], order: u32) -> Vec<Tm> {
             acc.bound()
         })
         .collect();
-    let mid_rad: Vec<(f64, Interval)> = yk
+    let ys: Vec<(f64, Interval)> = yk
         .iter()
         .map(|b| {
-            let m = 0.5 * b.lo + 0.5 * b.hi;
-            let mut r = (b.hi - m).max(m - b.lo).max(0.0).next_up();
-            while m - r > b.lo || m + r < b.hi {
-                r = r.next_up();
-            }
+            let (m, r) = mid_rad(*b);
             (m, Interval::point(r))
         })
         .collect();
@@ -816,17 +827,14 @@ pub fn precondition(x: &[Tm], order: u32) -> Vec<Tm> {
             let mut coef = Vec::with_capacity(d);
             let mut slack = Interval::point(0.0);
             for (k, qk) in q.iter().enumerate() {
-                let (m, r) = mid_rad[k];
+                let (m, r) = ys[k];
                 cst += Interval::point(qk[i]) * m;
-                let ck = r * qk[i];
-                let mid = 0.5 * ck.lo + 0.5 * ck.hi;
-                coef.push(mid);
                 // (ck - mid) zeta_k with |zeta_k| <= 1.
-                let dev = (ck.hi - mid).max(mid - ck.lo).max(0.0);
+                let (mid, dev) = mid_rad(r * qk[i]);
+                coef.push(mid);
                 slack += Interval::new(-dev, dev);
             }
-            let cm = 0.5 * cst.lo + 0.5 * cst.hi;
-            let cdev = (cst.hi - cm).max(cm - cst.lo).max(0.0);
+            let (cm, cdev) = mid_rad(cst);
             let rem = e + slack + Interval::new(-cdev, cdev);
             Tm::affine(cm, &coef, order)
                 .with_rem(Interval::new(rem.lo.next_down(), rem.hi.next_up()))

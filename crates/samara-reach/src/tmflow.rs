@@ -130,9 +130,9 @@ fn step(
         // The highest time order first; where its remainder over B overflows (the
         // interval recurrences grow fast on stiff terms), lower orders, whose
         // coefficients are the same, with their own remainder h^{p+1} x_{p+1}(B).
-        let mut orders = vec![pmax, pmax / 2, 1];
+        let mut orders = vec![pmax, (pmax / 2).max(1), 1];
         orders.dedup();
-        for p in orders.into_iter().filter(|&p| p >= 1) {
+        for p in orders {
             let hp = pow_up(h, p + 1);
             let rem: Vec<Interval> = tb.iter().map(|c| c.c[p + 1] * hp).collect();
             if !finite(&rem) {
@@ -159,28 +159,23 @@ fn step(
             return Some((next, b));
         }
     }
-    match (tb, tx) {
-        (Some(_), Some(_)) if !last_chance => None,
-        _ => {
-            // Not analytic over the set: x(h) in x0 + h f(B, U) (mean-value form of
-            // the integral; the increment is an interval).
-            if !last_chance && h > 0.0 {
-                // A shorter step may decide the branch; try that first.
-                return None;
-            }
-            let fb = rhs_box(sys, &b, bu);
-            if !finite(&fb) {
-                return None;
-            }
-            // The integral of f(x(s)) over [0, h] lies in h * f(B, U).
-            let next: Vec<Tm> = x
-                .iter()
-                .zip(&fb)
-                .map(|(xi, f)| xi.clone().with_rem(Interval::point(h) * *f))
-                .collect();
-            Some((next, b))
-        }
+    if !last_chance {
+        // A shorter step may validate the remainder or decide the undecided branch.
+        return None;
     }
+    // At the smallest step, where no Taylor step validates (the right-hand side not
+    // analytic over the set, or every remainder overflowing): x(h) in x0 + h f(B, U),
+    // since the integral of f(x(s)) over [0, h] lies in h * f(B, U).
+    let fb = rhs_box(sys, &b, bu);
+    if !finite(&fb) {
+        return None;
+    }
+    let next: Vec<Tm> = x
+        .iter()
+        .zip(&fb)
+        .map(|(xi, f)| xi.clone().with_rem(Interval::point(h) * *f))
+        .collect();
+    Some((next, b))
 }
 
 /// Fly the Taylor-model state `x` under the held inputs `u` for `period`: the state at

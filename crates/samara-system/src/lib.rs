@@ -259,6 +259,12 @@ impl System {
         self.observe.outputs.len()
     }
 
+    /// Whether a controller with `n_in` inputs and `n_out` outputs fits the file: it
+    /// reads exactly the `observe` list and has every `net[i]` the file uses.
+    pub fn fits_controller(&self, n_in: usize, n_out: usize) -> bool {
+        n_in == self.n_observed() && n_out >= self.n_net_outputs
+    }
+
     /// Network inputs for a state.
     pub fn observe<S: Scalar>(&self, x: &[S], out: &mut [S]) {
         self.observe.eval(x, &[], out)
