@@ -65,8 +65,8 @@ class Network:
     """A feed-forward network (dense layers and activations, optional input
     normalisation and output denormalisation), evaluated in float64.
 
-    Build one with :meth:`from_onnx` (a path or the bytes of an ONNX file) or from
-    :func:`train`.
+    Build one with :meth:`from_onnx` (a path or the bytes of an ONNX file), from a
+    PyTorch module with :meth:`from_torch`, or from :func:`train`.
     """
 
     __slots__ = ("_net",)
@@ -86,6 +86,57 @@ class Network:
         with open(p, "rb") as f:
             data = f.read()
         return Network(_samara.Network.from_onnx_bytes(data, p))
+
+    @staticmethod
+    def from_torch(module: Any, n_inputs: Optional[int] = None) -> "Network":
+        """Import a PyTorch module (an ``nn.Sequential`` of ``Linear`` layers and
+        ReLU/Tanh/Sigmoid activations, or any module ``torch.onnx`` exports to those)
+        through an in-memory ``torch.onnx.export`` (opset 13, TorchScript exporter): no
+        file is written. ``n_inputs`` defaults to the first ``Linear``'s
+        ``in_features``. The weights are read in the module's dtype (float32 unless it
+        was converted) and evaluated in float64 from then on.
+
+        torch is an optional dependency: ImportError (with the install line) when it is
+        missing; ValueError when the export holds an operator samara cannot import."""
+        try:
+            import torch
+        except ImportError as e:  # pragma: no cover - depends on the environment
+            raise ImportError(
+                "Network.from_torch needs PyTorch: pip install torch "
+                "(CPU wheels: --index-url https://download.pytorch.org/whl/cpu)"
+            ) from e
+        import inspect
+        import io
+
+        if not isinstance(module, torch.nn.Module):
+            raise ValueError(f"Network.from_torch: expected a torch.nn.Module, got {type(module).__name__}")
+        params = list(module.parameters())
+        dtype = params[0].dtype if params else torch.float32
+        if n_inputs is None:
+            first = next((m for m in module.modules() if isinstance(m, torch.nn.Linear)), None)
+            if first is None:
+                raise ValueError(
+                    "Network.from_torch: the module has no nn.Linear layer; pass n_inputs="
+                )
+            n_inputs = first.in_features
+        was_training = module.training
+        module.eval()
+        buf = io.BytesIO()
+        kw: Dict[str, Any] = dict(
+            input_names=["input"], output_names=["output"], opset_version=13,
+            dynamic_axes={"input": {0: "batch"}, "output": {0: "batch"}},
+        )
+        if "dynamo" in inspect.signature(torch.onnx.export).parameters:
+            kw["dynamo"] = False  # the TorchScript exporter: plain Gemm/MatMul graphs
+        try:
+            # torch >= 2.9 marks the TorchScript exporter deprecated; it is still the one
+            # that needs nothing beyond torch (the dynamo exporter needs onnxscript).
+            with torch.no_grad(), warnings.catch_warnings():
+                warnings.simplefilter("ignore", DeprecationWarning)
+                torch.onnx.export(module, (torch.zeros(1, int(n_inputs), dtype=dtype),), buf, **kw)
+        finally:
+            module.train(was_training)
+        return Network(_samara.Network.from_onnx_bytes(buf.getvalue(), f"<torch {type(module).__name__}>"))
 
     def to_onnx(self, with_normalisation: bool = True, float64: bool = False) -> bytes:
         """The network as ONNX bytes (opset 13). ``with_normalisation=False`` gives the

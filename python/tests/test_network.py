@@ -77,3 +77,24 @@ def test_missing_file_and_bad_bytes():
         samara.Network.from_onnx("/nonexistent/net.onnx")
     with pytest.raises(ValueError):
         samara.Network.from_onnx(b"not an onnx file")
+
+
+def test_from_torch_matches_torch_forward():
+    """A PyTorch nn.Sequential handed over in memory (torch.onnx export) evaluates as
+    torch does (to float32 rounding); a non-module is a ValueError."""
+    torch = pytest.importorskip("torch")
+    torch.manual_seed(1)
+    m = torch.nn.Sequential(
+        torch.nn.Linear(6, 16), torch.nn.ReLU(),
+        torch.nn.Linear(16, 8), torch.nn.Tanh(),
+        torch.nn.Linear(8, 3), torch.nn.Sigmoid(),
+    )
+    net = samara.Network.from_torch(m)
+    assert (net.n_inputs, net.n_outputs) == (6, 3)
+    x = np.random.default_rng(2).normal(size=(500, 6))
+    with torch.no_grad():
+        want = m(torch.tensor(x, dtype=torch.float32)).double().numpy()
+    assert np.allclose(net.eval(x), want, atol=1e-5)
+    assert m.training  # the module's mode is restored
+    with pytest.raises(ValueError, match="torch.nn.Module"):
+        samara.Network.from_torch(lambda v: v)

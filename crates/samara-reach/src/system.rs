@@ -249,6 +249,13 @@ pub fn reach_system(
     let mut s = s.clone();
     s.flow.order = s.order as u32;
     let s = &s;
+    // The budget also bounds each sub-box's flight (one wide network can take minutes
+    // per box), not only the splitting rounds.
+    let deadline = s.timeout.and_then(|t| {
+        std::time::Duration::try_from_secs_f64(t)
+            .ok()
+            .and_then(|d| t0.checked_add(d))
+    });
     // Falsification first.
     let eval = controller(net);
     let flights: Vec<(Vec<f64>, Result<SystemFlight, String>)> = starts(sys, s.samples, s.seed)
@@ -280,11 +287,11 @@ pub fn reach_system(
     let mut leaves: Vec<SystemLeaf> = Vec::new();
     let mut verdict = if let Some(v) = violation {
         // The sets are still computed once (for the figure), without refinement.
-        let leaf = fly_box(sys, net, &init, s);
+        let leaf = fly_box(sys, net, &init, s, deadline);
         leaves.push(leaf);
         v
     } else if sys.goals.is_empty() {
-        leaves.push(fly_box(sys, net, &init, s));
+        leaves.push(fly_box(sys, net, &init, s, deadline));
         SystemVerdict::NoGoal
     } else {
         let mut frontier = vec![init.clone()];
@@ -293,7 +300,7 @@ pub fn reach_system(
         loop {
             let flown: Vec<SystemLeaf> = frontier
                 .par_iter()
-                .map(|b| fly_box(sys, net, b, s))
+                .map(|b| fly_box(sys, net, b, s, deadline))
                 .collect();
             let mut next = Vec::new();
             let mut refuted = None;
@@ -563,7 +570,13 @@ fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
 }
 
 /// Fly one sub-box over the horizon and decide the goals on its sets.
-fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings) -> SystemLeaf {
+fn fly_box(
+    sys: &System,
+    net: &Network,
+    b: &[Interval],
+    s: &SystemReachSettings,
+    deadline: Option<Instant>,
+) -> SystemLeaf {
     let mut x = box_models(b, s.order as u32);
     let mut leaf = SystemLeaf {
         init: to_pairs(b),
@@ -592,6 +605,12 @@ fn fly_box(sys: &System, net: &Network, b: &[Interval], s: &SystemReachSettings)
         }
         if undecidable(sys, &ok) {
             leaf.stopped_at = Some(t);
+            break;
+        }
+        if deadline.is_some_and(|d| Instant::now() > d) {
+            leaf.failure = Some(format!(
+                "time budget spent before the period starting at t = {t}"
+            ));
             break;
         }
         if s.precondition && needs_precondition(&x, &hull) {
