@@ -85,14 +85,16 @@ enum Command {
     ))]
     ExportVnnlib(verify::ExportArgs),
     Vnncomp(verify::VnncompArgs),
-    /// Merge the shard files of a `--shard I/N` run (robustness, vnncomp) into what one
-    /// process writes.
+    /// Merge the shard files of a `--shard I/N` run (robustness, vnncomp, reach) into
+    /// what one process writes.
     Merge(verify::shard::MergeArgs),
     /// Sound reachable sets of the closed loop (plant + network) from an initial box,
     /// with a goal |x + y| <= Y decided: proved, violated or unknown.
     #[command(after_help = help!(
         "samara reach --network base_model_denorm.onnx --goal-ystar 2 --out out/reach",
         "samara reach --network net.onnx --y0 2:2.5 --init theta=-0.01:0.01 --horizon 5 --out out/r --json",
+        "samara reach --network net.onnx --goal-ystar 2 --shard $SLURM_ARRAY_TASK_ID/8 --out r-$SLURM_ARRAY_TASK_ID.json",
+        "samara merge reach r-*.json --out out/reach   # the 8 parts: the one-process reach.json and figures",
         "(exit 0: proved or no goal; 1: violated or unknown; 2: bad input)",
     ))]
     Reach(reach::ReachArgs),

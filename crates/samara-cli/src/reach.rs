@@ -4,15 +4,25 @@
 //! the network against the settings) before writing anything, runs
 //! `samara_reach::reach`, then writes `DIR/reach.json`, `DIR/reach.png` and
 //! `DIR/reach.svg` and prints the verdict.
+//!
+//! With `--shard I/N` it computes only part I of N of the run (`samara_reach::parts`: a
+//! contiguous range of the initial pieces, each refined on its own) and writes it to the
+//! shard file `--out`; `samara merge reach` replays the run's refinement over the N parts
+//! and writes what one process writes (see [`merge_reach`]).
 
 use anyhow::{anyhow, bail, Context, Result};
 use samara_plant::{Model, STATE_NAMES};
-use samara_reach::{Goal, ReachResult, ReachSettings, Verdict};
-use samara_report::{write_atomic, TrajectoryFigure};
+use samara_reach::parts::{self, Flown, LeafRecord};
+use samara_reach::{Goal, ReachResult, ReachSettings, StepSet, Verdict};
+use samara_report::{write_atomic, Curve};
+use serde_json::{json, Value};
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
+use std::time::Instant;
 
 use crate::simulate::{limits, num as fmt_num};
+use crate::verify::shard::{self, Shard};
 
 /// Most control periods of a reachability run (the published run has 40; every period
 /// costs a set-valued integration per sub-box).
@@ -79,7 +89,8 @@ pub struct ReachArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub samples: Option<usize>,
     /// Output directory (created if missing; removed again if the run fails and created
-    /// it). It may not be, or lie inside, the --network file.
+    /// it). It may not be, or lie inside, the --network file. With --shard: the shard's
+    /// partial result (a JSON file, for `samara merge reach`).
     #[arg(long)]
     pub out: PathBuf,
     /// Print a JSON summary on stdout instead of the human line.
@@ -104,6 +115,12 @@ pub struct ReachArgs {
     /// with the reason (checked between splitting rounds).
     #[arg(long, allow_hyphen_values = true)]
     pub timeout: Option<f64>,
+    /// Compute only part I of N (0-based) of the built-in glider run: the initial pieces
+    /// (the initial set cut along its widest parameter, usually the height) in N
+    /// contiguous ranges, each piece refined on its own. --out is then the shard file; `samara merge reach` puts the N files together
+    /// into the one-process reach.json and figures (zonotope sets only).
+    #[arg(long, value_name = "I/N", allow_hyphen_values = true, value_parser = shard::parse_shard)]
+    pub shard: Option<Shard>,
 }
 
 /// Parse `A:B` or `A` into a finite, non-inverted interval; `what` names the flag and
@@ -297,13 +314,19 @@ pub(crate) fn start_threads(a: &ReachArgs) -> Result<()> {
     Ok(())
 }
 
-/// The files a run writes into `--out`.
-const WRITES: [&str; 3] = ["reach.json", "reach.png", "reach.svg"];
+/// The files a run (and `samara merge reach`) writes into `--out`.
+pub(crate) const WRITES: [&str; 3] = ["reach.json", "reach.png", "reach.svg"];
 
-fn plan(a: &ReachArgs) -> Result<Plan> {
+/// `as_file`: --out is a shard file (--shard), not the output folder.
+fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
     let settings = build_settings(a)?;
     // Never write over the network file (an input), before anything is computed.
-    samara_report::guard::check_output_dir("--out", &a.out, &WRITES, &[("--network", &a.network)])?;
+    let inputs = [("--network", a.network.as_path())];
+    if as_file {
+        samara_report::guard::check_output_file("--out", &a.out, &inputs)?;
+    } else {
+        samara_report::guard::check_output_dir("--out", &a.out, &WRITES, &inputs)?;
+    }
     // The flags are checked; now the network, then the library's own check of the
     // settings against it.
     if !a.network.exists() {
@@ -329,22 +352,29 @@ fn plan(a: &ReachArgs) -> Result<Plan> {
     Ok(Plan { settings, net })
 }
 
+/// `--order` and `--timeout` do not apply to zonotope sets.
+fn check_zonotope_flags(a: &ReachArgs) -> Result<()> {
+    if a.order.is_some() {
+        bail!("--order applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no order");
+    }
+    if a.timeout.is_some() {
+        bail!("--timeout applies to Taylor-model sets (--sets taylor or --system); bound the zonotope run with --max-leaves");
+    }
+    Ok(())
+}
+
 /// Run `samara reach`.
 pub fn run(a: &ReachArgs) -> Result<ExitCode> {
+    if let Some(sh) = a.shard {
+        return run_shard(a, sh);
+    }
     if let Some(sys) = &a.system {
         return crate::reach_system::run(a, sys);
     }
     match a.sets.as_str() {
-        "zonotope" => {
-            if a.order.is_some() {
-                bail!("--order applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no order");
-            }
-            if a.timeout.is_some() {
-                bail!("--timeout applies to Taylor-model sets (--sets taylor or --system); bound the zonotope run with --max-leaves");
-            }
-        }
+        "zonotope" => check_zonotope_flags(a)?,
         "taylor" => {
-            let plan = plan(a)?;
+            let plan = plan(a, false)?;
             let sys = crate::reach_system::builtin_system(&plan.settings)?;
             return crate::reach_system::run_system(
                 a,
@@ -355,7 +385,7 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         }
         other => bail!("--sets {other}: give zonotope or taylor"),
     }
-    let plan = plan(a)?;
+    let plan = plan(a, false)?;
     start_threads(a)?;
     // Output directory: create and probe before the (possibly long) analysis; a failed
     // run removes the folders it created.
@@ -368,21 +398,47 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
     }
     let res = res.map_err(|e| anyhow!("{e}"))?;
 
-    let report = report_json(a, &plan.settings, &res)?;
+    let o = Outcome::of(&res);
+    let settings = settings_json(
+        &a.network.display().to_string(),
+        a.threads.unwrap_or_else(rayon::current_num_threads),
+        &plan.settings,
+    );
+    let report = report_json(
+        settings,
+        &plan.settings,
+        &o,
+        serde_json::to_value(&res.leaves)?,
+    );
     write_atomic(
         &a.out.join("reach.json"),
         serde_json::to_string_pretty(&report)?.as_bytes(),
     )?;
-    figure(a, &plan.settings, &res).render(&a.out.join("reach.png"), &a.out.join("reach.svg"))?;
+    samara_reach::figure(
+        &res,
+        &figure_title(&a.network, &plan.settings),
+        plan.settings.goal.as_ref().map(|g| g.ystar),
+    )
+    .render(&a.out.join("reach.png"), &a.out.join("reach.svg"))?;
+    finish(&o, &plan.settings, &a.out, a.json, out)
+}
 
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary(&res, a))?);
+/// Print the verdict (or the JSON summary), keep the output folder, and the exit code.
+fn finish(
+    o: &Outcome,
+    s: &ReachSettings,
+    dir: &Path,
+    json_out: bool,
+    out: samara_report::guard::OutDir,
+) -> Result<ExitCode> {
+    if json_out {
+        println!("{}", serde_json::to_string_pretty(&summary(o, dir))?);
     } else {
-        println!("{}", human_line(&plan.settings, &res));
-        eprintln!("wrote {}", a.out.display());
+        println!("{}", human_line(s, o));
+        eprintln!("wrote {}", dir.display());
     }
     out.keep();
-    Ok(match res.verdict {
+    Ok(match o.verdict {
         Verdict::Proved | Verdict::NoGoal => ExitCode::SUCCESS,
         Verdict::Violated { .. } | Verdict::Unknown { .. } => ExitCode::from(1),
     })
@@ -436,13 +492,13 @@ fn verdict_details(v: &Verdict) -> serde_json::Value {
     }
 }
 
-fn settings_json(a: &ReachArgs, s: &ReachSettings) -> serde_json::Value {
+fn settings_json(network: &str, threads: usize, s: &ReachSettings) -> serde_json::Value {
     let mut init = serde_json::Map::new();
     for (i, (lo, hi)) in s.init.iter().enumerate() {
         init.insert(STATE_NAMES[i].to_string(), serde_json::json!([lo, hi]));
     }
     serde_json::json!({
-        "network": a.network.display().to_string(),
+        "network": network,
         "model": s.model.name(),
         "init": init,
         "horizon": s.horizon,
@@ -454,27 +510,58 @@ fn settings_json(a: &ReachArgs, s: &ReachSettings) -> serde_json::Value {
         "initial_splits": s.initial_splits,
         "samples": s.samples,
         "seed": s.seed,
-        "threads": a.threads.unwrap_or_else(rayon::current_num_threads),
+        "threads": threads,
     })
 }
 
-fn report_json(a: &ReachArgs, s: &ReachSettings, res: &ReachResult) -> Result<serde_json::Value> {
-    Ok(serde_json::json!({
-        "settings": settings_json(a, s),
-        "verdict": verdict_details(&res.verdict),
+/// What the report, the summary and the human line say of a run (one process, or merged
+/// shards).
+struct Outcome<'a> {
+    verdict: &'a Verdict,
+    final_x_plus_y: [f64; 2],
+    sampled_x_plus_y: [f64; 2],
+    subproblems: usize,
+    seconds: f64,
+    sampled_trajectories: usize,
+}
+
+impl<'a> Outcome<'a> {
+    fn of(res: &'a ReachResult) -> Self {
+        Outcome {
+            verdict: &res.verdict,
+            final_x_plus_y: res.final_x_plus_y,
+            sampled_x_plus_y: res.sampled_x_plus_y,
+            subproblems: res.subproblems(),
+            seconds: res.seconds,
+            sampled_trajectories: res.samples.len(),
+        }
+    }
+
+    /// As `ReachResult::width_ratio`.
+    fn width_ratio(&self) -> f64 {
+        (self.final_x_plus_y[1] - self.final_x_plus_y[0])
+            / (self.sampled_x_plus_y[1] - self.sampled_x_plus_y[0])
+    }
+}
+
+/// `reach.json`: `settings` from [`settings_json`], `leaves` the serialised sub-boxes.
+fn report_json(settings: Value, s: &ReachSettings, res: &Outcome, leaves: Value) -> Value {
+    serde_json::json!({
+        "settings": settings,
+        "verdict": verdict_details(res.verdict),
         "final_x_plus_y": [num(res.final_x_plus_y[0]), num(res.final_x_plus_y[1])],
         "sampled_x_plus_y": res.sampled_x_plus_y,
         "width_ratio": num(res.width_ratio()),
-        "subproblems": res.subproblems(),
+        "subproblems": res.subproblems,
         "seconds": res.seconds,
-        "sampled_trajectories": res.samples.len(),
+        "sampled_trajectories": res.sampled_trajectories,
         "state_names": &STATE_NAMES[..s.model.dim()],
-        "leaves": serde_json::to_value(&res.leaves)?,
-    }))
+        "leaves": leaves,
+    })
 }
 
-fn summary(res: &ReachResult, a: &ReachArgs) -> serde_json::Value {
-    let mut v = verdict_details(&res.verdict);
+fn summary(res: &Outcome, out: &Path) -> serde_json::Value {
+    let mut v = verdict_details(res.verdict);
     let m = v.as_object_mut().expect("object");
     m.insert(
         "final_x_plus_y".into(),
@@ -487,13 +574,13 @@ fn summary(res: &ReachResult, a: &ReachArgs) -> serde_json::Value {
     );
     m.insert("sampled_width".into(), num(width(res.sampled_x_plus_y)));
     m.insert("width_ratio".into(), num(res.width_ratio()));
-    m.insert("subproblems".into(), serde_json::json!(res.subproblems()));
+    m.insert("subproblems".into(), serde_json::json!(res.subproblems));
     m.insert("seconds".into(), serde_json::json!(res.seconds));
-    m.insert("out".into(), serde_json::json!(a.out.display().to_string()));
+    m.insert("out".into(), serde_json::json!(out.display().to_string()));
     v
 }
 
-fn human_line(s: &ReachSettings, res: &ReachResult) -> String {
+fn human_line(s: &ReachSettings, res: &Outcome) -> String {
     let f = res.final_x_plus_y;
     let sm = res.sampled_x_plus_y;
     let goal = match &s.goal {
@@ -503,7 +590,7 @@ fn human_line(s: &ReachSettings, res: &ReachResult) -> String {
         },
         None => String::new(),
     };
-    let detail = match &res.verdict {
+    let detail = match res.verdict {
         Verdict::Unknown { reason } => format!("; reason: {reason}"),
         Verdict::Violated {
             initial,
@@ -532,20 +619,497 @@ fn human_line(s: &ReachSettings, res: &ReachResult) -> String {
         f[0],
         f[1],
         width(f),
-        res.subproblems(),
+        res.subproblems,
         res.seconds
     )
 }
 
-fn figure(a: &ReachArgs, s: &ReachSettings, res: &ReachResult) -> TrajectoryFigure {
-    let name = a
-        .network
+/// The figure's title: the network's name and the model.
+fn figure_title(network: &Path, s: &ReachSettings) -> String {
+    let name = network
         .file_stem()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_else(|| "network".into());
-    samara_reach::figure(
-        res,
-        &format!("{name}, {} model", s.model.name()),
+    format!("{name}, {} model", s.model.name())
+}
+
+/// `samara reach --shard I/N --out FILE`: part I of N of the run (the initial pieces
+/// `Shard::range` of their number, each refined on its own) as a shard file.
+fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
+    let why = "their sub-box search shares one budget and a wall-clock --timeout across all sub-boxes, so parts could not merge into exactly the one-process result; run them unsharded";
+    if a.system.is_some() {
+        bail!("--shard applies to the built-in glider setting with zonotope sets; --system runs are not sharded ({why})");
+    }
+    match a.sets.as_str() {
+        "zonotope" => check_zonotope_flags(a)?,
+        "taylor" => {
+            bail!("--shard applies to zonotope sets; --sets taylor runs are not sharded ({why})")
+        }
+        other => bail!("--sets {other}: give zonotope or taylor"),
+    }
+    let plan = plan(a, true)?;
+    let s = &plan.settings;
+    start_threads(a)?;
+    let t0 = Instant::now();
+    let spinner = progress(s);
+    let done = parts::prepare(&plan.net, s).map(|prep| {
+        let range = sh.range(prep.pieces());
+        let flown = prep.fly(range.clone());
+        (prep, range, flown)
+    });
+    if let Some(p) = spinner {
+        p.finish_and_clear();
+    }
+    let (prep, range, flown) = done.map_err(|e| anyhow!("{e}"))?;
+    let secs = t0.elapsed().as_secs_f64();
+    let run = run_json(
+        s,
+        &shard::digest_file(&a.network, "--network")?,
+        prep.pieces(),
+    );
+    let mut result = json!({
+        "pieces": [range.start, range.end],
+        "shared": shared_json(&prep),
+        "network": a.network.display().to_string(),
+        "threads": a.threads.unwrap_or_else(rayon::current_num_threads),
+        "seconds": secs,
+        "subboxes": flown.iter().map(flown_json).collect::<Vec<_>>(),
+    });
+    // The figure's sampled trajectories (the same in every shard): kept once, in shard 0.
+    if sh.i == 0 {
+        let (curves, group_label) = prep.figure_curves();
+        result["figure"] = json!({
+            "group_label": group_label,
+            "curves": curves.iter().map(|c| json!({
+                "label": c.label,
+                "points": c.points.iter().map(|&(x, y)| [shard::f(x), shard::f(y)]).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
+        });
+    }
+    shard::write(&a.out, "reach", sh, run, result)?;
+    if a.json {
+        println!(
+            "{}",
+            json!({"shard": [sh.i, sh.n], "pieces": [range.start, range.end],
+                "subboxes": flown.len(), "out": a.out})
+        );
+    } else {
+        println!(
+            "shard {}/{}: pieces {}..{} of {} ({} sub-boxes flown), {secs:.3} s; partial result in {} (merge with `samara merge reach`)",
+            sh.i,
+            sh.n,
+            range.start,
+            range.end,
+            prep.pieces(),
+            flown.len(),
+            a.out.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The exact text of an interval.
+fn pair(v: [f64; 2]) -> Value {
+    json!([shard::f(v[0]), shard::f(v[1])])
+}
+
+/// Read back a [`pair`]; `what` names it in messages.
+fn read_pair(v: &Value, what: &str) -> Result<[f64; 2]> {
+    let x = |i: usize| v[i].as_str().and_then(|t| t.parse::<f64>().ok());
+    match (v.as_array().map(Vec::len), x(0), x(1)) {
+        (Some(2), Some(a), Some(b)) => Ok([a, b]),
+        _ => bail!("{what}: expected two number texts, found {v}"),
+    }
+}
+
+/// Read back a [`shard::f`] value.
+fn read_f(v: &Value, what: &str) -> Result<f64> {
+    v.as_str()
+        .and_then(|t| t.parse().ok())
+        .ok_or_else(|| anyhow!("{what}: expected a number text, found {v}"))
+}
+
+/// The inputs and settings every shard of one run shares (`run` of the shard file):
+/// numbers as exact text, so the merge rebuilds the settings bit for bit.
+fn run_json(s: &ReachSettings, network_digest: &str, pieces: usize) -> Value {
+    json!({
+        "network": network_digest,
+        "samara": env!("CARGO_PKG_VERSION"),
+        "model": s.model.name(),
+        "init": s.init.iter().map(|&(lo, hi)| pair([lo, hi])).collect::<Vec<_>>(),
+        "horizon": shard::f(s.horizon),
+        "period": shard::f(s.period),
+        "clip": s.clip.map(|(lo, hi)| pair([lo, hi])),
+        "reset_filter": s.reset_filter,
+        "goal": s.goal.as_ref().map(|g| json!({"ystar": shard::f(g.ystar), "from": g.from.map(shard::f)})),
+        "max_leaves": s.max_leaves,
+        "initial_splits": s.initial_splits,
+        "samples": s.samples,
+        "seed": s.seed,
+        "pieces": pieces,
+    })
+}
+
+/// The settings of a run from its [`run_json`].
+fn settings_from_run(run: &Value) -> Result<ReachSettings> {
+    let bad = |what: &str| anyhow!("shard files: bad `run.{what}` ({})", run[what]);
+    let model = run["model"]
+        .as_str()
+        .and_then(Model::from_name)
+        .ok_or_else(|| bad("model"))?;
+    let mut s = ReachSettings::published(model);
+    let init = run["init"].as_array().ok_or_else(|| bad("init"))?;
+    if init.len() != model.dim() {
+        return Err(bad("init"));
+    }
+    s.init = init
+        .iter()
+        .map(|v| read_pair(v, "run.init").map(|[a, b]| (a, b)))
+        .collect::<Result<_>>()?;
+    s.horizon = read_f(&run["horizon"], "run.horizon")?;
+    s.period = read_f(&run["period"], "run.period")?;
+    s.clip = match &run["clip"] {
+        Value::Null => None,
+        v => Some(read_pair(v, "run.clip").map(|[a, b]| (a, b))?),
+    };
+    s.reset_filter = run["reset_filter"]
+        .as_bool()
+        .ok_or_else(|| bad("reset_filter"))?;
+    s.goal = match &run["goal"] {
+        Value::Null => None,
+        g => Some(Goal {
+            ystar: read_f(&g["ystar"], "run.goal.ystar")?,
+            from: match &g["from"] {
+                Value::Null => None,
+                f => Some(read_f(f, "run.goal.from")?),
+            },
+        }),
+    };
+    let int = |what: &str| {
+        run[what]
+            .as_u64()
+            .ok_or_else(|| bad(what))
+            .and_then(|n| usize::try_from(n).map_err(|_| bad(what)))
+    };
+    s.max_leaves = int("max_leaves")?;
+    s.initial_splits = int("initial_splits")?;
+    s.samples = int("samples")?;
+    s.seed = run["seed"].as_u64().ok_or_else(|| bad("seed"))?;
+    Ok(s)
+}
+
+/// What every shard computes alike from the samples; the merge checks they agree.
+fn shared_json(p: &parts::Prepared) -> Value {
+    let violation = match &p.violation {
+        Some(Verdict::Violated {
+            initial,
+            t,
+            x_plus_y,
+        }) => json!({
+            "initial": initial.iter().map(|x| shard::f(*x)).collect::<Vec<_>>(),
+            "t": shard::f(*t),
+            "x_plus_y": shard::f(*x_plus_y),
+        }),
+        _ => Value::Null,
+    };
+    json!({
+        "sampled_trajectories": p.samples.len(),
+        "sampled_x_plus_y": pair(p.sampled_x_plus_y),
+        "tol_noise": shard::f(p.tol_noise),
+        "violation": violation,
+    })
+}
+
+/// A flown sub-box in a shard file: numbers as exact text.
+fn flown_json(f: &Flown) -> Value {
+    let l = &f.leaf;
+    let steps: Vec<Value> = l
+        .steps
+        .iter()
+        .map(|st| {
+            json!({
+                "t": shard::f(st.t),
+                "bbox": st.bbox.iter().map(|b| pair(*b)).collect::<Vec<_>>(),
+                "x_plus_y": pair(st.x_plus_y),
+                "x_plus_y_period": pair(st.x_plus_y_period),
+                "ex": st.ex.map(pair),
+            })
+        })
+        .collect();
+    json!({
+        "key": f.key,
+        "want": f.want,
+        "split": f.split,
+        "goal": f.goal,
+        "leaf": {
+            "init": l.init.iter().map(|b| pair(*b)).collect::<Vec<_>>(),
+            "params": l.params,
+            "steps": steps,
+            "failure": l.failure,
+            "flow_steps": [l.flow_steps.0, l.flow_steps.1],
+            "max_dev": shard::f(l.max_dev),
+        },
+    })
+}
+
+/// Read back a [`flown_json`].
+fn read_flown(v: &Value, file: &Path) -> Result<Flown> {
+    let key = v["key"].as_str().unwrap_or("?").to_string();
+    let what = format!("{}: sub-box {key}", file.display());
+    let bad = |field: &str| anyhow!("{what}: bad `{field}` ({})", v[field]);
+    let l = &v["leaf"];
+    let pairs = |x: &Value, field: &str| -> Result<Vec<[f64; 2]>> {
+        x.as_array()
+            .ok_or_else(|| anyhow!("{what}: bad `{field}`"))?
+            .iter()
+            .map(|b| read_pair(b, &format!("{what}: {field}")))
+            .collect()
+    };
+    let idx = |x: &Value| x.as_u64().and_then(|n| usize::try_from(n).ok());
+    let steps = l["steps"]
+        .as_array()
+        .ok_or_else(|| anyhow!("{what}: bad `steps`"))?
+        .iter()
+        .map(|st| {
+            Ok(StepSet {
+                t: read_f(&st["t"], &format!("{what}: t"))?,
+                bbox: pairs(&st["bbox"], "bbox")?,
+                x_plus_y: read_pair(&st["x_plus_y"], &format!("{what}: x_plus_y"))?,
+                x_plus_y_period: read_pair(
+                    &st["x_plus_y_period"],
+                    &format!("{what}: x_plus_y_period"),
+                )?,
+                ex: match &st["ex"] {
+                    Value::Null => None,
+                    e => Some(read_pair(e, &format!("{what}: ex"))?),
+                },
+                set: None,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let leaf = LeafRecord {
+        init: pairs(&l["init"], "init")?,
+        params: l["params"]
+            .as_array()
+            .and_then(|ps| ps.iter().map(idx).collect::<Option<Vec<_>>>())
+            .ok_or_else(|| anyhow!("{what}: bad `params`"))?,
+        steps,
+        failure: match &l["failure"] {
+            Value::Null => None,
+            x => Some(
+                x.as_str()
+                    .ok_or_else(|| anyhow!("{what}: bad `failure`"))?
+                    .to_string(),
+            ),
+        },
+        flow_steps: match (idx(&l["flow_steps"][0]), idx(&l["flow_steps"][1])) {
+            (Some(a), Some(b)) => (a, b),
+            _ => bail!("{what}: bad `flow_steps`"),
+        },
+        max_dev: read_f(&l["max_dev"], &format!("{what}: max_dev"))?,
+    };
+    let split = match &v["split"] {
+        Value::Null => None,
+        j => Some(
+            idx(j)
+                .filter(|j| *j < leaf.params.len())
+                .ok_or_else(|| bad("split"))?,
+        ),
+    };
+    if leaf.failure.is_none() && leaf.steps.is_empty() {
+        bail!("{what}: no enclosure recorded");
+    }
+    Ok(Flown {
+        key,
+        want: v["want"].as_bool().ok_or_else(|| bad("want"))?,
+        split,
+        goal: match &v["goal"] {
+            Value::Null => None,
+            g => Some(g.as_bool().ok_or_else(|| bad("goal"))?),
+        },
+        leaf,
+    })
+}
+
+/// The error of a merge that needs sub-box `key`, which its shard did not fly.
+fn missing(
+    key: &str,
+    shards: &[(PathBuf, Value)],
+    n_pieces: usize,
+    max_leaves: usize,
+) -> anyhow::Error {
+    let n = shards.len();
+    let (piece, path) = key.split_once(':').unwrap_or((key, ""));
+    let p: usize = piece.parse().unwrap_or(0);
+    let i = (0..n)
+        .find(|&i| Shard { i, n }.range(n_pieces).contains(&p))
+        .unwrap_or(0);
+    let file = shards[i].0.display();
+    if path.is_empty() {
+        return anyhow!("{file}: piece {key} of shard {i}/{n} is missing (a damaged shard file?); run that shard again");
+    }
+    let parent = &key[..key.len() - 1];
+    anyhow!(
+        "the run splits sub-box {parent} into {key}, which shard {i}/{n} ({file}) did not fly: the sub-box budget (--max-leaves {max_leaves}) ran out during the refinement, and that shard, which cannot see the other shards' sub-boxes, spent part of the budget's extra quarter (for sub-boxes that lost their enclosure) on sub-boxes the run does not split; this run cannot be merged exactly: run it without --shard, or with a larger --max-leaves"
+    )
+}
+
+/// `samara merge reach`: the N shards' flown sub-boxes, the run's refinement replayed
+/// over them (`samara_reach::parts::refine`: the same rounds and sub-box budget as one
+/// process), then `DIR/reach.json` and the figures as one process writes them. The
+/// verdict, the enclosures, the sub-boxes and the counterexample (a sampled trajectory,
+/// the same in every shard) are the one-process run's; `seconds` is the sum of the
+/// shards', `network` and `threads` are shard 0's. Refused (exit 2) when a sub-box the
+/// run flies was not flown by its shard (rare; see `samara_reach::parts`).
+pub fn merge_reach(
+    run: &Value,
+    shards: &[(PathBuf, Value)],
+    out: &Path,
+    json_out: bool,
+) -> Result<ExitCode> {
+    let s = settings_from_run(run)?;
+    let n_pieces = run["pieces"]
+        .as_u64()
+        .and_then(|n| usize::try_from(n).ok())
+        .ok_or_else(|| anyhow!("shard files: bad `run.pieces` ({})", run["pieces"]))?;
+    let n = shards.len();
+    let (file0, r0) = &shards[0];
+    let mut nodes: HashMap<String, Flown> = HashMap::new();
+    let mut seconds = 0.0;
+    for (i, (file, r)) in shards.iter().enumerate() {
+        let range = Shard { i, n }.range(n_pieces);
+        if r["pieces"] != json!([range.start, range.end]) {
+            bail!(
+                "{}: pieces {}, expected {}..{} of {n_pieces} for shard {i}/{n}",
+                file.display(),
+                r["pieces"],
+                range.start,
+                range.end
+            );
+        }
+        if r["shared"] != r0["shared"] {
+            bail!(
+                "{} and {}: the shards' simulated samples differ (different samara builds?): {} vs {}",
+                file0.display(),
+                file.display(),
+                r0["shared"],
+                r["shared"]
+            );
+        }
+        seconds += r["seconds"].as_f64().unwrap_or(0.0);
+        let list = r["subboxes"]
+            .as_array()
+            .ok_or_else(|| anyhow!("{}: no `subboxes` list", file.display()))?;
+        for v in list {
+            let f = read_flown(v, file)?;
+            let piece = f
+                .key
+                .split_once(':')
+                .and_then(|(p, _)| p.parse::<usize>().ok());
+            if !piece.is_some_and(|p| range.contains(&p)) {
+                bail!(
+                    "{}: sub-box {} is not of this shard's pieces {}..{}",
+                    file.display(),
+                    f.key,
+                    range.start,
+                    range.end
+                );
+            }
+            if nodes.contains_key(&f.key) {
+                bail!("{}: sub-box {} given twice", file.display(), f.key);
+            }
+            nodes.insert(f.key.clone(), f);
+        }
+    }
+    // The one-process rounds over the recorded flights.
+    let start: Vec<String> = (0..n_pieces).map(parts::piece_key).collect();
+    let mut done = parts::refine(
+        start,
+        0,
+        s.max_leaves,
+        |keys: Vec<String>| {
+            keys.iter()
+                .map(|k| {
+                    nodes
+                        .get(k)
+                        .ok_or_else(|| missing(k, shards, n_pieces, s.max_leaves))
+                })
+                .collect::<Result<Vec<&Flown>>>()
+        },
+        |f| (parts::child_key(&f.key, 0), parts::child_key(&f.key, 1)),
+    )?;
+    let sh = &r0["shared"];
+    let violation = match &sh["violation"] {
+        Value::Null => None,
+        v => Some(Verdict::Violated {
+            initial: v["initial"]
+                .as_array()
+                .ok_or_else(|| anyhow!("{}: bad `violation`", file0.display()))?
+                .iter()
+                .map(|x| read_f(x, "violation.initial"))
+                .collect::<Result<_>>()?,
+            t: read_f(&v["t"], "violation.t")?,
+            x_plus_y: read_f(&v["x_plus_y"], "violation.x_plus_y")?,
+        }),
+    };
+    let (verdict, fin) = parts::finish(&s, violation, &mut done);
+    let o = Outcome {
+        verdict: &verdict,
+        final_x_plus_y: fin,
+        sampled_x_plus_y: read_pair(&sh["sampled_x_plus_y"], "sampled_x_plus_y")?,
+        subproblems: done.len(),
+        seconds,
+        sampled_trajectories: sh["sampled_trajectories"]
+            .as_u64()
+            .and_then(|n| usize::try_from(n).ok())
+            .ok_or_else(|| anyhow!("{}: bad `sampled_trajectories`", file0.display()))?,
+    };
+    let network = r0["network"]
+        .as_str()
+        .ok_or_else(|| anyhow!("{}: bad `network`", file0.display()))?;
+    let threads = r0["threads"]
+        .as_u64()
+        .and_then(|n| usize::try_from(n).ok())
+        .ok_or_else(|| anyhow!("{}: bad `threads`", file0.display()))?;
+    let leaves: Vec<&LeafRecord> = done.iter().map(|f| &f.leaf).collect();
+    let fig = &r0["figure"];
+    let curves = fig["curves"]
+        .as_array()
+        .ok_or_else(|| anyhow!("{}: no `figure` (shard 0 keeps it)", file0.display()))?
+        .iter()
+        .map(|c| {
+            Ok(Curve {
+                label: c["label"].as_str().unwrap_or("").to_string(),
+                points: c["points"]
+                    .as_array()
+                    .ok_or_else(|| anyhow!("{}: bad figure curve", file0.display()))?
+                    .iter()
+                    .map(|p| read_pair(p, "figure point").map(|[x, y]| (x, y)))
+                    .collect::<Result<_>>()?,
+            })
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let group_label = fig["group_label"].as_str().map(str::to_string);
+
+    let dir = samara_report::guard::OutDir::prepare(out)?;
+    let report = report_json(
+        settings_json(network, threads, &s),
+        &s,
+        &o,
+        serde_json::to_value(&leaves)?,
+    );
+    write_atomic(
+        &out.join("reach.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    parts::figure(
+        &figure_title(Path::new(network), &s),
+        &verdict,
+        &leaves,
+        curves,
+        group_label,
         s.goal.as_ref().map(|g| g.ystar),
     )
+    .render(&out.join("reach.png"), &out.join("reach.svg"))?;
+    finish(&o, &s, out, json_out, dir)
 }

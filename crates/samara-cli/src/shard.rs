@@ -107,6 +107,8 @@ pub enum Kind {
     Robustness,
     /// `samara vnncomp --shard I/N --out FILE` outputs.
     Vnncomp,
+    /// `samara reach --shard I/N --out FILE` outputs.
+    Reach,
 }
 
 impl Kind {
@@ -114,6 +116,7 @@ impl Kind {
         match self {
             Kind::Robustness => "robustness",
             Kind::Vnncomp => "vnncomp",
+            Kind::Reach => "reach",
         }
     }
 }
@@ -121,7 +124,7 @@ impl Kind {
 /// Merge the shard files of one sharded run into what one process writes.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  samara robustness --network n.onnx --data d.csv --shard 0/3 --out s0.json   # ... 1/3, 2/3\n  samara merge robustness s0.json s1.json s2.json --json\n  samara vnncomp instances.csv --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT --out part-$SLURM_ARRAY_TASK_ID.json\n  samara merge vnncomp part-*.json --out results.csv\n\nExit codes: 0 merged, 2 a usage or input error (a missing or duplicate shard, shards of different runs, a bad file)."
+    after_help = "Examples:\n  samara robustness --network n.onnx --data d.csv --shard 0/3 --out s0.json   # ... 1/3, 2/3\n  samara merge robustness s0.json s1.json s2.json --json\n  samara vnncomp instances.csv --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT --out part-$SLURM_ARRAY_TASK_ID.json\n  samara merge vnncomp part-*.json --out results.csv\n  samara reach --network n.onnx --goal-ystar 2 --shard 0/4 --out r0.json   # ... 3/4\n  samara merge reach r0.json r1.json r2.json r3.json --out out/reach\n\nExit codes: 0 merged (reach: proved or no goal, as `samara reach`), 1 reach: violated or unknown, 2 a usage or input error (a missing or duplicate shard, shards of different runs, a bad file, a reach run that cannot be merged exactly)."
 )]
 pub struct MergeArgs {
     /// The command whose shards these are.
@@ -130,8 +133,8 @@ pub struct MergeArgs {
     /// The N shard files (any order).
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// Output file: robustness, the per-point CSV (optional); vnncomp, the results CSV
-    /// (required).
+    /// Output: robustness, the per-point CSV file (optional); vnncomp, the results CSV
+    /// file (required); reach, the output folder of reach.json and the figures (required).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// JSON output on stdout (as the unsharded command's --json).
@@ -235,7 +238,11 @@ pub fn run_merge(a: &MergeArgs) -> Result<ExitCode> {
             .iter()
             .map(|p| ("a shard file", p.as_path()))
             .collect();
-        samara_report::guard::check_output_file("--out", o, &refs)?;
+        if a.kind == Kind::Reach {
+            samara_report::guard::check_output_dir("--out", o, &crate::reach::WRITES, &refs)?;
+        } else {
+            samara_report::guard::check_output_file("--out", o, &refs)?;
+        }
     }
     let (run, shards) = read_shards(a)?;
     match a.kind {
@@ -245,6 +252,12 @@ pub fn run_merge(a: &MergeArgs) -> Result<ExitCode> {
                 bail!("--out FILE is required for `samara merge vnncomp` (the results CSV)");
             };
             super::vnncomp::merge_vnncomp(&shards, out, a.json)
+        }
+        Kind::Reach => {
+            let Some(out) = &a.out else {
+                bail!("--out DIR is required for `samara merge reach` (the folder of reach.json and the figures)");
+            };
+            crate::reach::merge_reach(&run, &shards, out, a.json)
         }
     }
 }

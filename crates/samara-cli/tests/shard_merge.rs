@@ -1,6 +1,8 @@
 //! `--shard I/N` and `samara merge`: the shards of a run, merged, give what one process
-//! gives (robustness over the published training points; vnncomp on ACAS Xu fixtures);
-//! bad `--shard` values and missing or duplicate shards are usage errors (exit 2).
+//! gives (robustness over the published training points; vnncomp on ACAS Xu fixtures;
+//! reach on the published raw-unit controller, with the sub-box budget running out
+//! during the refinement); bad `--shard` values and missing or duplicate shards are
+//! usage errors (exit 2).
 
 use serde_json::Value;
 use std::ffi::OsStr;
@@ -288,4 +290,285 @@ fn bad_shard_values_are_usage_errors() {
     ]);
     assert_eq!(code, Some(2));
     assert!(err.contains("--shard needs --out"), "{err}");
+    for bad in ["2/2", "1", "x/3"] {
+        let (code, _, err) = run(&[
+            "reach".as_ref(),
+            "--network".as_ref(),
+            net.as_os_str(),
+            "--out".as_ref(),
+            "o.json".as_ref(),
+            "--shard".as_ref(),
+            bad.as_ref(),
+        ]);
+        assert_eq!(code, Some(2), "reach --shard {bad}: {err}");
+        assert!(err.contains("--shard"), "reach --shard {bad}: {err}");
+    }
+}
+
+/// The published raw-unit controller (the network of the reach tests).
+fn denorm_net() -> PathBuf {
+    let p = reference().join("base_model_denorm.onnx");
+    assert!(
+        p.exists(),
+        "{} not found: the reach tests read the published controller from ../shared/reference",
+        p.display()
+    );
+    p
+}
+
+/// `samara reach --network NET ARGS... --threads 2` plus `extra`.
+fn reach(net: &Path, args: &[&str], extra: &[&OsStr]) -> (Option<i32>, String, String) {
+    let mut all: Vec<&OsStr> = vec!["reach".as_ref(), "--network".as_ref(), net.as_os_str()];
+    all.extend(args.iter().map(OsStr::new));
+    all.extend([OsStr::new("--threads"), OsStr::new("2")]);
+    all.extend(extra);
+    run(&all)
+}
+
+/// `reach.json` of a folder without its wall time.
+fn reach_json(dir: &Path) -> Value {
+    let text = std::fs::read_to_string(dir.join("reach.json")).unwrap();
+    strip(serde_json::from_str(&text).unwrap())
+}
+
+/// Run `args` unsharded and as `n` shards (written in the order `order`, passed to the
+/// merge in that order too), merge, and check the merge gives the one-process output:
+/// reach.json (but `seconds`), the figures, the JSON summary and the exit code. Returns
+/// the one-process reach.json.
+fn sharded_equals_unsharded(
+    args: &[&str],
+    n: usize,
+    order: &[usize],
+    dir: &Path,
+) -> (Value, Vec<PathBuf>) {
+    std::fs::create_dir_all(dir).unwrap();
+    let net = denorm_net();
+    let full = dir.join("full");
+    let (code, summary, err) = reach(
+        &net,
+        args,
+        &["--json".as_ref(), "--out".as_ref(), full.as_os_str()],
+    );
+    let files: Vec<PathBuf> = order
+        .iter()
+        .map(|i| {
+            let f = dir.join(format!("part-{i}.json"));
+            let s = format!("{i}/{n}");
+            let (c, o, e) = reach(
+                &net,
+                args,
+                &[
+                    "--shard".as_ref(),
+                    s.as_ref(),
+                    "--out".as_ref(),
+                    f.as_os_str(),
+                ],
+            );
+            assert_eq!(c, Some(0), "shard {s}: {o}{e}");
+            assert!(o.starts_with(&format!("shard {s}: pieces")), "{o}");
+            f
+        })
+        .collect();
+    let merged = dir.join("merged");
+    let mut m: Vec<&OsStr> = vec!["merge".as_ref(), "reach".as_ref()];
+    m.extend(files.iter().map(|f| f.as_os_str()));
+    m.extend(["--json".as_ref(), "--out".as_ref(), merged.as_os_str()]);
+    let (mcode, msummary, merr) = run(&m);
+    assert_eq!(
+        mcode, code,
+        "merge: {msummary}{merr}\nunsharded: {summary}{err}"
+    );
+    let (a, b) = (reach_json(&full), reach_json(&merged));
+    assert_eq!(a, b, "merged reach.json differs from the one-process one");
+    assert_eq!(
+        strip(serde_json::from_str(&summary).unwrap()),
+        strip(serde_json::from_str(&msummary).unwrap())
+    );
+    for fig in ["reach.svg", "reach.png"] {
+        assert!(
+            std::fs::read(full.join(fig)).unwrap() == std::fs::read(merged.join(fig)).unwrap(),
+            "{fig} differs"
+        );
+    }
+    (a, files)
+}
+
+/// The height interval's 8 initial pieces, a goal window over the flight that the
+/// sub-boxes crossing x + y = 2.45 leave undecided (so they are split), and a budget of 12
+/// sub-boxes that runs out during the refinement: which sub-boxes are split depends on
+/// the other shards' sub-boxes, and the merge replays it as one process does.
+const BUDGETED: [&str; 10] = [
+    "--y0",
+    "2.0:2.2",
+    "--horizon",
+    "0.5",
+    "--goal-ystar",
+    "2.45",
+    "--goal-from",
+    "0",
+    "--max-leaves",
+    "12",
+];
+
+#[test]
+fn reach_three_shards_merge_to_the_unsharded_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let (r, files) = sharded_equals_unsharded(&BUDGETED, 3, &[2, 0, 1], dir.path());
+    // A sampled flight leaves the band: the counterexample is a sampled start, the same
+    // in every shard.
+    assert_eq!(r["verdict"]["verdict"], "violated", "{}", r["verdict"]);
+    assert!(r["verdict"]["counterexample"]["initial"].is_array());
+    // The budget was spent on split sub-boxes (more than the 8 pieces, at most 12).
+    assert_eq!(r["subproblems"], 12);
+    assert_eq!(r["leaves"].as_array().unwrap().len(), 12);
+    // Without the halves shard 1/3 flew, the run cannot be replayed: refused, naming the
+    // first half it needs.
+    let f1 = &files[2];
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(f1).unwrap()).unwrap();
+    v["result"]["subboxes"]
+        .as_array_mut()
+        .unwrap()
+        .retain(|b| b["key"].as_str().unwrap().ends_with(':'));
+    std::fs::write(f1, serde_json::to_string(&v).unwrap()).unwrap();
+    let out = dir.path().join("cut");
+    let mut m: Vec<&OsStr> = vec!["merge".as_ref(), "reach".as_ref()];
+    m.extend(files.iter().map(|f| f.as_os_str()));
+    m.extend(["--out".as_ref(), out.as_os_str()]);
+    let (code, o, err) = run(&m);
+    assert_eq!(code, Some(2), "{o}{err}");
+    assert!(
+        err.contains("which shard 1/3") && err.contains("cannot be merged exactly"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn reach_two_shards_merge_to_the_unsharded_result() {
+    let dir = tempfile::tempdir().unwrap();
+    // One sample (the lower corner) violates nothing: unknown, with the enclosure's hull
+    // in the reason.
+    let mut args = BUDGETED.to_vec();
+    args.extend(["--samples", "1"]);
+    let (r, _) = sharded_equals_unsharded(&args, 2, &[1, 0], &dir.path().join("a"));
+    assert_eq!(r["verdict"]["verdict"], "unknown", "{}", r["verdict"]);
+    assert_eq!(r["subproblems"], 12);
+    // Proved, nothing split.
+    let (r, _) = sharded_equals_unsharded(
+        &["--y0", "2.0:2.1", "--horizon", "0.5", "--goal-ystar", "100"],
+        2,
+        &[0, 1],
+        &dir.path().join("b"),
+    );
+    assert_eq!(r["verdict"]["verdict"], "proved", "{}", r["verdict"]);
+    assert_eq!(r["subproblems"], 4);
+}
+
+#[test]
+fn reach_merge_refuses_shards_that_do_not_make_one_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let net = denorm_net();
+    let args = ["--y0", "2.0:2.1", "--horizon", "0.5", "--goal-ystar", "100"];
+    let shard = |args: &[&str], s: &str, name: &str| -> PathBuf {
+        let f = dir.path().join(name);
+        let (c, o, e) = reach(
+            &net,
+            args,
+            &[
+                "--shard".as_ref(),
+                s.as_ref(),
+                "--out".as_ref(),
+                f.as_os_str(),
+            ],
+        );
+        assert_eq!(c, Some(0), "{o}{e}");
+        f
+    };
+    let s0 = shard(&args, "0/2", "s0.json");
+    let s1 = shard(&args, "1/2", "s1.json");
+    let out = dir.path().join("out");
+    let merge = |files: &[&Path]| {
+        let mut m: Vec<&OsStr> = vec!["merge".as_ref(), "reach".as_ref()];
+        m.extend(files.iter().map(|f| f.as_os_str()));
+        m.extend(["--out".as_ref(), out.as_os_str()]);
+        let (code, o, err) = run(&m);
+        assert_eq!(code, Some(2), "{o}{err}");
+        assert!(!out.exists(), "a refused merge left {}", out.display());
+        err
+    };
+    let err = merge(&[&s1]);
+    assert!(err.contains("missing shard(s): 0/2"), "{err}");
+    let err = merge(&[&s0, &s1, &s0]);
+    assert!(err.contains("duplicate shard(s): 0/2"), "{err}");
+    // Another goal, another network: shards of different runs.
+    let mut other = args.to_vec();
+    other[5] = "50";
+    let g1 = shard(&other, "1/2", "g1.json");
+    let err = merge(&[&s0, &g1]);
+    assert!(err.contains("different runs"), "{err}");
+    let adv = reference().join("adversarial_model_denorm.onnx");
+    if adv.exists() {
+        let f = dir.path().join("n1.json");
+        let (c, o, e) = reach(
+            &adv,
+            &args,
+            &[
+                "--shard".as_ref(),
+                "1/2".as_ref(),
+                "--out".as_ref(),
+                f.as_os_str(),
+            ],
+        );
+        assert_eq!(c, Some(0), "{o}{e}");
+        let err = merge(&[&s0, &f]);
+        assert!(err.contains("different runs"), "{err}");
+    }
+    // A shard of a 3-shard run among a 2-shard run's.
+    let t1 = shard(&args, "1/3", "t1.json");
+    let err = merge(&[&s0, &t1]);
+    assert!(
+        err.contains("3-shard run mixed with a 2-shard run"),
+        "{err}"
+    );
+    // A sub-box the run needs but its shard does not hold is named, not guessed.
+    let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&s1).unwrap()).unwrap();
+    let gone = v["result"]["subboxes"].as_array_mut().unwrap().remove(0);
+    let cut = dir.path().join("cut.json");
+    std::fs::write(&cut, serde_json::to_string(&v).unwrap()).unwrap();
+    let err = merge(&[&s0, &cut]);
+    assert!(
+        err.contains(&format!(
+            "piece {} of shard 1/2 is missing",
+            gone["key"].as_str().unwrap()
+        )),
+        "{err}"
+    );
+    // The merge of reach needs --out (a folder).
+    let (code, _, err) = run(&[
+        "merge".as_ref(),
+        "reach".as_ref(),
+        s0.as_os_str(),
+        s1.as_os_str(),
+    ]);
+    assert_eq!(code, Some(2));
+    assert!(err.contains("--out DIR is required"), "{err}");
+    // --system and Taylor-model sets are not sharded.
+    let sys = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/archcomp/tora.sys");
+    let f = dir.path().join("x.json");
+    for extra in [
+        vec!["--system".as_ref(), sys.as_os_str()],
+        vec!["--sets".as_ref(), "taylor".as_ref()],
+    ] {
+        let mut e: Vec<&OsStr> = extra;
+        e.extend([
+            "--shard".as_ref(),
+            "0/2".as_ref(),
+            "--out".as_ref(),
+            f.as_os_str(),
+        ]);
+        let (code, o, err) = reach(&net, &[], &e);
+        assert_eq!(code, Some(2), "{o}{err}");
+        assert!(err.contains("not sharded"), "{err}");
+        assert!(!f.exists());
+    }
 }
