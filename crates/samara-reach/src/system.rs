@@ -628,17 +628,22 @@ fn fly_box(
                     }
                 }
                 leaf.periods.push(to_pairs(&ph));
+                // Each part's box on its own (they cover the period together): an
+                // obstacle the flight passes diagonally misses the parts but not
+                // their hull.
                 let empty: Vec<Tm> = Vec::new();
-                check_goals(
-                    sys,
-                    &empty,
-                    &ph,
-                    t,
-                    t + sys.period,
-                    &mut ok,
-                    &mut met,
-                    &mut refuted,
-                );
+                for bx in &boxes {
+                    check_goals(
+                        sys,
+                        &empty,
+                        bx,
+                        t,
+                        t + sys.period,
+                        &mut ok,
+                        &mut met,
+                        &mut refuted,
+                    );
+                }
                 x = next;
                 if undecidable(sys, &ok) {
                     leaf.stopped_at = Some(t + sys.period);

@@ -111,7 +111,7 @@ fn taylor<S: Scalar>(sys: &System, x0: &[S], u: &[S], upto: usize) -> Option<Vec
 }
 
 /// One step of length `h`; `None` if it cannot be validated at this `h` (then the caller
-/// halves it). Returns the state at `h` and the a-priori box over `[0, h]`.
+/// halves it). Returns the state at `h` and boxes enclosing the states over `[0, h]`.
 fn step(
     sys: &System,
     x: &[Tm],
@@ -120,7 +120,7 @@ fn step(
     h: f64,
     s: &TmFlowSettings,
     last_chance: bool,
-) -> Option<(Vec<Tm>, Vec<Interval>)> {
+) -> Option<(Vec<Tm>, Vec<Vec<Interval>>)> {
     let bz: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
     let b = apriori_by(|x| rhs_box(sys, x, bu), &bz, h)?;
     let pmax = s.time_order.clamp(1, K - 2);
@@ -156,7 +156,8 @@ fn step(
                     acc.with_rem(*r)
                 })
                 .collect();
-            return Some((next, b));
+            let boxes = sub_boxes(tx, tb, p, h, &b);
+            return Some((next, boxes));
         }
     }
     if !last_chance {
@@ -175,12 +176,77 @@ fn step(
         .zip(&fb)
         .map(|(xi, f)| xi.clone().with_rem(Interval::point(h) * *f))
         .collect();
-    Some((next, b))
+    Some((next, vec![b]))
+}
+
+/// Parts of a step that [`sub_boxes`] encloses separately.
+const SUB_STEPS: usize = 4;
+
+/// Enclosures of the solution over [`SUB_STEPS`] equal parts `[ta, tb]` of a validated
+/// step `[0, h]` of time order `p`: for `tau` in the part,
+/// `x(tau) = P(ta) + (P(tau) - P(ta)) + x_{p+1}(xi) tau^{p+1}` with `P` the time
+/// polynomial (Taylor models in the parameters), so the part's box is the bound of the
+/// Taylor model `P(ta)`, plus `[0, tb - ta] * P'([ta, tb])` (the mean value theorem, `P'`
+/// on the coefficients' bounds), plus `x_{p+1}(B) * [0, tb^{p+1}]` (the Lagrange
+/// remainder over the a-priori box `B`), each intersected with `B`. Much tighter than `B`
+/// itself, which is what lets a goal that must hold at all times (an obstacle to avoid, a
+/// band) be decided over a period.
+fn sub_boxes(
+    tx: &[Series<Tm, K>],
+    tb: &[Series<Interval, K>],
+    p: usize,
+    h: f64,
+    b: &[Interval],
+) -> Vec<Vec<Interval>> {
+    let ends: Vec<f64> = (0..=SUB_STEPS)
+        .map(|k| {
+            if k == SUB_STEPS {
+                h
+            } else {
+                h * k as f64 / SUB_STEPS as f64
+            }
+        })
+        .collect();
+    ends.windows(2)
+        .map(|w| {
+            let (ta, tbe) = (w[0], w[1]);
+            let t = Interval { lo: ta, hi: tbe };
+            let dt = (Interval::point(tbe) - Interval::point(ta)).hi.max(0.0);
+            let tail = Interval {
+                lo: 0.0,
+                hi: pow_up(tbe, p + 1).hi,
+            };
+            tx.iter()
+                .zip(tb)
+                .zip(b)
+                .map(|((c, cb), bj)| {
+                    let mut at = c.c[p].clone();
+                    for i in (0..p).rev() {
+                        at = at * ta + c.c[i].clone();
+                    }
+                    let mut d = c.c[p].bound() * p as f64;
+                    for i in (1..p).rev() {
+                        d = d * t + c.c[i].bound() * i as f64;
+                    }
+                    let v = at.bound() + Interval { lo: 0.0, hi: dt } * d + cb.c[p + 1] * tail;
+                    let (lo, hi) = (v.lo.max(bj.lo), v.hi.min(bj.hi));
+                    if lo <= hi {
+                        Interval { lo, hi }
+                    } else {
+                        // Both enclose the solution, so they meet; an empty intersection
+                        // can only be NaN noise: keep the a-priori box.
+                        *bj
+                    }
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// Fly the Taylor-model state `x` under the held inputs `u` for `period`: the state at
-/// the period's end and the a-priori boxes of every step (which together cover
-/// `[0, period]`).
+/// the period's end and boxes that together enclose every state over `[0, period]`
+/// (per step its [`sub_boxes`], or its a-priori box where no Taylor step validated), in
+/// time order.
 pub fn tm_period(
     sys: &System,
     x: &[Tm],
@@ -214,7 +280,7 @@ pub fn tm_period(
                         return Err(TmFlowError::Unbounded { t });
                     }
                     cur = next;
-                    boxes.push(b);
+                    boxes.extend(b);
                     pos += units >> j;
                     // Let the step grow again next time.
                     level = j.saturating_sub(1);

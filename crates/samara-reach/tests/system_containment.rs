@@ -147,6 +147,20 @@ fn attitude_control_sets_contain_flights_and_prove_the_goal() {
     assert_eq!(r.verdict, SystemVerdict::Proved, "{:?}", r.verdict);
 }
 
+/// NAV, robust instance (ARCH-COMP 2024: verified by the tools): the flight passes the
+/// obstacle's corner diagonally, so the avoid goal is decided only on each part of a
+/// period (`tmflow` sub-boxes), not on the period's hull; flights inside, both goals
+/// proved.
+#[test]
+fn nav_robust_sets_contain_flights_and_avoid_the_obstacle() {
+    let sys = system("nav.sys");
+    let net = fixture("controller_nav_set.onnx");
+    let r = reach_system(&sys, &net, &SystemReachSettings::default()).unwrap();
+    let n = check_contains(&sys, &net, &r, 300, 31);
+    assert!(n > 300 * sys.steps());
+    assert_eq!(r.verdict, SystemVerdict::Proved, "{:?}", r.verdict);
+}
+
 #[test]
 fn double_pendulum_more_robust_is_falsified_by_a_real_flight() {
     let sys = system("double_pendulum_more_robust.sys");
@@ -208,20 +222,42 @@ fn alsomitra_reduced_sets_contain_2000_flights() {
 
 /// The ARCH-COMP benchmarks whose controllers the competition ships as ONNX and that
 /// have no fixture here: system file, controller path under the 2023 `benchmarks/`
-/// folder (or, second, the 2024 one), and the flights to check.
-const FIELD: &[(&str, &str, usize)] = &[
-    ("tora.sys", "Benchmark9-Tora/controllerTora.onnx", 200),
-    ("unicycle.sys", "Benchmark10-Unicycle/controllerB.onnx", 100),
-    ("airplane.sys", "Airplane/controller_airplane.onnx", 200),
+/// folder (or, second, the 2024 one), the flights to check, and the competition's
+/// verdict (the tools' consensus; `unknown` where none was published).
+const FIELD: &[(&str, &str, usize, &str)] = &[
+    (
+        "tora.sys",
+        "Benchmark9-Tora/controllerTora.onnx",
+        200,
+        "verified",
+    ),
+    (
+        "unicycle.sys",
+        "Benchmark10-Unicycle/controllerB.onnx",
+        100,
+        "verified",
+    ),
+    (
+        "airplane.sys",
+        "Airplane/controller_airplane.onnx",
+        200,
+        "falsified",
+    ),
     (
         "quadrotor.sys",
         "Aircraft/QUAD/quad_controller_3_64_torch.onnx",
         100,
+        "verified",
     ),
-    ("spacecraft_docking.sys", "Docking/model.onnx", 200),
-    ("nav.sys", "NAV/networks/nn-nav-point.onnx", 200),
-    ("nav.sys", "NAV/networks/nn-nav-set.onnx", 200),
-    ("cartpole.sys", "CartPole/model.onnx", 200),
+    (
+        "spacecraft_docking.sys",
+        "Docking/model.onnx",
+        200,
+        "verified",
+    ),
+    ("nav.sys", "NAV/networks/nn-nav-point.onnx", 200, "unknown"),
+    ("nav.sys", "NAV/networks/nn-nav-set.onnx", 200, "verified"),
+    ("cartpole.sys", "CartPole/model.onnx", 200, "unknown"),
 ];
 
 /// Every other ARCH-COMP benchmark with an ONNX controller, on the competition's own
@@ -229,7 +265,8 @@ const FIELD: &[(&str, &str, usize)] = &[
 /// sets reached (up to 16 sub-boxes, 60 s each), and a `violated` verdict's start
 /// misses the goal when flown again. The repositories are not copied here: point
 /// `SAMARA_ARCHCOMP` at the `benchmarks/` folder of verivital/ARCH-COMP2023 and
-/// `SAMARA_ARCHCOMP_2024` at ARCH-COMP2024's (NAV, CartPole), e.g.
+/// `SAMARA_ARCHCOMP_2024` at ARCH-COMP2024's (NAV, CartPole); a verdict opposite to the
+/// competition's fails the test. E.g.
 /// `SAMARA_ARCHCOMP=/tmp/ARCH-COMP2023/benchmarks cargo test --release -p samara-reach
 /// --test system_containment -- --ignored field`.
 #[test]
@@ -244,7 +281,7 @@ fn field_benchmarks_sets_contain_flights() {
         "set SAMARA_ARCHCOMP to the benchmarks/ folder of verivital/ARCH-COMP2023"
     );
     let mut ran = 0;
-    for &(file, ctl, flights) in FIELD {
+    for &(file, ctl, flights, expected) in FIELD {
         let Some(p) = dirs.iter().map(|d| d.join(ctl)).find(|p| p.is_file()) else {
             eprintln!("{file}: {ctl} not found under {dirs:?}; skipped");
             continue;
@@ -283,6 +320,16 @@ fn field_benchmarks_sets_contain_flights() {
         assert!(
             n > 0 || r.verdict.name() == "violated",
             "{file}: neither sets nor a counterexample"
+        );
+        // Never the opposite of the competition's verdict.
+        let contradicts = matches!(
+            (expected, r.verdict.name()),
+            ("verified", "violated") | ("falsified", "proved")
+        );
+        assert!(
+            !contradicts,
+            "{file}: {} against the competition's {expected}",
+            r.verdict.name()
         );
         ran += 1;
     }

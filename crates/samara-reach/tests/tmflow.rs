@@ -1,7 +1,7 @@
 //! The Taylor-model flowpipe against closed-form solutions (an independent computation):
 //! every sampled start's exact state at the period's end lies in the Taylor models
-//! evaluated at its parameters, and every exact state inside the period lies in that
-//! step's a-priori box.
+//! evaluated at its parameters, and every exact state inside the period lies in one of
+//! the period's boxes.
 
 use rand::{Rng, SeedableRng};
 use samara_num::{Interval, Scalar, Tm};
@@ -54,21 +54,35 @@ fn harmonic_oscillator_with_held_input_matches_the_closed_form() {
             );
             assert!(inside(ve, next[1].eval_at(p), 1e-13), "v at t = {t}");
         }
-        // The step boxes cover the whole period: check states at 50 times inside it.
+        // The boxes cover the whole period: every exact state at 200 times inside it
+        // lies in one of them (each box on its own, not only their hull: the goals are
+        // checked box by box).
+        for k in 0..200 {
+            let tt = t - 0.5 + 0.5 * k as f64 / 199.0;
+            for p in pts.iter().take(100) {
+                let (x0, v0, uu) = (1.0 + 0.1 * p[0], 0.1 * p[1], 0.3 + 0.05 * p[0]);
+                let xe = uu + (x0 - uu) * tt.cos() + v0 * tt.sin();
+                let ve = -(x0 - uu) * tt.sin() + v0 * tt.cos();
+                assert!(
+                    boxes
+                        .iter()
+                        .any(|bx| inside(xe, bx[0], 1e-13) && inside(ve, bx[1], 1e-13)),
+                    "state ({xe}, {ve}) at t = {tt} in no box"
+                );
+            }
+        }
+        // Each step is cut into parts, each narrower than the period's hull.
         let hull = boxes.iter().fold(boxes[0].clone(), |a, bx| {
             a.iter()
                 .zip(bx)
                 .map(|(p, q)| Interval::new(p.lo.min(q.lo), p.hi.max(q.hi)))
                 .collect()
         });
-        for k in 0..50 {
-            let tt = t - 0.5 + 0.5 * k as f64 / 49.0;
-            for p in pts.iter().take(100) {
-                let (x0, v0, uu) = (1.0 + 0.1 * p[0], 0.1 * p[1], 0.3 + 0.05 * p[0]);
-                let xe = uu + (x0 - uu) * tt.cos() + v0 * tt.sin();
-                assert!(inside(xe, hull[0], 1e-13));
-            }
-        }
+        let widest = boxes
+            .iter()
+            .map(|bx| bx[0].hi - bx[0].lo)
+            .fold(0.0, f64::max);
+        assert!(boxes.len() >= 4 && widest < hull[0].hi - hull[0].lo);
         x = next;
     }
     // Useful, not only sound: after 4 s the remainder is still small.
