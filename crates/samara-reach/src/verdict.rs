@@ -1,10 +1,11 @@
 //! The goal on the final sets, falsification by simulated trajectories, and the verdict.
 
-use crate::driver::Leaf;
+use crate::driver::{Flown, Leaf};
 use crate::sampling::Sample;
 use crate::settings::{Goal, ReachSettings};
 use samara_num::Interval;
 use serde::Serialize;
+use std::borrow::Borrow;
 
 /// The verdict on the goal.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -100,34 +101,28 @@ pub(crate) fn first_violation(samples: &[Sample], g: &Goal, s: &ReachSettings) -
 
 /// The verdict of a run: no goal, the falsifying trajectory if there is one, unknown if
 /// a sub-box lost its enclosure, proved if every sub-box's enclosures lie in the band
-/// (`fin`: the hull of `x + y` at the horizon, for the message), unknown otherwise.
-pub(crate) fn decide(
+/// (the goal [`leaf_goal`] found on each flown sub-box; `fin`: the hull of `x + y` at the
+/// horizon, for the message), unknown otherwise.
+pub(crate) fn decide<F: Borrow<Flown>>(
     s: &ReachSettings,
     violation: Option<Verdict>,
-    done: &[Leaf],
+    done: &[F],
     fin: Interval,
 ) -> Verdict {
     match (&s.goal, violation) {
         (None, _) => Verdict::NoGoal,
         (Some(_), Some(v)) => v,
-        (Some(g), None) => {
-            if done.iter().any(|l| l.failure.is_some()) {
-                let why = done
-                    .iter()
-                    .find_map(|l| l.failure.clone())
-                    .unwrap_or_default();
+        (Some(_), None) => {
+            if let Some(why) = done.iter().find_map(|f| f.borrow().leaf.failure.clone()) {
                 Verdict::Unknown { reason: why }
+            } else if done.iter().all(|f| f.borrow().goal == Some(true)) {
+                Verdict::Proved
             } else {
-                let ok = done.iter().all(|l| leaf_goal(l, g, s) == Some(true));
-                if ok {
-                    Verdict::Proved
-                } else {
-                    Verdict::Unknown {
-                        reason: format!(
-                            "the enclosure of x + y ({:.4}, {:.4}) is not inside the goal band and no simulated trajectory violates it; refine with more sub-boxes (--max-leaves) or smaller thresholds",
-                            fin.lo, fin.hi
-                        ),
-                    }
+                Verdict::Unknown {
+                    reason: format!(
+                        "the enclosure of x + y ({:.4}, {:.4}) is not inside the goal band and no simulated trajectory violates it; refine with more sub-boxes (--max-leaves) or smaller thresholds",
+                        fin.lo, fin.hi
+                    ),
                 }
             }
         }
