@@ -245,8 +245,8 @@ fn sub_boxes(
 
 /// Fly the Taylor-model state `x` under the held inputs `u` for `period`: the state at
 /// the period's end and boxes that together enclose every state over `[0, period]`
-/// (per step the boxes of `sub_boxes`, or its a-priori box where no Taylor step validated), in
-/// time order.
+/// (per step the boxes of `sub_boxes`, or its a-priori box where no Taylor step
+/// validated), in time order.
 pub fn tm_period(
     sys: &System,
     x: &[Tm],
