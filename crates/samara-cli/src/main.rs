@@ -102,6 +102,7 @@ enum Command {
     /// figures, report) in one command.
     #[command(after_help = help!(
         "samara reproduce --quick --out out/quick",
+        "samara reproduce --quick --spec my.spec --out out/edited   # P1-P4 from an edited copy of the spec",
         "samara reproduce --published ../shared/reference --out out/reproduce",
     ))]
     Reproduce(reproduce::ReproduceArgs),

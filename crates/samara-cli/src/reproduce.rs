@@ -18,6 +18,14 @@ pub struct ReproduceArgs {
     /// are analysed beside samara's own.
     #[arg(long)]
     pub published: Option<PathBuf>,
+    /// The specification P1-P4 are read from: its properties drive DL2/Goedel training
+    /// and the critical values of the verify stage, its network declaration gives the
+    /// published networks' units and domain [default: the shipped
+    /// models/alsomitra/alsomitra.spec, compiled in]. Edit a copy to move a threshold;
+    /// the spec's text is part of every stage's cache key. A spec error is exit 2 with
+    /// file:line:col.
+    #[arg(long, value_name = "FILE")]
+    pub spec: Option<PathBuf>,
     /// Recompute every stage (ignore the cache of finished stages).
     #[arg(long)]
     pub fresh: bool,
@@ -40,6 +48,15 @@ const WRITES: [&str; 8] = [
 
 /// Run `samara reproduce`.
 pub fn run(a: &ReproduceArgs) -> Result<ExitCode> {
+    // The spec first: a bad one stops the run before any folder is created.
+    let spec = match &a.spec {
+        Some(p) => samara_repro::ReproSpec::read(p)?,
+        None => samara_repro::ReproSpec::shipped(),
+    };
+    let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
+    if let Some(p) = &a.spec {
+        inputs.push(("--spec", p));
+    }
     if let Some(p) = &a.published {
         // Check the input before any folder is created, and never write into it.
         if !p.is_dir() {
@@ -48,7 +65,10 @@ pub fn run(a: &ReproduceArgs) -> Result<ExitCode> {
                 p.display()
             );
         }
-        samara_report::guard::check_output_dir("--out", &a.out, &WRITES, &[("--published", p)])?;
+        inputs.push(("--published", p));
+    }
+    if !inputs.is_empty() {
+        samara_report::guard::check_output_dir("--out", &a.out, &WRITES, &inputs)?;
     }
     let out = samara_report::guard::OutDir::prepare(&a.out)?;
     let opts = samara_repro::ReproduceOptions {
@@ -58,6 +78,7 @@ pub fn run(a: &ReproduceArgs) -> Result<ExitCode> {
         fresh: a.fresh,
         progress: std::io::stderr().is_terminal() && !a.json,
         command_line: std::env::args().collect::<Vec<_>>().join(" "),
+        spec,
     };
     let outcome = samara_repro::run(&opts)?;
     if a.json {

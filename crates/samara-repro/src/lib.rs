@@ -3,6 +3,13 @@
 //! cache keyed by its inputs, so an interrupted run leaves no half-written report and a
 //! re-run reuses what is finished. The report (`report.md`, `report.html`) and
 //! `results.json` are written last.
+//!
+//! P1-P4 come from a specification ([`ReproSpec`]): the shipped
+//! `models/alsomitra/alsomitra.spec` by default, or any edited copy (`samara reproduce
+//! --spec FILE`). The stages take it from [`Ctx::spec`] (training's DL2/Goedel
+//! constraints, the critical values of the verify stage, the units and domain of the
+//! networks), and its text is part of every stage's cache key, so an edited spec is never
+//! served from a stage cached under another.
 
 pub mod cache;
 pub mod doc;
@@ -12,9 +19,68 @@ pub mod stages;
 use cache::Cache;
 use doc::{Block, Document};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use samara_spec::Spec;
 use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// The specification a reproduction lowers P1-P4 from, with its text (hashed into the
+/// stage cache keys and `results.json`).
+#[derive(Clone, Debug)]
+pub struct ReproSpec {
+    spec: Spec,
+    text: String,
+}
+
+impl ReproSpec {
+    /// The shipped case-study spec, `models/alsomitra/alsomitra.spec` (compiled in).
+    pub fn shipped() -> Self {
+        ReproSpec {
+            spec: samara_train::case_study_spec(),
+            text: samara_train::CASE_STUDY_SPEC.to_string(),
+        }
+    }
+
+    /// Read, parse and check a spec file (messages carry `file:line:col`), and check that
+    /// it states what the stages lower (see [`ReproSpec::parse`]).
+    pub fn read(path: &Path) -> Result<Self, ReproError> {
+        let file = path.display().to_string();
+        let bytes = std::fs::read(path).map_err(|e| ReproError::Spec {
+            message: format!("{file}: cannot read the spec: {e}; check the --spec path"),
+        })?;
+        let text = samara_spec::syntax::decode(&bytes, &file).map_err(ReproError::spec)?;
+        Self::parse(text, &file, path.parent().unwrap_or(Path::new(".")))
+    }
+
+    /// Parse and check spec text (`file` names it in messages, `dir` resolves its data
+    /// paths). The stages need a first network with the six state inputs and one output
+    /// and properties `p1`-`p4` that lower both as critical-value queries over `ystar`
+    /// (verify stage) and as training properties with `ystar` at its default (DL2 and
+    /// Goedel training); anything else is refused here, before any stage runs.
+    pub fn parse(text: &str, file: &str, dir: &Path) -> Result<Self, ReproError> {
+        let spec = Spec::parse(text, file, dir).map_err(ReproError::spec)?;
+        more::check_spec(&spec).map_err(|message| ReproError::Spec { message })?;
+        Ok(ReproSpec {
+            spec,
+            text: text.to_string(),
+        })
+    }
+
+    /// The checked spec.
+    pub fn spec(&self) -> &Spec {
+        &self.spec
+    }
+
+    /// The spec's text, as read.
+    pub fn text(&self) -> &str {
+        &self.text
+    }
+
+    /// The spec's file name, as given.
+    pub fn file(&self) -> &str {
+        &self.spec.file
+    }
+}
 
 /// Options of a reproduction run.
 #[derive(Clone, Debug)]
@@ -32,6 +98,9 @@ pub struct ReproduceOptions {
     pub progress: bool,
     /// The command line, recorded in the report.
     pub command_line: String,
+    /// The specification P1-P4 are lowered from ([`ReproSpec::shipped`] for the case
+    /// study as published).
+    pub spec: ReproSpec,
 }
 
 /// Errors of a reproduction run.
@@ -45,6 +114,13 @@ pub enum ReproError {
         /// Message with the fix.
         message: String,
     },
+    /// The specification cannot be read, does not parse or check, or does not state
+    /// what the stages lower (the message carries `file:line:col` where it has one).
+    #[error("{message}")]
+    Spec {
+        /// The spec error, with its place and fix.
+        message: String,
+    },
     /// A stage failed.
     #[error("stage `{stage}` failed: {message}")]
     Stage {
@@ -53,6 +129,14 @@ pub enum ReproError {
         /// What went wrong.
         message: String,
     },
+}
+
+impl ReproError {
+    fn spec(e: samara_spec::SpecError) -> Self {
+        ReproError::Spec {
+            message: e.to_string().trim_end().to_string(),
+        }
+    }
 }
 
 /// What a stage hands back: JSON results, files written (relative to the output
@@ -85,6 +169,11 @@ impl Ctx<'_> {
         pb
     }
 
+    /// The specification of the run (P1-P4, the network's units and domain).
+    pub fn spec(&self) -> &Spec {
+        self.opts.spec.spec()
+    }
+
     /// Absolute path of an output file.
     pub fn path(&self, rel: &str) -> PathBuf {
         self.opts.out.join(rel)
@@ -103,6 +192,35 @@ pub struct Outcome {
 }
 
 type StageFn = fn(&Ctx, &Value) -> Result<StageOutput, ReproError>;
+
+fn mode(opts: &ReproduceOptions) -> &'static str {
+    if opts.quick {
+        "quick"
+    } else {
+        "full"
+    }
+}
+
+/// The cache key of `stage`: everything its result depends on (the samara version, the
+/// mode, the published folder, the spec's text) and the key of the stage before it.
+/// The spec enters as its text, not its path: the stages read no file the spec names,
+/// so the same text gives the same results wherever it lies, and any edit of it (even
+/// a comment) recomputes every stage.
+fn stage_key(opts: &ReproduceOptions, stage: &str, prev: &str) -> String {
+    let published = opts
+        .published
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_default();
+    cache::fnv1a(&[
+        stage,
+        env!("CARGO_PKG_VERSION"),
+        mode(opts),
+        &published,
+        opts.spec.text(),
+        prev,
+    ])
+}
 
 /// Run the reproduction.
 pub fn run(opts: &ReproduceOptions) -> Result<Outcome, ReproError> {
@@ -131,12 +249,7 @@ pub fn run(opts: &ReproduceOptions) -> Result<Outcome, ReproError> {
     let ctx = Ctx { opts, bars: &bars };
     let cache = Cache::new(&opts.out, opts.fresh);
     let version = env!("CARGO_PKG_VERSION");
-    let mode = if opts.quick { "quick" } else { "full" };
-    let published = opts
-        .published
-        .as_ref()
-        .map(|p| p.display().to_string())
-        .unwrap_or_default();
+    let mode = mode(opts);
 
     let stages: Vec<(&str, StageFn)> = stages::all();
     let mut results = serde_json::Map::new();
@@ -145,14 +258,7 @@ pub fn run(opts: &ReproduceOptions) -> Result<Outcome, ReproError> {
     let overall = ctx.bar(stages.len() as u64, "reproduce");
     for (name, f) in stages {
         overall.set_message(format!("stage {name}"));
-        let key = cache::fnv1a(&[
-            name,
-            version,
-            mode,
-            &published,
-            samara_train::CASE_STUDY_SPEC,
-            &prev_key,
-        ]);
+        let key = stage_key(opts, name, &prev_key);
         let res = if let Some(r) = cache.get(name, &key, &opts.out) {
             reused.push(name.to_string());
             r
@@ -175,6 +281,7 @@ pub fn run(opts: &ReproduceOptions) -> Result<Outcome, ReproError> {
         "samara_version": version,
         "command_line": opts.command_line,
         "mode": mode,
+        "spec": {"file": opts.spec.file(), "fnv1a": cache::fnv1a(&[opts.spec.text()])},
         "seconds": seconds,
         "stages": results,
     });
@@ -217,11 +324,63 @@ pub fn table(header: &[&str], rows: Vec<Vec<String>>) -> Block {
 pub fn new_report(full: &Value) -> Document {
     let mut d = Document::new("samara: the Alsomitra case study, reproduced");
     d.push(Block::Para(format!(
-        "Produced by `{}` (samara {}, {} mode) in {:.1} s. Every number below is computed by this run; `results.json` holds them all.",
+        "Produced by `{}` (samara {}, {} mode) in {:.1} s, P1-P4 as `{}` states them. Every number below is computed by this run; `results.json` holds them all.",
         full["command_line"].as_str().unwrap_or("samara reproduce"),
         full["samara_version"].as_str().unwrap_or("?"),
         full["mode"].as_str().unwrap_or("?"),
-        full["seconds"].as_f64().unwrap_or(0.0)
+        full["seconds"].as_f64().unwrap_or(0.0),
+        full["spec"]["file"].as_str().unwrap_or("?")
     )));
     d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn opts(spec: ReproSpec) -> ReproduceOptions {
+        ReproduceOptions {
+            out: PathBuf::from("out"),
+            quick: true,
+            published: None,
+            fresh: false,
+            progress: false,
+            command_line: String::new(),
+            spec,
+        }
+    }
+
+    #[test]
+    fn an_edited_spec_is_never_served_from_the_cache() {
+        let shipped = opts(ReproSpec::shipped());
+        // The shipped spec keeps the keys of the runs before --spec existed.
+        let key = stage_key(&shipped, "data", "");
+        let version = env!("CARGO_PKG_VERSION");
+        let before = cache::fnv1a(&[
+            "data",
+            version,
+            "quick",
+            "",
+            samara_train::CASE_STUDY_SPEC,
+            "",
+        ]);
+        assert_eq!(key, before);
+        // The same text read from a file elsewhere: the same key.
+        let elsewhere = ReproSpec::parse(
+            samara_train::CASE_STUDY_SPEC,
+            "copy.spec",
+            Path::new("/tmp"),
+        )
+        .unwrap();
+        assert_eq!(stage_key(&opts(elsewhere), "data", ""), key);
+        // Any edit: another key for every stage.
+        let text = samara_train::CASE_STUDY_SPEC.replace("=> ex >= 0.187", "=> ex >= 0.2");
+        let edited = opts(ReproSpec::parse(&text, "e.spec", Path::new(".")).unwrap());
+        for stage in ["data", "train", "verify"] {
+            assert_ne!(
+                stage_key(&edited, stage, ""),
+                stage_key(&shipped, stage, "")
+            );
+        }
+    }
 }

@@ -13,8 +13,8 @@ use samara_sim::{
 use samara_spec::normal::{Goal, LinExpr, Query, Sense, Var};
 use samara_spec::{Bindings, Spec};
 use samara_train::{
-    case_study_spec, read_table, spec_properties, train as train_net, train_closed_loop,
-    with_units, Attack, CegisOptions, Logic, Method, MinMax, TrainOptions,
+    from_query, read_table, spec_properties, train as train_net, train_closed_loop, with_units,
+    Attack, CegisOptions, Logic, Method, MinMax, Property, TrainOptions,
 };
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep, Reference};
 use samara_verify::{optimise, Prepared, Settings};
@@ -61,16 +61,8 @@ pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
     let mm = MinMax::of(&data);
     let lo = mm.min[..6].to_vec();
     let hi: Vec<f64> = (0..6).map(|j| mm.min[j] + mm.range[j]).collect();
-    // P1-P4 as the spec states them, lowered in the trainer's units over the box of the
-    // regenerated data.
-    let props = spec_properties(
-        &case_study_spec(),
-        &P1_TO_P4.map(String::from),
-        &Bindings::default(),
-        &mm,
-        Some(lo.iter().cloned().zip(hi.iter().cloned()).collect()),
-    )
-    .map_err(|e| stage_err("train", e))?;
+    let props =
+        training_properties(ctx.spec(), &mm, &lo, &hi).map_err(|e| stage_err("train", e))?;
     let epochs = if ctx.opts.quick { 200 } else { 1000 };
     let pb = ctx.bar(METHODS.len() as u64, "training controllers");
     let mut rows = Vec::new();
@@ -129,6 +121,63 @@ pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
         result: json!({"networks": rows, "closed_loop": cegis, "domain_lo": lo, "domain_hi": hi, "norm_min": mm.min, "norm_range": mm.range}),
         files,
     })
+}
+
+/// P1-P4 as `spec` states them (`ystar` at its default), lowered in the trainer's
+/// min-max units `mm` over the raw box `[lo, hi]` of the regenerated data: the DL2 and
+/// Goedel constraints of the train stage.
+fn training_properties(
+    spec: &Spec,
+    mm: &MinMax,
+    lo: &[f64],
+    hi: &[f64],
+) -> Result<Vec<Property>, samara_train::SpecPropertyError> {
+    spec_properties(
+        spec,
+        &P1_TO_P4.map(String::from),
+        &Bindings::default(),
+        mm,
+        Some(lo.iter().cloned().zip(hi.iter().cloned()).collect()),
+    )
+}
+
+/// Whether `spec` states what the stages lower: a first network with the six state
+/// inputs and one output, and `p1`-`p4` both as critical-value queries over `ystar` (the
+/// verify stage) and as training properties with `ystar` at its default (the train
+/// stage). The message names the spec, and the place where the spec has one.
+pub(crate) fn check_spec(spec: &Spec) -> Result<(), String> {
+    let file = &spec.file;
+    let Some(net) = spec.networks.first() else {
+        return Err(format!(
+            "{file}: declares no network; the reproduction needs `network f(v_xp, v_yp, omega, theta, x, y) -> (ex)`"
+        ));
+    };
+    if net.inputs.len() != samara_nn::STATE_INPUTS.len() || net.outputs.len() != 1 {
+        return Err(format!(
+            "{file}: network `{}` takes {} inputs and gives {} outputs; the reproduction's controllers take the six states (v_xp, v_yp, omega, theta, x, y) and give one output (ex)",
+            net.name,
+            net.inputs.len(),
+            net.outputs.len()
+        ));
+    }
+    const TRAIN: &str =
+        "the reproduction's DL2/Goedel training lowers p1-p4 with `ystar` at its default";
+    let note = |e: &str, why: &str| format!("{}\n  = note: {why}", e.trim_end());
+    for name in P1_TO_P4 {
+        critical_query(spec, name, "ystar").map_err(|e| {
+            note(
+                &e,
+                "the reproduction computes the critical value of `ystar` for each of p1-p4",
+            )
+        })?;
+        let insts = spec
+            .lower_prove(name, &Bindings::default())
+            .map_err(|e| note(&e.to_string(), TRAIN))?;
+        for inst in insts {
+            from_query(&inst.query).map_err(|e| note(&format!("{file}: {e}"), TRAIN))?;
+        }
+    }
+    Ok(())
 }
 
 /// The closed-loop method: data-only training of `epochs`, then train-and-reach rounds
@@ -223,7 +272,7 @@ fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
         norm_min: nmin,
         norm_range: nrange,
     } = TrainUnits::deserialize(&up["train"]).map_err(|e| stage_err("verify", e))?;
-    let spec = case_study_spec();
+    let spec = ctx.spec();
     // samara's networks take raw units (their normalisation is inside the file); their
     // domain is the box of the data they were trained on.
     let domain: Vec<(f64, f64)> = lo.iter().cloned().zip(hi.iter().cloned()).collect();
@@ -249,7 +298,7 @@ fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
         v.push(Subject {
             label: format!("samara {m}"),
             net: net.clone(),
-            spec: with_units(&spec, None, None, Some(domain.clone())),
+            spec: with_units(spec, None, None, Some(domain.clone())),
             p5: Some((body, rows_norm.clone())),
             raw_controller: Some(net),
         });
@@ -274,7 +323,7 @@ fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
                 spec: if norm {
                     spec.clone()
                 } else {
-                    with_units(&spec, None, None, None)
+                    with_units(spec, None, None, None)
                 },
                 p5: if norm {
                     Some((net.clone(), pdata.clone()))
@@ -1011,7 +1060,10 @@ pub fn report(st: &Value, d: &mut Document, findings: &mut Vec<String>) {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::ReproSpec;
+    use samara_train::case_study_spec;
     use samara_verify::{Critical, UnknownReason};
+    use std::path::Path;
 
     fn crit(value: Option<f64>, unknown: Option<UnknownReason>, attained: bool) -> Critical {
         Critical {
@@ -1117,6 +1169,168 @@ mod tests {
         let spec = Spec::parse(&edited, "edited.spec", std::path::Path::new(".")).unwrap();
         let c = p1_critical(&spec);
         assert!((c - 1.3).abs() < 1e-6, "{c}");
+    }
+
+    /// The shipped spec's text with P1-P4's output constants edited: P1 `ex >= 0.2`,
+    /// P2 `ex <= 0.18`, P3 `0.183 <= ex <= 0.192`, P4 `ex <= 0.19`.
+    fn edited_p1_to_p4() -> String {
+        let mut t = samara_train::CASE_STUDY_SPEC.to_string();
+        for (from, to) in [
+            (
+                "property p1: y >= -x + ystar => ex >= 0.187",
+                "property p1: y >= -x + ystar => ex >= 0.2",
+            ),
+            (
+                "property p2: y <= -x - ystar => ex <= 0.187",
+                "property p2: y <= -x - ystar => ex <= 0.18",
+            ),
+            ("=> 0.184 <= ex <= 0.19\n", "=> 0.183 <= ex <= 0.192\n"),
+            (
+                "and v_yp <= -0.3 => ex <= 0.187",
+                "and v_yp <= -0.3 => ex <= 0.19",
+            ),
+        ] {
+            assert_eq!(t.matches(from).count(), 1, "{from}");
+            t = t.replace(from, to);
+        }
+        t
+    }
+
+    /// The critical values of P1-P4 as the verify stage writes them into results.json,
+    /// for a run whose spec is `spec`, with [`linear_net`] as every samara controller
+    /// (the stage reads the networks and the data the train stage left in the output
+    /// directory, and the data's box and units from the train stage's result).
+    fn verify_stage_criticals(spec: ReproSpec, tag: &str) -> Vec<Vec<Value>> {
+        let out =
+            std::env::temp_dir().join(format!("samara-repro-verify-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(out.join("networks")).unwrap();
+        std::fs::create_dir_all(out.join("data")).unwrap();
+        for m in METHODS {
+            samara_nn::onnx::save(
+                &linear_net(),
+                out.join(format!("networks/{m}.onnx")),
+                &Default::default(),
+            )
+            .unwrap();
+        }
+        // Three data rows (P5 is computed on them too), any values inside the box.
+        let rows = [
+            [1.5, -0.4, -0.2, -0.76, 10.0, -9.0, 0.186],
+            [2.0, -0.3, -0.1, -0.5, 20.0, -20.5, 0.188],
+            [3.0, -0.1, 0.0, -0.2, 30.0, -29.0, 0.19],
+        ];
+        std::fs::write(
+            out.join("data/training_data.csv"),
+            samara_sim::dataset::training_csv(&rows),
+        )
+        .unwrap();
+        let domain = &samara_train::case_study_spec().networks[0].domain;
+        let up = json!({"train": {
+            "domain_lo": domain.iter().map(|d| d.0).collect::<Vec<_>>(),
+            "domain_hi": domain.iter().map(|d| d.1).collect::<Vec<_>>(),
+            "norm_min": [1.0, -0.6, -0.4, -1.0, 0.0, -42.0, 0.18],
+            "norm_range": [2.5, 0.6, 0.5, 1.0, 42.0, 46.0, 0.01],
+        }});
+        let opts = crate::ReproduceOptions {
+            out: out.clone(),
+            quick: true,
+            published: None,
+            fresh: true,
+            progress: false,
+            command_line: String::new(),
+            spec,
+        };
+        let bars =
+            indicatif::MultiProgress::with_draw_target(indicatif::ProgressDrawTarget::hidden());
+        let ctx = Ctx {
+            opts: &opts,
+            bars: &bars,
+        };
+        let r = verify(&ctx, &up).unwrap().result;
+        std::fs::remove_dir_all(&out).unwrap();
+        let nets = r["networks"].as_array().unwrap();
+        assert_eq!(nets.len(), METHODS.len());
+        nets.iter()
+            .map(|n| n["critical"].as_array().unwrap().clone())
+            .collect()
+    }
+
+    /// Issue 12: the reproduction reads P1-P4 from the spec it is given. A copy of the
+    /// spec with P1-P4's output constants edited, read from a file as `samara reproduce
+    /// --spec FILE` reads it, moves the verify stage's critical values in results.json
+    /// to the values computed by hand for the network ex = 0.187 + 0.01 s (s = x + y,
+    /// raw units): P1 (holds above) sup{s : ex(s) < c1} = (c1 - 0.187) / 0.01; P2 (holds
+    /// above) sup{-s : ex(s) > c2} = (0.187 - c2) / 0.01; P3 (holds below) inf{|s| : ex(s)
+    /// outside [a, b]} = min((0.187 - a), (b - 0.187)) / 0.01; P4 (holds below) inf{s >= 0
+    /// : ex(s) > c4} = max(0, c4 - 0.187) / 0.01.
+    #[test]
+    fn the_verify_stage_thresholds_move_with_an_edited_spec() {
+        let predicted = |c1: f64, c2: f64, (a, b): (f64, f64), c4: f64| {
+            [
+                (c1 - 0.187) / 0.01,
+                (0.187 - c2) / 0.01,
+                (0.187 - a).min(b - 0.187) / 0.01,
+                (c4 - 0.187).max(0.0) / 0.01,
+            ]
+        };
+        let dir = std::env::temp_dir().join(format!("samara-repro-spec-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let file = dir.join("edited.spec");
+        std::fs::write(&file, edited_p1_to_p4()).unwrap();
+        let edited = ReproSpec::read(&file).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        for (spec, tag, want) in [
+            (
+                ReproSpec::shipped(),
+                "shipped",
+                predicted(0.187, 0.187, (0.184, 0.19), 0.187),
+            ),
+            (edited, "edited", predicted(0.2, 0.18, (0.183, 0.192), 0.19)),
+        ] {
+            for crit in verify_stage_criticals(spec, tag) {
+                for (k, (c, w)) in crit.iter().zip(want).enumerate() {
+                    assert_eq!(c["property"], json!(P1_TO_P4[k]));
+                    assert_eq!(c["complete"], json!(true), "{tag} {c}");
+                    let v = c["critical"].as_f64().unwrap();
+                    assert!((v - w).abs() < 1e-6, "{tag} {}: {v} != {w}", P1_TO_P4[k]);
+                }
+            }
+        }
+    }
+
+    /// The train stage's DL2/Goedel constraints come from the run's spec: editing P1's
+    /// constant to `ex >= 0.2` moves P1's boundary on the normalised output from
+    /// (0.187 - 0.18) / 0.01 = 0.7 to (0.2 - 0.18) / 0.01 = 2.
+    #[test]
+    fn the_train_stage_constraints_move_with_an_edited_spec() {
+        let mm = MinMax {
+            min: vec![1.0, -0.6, -0.4, -1.0, 0.0, -42.0, 0.18],
+            range: vec![2.5, 0.6, 0.5, 1.0, 42.0, 46.0, 0.01],
+        };
+        let lo: Vec<f64> = mm.min[..6].to_vec();
+        let hi: Vec<f64> = (0..6).map(|j| mm.min[j] + mm.range[j]).collect();
+        let edited = ReproSpec::parse(&edited_p1_to_p4(), "edited.spec", Path::new(".")).unwrap();
+        for (spec, boundary) in [(ReproSpec::shipped(), 0.7), (edited, 2.0)] {
+            let props = training_properties(spec.spec(), &mm, &lo, &hi).unwrap();
+            let p1 = props.iter().find(|p| p.name == "p1").unwrap();
+            assert!(p1.formula.holds(boundary + 1e-9), "{boundary}");
+            assert!(!p1.formula.holds(boundary - 1e-9), "{boundary}");
+        }
+    }
+
+    /// A spec the stages cannot lower is refused before any stage runs, with its place.
+    #[test]
+    fn a_spec_without_what_the_stages_lower_is_refused() {
+        let parse = |t: &str| ReproSpec::parse(t, "e.spec", Path::new(".")).map(|_| ());
+        assert!(parse(samara_train::CASE_STUDY_SPEC).is_ok());
+        let no_p4 = samara_train::CASE_STUDY_SPEC.replace("property p4:", "property q4:");
+        let e = parse(&no_p4).unwrap_err().to_string();
+        assert!(e.contains("e.spec") && e.contains("p4"), "{e}");
+        let syntax = samara_train::CASE_STUDY_SPEC.replace("=> ex >= 0.187", "=> ex >= ");
+        let e = parse(&syntax).unwrap_err().to_string();
+        assert!(e.starts_with("e.spec:"), "{e}");
+        let no_default = samara_train::CASE_STUDY_SPEC.replace("[0, 100] = 2", "[0, 100]");
+        assert!(parse(&no_default).is_err());
     }
 
     #[test]
