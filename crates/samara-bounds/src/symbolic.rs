@@ -386,7 +386,10 @@ pub fn backward_lower_alpha(
         let k = m.out + 1;
         let mut nu = vec![0.0; m.inp];
         let mut mag = vec![0.0; m.inp];
-        let mut cmag = 0.0;
+        // The running constant is the first term of this layer's sum: its magnitude
+        // counts in the sum's rounding bound (a large constant carried from later
+        // layers makes every addition round at its scale).
+        let mut cmag = cst.abs();
         for (i, &mi) in mu.iter().enumerate() {
             if mi == 0.0 {
                 continue;
@@ -428,7 +431,9 @@ pub fn backward_lower_alpha(
                 z[t] = v * s;
                 let c = -(v * s) * l;
                 cst += c;
-                err += 2.0 * f64::EPSILON * (z[t].abs() * l.abs().max(u.abs()) + c.abs());
+                // The products' rounding, and the addition's (at most one ulp of the sum).
+                err += 2.0 * f64::EPSILON * (z[t].abs() * l.abs().max(u.abs()) + c.abs())
+                    + f64::EPSILON * cst.abs();
             } else if let Some(a) = alpha {
                 let al = a[j - 1][t].clamp(0.0, 1.0);
                 z[t] = v * al;
