@@ -1,8 +1,8 @@
 //! Sound bounds of piecewise-linear networks, and the input-domain branch and bound built
 //! on them.
 //!
-//! A network here is the chain of affine maps the exact engine already uses
-//! (`samara_verify::net::PwlNet::maps`): `z_k = W_k a_{k-1} + b_k`, each followed by a
+//! A network here is the chain of affine maps of [`pwl::PwlNet`] (the exact engine's
+//! encoding, clamps rewritten as ReLUs): `z_k = W_k a_{k-1} + b_k`, each followed by a
 //! ReLU or not, the last one not. Two pieces:
 //!
 //! - [`symbolic`]: forward symbolic interval propagation (Neurify, Wang et al., NeurIPS
@@ -23,5 +23,6 @@
 //!   are re-evaluated concretely before they are reported.
 
 pub mod linset;
+pub mod pwl;
 pub mod search;
 pub mod symbolic;

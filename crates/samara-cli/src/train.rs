@@ -3,7 +3,7 @@
 use anyhow::{anyhow, bail, Context, Result};
 use samara_report::guard::{check_output_file, resolve, OutDir};
 use samara_train::{
-    read_table, train, Attack, Logic, Method, MinMax, TrainError, TrainOptions,
+    read_table, train, Attack, Logic, Method, MinMax, Restart, TrainError, TrainOptions,
     DEFAULT_MAX_RESTARTS,
 };
 use std::fmt::Write as _;
@@ -379,14 +379,7 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
     out_dir.keep();
     log_dir.keep();
     let m = &outcome.metrics;
-    let restarts: Vec<_> = outcome
-        .restarts
-        .iter()
-        .map(|r| {
-            serde_json::json!({"attempt": r.attempt, "seed": r.seed, "epoch": r.epoch,
-                "reason": r.reason.to_string()})
-        })
-        .collect();
+    let restarts = restart_log(&outcome.restarts);
     if a.json {
         println!(
             "{}",
@@ -399,15 +392,7 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
             }))?
         );
     } else {
-        for r in &outcome.restarts {
-            eprintln!(
-                "restart {}: the network from seed {} was degenerate {} ({}); reinitialising",
-                r.attempt + 1,
-                r.seed,
-                r.when(),
-                r.reason
-            );
-        }
+        print_restarts(&outcome.restarts);
         let restarted = match outcome.restarts.len() {
             0 => String::new(),
             n => format!(
@@ -432,6 +417,30 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
 }
 
 /// The figure of the closed-loop rounds: `<--out stem>.rounds.png` and `.svg`.
+/// The restarts of a training run as the JSON output's `restart_log`.
+fn restart_log(restarts: &[Restart]) -> Vec<serde_json::Value> {
+    restarts
+        .iter()
+        .map(|r| {
+            serde_json::json!({"attempt": r.attempt, "seed": r.seed, "epoch": r.epoch,
+                "reason": r.reason.to_string()})
+        })
+        .collect()
+}
+
+/// One line on stderr per restart of a training run.
+fn print_restarts(restarts: &[Restart]) {
+    for r in restarts {
+        eprintln!(
+            "restart {}: the network from seed {} was degenerate {} ({}); reinitialising",
+            r.attempt + 1,
+            r.seed,
+            r.when(),
+            r.reason
+        );
+    }
+}
+
 fn rounds_figure_paths(out: &Path) -> (PathBuf, PathBuf) {
     (
         out.with_extension("rounds.png"),
@@ -595,14 +604,7 @@ fn run_closed_loop(
                     "seconds": r.train_seconds + r.reach_seconds})
             })
             .collect();
-        let restarts: Vec<_> = outcome
-            .restarts
-            .iter()
-            .map(|r| {
-                serde_json::json!({"attempt": r.attempt, "seed": r.seed, "epoch": r.epoch,
-                    "reason": r.reason.to_string()})
-            })
-            .collect();
+        let restarts = restart_log(&outcome.restarts);
         let m = &outcome.pretrain_metrics;
         println!(
             "{}",
@@ -622,15 +624,7 @@ fn run_closed_loop(
             }))?
         );
     } else {
-        for r in &outcome.restarts {
-            eprintln!(
-                "restart {}: the network from seed {} was degenerate {} ({}); reinitialising",
-                r.attempt + 1,
-                r.seed,
-                r.when(),
-                r.reason
-            );
-        }
+        print_restarts(&outcome.restarts);
         eprintln!(
             "closed-loop training: {} after {} round{} in {:.1} s; x + y at t = {} {} (goal |x + y| <= {}); R^2 {:.4} against the {} data rows; wrote {}, {} and {}",
             verdict,

@@ -128,6 +128,22 @@ impl<'a> Lines<'a> {
         }
     }
 
+    /// The next line's fields, which must be exactly `n` (else the error `wrong_count`
+    /// of the number found).
+    fn fields_n(
+        &mut self,
+        n: usize,
+        what: &str,
+        wrong_count: impl FnOnce(usize) -> String,
+    ) -> Result<(usize, Vec<&'a str>), NnetError> {
+        let (line, text) = self.next(what)?;
+        let fields = fields(text);
+        if fields.len() != n {
+            return Err(self.err(line, wrong_count(fields.len())));
+        }
+        Ok((line, fields))
+    }
+
     /// The next line as exactly `n` finite numbers.
     fn numbers(&mut self, n: usize, what: &str) -> Result<(usize, Vec<f64>), NnetError> {
         self.numbers_inf(n, what, false)
@@ -140,19 +156,13 @@ impl<'a> Lines<'a> {
         what: &str,
         allow_inf: bool,
     ) -> Result<(usize, Vec<f64>), NnetError> {
-        let (line, text) = self.next(what)?;
-        let fields = fields(text);
-        if fields.len() != n {
-            return Err(self.err(
-                line,
-                format!(
-                    "expected {what}: {n} comma-separated value{}, found {}; fix the line or \
-                     the sizes declared in the header",
-                    if n == 1 { "" } else { "s" },
-                    fields.len()
-                ),
-            ));
-        }
+        let (line, fields) = self.fields_n(n, what, |found| {
+            format!(
+                "expected {what}: {n} comma-separated value{}, found {found}; fix the line or \
+                 the sizes declared in the header",
+                if n == 1 { "" } else { "s" },
+            )
+        })?;
         let mut out = Vec::with_capacity(n);
         for (k, f) in fields.iter().enumerate() {
             match f.parse::<f64>() {
@@ -185,18 +195,12 @@ impl<'a> Lines<'a> {
 
     /// The next line as exactly `n` non-negative integers.
     fn integers(&mut self, n: usize, what: &str) -> Result<(usize, Vec<usize>), NnetError> {
-        let (line, text) = self.next(what)?;
-        let fields = fields(text);
-        if fields.len() != n {
-            return Err(self.err(
-                line,
-                format!(
-                    "expected {what}: {n} comma-separated integers, found {} values; fix the \
-                     line (or the number of layers in the header)",
-                    fields.len()
-                ),
-            ));
-        }
+        let (line, fields) = self.fields_n(n, what, |found| {
+            format!(
+                "expected {what}: {n} comma-separated integers, found {found} values; fix the \
+                 line (or the number of layers in the header)"
+            )
+        })?;
         let mut out = Vec::with_capacity(n);
         for (k, f) in fields.iter().enumerate() {
             match f.parse::<usize>() {

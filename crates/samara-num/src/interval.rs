@@ -86,6 +86,28 @@ impl Interval {
         }
     }
 
+    /// `f` (sine or cosine) over the interval, whose maximum 1 is at `peak` and minimum
+    /// -1 at `trough` (modulo 2 pi): the ends' values rounded outward, widened to the
+    /// extrema the interval contains, within [-1, 1].
+    fn trig(&self, f: fn(f64) -> f64, peak: f64, trough: f64) -> Self {
+        if self.width() >= 2.0 * PI || !self.lo.is_finite() || !self.hi.is_finite() {
+            return Interval { lo: -1.0, hi: 1.0 };
+        }
+        let (a, b) = (f(self.lo), f(self.hi));
+        let mut lo = dn4(a.min(b));
+        let mut hi = up4(a.max(b));
+        if self.hits(peak) {
+            hi = 1.0;
+        }
+        if self.hits(trough) {
+            lo = -1.0;
+        }
+        Interval {
+            lo: lo.max(-1.0),
+            hi: hi.min(1.0),
+        }
+    }
+
     /// Whether `[lo, hi]` contains a point `c + 2 k pi` (with a 1e-9 margin).
     fn hits(&self, c: f64) -> bool {
         let k = ((self.lo - c) / (2.0 * PI)).ceil();
@@ -160,7 +182,12 @@ impl Mul for Interval {
 fn mul_general(a: Interval, o: Interval) -> Interval {
     let p = [a.lo * o.lo, a.lo * o.hi, a.hi * o.lo, a.hi * o.hi];
     // 0 * inf is NaN: the product of a zero and an unbounded end contributes 0.
-    let p = p.map(|v| if v.is_nan() { 0.0 } else { v });
+    outward_hull(p.map(|v| if v.is_nan() { 0.0 } else { v }))
+}
+
+/// The smallest interval holding the four candidate ends, each end rounded outward.
+#[inline]
+fn outward_hull(p: [f64; 4]) -> Interval {
     let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
     let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
     Interval {
@@ -175,18 +202,12 @@ impl Div for Interval {
         if o.lo <= 0.0 && o.hi >= 0.0 {
             return Interval::entire();
         }
-        let p = [
+        outward_hull([
             self.lo / o.lo,
             self.lo / o.hi,
             self.hi / o.lo,
             self.hi / o.hi,
-        ];
-        let lo = p.iter().cloned().fold(f64::INFINITY, f64::min);
-        let hi = p.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        Interval {
-            lo: dn(lo),
-            hi: up(hi),
-        }
+        ])
     }
 }
 impl Neg for Interval {
@@ -258,40 +279,10 @@ impl Scalar for Interval {
         0.5 * (self.lo + self.hi)
     }
     fn sin(&self) -> Self {
-        if self.width() >= 2.0 * PI || !self.lo.is_finite() || !self.hi.is_finite() {
-            return Interval { lo: -1.0, hi: 1.0 };
-        }
-        let (a, b) = (self.lo.sin(), self.hi.sin());
-        let mut lo = dn4(a.min(b));
-        let mut hi = up4(a.max(b));
-        if self.hits(FRAC_PI_2) {
-            hi = 1.0;
-        }
-        if self.hits(-FRAC_PI_2) {
-            lo = -1.0;
-        }
-        Interval {
-            lo: lo.max(-1.0),
-            hi: hi.min(1.0),
-        }
+        self.trig(f64::sin, FRAC_PI_2, -FRAC_PI_2)
     }
     fn cos(&self) -> Self {
-        if self.width() >= 2.0 * PI || !self.lo.is_finite() || !self.hi.is_finite() {
-            return Interval { lo: -1.0, hi: 1.0 };
-        }
-        let (a, b) = (self.lo.cos(), self.hi.cos());
-        let mut lo = dn4(a.min(b));
-        let mut hi = up4(a.max(b));
-        if self.hits(0.0) {
-            hi = 1.0;
-        }
-        if self.hits(PI) {
-            lo = -1.0;
-        }
-        Interval {
-            lo: lo.max(-1.0),
-            hi: hi.min(1.0),
-        }
+        self.trig(f64::cos, 0.0, PI)
     }
     fn tanh(&self) -> Self {
         let r = self.mono(f64::tanh);

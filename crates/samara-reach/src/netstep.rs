@@ -14,9 +14,9 @@
 #![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
 
 use crate::zonotope::Zonotope;
+use samara_bounds::pwl::{affine_bounds, back_substitute, deeppoly, relu_indices, PwlNet};
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_num::Interval;
-use samara_verify::net::{affine_bounds, back_substitute, deeppoly, relu_indices, PwlNet};
 
 /// A controller network prepared for set evaluation.
 #[derive(Clone, Debug)]

@@ -42,6 +42,23 @@ impl Verdict {
             Verdict::NoGoal => "none",
         }
     }
+
+    /// Why the goal is not proved, in words: the unknown reason, or where the
+    /// simulated counterexample misses the goal; empty when proved or without a goal.
+    pub fn reason(&self) -> String {
+        match self {
+            Verdict::Unknown { reason } => reason.clone(),
+            Verdict::Violated {
+                initial,
+                t,
+                x_plus_y,
+            } => format!(
+                "simulated from y0 = {:.4}: x + y = {:.4} at t = {}",
+                initial[5], x_plus_y, t
+            ),
+            _ => String::new(),
+        }
+    }
 }
 
 /// The goal on one sub-box: `Some(true)` every enclosure inside the band, `Some(false)`

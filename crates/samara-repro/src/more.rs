@@ -607,18 +607,7 @@ pub fn reach(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
         samara_reach::figure(&r, &format!("{}, reduced model", s.label), Some(2.0))
             .render(&ctx.path(&png), &ctx.path(&svg))
             .map_err(|e| stage_err("reach", e))?;
-        let reason = match &r.verdict {
-            samara_reach::Verdict::Unknown { reason } => reason.clone(),
-            samara_reach::Verdict::Violated {
-                initial,
-                t,
-                x_plus_y,
-            } => format!(
-                "simulated from y0 = {:.4}: x + y = {:.4} at t = {}",
-                initial[5], x_plus_y, t
-            ),
-            _ => String::new(),
-        };
+        let reason = r.verdict.reason();
         let stopped: Vec<f64> = r
             .leaves
             .iter()

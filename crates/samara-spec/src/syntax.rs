@@ -29,39 +29,57 @@ pub struct SpecError {
 
 impl fmt::Display for SpecError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.pos.line == 0 {
-            writeln!(f, "{}: {}", self.file, self.message)?;
-        } else {
-            writeln!(
-                f,
-                "{}:{}:{}: {}",
-                self.file, self.pos.line, self.pos.col, self.message
-            )?;
-        }
-        if !self.source_line.is_empty() {
-            // At most WIDTH characters of the line, around the column.
-            const WIDTH: usize = 120;
-            let chars: Vec<char> = self.source_line.chars().collect();
-            let col = self.pos.col.saturating_sub(1).min(chars.len());
-            let start = col.saturating_sub(WIDTH / 2);
-            let end = (start + WIDTH).min(chars.len());
-            let mut shown: String = chars[start..end].iter().collect();
-            let mut caret = col - start;
-            if start > 0 {
-                shown.insert_str(0, "...");
-                caret += 3;
-            }
-            if end < chars.len() {
-                shown.push_str("...");
-            }
-            writeln!(f, "  | {shown}")?;
-            writeln!(f, "  | {}^", " ".repeat(caret))?;
-        }
-        if !self.hint.is_empty() {
-            write!(f, "  = help: {}", self.hint)?;
-        }
-        Ok(())
+        write_diagnostic(
+            f,
+            &self.file,
+            self.pos,
+            &self.message,
+            &self.hint,
+            &self.source_line,
+        )
     }
+}
+
+/// A diagnostic as `file:line:col: message` (`file: message` on line 0), the source line
+/// (at most 120 characters of it, around the column) with a caret under the column when
+/// the line is given, and `  = help: hint` when a hint is. Shared by the system language
+/// (`samara-system`), whose errors read the same.
+pub fn write_diagnostic(
+    f: &mut fmt::Formatter<'_>,
+    file: &str,
+    pos: Pos,
+    message: &str,
+    hint: &str,
+    source_line: &str,
+) -> fmt::Result {
+    if pos.line == 0 {
+        writeln!(f, "{file}: {message}")?;
+    } else {
+        writeln!(f, "{file}:{}:{}: {message}", pos.line, pos.col)?;
+    }
+    if !source_line.is_empty() {
+        // At most WIDTH characters of the line, around the column.
+        const WIDTH: usize = 120;
+        let chars: Vec<char> = source_line.chars().collect();
+        let col = pos.col.saturating_sub(1).min(chars.len());
+        let start = col.saturating_sub(WIDTH / 2);
+        let end = (start + WIDTH).min(chars.len());
+        let mut shown: String = chars[start..end].iter().collect();
+        let mut caret = col - start;
+        if start > 0 {
+            shown.insert_str(0, "...");
+            caret += 3;
+        }
+        if end < chars.len() {
+            shown.push_str("...");
+        }
+        writeln!(f, "  | {shown}")?;
+        writeln!(f, "  | {}^", " ".repeat(caret))?;
+    }
+    if !hint.is_empty() {
+        write!(f, "  = help: {hint}")?;
+    }
+    Ok(())
 }
 
 impl std::error::Error for SpecError {}
@@ -118,49 +136,20 @@ pub fn decode<'a>(bytes: &'a [u8], file: &str) -> Result<&'a str, SpecError> {
 /// Split source text into tokens.
 pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
     let mut out = Vec::new();
-    let lines: Vec<&str> = src.lines().collect();
-    for (li, line) in lines.iter().enumerate() {
-        let chars: Vec<char> = line.chars().collect();
-        let mut i = 0;
-        let mut continued = false;
-        while i < chars.len() {
+    let n_lines = scan_lines(
+        src,
+        &mut out,
+        |out, li, line, chars, mut i| {
             let c = chars[i];
             let pos = Pos {
                 line: li + 1,
                 col: i + 1,
             };
-            if c == '#' {
-                break;
-            }
-            if c.is_whitespace() {
-                i += 1;
-                continue;
-            }
-            if c == '\\' && chars[i + 1..].iter().all(|c| c.is_whitespace()) {
-                continued = true;
-                break;
-            }
             if c.is_ascii_digit()
                 || (c == '.' && chars.get(i + 1).is_some_and(|d| d.is_ascii_digit()))
             {
                 let start = i;
-                while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
-                    i += 1;
-                }
-                if i < chars.len() && (chars[i] == 'e' || chars[i] == 'E') {
-                    let save = i;
-                    i += 1;
-                    if i < chars.len() && (chars[i] == '+' || chars[i] == '-') {
-                        i += 1;
-                    }
-                    if i < chars.len() && chars[i].is_ascii_digit() {
-                        while i < chars.len() && chars[i].is_ascii_digit() {
-                            i += 1;
-                        }
-                    } else {
-                        i = save;
-                    }
-                }
+                i = number_end(chars, i);
                 let text: String = chars[start..i].iter().collect();
                 let parsed = text.parse::<f64>();
                 let v: f64 = parsed
@@ -185,7 +174,7 @@ pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
                     tok: Tok::Num(v),
                     pos,
                 });
-                continue;
+                return Ok(i);
             }
             if c.is_alphabetic() || c == '_' {
                 let start = i;
@@ -198,7 +187,7 @@ pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
                     tok: Tok::Id(chars[start..i].iter().collect()),
                     pos,
                 });
-                continue;
+                return Ok(i);
             }
             if c == '"' {
                 let start = i + 1;
@@ -219,8 +208,7 @@ pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
                     tok: Tok::Str(chars[start..i].iter().collect()),
                     pos,
                 });
-                i += 1;
-                continue;
+                return Ok(i + 1);
             }
             let rest: String = chars[i..].iter().take(2).collect();
             if let Some(s) = SYMS.iter().find(|s| rest.starts_with(**s)) {
@@ -228,36 +216,99 @@ pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
                     tok: Tok::Sym(s),
                     pos,
                 });
-                i += s.len();
-                continue;
+                return Ok(i + s.len());
             }
-            return Err(SpecError {
+            Err(SpecError {
                 file: file.into(),
                 pos,
                 message: format!("unexpected character `{c}`"),
                 hint: "operators are + - * / <= >= < > == => and, or, not; comments start with #"
                     .into(),
                 source_line: line.to_string(),
-            });
-        }
-        if !continued {
-            out.push(Token {
-                tok: Tok::Newline,
-                pos: Pos {
-                    line: li + 1,
-                    col: chars.len() + 1,
-                },
-            });
-        }
-    }
+            })
+        },
+        |out, li, len, continued| {
+            if !continued {
+                out.push(Token {
+                    tok: Tok::Newline,
+                    pos: Pos {
+                        line: li + 1,
+                        col: len + 1,
+                    },
+                });
+            }
+        },
+    )?;
     out.push(Token {
         tok: Tok::Eof,
         pos: Pos {
-            line: lines.len() + 1,
+            line: n_lines + 1,
             col: 1,
         },
     });
     Ok(out)
+}
+
+/// The line scanner of both line-based languages (the property language here, the
+/// system language in `samara-system`): for each line of `src`, skips white space, stops
+/// at a `#` comment or at a `\` that ends the line (a continuation), and hands every
+/// other place to `token` (with `state`, the line's index, the line, its characters and
+/// the place's index), which returns the index after the token it read; then calls
+/// `line_end` (with `state`, the line's index, its length in characters and whether it
+/// continues on the next line). Returns the number of lines.
+pub fn scan_lines<S, E>(
+    src: &str,
+    state: &mut S,
+    mut token: impl FnMut(&mut S, usize, &str, &[char], usize) -> Result<usize, E>,
+    mut line_end: impl FnMut(&mut S, usize, usize, bool),
+) -> Result<usize, E> {
+    let mut n_lines = 0;
+    for (li, line) in src.lines().enumerate() {
+        let chars: Vec<char> = line.chars().collect();
+        let mut i = 0;
+        let mut continued = false;
+        while i < chars.len() {
+            let c = chars[i];
+            if c == '#' {
+                break;
+            }
+            if c.is_whitespace() {
+                i += 1;
+                continue;
+            }
+            if c == '\\' && chars[i + 1..].iter().all(|c| c.is_whitespace()) {
+                continued = true;
+                break;
+            }
+            i = token(state, li, line, &chars, i)?;
+        }
+        line_end(state, li, chars.len(), continued);
+        n_lines = li + 1;
+    }
+    Ok(n_lines)
+}
+
+/// The end of the number literal that starts at `chars[start]` (a digit, or a `.` before
+/// one): digits and dots, then an exponent (`e` or `E`, an optional sign, digits) when
+/// digits follow the `e`.
+pub fn number_end(chars: &[char], start: usize) -> usize {
+    let mut i = start;
+    while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
+        i += 1;
+    }
+    if i < chars.len() && (chars[i] == 'e' || chars[i] == 'E') {
+        let mut j = i + 1;
+        if j < chars.len() && (chars[j] == '+' || chars[j] == '-') {
+            j += 1;
+        }
+        if j < chars.len() && chars[j].is_ascii_digit() {
+            i = j;
+            while i < chars.len() && chars[i].is_ascii_digit() {
+                i += 1;
+            }
+        }
+    }
+    i
 }
 
 /// A numeric or symbolic expression.
@@ -554,6 +605,14 @@ impl Parser<'_> {
         }
     }
 
+    fn expect_kw(&mut self, k: &str, hint: &str) -> Result<(), SpecError> {
+        if self.kw(k) {
+            Ok(())
+        } else {
+            Err(self.err(&format!("expected `{k}`"), hint))
+        }
+    }
+
     fn kw(&mut self, k: &str) -> bool {
         if matches!(self.peek(), Tok::Id(t) if t == k) {
             self.i += 1;
@@ -597,6 +656,39 @@ impl Parser<'_> {
         Ok(v)
     }
 
+    /// `k0 v0 k1 v1` with both values read by `value`: `(v0, v1)`.
+    fn keyed_pair(
+        &mut self,
+        keys: [&str; 2],
+        hint: &str,
+        value: fn(&mut Self) -> Result<Vec<f64>, SpecError>,
+    ) -> Result<(Vec<f64>, Vec<f64>), SpecError> {
+        self.expect_kw(keys[0], hint)?;
+        let v0 = value(self)?;
+        self.expect_kw(keys[1], hint)?;
+        Ok((v0, value(self)?))
+    }
+
+    /// A file name in quotes.
+    fn file_name(&mut self, hint: &str) -> Result<String, SpecError> {
+        match self.peek().clone() {
+            Tok::Str(s) => {
+                self.i += 1;
+                Ok(s)
+            }
+            _ => Err(self.err("expected a file name in quotes", hint)),
+        }
+    }
+
+    /// A vector `[a, b, ...]`, or one number as a vector of one.
+    fn number_or_vector(&mut self) -> Result<Vec<f64>, SpecError> {
+        if matches!(self.peek(), Tok::Sym("[")) {
+            self.vector()
+        } else {
+            Ok(vec![self.number()?])
+        }
+    }
+
     fn interval(&mut self) -> Result<(f64, f64), SpecError> {
         self.expect_sym("[", "intervals are written [lo, hi]")?;
         let a = self.number()?;
@@ -636,31 +728,15 @@ impl Parser<'_> {
         if self.kw("normalise") || self.kw("normalize") {
             let net = self.ident("a network name")?;
             if self.kw("from") {
-                let path = match self.peek().clone() {
-                    Tok::Str(s) => {
-                        self.i += 1;
-                        s
-                    }
-                    _ => {
-                        return Err(self.err(
-                            "expected a file name in quotes",
-                            "normalise f from \"constants.csv\"",
-                        ))
-                    }
-                };
+                let path = self.file_name("normalise f from \"constants.csv\"")?;
                 return Ok(Stmt::NormFile { net, path, pos });
             }
             if self.kw("input") {
-                if !self.kw("min") {
-                    return Err(self.err("expected `min`", "normalise f input min [..] range [..]"));
-                }
-                let min = self.vector()?;
-                if !self.kw("range") {
-                    return Err(
-                        self.err("expected `range`", "normalise f input min [..] range [..]")
-                    );
-                }
-                let range = self.vector()?;
+                let (min, range) = self.keyed_pair(
+                    ["min", "range"],
+                    "normalise f input min [..] range [..]",
+                    Self::vector,
+                )?;
                 return Ok(Stmt::NormInput {
                     net,
                     min,
@@ -669,28 +745,11 @@ impl Parser<'_> {
                 });
             }
             if self.kw("output") {
-                if !self.kw("offset") {
-                    return Err(self.err(
-                        "expected `offset`",
-                        "normalise f output offset 0.181 scale 0.012",
-                    ));
-                }
-                let offset = if matches!(self.peek(), Tok::Sym("[")) {
-                    self.vector()?
-                } else {
-                    vec![self.number()?]
-                };
-                if !self.kw("scale") {
-                    return Err(self.err(
-                        "expected `scale`",
-                        "normalise f output offset 0.181 scale 0.012",
-                    ));
-                }
-                let scale = if matches!(self.peek(), Tok::Sym("[")) {
-                    self.vector()?
-                } else {
-                    vec![self.number()?]
-                };
+                let (offset, scale) = self.keyed_pair(
+                    ["offset", "scale"],
+                    "normalise f output offset 0.181 scale 0.012",
+                    Self::number_or_vector,
+                )?;
                 return Ok(Stmt::NormOutput {
                     net,
                     offset,
@@ -706,9 +765,7 @@ impl Parser<'_> {
         if self.kw("domain") {
             let net = self.ident("a network name")?;
             if self.kw("from") {
-                if !self.kw("data") {
-                    return Err(self.err("expected `data`", "domain f from data NAME"));
-                }
+                self.expect_kw("data", "domain f from data NAME")?;
                 let dataset = self.ident("a data set name")?;
                 return Ok(Stmt::DomainFrom { net, dataset, pos });
             }
@@ -717,9 +774,7 @@ impl Parser<'_> {
             loop {
                 let p = self.pos();
                 let n = self.ident("an input name")?;
-                if !self.kw("in") {
-                    return Err(self.err("expected `in`", "domain f: name in [lo, hi], ..."));
-                }
+                self.expect_kw("in", "domain f: name in [lo, hi], ...")?;
                 let (a, b) = self.interval()?;
                 bounds.push((n, a, b, p));
                 if !self.sym(",") {
@@ -731,18 +786,7 @@ impl Parser<'_> {
         if self.kw("dataset") {
             let name = self.ident("a data set name")?;
             self.expect_sym("=", "dataset NAME = \"file.csv\"")?;
-            let path = match self.peek().clone() {
-                Tok::Str(s) => {
-                    self.i += 1;
-                    s
-                }
-                _ => {
-                    return Err(self.err(
-                        "expected a file name in quotes",
-                        "dataset NAME = \"file.csv\"",
-                    ))
-                }
-            };
+            let path = self.file_name("dataset NAME = \"file.csv\"")?;
             let normalised = self.kw("normalised") || self.kw("normalized");
             return Ok(Stmt::Dataset {
                 name,
@@ -777,12 +821,7 @@ impl Parser<'_> {
             while self.kw("for") {
                 let bpos = self.pos();
                 let point = self.ident("a point name")?;
-                if !self.kw("in") {
-                    return Err(self.err(
-                        "expected `in`",
-                        "for p in data NAME, or for p in ball(q, eps)",
-                    ));
-                }
+                self.expect_kw("in", "for p in data NAME, or for p in ball(q, eps)")?;
                 if self.kw("data") {
                     let dataset = self.ident("a data set name")?;
                     binders.push(Binder::Data {
@@ -837,26 +876,28 @@ impl Parser<'_> {
     }
 
     fn or(&mut self) -> Result<Formula, SpecError> {
-        let mut v = vec![self.and()?];
-        while self.kw("or") {
-            v.push(self.and()?);
-        }
-        Ok(if v.len() == 1 {
-            v.pop().expect("one")
-        } else {
-            Formula::Or(v)
-        })
+        self.chain("or", Self::and, Formula::Or)
     }
 
     fn and(&mut self) -> Result<Formula, SpecError> {
-        let mut v = vec![self.unary()?];
-        while self.kw("and") {
-            v.push(self.unary()?);
+        self.chain("and", Self::unary, Formula::And)
+    }
+
+    /// `operand (kw operand)*`, flat: the lone operand, or `join` of all of them.
+    fn chain(
+        &mut self,
+        kw: &str,
+        operand: fn(&mut Self) -> Result<Formula, SpecError>,
+        join: fn(Vec<Formula>) -> Formula,
+    ) -> Result<Formula, SpecError> {
+        let mut v = vec![operand(self)?];
+        while self.kw(kw) {
+            v.push(operand(self)?);
         }
         Ok(if v.len() == 1 {
             v.pop().expect("one")
         } else {
-            Formula::And(v)
+            join(v)
         })
     }
 

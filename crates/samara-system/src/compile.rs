@@ -716,20 +716,7 @@ pub(crate) fn compile(
     for g in &actuate_ops {
         let mut map = Vec::with_capacity(g.ops.len());
         for op in &g.ops {
-            let m = |k: usize| map[k];
-            let o = match *op {
-                Op::Un(f, a) => Op::Un(f, m(a)),
-                Op::Bin(f, a, b) => Op::Bin(f, m(a), m(b)),
-                Op::AddC(a, c) => Op::AddC(m(a), c),
-                Op::SubC(a, c) => Op::SubC(m(a), c),
-                Op::CSub(c, a) => Op::CSub(c, m(a)),
-                Op::MulC(a, c) => Op::MulC(m(a), c),
-                Op::DivC(a, c) => Op::DivC(m(a), c),
-                Op::CDiv(c, a) => Op::CDiv(c, m(a)),
-                Op::Powi(a, n) => Op::Powi(m(a), n),
-                Op::Select(k, c, a, b) => Op::Select(k, m(c), m(a), m(b)),
-                other => other,
-            };
+            let o = op.remap(|k| map[k]);
             match ab.push(o) {
                 Some(k) => map.push(k),
                 None => {

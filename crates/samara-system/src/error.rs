@@ -34,37 +34,18 @@ impl SystemError {
 
 impl fmt::Display for SystemError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        if self.pos.line == 0 {
-            writeln!(f, "{}: {}", self.file, self.message)?;
-        } else {
-            writeln!(
-                f,
-                "{}:{}:{}: {}",
-                self.file, self.pos.line, self.pos.col, self.message
-            )?;
-        }
-        if !self.source_line.is_empty() {
-            const WIDTH: usize = 120;
-            let chars: Vec<char> = self.source_line.chars().collect();
-            let col = self.pos.col.saturating_sub(1).min(chars.len());
-            let start = col.saturating_sub(WIDTH / 2);
-            let end = (start + WIDTH).min(chars.len());
-            let mut shown: String = chars[start..end].iter().collect();
-            let mut caret = col - start;
-            if start > 0 {
-                shown.insert_str(0, "...");
-                caret += 3;
-            }
-            if end < chars.len() {
-                shown.push_str("...");
-            }
-            writeln!(f, "  | {shown}")?;
-            writeln!(f, "  | {}^", " ".repeat(caret))?;
-        }
-        if !self.hint.is_empty() {
-            write!(f, "  = help: {}", self.hint)?;
-        }
-        Ok(())
+        let pos = samara_spec::syntax::Pos {
+            line: self.pos.line,
+            col: self.pos.col,
+        };
+        samara_spec::syntax::write_diagnostic(
+            f,
+            &self.file,
+            pos,
+            &self.message,
+            &self.hint,
+            &self.source_line,
+        )
     }
 }
 

@@ -127,6 +127,23 @@ impl Op {
             Op::Select(_, c, a, b) => ([c, a, b], 3),
         }
     }
+
+    /// The same operation on operands renumbered by `m`.
+    pub(crate) fn remap(self, m: impl Fn(usize) -> usize) -> Op {
+        match self {
+            Op::Un(f, a) => Op::Un(f, m(a)),
+            Op::Bin(f, a, b) => Op::Bin(f, m(a), m(b)),
+            Op::AddC(a, c) => Op::AddC(m(a), c),
+            Op::SubC(a, c) => Op::SubC(m(a), c),
+            Op::CSub(c, a) => Op::CSub(c, m(a)),
+            Op::MulC(a, c) => Op::MulC(m(a), c),
+            Op::DivC(a, c) => Op::DivC(m(a), c),
+            Op::CDiv(c, a) => Op::CDiv(c, m(a)),
+            Op::Powi(a, n) => Op::Powi(m(a), n),
+            Op::Select(k, c, a, b) => Op::Select(k, m(c), m(a), m(b)),
+            other => other,
+        }
+    }
 }
 
 fn un<S: Scalar>(f: Un, x: &S) -> S {
@@ -392,20 +409,7 @@ impl Builder {
             if !live[i] {
                 continue;
             }
-            let m = |k: usize| new_index[k];
-            let op = match *op {
-                Op::Un(f, a) => Op::Un(f, m(a)),
-                Op::Bin(f, a, b) => Op::Bin(f, m(a), m(b)),
-                Op::AddC(a, c) => Op::AddC(m(a), c),
-                Op::SubC(a, c) => Op::SubC(m(a), c),
-                Op::CSub(c, a) => Op::CSub(c, m(a)),
-                Op::MulC(a, c) => Op::MulC(m(a), c),
-                Op::DivC(a, c) => Op::DivC(m(a), c),
-                Op::CDiv(c, a) => Op::CDiv(c, m(a)),
-                Op::Powi(a, n) => Op::Powi(m(a), n),
-                Op::Select(k, c, a, b) => Op::Select(k, m(c), m(a), m(b)),
-                other => other,
-            };
+            let op = op.remap(|k| new_index[k]);
             new_index[i] = ops.len();
             ops.push(op);
         }

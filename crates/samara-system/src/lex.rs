@@ -1,6 +1,7 @@
 //! The lexer: identifiers, numbers, symbols and line ends, each with its position.
 
 use crate::error::{Pos, SystemError};
+use samara_spec::syntax::{number_end, scan_lines};
 
 /// Tokens.
 #[derive(Clone, Debug, PartialEq)]
@@ -63,27 +64,15 @@ pub(crate) fn lex(src: &str, file: &str) -> Result<Vec<Token>, SystemError> {
     }
     let mut out: Vec<Token> = Vec::new();
     let mut depth: usize = 0;
-    for (li, line) in src.lines().enumerate() {
-        let chars: Vec<char> = line.chars().collect();
-        let mut i = 0;
-        let mut continued = false;
-        while i < chars.len() {
+    scan_lines(
+        src,
+        &mut (&mut out, &mut depth),
+        |(out, depth), li, _line, chars, mut i| {
             let c = chars[i];
             let pos = Pos {
                 line: li + 1,
                 col: i + 1,
             };
-            if c == '#' {
-                break;
-            }
-            if c.is_whitespace() {
-                i += 1;
-                continue;
-            }
-            if c == '\\' && chars[i + 1..].iter().all(|c| c.is_whitespace()) {
-                continued = true;
-                break;
-            }
             if c.is_ascii_alphabetic() || c == '_' {
                 let s = i;
                 while i < chars.len() && (chars[i].is_ascii_alphanumeric() || chars[i] == '_') {
@@ -93,27 +82,13 @@ pub(crate) fn lex(src: &str, file: &str) -> Result<Vec<Token>, SystemError> {
                     tok: Tok::Id(chars[s..i].iter().collect()),
                     pos,
                 });
-                continue;
+                return Ok(i);
             }
             if c.is_ascii_digit()
                 || (c == '.' && chars.get(i + 1).is_some_and(|d| d.is_ascii_digit()))
             {
                 let s = i;
-                while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
-                    i += 1;
-                }
-                if i < chars.len() && (chars[i] == 'e' || chars[i] == 'E') {
-                    let mut j = i + 1;
-                    if j < chars.len() && (chars[j] == '+' || chars[j] == '-') {
-                        j += 1;
-                    }
-                    if j < chars.len() && chars[j].is_ascii_digit() {
-                        i = j;
-                        while i < chars.len() && chars[i].is_ascii_digit() {
-                            i += 1;
-                        }
-                    }
-                }
+                i = number_end(chars, i);
                 let text: String = chars[s..i].iter().collect();
                 let v: f64 = match text.parse() {
                     Ok(v) => v,
@@ -152,40 +127,41 @@ pub(crate) fn lex(src: &str, file: &str) -> Result<Vec<Token>, SystemError> {
                     tok: Tok::Num(v),
                     pos,
                 });
-                continue;
+                return Ok(i);
             }
             let rest: String = chars[i..(i + 2).min(chars.len())].iter().collect();
             if let Some(sym) = SYMS.iter().find(|s| rest.starts_with(**s)) {
                 match *sym {
-                    "(" | "[" => depth += 1,
-                    ")" | "]" => depth = depth.saturating_sub(1),
+                    "(" | "[" => **depth += 1,
+                    ")" | "]" => **depth = depth.saturating_sub(1),
                     _ => {}
                 }
                 out.push(Token {
                     tok: Tok::Sym(sym),
                     pos,
                 });
-                i += sym.len();
-                continue;
+                return Ok(i + sym.len());
             }
-            return Err(err(
+            Err(err(
                 file,
                 src,
                 pos,
                 format!("unexpected character `{}`", c.escape_debug()),
                 "names are ASCII letters, digits and `_`; operators are + - * / ^; comments start with #",
-            ));
-        }
-        if !continued && depth == 0 && out.last().is_some_and(|t| t.tok != Tok::Newline) {
-            out.push(Token {
-                tok: Tok::Newline,
-                pos: Pos {
-                    line: li + 1,
-                    col: chars.len() + 1,
-                },
-            });
-        }
-    }
+            ))
+        },
+        |(out, depth), li, len, continued| {
+            if !continued && **depth == 0 && out.last().is_some_and(|t| t.tok != Tok::Newline) {
+                out.push(Token {
+                    tok: Tok::Newline,
+                    pos: Pos {
+                        line: li + 1,
+                        col: len + 1,
+                    },
+                });
+            }
+        },
+    )?;
     let end = Pos {
         line: src.lines().count().max(1),
         col: src.lines().last().map_or(1, |l| l.chars().count() + 1),

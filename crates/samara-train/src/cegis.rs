@@ -395,21 +395,6 @@ pub fn enclosure_text(e: [f64; 2]) -> String {
     }
 }
 
-fn reason(v: &Verdict) -> String {
-    match v {
-        Verdict::Unknown { reason } => reason.clone(),
-        Verdict::Violated {
-            initial,
-            t,
-            x_plus_y,
-        } => format!(
-            "simulated from y0 = {:.4}: x + y = {:.4} at t = {}",
-            initial[5], x_plus_y, t
-        ),
-        _ => String::new(),
-    }
-}
-
 /// Train a controller for the closed-loop goal on `data` (6 state columns, then ex; raw
 /// units) with min-max constants `mm` (from the data when `None`). See the module
 /// documentation for the rounds.
@@ -545,7 +530,7 @@ pub fn train_closed_loop(
             r2,
             starts: cl.y0.len(),
             verdict: res.verdict.name().into(),
-            reason: reason(&res.verdict),
+            reason: Verdict::reason(&res.verdict),
             enclosure: res.final_x_plus_y,
             sampled: res.sampled_x_plus_y,
             max_leaves: budget.0,

@@ -221,6 +221,32 @@ pub struct BabResult {
     pub stop: Option<crate::UnknownReason>,
 }
 
+impl BabResult {
+    /// A search that explored no node.
+    fn unexplored(upper: f64, complete: bool, stop: Option<crate::UnknownReason>) -> Self {
+        BabResult {
+            best: None,
+            upper,
+            complete,
+            nodes: 0,
+            thin_leaves: 0,
+            stop,
+        }
+    }
+
+    /// A search that stopped at its first witness (the stop criterion was reached).
+    fn stopped_at_witness(best: Option<(Point, f64)>, nodes: usize, thin_leaves: usize) -> Self {
+        BabResult {
+            best,
+            upper: f64::INFINITY,
+            complete: true,
+            nodes,
+            thin_leaves,
+            stop: None,
+        }
+    }
+}
+
 /// Limits of a search.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
@@ -359,17 +385,10 @@ impl Problem<'_> {
                     }
                 }
                 if *relu {
-                    let ph = &phases[ai][relu_k];
+                    crate::net::clamp_to_phases(&phases[ai][relu_k], &mut zl, &mut zh);
                     relu_k += 1;
-                    for i in 0..m.out {
-                        match ph[i] {
-                            1 => zl[i] = zl[i].max(0.0),
-                            -1 => zh[i] = zh[i].min(0.0),
-                            _ => {}
-                        }
-                        if zl[i] > zh[i] {
-                            return None;
-                        }
+                    if zl.iter().zip(zh.iter()).any(|(l, h)| l > h) {
+                        return None;
                     }
                     alo = zl.iter().map(|v| v.max(0.0)).collect();
                     ahi = zh.iter().map(|v| v.max(0.0)).collect();
@@ -388,17 +407,10 @@ impl Problem<'_> {
                 let (zo, ao) = av.maps[k];
                 let (zl, zh) = (&mut zlo[k], &mut zhi[k]);
                 if *relu {
-                    let ph = &phases[ai][relu_k];
+                    crate::net::clamp_to_phases(&phases[ai][relu_k], zl, zh);
                     relu_k += 1;
-                    for i in 0..m.out {
-                        match ph[i] {
-                            1 => zl[i] = zl[i].max(0.0),
-                            -1 => zh[i] = zh[i].min(0.0),
-                            _ => {}
-                        }
-                        if zl[i] > zh[i] {
-                            return None;
-                        }
+                    if zl.iter().zip(zh.iter()).any(|(l, h)| l > h) {
+                        return None;
                     }
                     let a = ao.expect("relu var");
                     for i in 0..m.out {
@@ -702,14 +714,11 @@ impl Problem<'_> {
         let t0 = Instant::now();
         if let Some(what) = self.malformed() {
             // Never index out of bounds: a malformed problem is not searched.
-            return BabResult {
-                best: None,
-                upper: f64::INFINITY,
-                complete: false,
-                nodes: 0,
-                thin_leaves: 0,
-                stop: Some(crate::UnknownReason::Unsupported { what }),
-            };
+            return BabResult::unexplored(
+                f64::INFINITY,
+                false,
+                Some(crate::UnknownReason::Unsupported { what }),
+            );
         }
         let (apps, n_net) = self.layout();
         let boxes = self.tightened_boxes();
@@ -725,14 +734,7 @@ impl Problem<'_> {
             })
             .collect();
         let Some((lo0, hi0)) = self.bounds(&apps, n_net, &boxes, &phases0, None) else {
-            return BabResult {
-                best: None,
-                upper: f64::NEG_INFINITY,
-                complete: true,
-                nodes: 0,
-                thin_leaves: 0,
-                stop: None,
-            };
+            return BabResult::unexplored(f64::NEG_INFINITY, true, None);
         };
         self.bound_free(&apps, n_net, &lo0, &hi0);
         if self
@@ -741,23 +743,9 @@ impl Problem<'_> {
             .any(|f| !f.0.is_finite() || !f.1.is_finite() || f.0 > f.1)
         {
             if self.free.iter().any(|f| f.0 > f.1) {
-                return BabResult {
-                    best: None,
-                    upper: f64::NEG_INFINITY,
-                    complete: true,
-                    nodes: 0,
-                    thin_leaves: 0,
-                    stop: None,
-                };
+                return BabResult::unexplored(f64::NEG_INFINITY, true, None);
             }
-            return BabResult {
-                best: None,
-                upper: f64::INFINITY,
-                complete: false,
-                nodes: 0,
-                thin_leaves: 0,
-                stop: None,
-            };
+            return BabResult::unexplored(f64::INFINITY, false, None);
         }
         let mut best: Option<(Point, f64)> = None;
         let mut closed_upper = f64::NEG_INFINITY;
@@ -874,14 +862,7 @@ impl Problem<'_> {
                     }
                 }
                 if found && self.stop_reached(&best) {
-                    return BabResult {
-                        best,
-                        upper: f64::INFINITY,
-                        complete: true,
-                        nodes,
-                        thin_leaves: thin,
-                        stop: None,
-                    };
+                    return BabResult::stopped_at_witness(best, nodes, thin);
                 }
                 // Branch on the unstable neuron whose relaxation is most violated at x.
                 let mut pick: Option<(usize, usize, usize, f64)> = None;
@@ -957,14 +938,7 @@ impl Problem<'_> {
                                 }
                                 ok = true;
                                 if self.stop_reached(&best) {
-                                    return BabResult {
-                                        best,
-                                        upper: f64::INFINITY,
-                                        complete: true,
-                                        nodes,
-                                        thin_leaves: thin,
-                                        stop: None,
-                                    };
+                                    return BabResult::stopped_at_witness(best, nodes, thin);
                                 }
                             }
                         }

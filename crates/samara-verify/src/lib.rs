@@ -47,7 +47,9 @@ pub mod exact;
 pub mod lp;
 #[cfg(feature = "highs")]
 pub mod milp;
-pub mod net;
+/// The piecewise-linear encoding and its interval/DeepPoly bounds, shared with reachability
+/// (they live in `samara-bounds`).
+pub use samara_bounds::pwl as net;
 pub mod robustness;
 pub mod route;
 pub mod smooth;

@@ -30,7 +30,7 @@
 //! Hence the default `Off`.
 
 use crate::lp::{Lp, LpResult, Row};
-use crate::net::{affine_bounds, deeppoly, down, up, PwlNet};
+use crate::net::{affine_bounds, clamp_to_phases, deeppoly, down, up, PwlNet};
 use rayon::prelude::*;
 
 /// When the engine tightens pre-activation bounds with LPs (a [`crate::Settings`]
@@ -138,13 +138,7 @@ fn propagate(
     let ph = phase_of(net, fixed);
     let clip = |k: usize, lo: &mut [Vec<f64>], hi: &mut [Vec<f64>]| -> bool {
         if let Some(p) = ph[k] {
-            for i in 0..lo[k].len() {
-                match p[i] {
-                    1 => lo[k][i] = lo[k][i].max(0.0),
-                    -1 => hi[k][i] = hi[k][i].min(0.0),
-                    _ => {}
-                }
-            }
+            clamp_to_phases(p, &mut lo[k], &mut hi[k]);
         }
         lo[k].iter().zip(&hi[k]).all(|(l, h)| l <= h)
     };

@@ -1,4 +1,5 @@
-//! Piecewise-linear view of a network for the exact engine: affine maps, each followed
+//! Piecewise-linear view of a network (the exact verifier's encoding, and DeepPoly's
+//! back-substitution that reachability uses too): affine maps, each followed
 //! by a ReLU or not (clamps are rewritten as two ReLUs:
 //! `clamp(z, lo, hi) = lo + relu(z - lo) - relu(z - hi)`), and sound interval bounds
 //! with outward rounding.
@@ -99,7 +100,7 @@ impl PwlNet {
 }
 
 /// Interval `[lo, hi]` arithmetic helpers with outward rounding (one ulp per operation).
-pub(crate) fn down(x: f64) -> f64 {
+pub fn down(x: f64) -> f64 {
     if x.is_finite() {
         x.next_down()
     } else {
@@ -107,7 +108,7 @@ pub(crate) fn down(x: f64) -> f64 {
     }
 }
 
-pub(crate) fn up(x: f64) -> f64 {
+pub fn up(x: f64) -> f64 {
     if x.is_finite() {
         x.next_up()
     } else {
@@ -134,6 +135,18 @@ pub fn affine_bounds(m: &Affine, alo: &[f64], ahi: &[f64]) -> (Vec<f64>, Vec<f64
         hi[i] = h;
     }
     (lo, hi)
+}
+
+/// Cut the bounds `lo`/`hi` of a ReLU layer's pre-activations by the neurons' phases
+/// (`1` active: at least 0; `-1` inactive: at most 0; `0` free: unchanged).
+pub fn clamp_to_phases(phase: &[i8], lo: &mut [f64], hi: &mut [f64]) {
+    for ((p, l), h) in phase.iter().zip(lo.iter_mut()).zip(hi.iter_mut()) {
+        match p {
+            1 => *l = l.max(0.0),
+            -1 => *h = h.min(0.0),
+            _ => {}
+        }
+    }
 }
 
 /// Symbolic linear bounds by back-substitution (DeepPoly, Singh et al., POPL 2019; the
