@@ -51,23 +51,6 @@ impl fmt::Display for SystemError {
 
 impl std::error::Error for SystemError {}
 
-/// Edit distance (insertions, deletions, substitutions), for "did you mean" hints.
-fn levenshtein(a: &str, b: &str) -> usize {
-    let a: Vec<char> = a.chars().collect();
-    let b: Vec<char> = b.chars().collect();
-    let mut prev: Vec<usize> = (0..=b.len()).collect();
-    let mut cur = vec![0; b.len() + 1];
-    for i in 1..=a.len() {
-        cur[0] = i;
-        for j in 1..=b.len() {
-            let sub = prev[j - 1] + usize::from(a[i - 1] != b[j - 1]);
-            cur[j] = sub.min(prev[j] + 1).min(cur[j - 1] + 1);
-        }
-        std::mem::swap(&mut prev, &mut cur);
-    }
-    prev[b.len()]
-}
-
 /// The closest candidate to `name` (distance at most a third of its length, at least
 /// 1, or a case-insensitive match); names over 128 characters get no suggestion.
 pub(crate) fn closest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>) -> Option<String> {
@@ -83,7 +66,7 @@ pub(crate) fn closest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>)
         let d = if c.eq_ignore_ascii_case(name) {
             0
         } else {
-            levenshtein(name, c)
+            samara_spec::lower::suggest::levenshtein(name, c)
         };
         let better = match best {
             None => true,

@@ -1,6 +1,8 @@
 //! "Did you mean" suggestions: the nearest name by edit distance.
 
-fn levenshtein(a: &str, b: &str) -> usize {
+/// Levenshtein's edit distance between two names, in characters (the classic two-row
+/// dynamic programme); shared with the system language's suggestions.
+pub fn levenshtein(a: &str, b: &str) -> usize {
     let b: Vec<char> = b.chars().collect();
     let mut prev: Vec<usize> = (0..=b.len()).collect();
     for (i, ca) in a.chars().enumerate() {
