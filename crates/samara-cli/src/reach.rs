@@ -414,7 +414,7 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         &a.out.join("reach.json"),
         serde_json::to_string_pretty(&report)?.as_bytes(),
     )?;
-    samara_reach::figure(
+    samara_report::reach::figure(
         &res,
         &figure_title(&a.network, &plan.settings),
         plan.settings.goal.as_ref().map(|g| g.ystar),
@@ -677,7 +677,7 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     });
     // The figure's sampled trajectories (the same in every shard): kept once, in shard 0.
     if sh.i == 0 {
-        let (curves, group_label) = prep.figure_curves();
+        let (curves, group_label) = samara_report::reach::sample_curves(&prep.samples);
         result["figure"] = json!({
             "group_label": group_label,
             "curves": curves.iter().map(|c| json!({
@@ -1102,7 +1102,7 @@ pub fn merge_reach(
         &out.join("reach.json"),
         serde_json::to_string_pretty(&report)?.as_bytes(),
     )?;
-    parts::figure(
+    samara_report::reach::draw(
         &figure_title(Path::new(network), &s),
         &verdict,
         &leaves,

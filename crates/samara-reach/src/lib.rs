@@ -17,7 +17,6 @@
 //! - [`sampling`]: simulated trajectories (falsification first, figures) and the check
 //!   that enclosures contain them;
 //! - [`verdict`]: the goal on the final sets and the verdict;
-//! - [`figure`](mod@figure): the x-y figure of a run.
 //!
 //! Verdicts: `Proved` only when every sub-box's enclosure satisfies the goal; `Violated`
 //! only with a concrete simulated trajectory; `Unknown` with the reason otherwise.
@@ -25,7 +24,6 @@
 #![warn(missing_docs)]
 
 pub mod driver;
-pub mod figure;
 pub mod flow;
 pub mod netstep;
 pub mod parts;
@@ -37,7 +35,6 @@ pub mod verdict;
 pub mod zonotope;
 
 pub use driver::{reach, Leaf, ReachResult, StepSet};
-pub use figure::figure;
 pub use sampling::{check_containment, simulate_samples, Sample};
 pub use settings::{Goal, ReachError, ReachSettings, MAX_INIT, MAX_PERIODS};
 pub use verdict::Verdict;

@@ -27,13 +27,12 @@
 //!
 //! There is one copy of the per-sub-box code: [`prepare`], [`Prepared`]'s flights,
 //! [`refine`] and [`finish`] are the driver's own ([`reach`](crate::reach) is their
-//! composition over all pieces), and [`figure`] is [`figure`](fn@crate::figure)'s own layout.
+//! composition over all pieces). The figure of a merged run is drawn by
+//! `samara_report::reach::draw`, in the one-process run's layout.
 
-use samara_report::Curve;
 use std::ops::Range;
 
 pub use crate::driver::{child_key, finish, piece_key, prepare, refine, Flown, Prepared};
-pub use crate::figure::draw as figure;
 
 /// A sub-box of the initial set and its enclosures, as a part records it: the driver's
 /// [`Leaf`](crate::Leaf).
@@ -46,11 +45,5 @@ impl Prepared<'_> {
         let mut all: Vec<Flown> = Vec::new();
         self.refine_pieces(range, |round| all.extend(round.iter().cloned()));
         all
-    }
-
-    /// The sampled trajectories drawn in the figure and their legend entry, as
-    /// [`figure`](fn@crate::figure) picks them.
-    pub fn figure_curves(&self) -> (Vec<Curve>, Option<String>) {
-        crate::figure::sample_curves(&self.samples)
     }
 }

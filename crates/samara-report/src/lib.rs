@@ -4,6 +4,7 @@
 #![warn(missing_docs)]
 
 pub mod guard;
+pub mod reach;
 
 use plotters::prelude::*;
 use std::io::Write;

@@ -604,7 +604,7 @@ pub fn reach(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
         let r = samara_reach::reach(net, &rs).map_err(|e| stage_err("reach", e))?;
         let png = format!("figures/reach_{i}.png");
         let svg = format!("figures/reach_{i}.svg");
-        samara_reach::figure(&r, &format!("{}, reduced model", s.label), Some(2.0))
+        samara_report::reach::figure(&r, &format!("{}, reduced model", s.label), Some(2.0))
             .render(&ctx.path(&png), &ctx.path(&svg))
             .map_err(|e| stage_err("reach", e))?;
         let reason = r.verdict.reason();

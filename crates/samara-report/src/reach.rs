@@ -1,9 +1,9 @@
-//! The x-y figure of a run: the sets as boxes, the goal band and sampled trajectories.
+//! The x-y figure of a reachability run of the glider (`samara_reach`): the sets as
+//! boxes, the goal band and sampled trajectories. It lives here, not in `samara-reach`,
+//! so that the reachability library does not depend on drawing.
 
-use crate::driver::{Leaf, ReachResult};
-use crate::sampling::Sample;
-use crate::verdict::Verdict;
-use samara_report::{Curve, TrajectoryFigure};
+use crate::{Curve, TrajectoryFigure};
+use samara_reach::{Leaf, ReachResult, Sample, Verdict};
 use std::borrow::Borrow;
 
 /// Largest number of boxes drawn in a figure; beyond it neighbouring sub-boxes are
@@ -49,7 +49,7 @@ fn figure_boxes<L: Borrow<Leaf>>(leaves: &[L]) -> Vec<(f64, f64, f64, f64)> {
 /// The sampled trajectories drawn in the figure and their legend entry: a few only (the
 /// extremes come first in the samples, then random starts), so the sets under them stay
 /// visible.
-pub(crate) fn sample_curves(samples: &[Sample]) -> (Vec<Curve>, Option<String>) {
+pub fn sample_curves(samples: &[Sample]) -> (Vec<Curve>, Option<String>) {
     let n = samples.len();
     let step = n.div_ceil(MAX_FIGURE_SAMPLES).max(1);
     let curves: Vec<Curve> = samples
@@ -70,9 +70,9 @@ pub(crate) fn sample_curves(samples: &[Sample]) -> (Vec<Curve>, Option<String>) 
 }
 
 /// The figure of the final sub-boxes `leaves` (in order) with the trajectories `curves`
-/// (legend entry `group_label`) on top, the layout of [`figure`]: a merged run
-/// (`parts::figure`) draws its sub-boxes with the curves from
-/// [`Prepared::figure_curves`](crate::parts::Prepared::figure_curves).
+/// (legend entry `group_label`) on top, the layout of [`figure`]: a merged shard run
+/// (`samara_reach::parts`) draws its sub-boxes with the curves [`sample_curves`] picks
+/// from the run's samples.
 pub fn draw<L: Borrow<Leaf>>(
     title: &str,
     verdict: &Verdict,
