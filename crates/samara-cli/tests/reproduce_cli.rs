@@ -265,13 +265,16 @@ fn a_bad_spec_is_a_usage_error_with_its_place() {
         + 1;
     std::fs::write(&spec, text.replace("=> ex >= 0.187", "=> exx >= 0.187")).unwrap();
     let out_dir = dir.path().join("out");
-    let out = samara()
-        .args(["reproduce", "--quick", "--spec"])
-        .arg(&spec)
-        .arg("--out")
-        .arg(&out_dir)
-        .output()
-        .unwrap();
+    let with_spec = |spec: &std::path::Path| {
+        samara()
+            .args(["reproduce", "--quick", "--spec"])
+            .arg(spec)
+            .arg("--out")
+            .arg(&out_dir)
+            .output()
+            .unwrap()
+    };
+    let out = with_spec(&spec);
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
@@ -281,28 +284,12 @@ fn a_bad_spec_is_a_usage_error_with_its_place() {
     assert!(!out_dir.exists());
     // A spec without p4: refused before any stage, naming the property.
     std::fs::write(&spec, text.replace("property p4:", "property q4:")).unwrap();
-    let out = samara()
-        .args(["reproduce", "--quick", "--spec"])
-        .arg(&spec)
-        .arg("--out")
-        .arg(&out_dir)
-        .output()
-        .unwrap();
+    let out = with_spec(&spec);
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("p4"));
     assert!(!out_dir.exists());
     // A missing file.
-    let out = samara()
-        .args([
-            "reproduce",
-            "--quick",
-            "--spec",
-            "/nonexistent.spec",
-            "--out",
-        ])
-        .arg(&out_dir)
-        .output()
-        .unwrap();
+    let out = with_spec(std::path::Path::new("/nonexistent.spec"));
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("/nonexistent.spec"));
 }

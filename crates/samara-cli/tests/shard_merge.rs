@@ -325,6 +325,22 @@ fn reach(net: &Path, args: &[&str], extra: &[&OsStr]) -> (Option<i32>, String, S
     run(&all)
 }
 
+/// `reach --shard S --out FILE` with `args`; it must succeed. Returns its stdout.
+fn reach_shard(net: &Path, args: &[&str], s: &str, file: &Path) -> String {
+    let (c, o, e) = reach(
+        net,
+        args,
+        &[
+            "--shard".as_ref(),
+            s.as_ref(),
+            "--out".as_ref(),
+            file.as_os_str(),
+        ],
+    );
+    assert_eq!(c, Some(0), "shard {s}: {o}{e}");
+    o
+}
+
 /// `reach.json` of a folder without its wall time.
 fn reach_json(dir: &Path) -> Value {
     let text = std::fs::read_to_string(dir.join("reach.json")).unwrap();
@@ -354,17 +370,7 @@ fn sharded_equals_unsharded(
         .map(|i| {
             let f = dir.join(format!("part-{i}.json"));
             let s = format!("{i}/{n}");
-            let (c, o, e) = reach(
-                &net,
-                args,
-                &[
-                    "--shard".as_ref(),
-                    s.as_ref(),
-                    "--out".as_ref(),
-                    f.as_os_str(),
-                ],
-            );
-            assert_eq!(c, Some(0), "shard {s}: {o}{e}");
+            let o = reach_shard(&net, args, &s, &f);
             assert!(o.starts_with(&format!("shard {s}: pieces")), "{o}");
             f
         })
@@ -471,17 +477,7 @@ fn reach_merge_refuses_shards_that_do_not_make_one_run() {
     let args = ["--y0", "2.0:2.1", "--horizon", "0.5", "--goal-ystar", "100"];
     let shard = |args: &[&str], s: &str, name: &str| -> PathBuf {
         let f = dir.path().join(name);
-        let (c, o, e) = reach(
-            &net,
-            args,
-            &[
-                "--shard".as_ref(),
-                s.as_ref(),
-                "--out".as_ref(),
-                f.as_os_str(),
-            ],
-        );
-        assert_eq!(c, Some(0), "{o}{e}");
+        reach_shard(&net, args, s, &f);
         f
     };
     let s0 = shard(&args, "0/2", "s0.json");
@@ -509,17 +505,7 @@ fn reach_merge_refuses_shards_that_do_not_make_one_run() {
     let adv = reference().join("adversarial_model_denorm.onnx");
     if adv.exists() {
         let f = dir.path().join("n1.json");
-        let (c, o, e) = reach(
-            &adv,
-            &args,
-            &[
-                "--shard".as_ref(),
-                "1/2".as_ref(),
-                "--out".as_ref(),
-                f.as_os_str(),
-            ],
-        );
-        assert_eq!(c, Some(0), "{o}{e}");
+        reach_shard(&adv, &args, "1/2", &f);
         let err = merge(&[&s0, &f]);
         assert!(err.contains("different runs"), "{err}");
     }

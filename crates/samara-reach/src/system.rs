@@ -339,7 +339,7 @@ pub fn reach_system(
                 break;
             }
             let budget_left = s.max_boxes.saturating_sub(leaves.len() + 2 * next.len());
-            let timed_out = s.timeout.is_some_and(|t| t0.elapsed().as_secs_f64() > t);
+            let timed_out = past(deadline);
             if budget_left == 0 || timed_out {
                 let lost = next.iter().filter(|l| l.failure.is_some()).count();
                 reason = Some(if timed_out {
@@ -569,6 +569,11 @@ fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
         .collect()
 }
 
+/// Whether the run's time budget (its deadline, if any) is spent.
+fn past(deadline: Option<Instant>) -> bool {
+    deadline.is_some_and(|d| Instant::now() > d)
+}
+
 /// Fly one sub-box over the horizon and decide the goals on its sets.
 fn fly_box(
     sys: &System,
@@ -607,7 +612,7 @@ fn fly_box(
             leaf.stopped_at = Some(t);
             break;
         }
-        if deadline.is_some_and(|d| Instant::now() > d) {
+        if past(deadline) {
             leaf.failure = Some(format!(
                 "time budget spent before the period starting at t = {t}"
             ));

@@ -24,12 +24,12 @@ use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The specification a reproduction lowers P1-P4 from, with its text (hashed into the
-/// stage cache keys and `results.json`).
+/// The specification a reproduction lowers P1-P4 from, checked for what the stages
+/// lower; its text ([`Spec::source`]) is hashed into the stage cache keys and
+/// `results.json`.
 #[derive(Clone, Debug)]
 pub struct ReproSpec {
     spec: Spec,
-    text: String,
 }
 
 impl ReproSpec {
@@ -37,19 +37,13 @@ impl ReproSpec {
     pub fn shipped() -> Self {
         ReproSpec {
             spec: samara_train::case_study_spec(),
-            text: samara_train::CASE_STUDY_SPEC.to_string(),
         }
     }
 
     /// Read, parse and check a spec file (messages carry `file:line:col`), and check that
     /// it states what the stages lower (see [`ReproSpec::parse`]).
     pub fn read(path: &Path) -> Result<Self, ReproError> {
-        let file = path.display().to_string();
-        let bytes = std::fs::read(path).map_err(|e| ReproError::Spec {
-            message: format!("{file}: cannot read the spec: {e}; check the --spec path"),
-        })?;
-        let text = samara_spec::syntax::decode(&bytes, &file).map_err(ReproError::spec)?;
-        Self::parse(text, &file, path.parent().unwrap_or(Path::new(".")))
+        Self::checked(Spec::read(path).map_err(ReproError::spec)?)
     }
 
     /// Parse and check spec text (`file` names it in messages, `dir` resolves its data
@@ -58,12 +52,12 @@ impl ReproSpec {
     /// (verify stage) and as training properties with `ystar` at its default (DL2 and
     /// Goedel training); anything else is refused here, before any stage runs.
     pub fn parse(text: &str, file: &str, dir: &Path) -> Result<Self, ReproError> {
-        let spec = Spec::parse(text, file, dir).map_err(ReproError::spec)?;
+        Self::checked(Spec::parse(text, file, dir).map_err(ReproError::spec)?)
+    }
+
+    fn checked(spec: Spec) -> Result<Self, ReproError> {
         more::check_spec(&spec).map_err(|message| ReproError::Spec { message })?;
-        Ok(ReproSpec {
-            spec,
-            text: text.to_string(),
-        })
+        Ok(ReproSpec { spec })
     }
 
     /// The checked spec.
@@ -73,7 +67,7 @@ impl ReproSpec {
 
     /// The spec's text, as read.
     pub fn text(&self) -> &str {
-        &self.text
+        self.spec.source()
     }
 
     /// The spec's file name, as given.

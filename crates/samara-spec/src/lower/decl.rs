@@ -132,6 +132,11 @@ impl Spec {
         }
     }
 
+    /// The text the spec was parsed from, as read.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
     /// Parse and check a spec file.
     pub fn read(path: &Path) -> Result<Spec, SpecError> {
         let file = path.display().to_string();
