@@ -15,6 +15,7 @@ use samara_plant::{Model, STATE_NAMES};
 use samara_reach::parts::{self, Flown, LeafRecord};
 use samara_reach::{Goal, ReachResult, ReachSettings, StepSet, Verdict};
 use samara_report::{write_atomic, Curve};
+use samara_spec::lower::NetDecl;
 use serde_json::{json, Value};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -115,6 +116,17 @@ pub struct ReachArgs {
     /// with the reason (checked between splitting rounds).
     #[arg(long, allow_hyphen_values = true)]
     pub timeout: Option<f64>,
+    /// A spec file whose closed loop to fly (`loop`, `start`, `goal` statements; e.g.
+    /// models/alsomitra/alsomitra.spec, loop `published`): model, initial set, period,
+    /// horizon, clip and goal come from it, so the flags that set them are refused
+    /// beside it. --network is then the loop's network as the spec declares it: the
+    /// spec's `normalise` lines are composed into it (for the shipped spec, a
+    /// normalised network such as base_model_norm.onnx).
+    #[arg(long, conflicts_with_all = ["model", "y0", "init", "horizon", "period", "goal_ystar", "goal_from", "no_clip", "system"])]
+    pub spec: Option<PathBuf>,
+    /// The loop of --spec to fly (default: its first).
+    #[arg(long = "loop", value_name = "NAME", requires = "spec")]
+    pub loop_name: Option<String>,
     /// Compute only part I of N (0-based) of the built-in glider run: the initial pieces
     /// (the initial set cut along its widest parameter, usually the height) in N
     /// contiguous ranges, each piece refined on its own. --out is then the shard file; `samara merge reach` puts the N files together
@@ -160,6 +172,74 @@ pub fn parse_interval(s: &str, what: &str) -> Result<(f64, f64)> {
 struct Plan {
     settings: ReachSettings,
     net: samara_nn::Network,
+}
+
+/// The settings of the loop of `--spec` (with `--loop`, or the first) and the
+/// declaration of the network that flies it.
+fn spec_settings(path: &Path, name: Option<&str>) -> Result<(ReachSettings, NetDecl)> {
+    let spec = samara_spec::Spec::read(path).map_err(|e| anyhow!("{e}"))?;
+    let names: Vec<&str> = spec.loops.iter().map(|l| l.name.as_str()).collect();
+    let lp = match name {
+        Some(n) => spec.closed_loop(n).ok_or_else(|| {
+            anyhow!(
+                "--loop {n}: {} states no loop `{n}`; its loops: {}",
+                path.display(),
+                if names.is_empty() { "none".into() } else { names.join(", ") }
+            )
+        })?,
+        None => spec.loops.first().ok_or_else(|| {
+            anyhow!(
+                "--spec {}: states no closed loop; add `loop NAME of f: model reduced, period 0.5, horizon 20`, `start NAME: ...` and `goal NAME: |x + y| <= 2 at 20` (docs/spec.md, Closed loops)",
+                path.display()
+            )
+        })?,
+    };
+    if lp.period > MAX_PERIOD {
+        bail!(
+            "{}:{}:{}: reach takes periods up to {MAX_PERIOD}; e.g. period 0.5",
+            path.display(),
+            lp.pos.line,
+            lp.pos.col
+        );
+    }
+    crate::simulate::check_period_count(lp.horizon, lp.period, MAX_PERIODS)?;
+    let net = spec
+        .networks
+        .iter()
+        .find(|n| n.name == lp.net)
+        .cloned()
+        .ok_or_else(|| anyhow!("loop `{}`: unknown network `{}`", lp.name, lp.net))?;
+    Ok((ReachSettings::from_loop(lp), net))
+}
+
+/// The raw-unit controller of a loop: the file bound to the spec's network with the
+/// spec's normalisation composed (`raw = C + S z`, `out_raw = offset + scale out`).
+fn spec_controller(
+    net: samara_nn::Network,
+    d: &NetDecl,
+    file: &Path,
+) -> Result<samara_nn::Network> {
+    if d.in_norm.is_none() && d.out_norm.is_none() {
+        return Ok(net);
+    }
+    if net.input_norm.is_some() || net.output_denorm.is_some() {
+        bail!(
+            "--network {}: the file carries its own normalisation layers (it takes raw units), but the spec declares `normalise {}` (its network takes normalised units): pass the normalised file (e.g. base_model_norm.onnx), or fly the raw file without --spec",
+            file.display(),
+            d.name
+        );
+    }
+    Ok(samara_nn::Network {
+        input_norm: d
+            .in_norm
+            .as_ref()
+            .map(|(c, s)| samara_nn::Affine::normalise(c, s)),
+        output_denorm: d
+            .out_norm
+            .as_ref()
+            .map(|(c, s)| samara_nn::Affine::denormalise(c, s)),
+        ..net
+    })
 }
 
 fn build_settings(a: &ReachArgs) -> Result<ReachSettings> {
@@ -319,7 +399,13 @@ pub(crate) const WRITES: [&str; 3] = ["reach.json", "reach.png", "reach.svg"];
 
 /// `as_file`: --out is a shard file (--shard), not the output folder.
 fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
-    let settings = build_settings(a)?;
+    let (settings, decl) = match &a.spec {
+        Some(p) => {
+            let (s, d) = spec_settings(p, a.loop_name.as_deref())?;
+            (s, Some(d))
+        }
+        None => (build_settings(a)?, None),
+    };
     // Never write over the network file (an input), before anything is computed.
     let inputs = [("--network", a.network.as_path())];
     if as_file {
@@ -341,6 +427,10 @@ fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
             a.network.display()
         )
     })?;
+    let net = match &decl {
+        Some(d) => spec_controller(net, d, &a.network)?,
+        None => net,
+    };
     settings.validate(&net).map_err(|e| match e {
         samara_reach::ReachError::NetworkShape { .. } => {
             anyhow!("--network {}: {e}", a.network.display())

@@ -98,9 +98,14 @@ pub struct TrainArgs {
 /// Flags of `samara train --method closed-loop`.
 #[derive(clap::Args, Debug)]
 pub struct ClosedLoopArgs {
-    /// closed-loop: the goal |x + y| <= Y at the horizon (t = 20) that reach must prove.
-    #[arg(long, default_value_t = 2.0)]
-    pub goal_ystar: f64,
+    /// closed-loop: the goal |x + y| <= Y at the horizon (t = 20) that reach must prove
+    /// (default 2; with --spec, the goal of its loop).
+    #[arg(long)]
+    pub goal_ystar: Option<f64>,
+    /// closed-loop with --spec: the loop to train for (default: the spec's first). Its
+    /// start, period, horizon, clip and goal replace --y0, --goal-ystar and --goal-from.
+    #[arg(long = "loop", value_name = "NAME", requires = "spec")]
+    pub loop_name: Option<String>,
     /// closed-loop: also for every t in [T*, 20] (the goal over a window).
     #[arg(long)]
     pub goal_from: Option<f64>,
@@ -458,17 +463,44 @@ fn run_closed_loop(
 ) -> Result<ExitCode> {
     use samara_train::{train_closed_loop, CegisOptions, ClosedLoopLoss};
     let a = &*t.closed_loop;
-    if !(a.goal_ystar > 0.0 && a.goal_ystar.is_finite()) {
-        bail!(
-            "--goal-ystar {}: the goal bound must be a positive number, e.g. 2",
-            a.goal_ystar
-        );
+    // The closed loop: the spec's (--spec), or the published one with the flags' goal
+    // and start.
+    let base = match &t.spec {
+        Some(path) => {
+            if a.y0.is_some() || a.goal_ystar.is_some() || a.goal_from.is_some() {
+                bail!("--y0/--goal-ystar/--goal-from: with --spec, closed-loop training flies the spec's loop (its start and goal); drop these flags or edit the loop in {}", path.display());
+            }
+            let spec = samara_spec::Spec::read(path).map_err(|e| anyhow!("{e}"))?;
+            let lp = match &a.loop_name {
+                Some(n) => spec.closed_loop(n).ok_or_else(|| {
+                    anyhow!("--loop {n}: {} states no loop `{n}`", path.display())
+                })?,
+                None => spec.loops.first().ok_or_else(|| {
+                    anyhow!("--spec {}: states no closed loop to train for; add `loop`, `start` and `goal` statements (docs/spec.md, Closed loops), or train without --spec", path.display())
+                })?,
+            };
+            CegisOptions::from_loop(lp).map_err(|e| anyhow!("--spec {}: {e}", path.display()))?
+        }
+        None => {
+            let d = CegisOptions::default();
+            CegisOptions {
+                goal: a.goal_ystar.unwrap_or(d.goal),
+                loss: ClosedLoopLoss {
+                    from: a.goal_from,
+                    ..d.loss.clone()
+                },
+                ..d
+            }
+        }
+    };
+    let goal = base.goal;
+    if !(goal > 0.0 && goal.is_finite()) {
+        bail!("--goal-ystar {goal}: the goal bound must be a positive number, e.g. 2");
     }
-    if !(a.margin >= 0.0 && a.margin <= a.goal_ystar) {
+    if !(a.margin >= 0.0 && a.margin <= goal) {
         bail!(
-            "--margin {}: must be a number in [0, --goal-ystar = {}], e.g. 0.75",
-            a.margin,
-            a.goal_ystar
+            "--margin {}: must be a number in [0, the goal = {goal}], e.g. 0.75",
+            a.margin
         );
     }
     if let Some(f) = a.goal_from {
@@ -488,7 +520,7 @@ fn run_closed_loop(
     }
     let y0 = match &a.y0 {
         Some(s) => crate::reach::parse_interval(s, &format!("--y0 {s:?}"))?,
-        None => (0.1 / 0.07, 0.3 / 0.07),
+        None => base.y0,
     };
     let (png, svg) = rounds_figure_paths(&t.out);
     let mut inputs: Vec<(&str, &Path)> = vec![("--data", &t.data)];
@@ -497,7 +529,7 @@ fn run_closed_loop(
     }
     check_output_file("the rounds figure (<--out stem>.rounds.png)", &png, &inputs)?;
     check_output_file("the rounds figure (<--out stem>.rounds.svg)", &svg, &inputs)?;
-    let defaults = CegisOptions::default();
+    let defaults = base;
     let o = CegisOptions {
         pretrain: TrainOptions {
             arch,
@@ -513,11 +545,10 @@ fn run_closed_loop(
             ..Default::default()
         },
         loss: ClosedLoopLoss {
-            bound: a.goal_ystar - a.margin,
-            from: a.goal_from,
+            bound: goal - a.margin,
             ..defaults.loss.clone()
         },
-        goal: a.goal_ystar,
+        goal,
         y0,
         steps_per_round: a.steps_per_round,
         lr: a.round_lr,
@@ -571,10 +602,10 @@ fn run_closed_loop(
     samara_report::write_atomic(log_path, log.as_bytes())?;
     samara_train::cegis::rounds_figure(
         &outcome.rounds,
-        a.goal_ystar,
+        goal,
         &format!(
             "closed-loop training: |x + y| <= {} at t = {}, {}",
-            a.goal_ystar,
+            goal,
             o.loss.horizon,
             if outcome.proved {
                 "proved"
@@ -611,7 +642,7 @@ fn run_closed_loop(
             serde_json::to_string_pretty(&serde_json::json!({
                 "method": "closed-loop", "out": t.out.display().to_string(),
                 "log": log_path.display().to_string(), "figure": png.display().to_string(),
-                "goal": {"ystar": a.goal_ystar, "from": a.goal_from, "horizon": o.loss.horizon,
+                "goal": {"ystar": goal, "from": o.loss.from, "horizon": o.loss.horizon,
                     "y0": [y0.0, y0.1], "model": "reduced", "clip": o.loss.clip.map(|c| [c.0, c.1])},
                 "proved": outcome.proved, "verdict": verdict, "enclosure": enc,
                 "sampled": outcome.reach.sampled_x_plus_y,
@@ -633,7 +664,7 @@ fn run_closed_loop(
             training_seconds,
             o.loss.horizon,
             samara_train::cegis::enclosure_text(enc),
-            a.goal_ystar,
+            goal,
             outcome.r2,
             data.rows(),
             t.out.display(),

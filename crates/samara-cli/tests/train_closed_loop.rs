@@ -5,6 +5,11 @@
 mod support;
 use support::samara;
 
+const SPEC: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../models/alsomitra/alsomitra.spec"
+);
+
 const DATA: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../../../shared/reference/Training_Data.csv"
@@ -22,6 +27,8 @@ fn closed_loop_training_reports_its_rounds_and_reach_proves_the_network() {
             "--method",
             "closed-loop",
             "--json",
+            "--spec",
+            SPEC,
             "--out",
         ])
         .arg(&net)
@@ -33,6 +40,12 @@ fn closed_loop_training_reports_its_rounds_and_reach_proves_the_network() {
         String::from_utf8_lossy(&out.stderr)
     );
     let m: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    // The shipped spec's loop is the published case (issue 12).
+    assert_eq!(
+        m["goal"],
+        serde_json::json!({"ystar": 2.0, "from": null, "horizon": 20.0,
+            "y0": [0.1 / 0.07, 0.3 / 0.07], "model": "reduced", "clip": [0.181, 0.193]})
+    );
     assert_eq!(m["verdict"], "proved", "{m}");
     assert_eq!(m["proved"], true);
     assert!(m["r2"].as_f64().unwrap() >= 0.9, "{m}");
@@ -72,6 +85,12 @@ fn closed_loop_training_reports_its_rounds_and_reach_proves_the_network() {
 #[test]
 fn bad_closed_loop_flags_are_refused_before_writing() {
     let dir = tempfile::tempdir().unwrap();
+    // A spec whose loop flies the full model, which closed-loop training does not fly.
+    let full = std::fs::read_to_string(SPEC)
+        .unwrap()
+        .replace("model reduced, period 0.5", "model full, period 0.5");
+    let full_spec = dir.path().join("full.spec").display().to_string();
+    std::fs::write(&full_spec, full).unwrap();
     for (flags, needle) in [
         (vec!["--margin", "3"], "--margin"),
         (vec!["--goal-ystar", "0"], "--goal-ystar"),
@@ -79,6 +98,19 @@ fn bad_closed_loop_flags_are_refused_before_writing() {
         (vec!["--rounds", "0"], "--rounds"),
         (vec!["--data-weight=-1"], "--data-weight"),
         (vec!["--goal-from", "25"], "--goal-from"),
+        (
+            vec!["--spec", SPEC, "--y0", "2:3"],
+            "with --spec, closed-loop training flies the spec's loop",
+        ),
+        (
+            vec!["--spec", SPEC, "--loop", "nope"],
+            "states no loop `nope`",
+        ),
+        (vec!["--loop", "published"], "--spec"),
+        (
+            vec!["--spec", &full_spec],
+            "loop `published`: closed-loop training flies the reduced model",
+        ),
     ] {
         let sub = dir.path().join("new");
         let out = samara()

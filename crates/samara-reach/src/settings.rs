@@ -135,6 +135,23 @@ impl ReachSettings {
         }
     }
 
+    /// The settings of a spec's closed loop ([`samara_spec::LoopDecl`]: model, initial
+    /// set, period, horizon, clip, goal); the budgets are [`ReachSettings::published`]'s.
+    /// The shipped case-study spec's loop `published` gives exactly
+    /// `ReachSettings::published(Model::Reduced)` with the goal `|x + y| <= 2` at `t = 20`.
+    pub fn from_loop(l: &samara_spec::LoopDecl) -> Self {
+        let mut s = ReachSettings::published(l.model);
+        s.init = l.start.clone();
+        s.period = l.period;
+        s.horizon = l.horizon;
+        s.clip = l.clip;
+        s.goal = l.goal.as_ref().map(|g| Goal {
+            ystar: g.bound,
+            from: g.from,
+        });
+        s
+    }
+
     fn steps(&self) -> Result<usize, ReachError> {
         let err = ReachError::Horizon {
             horizon: self.horizon,

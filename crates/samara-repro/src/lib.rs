@@ -13,8 +13,15 @@
 
 pub mod cache;
 pub mod doc;
-mod more;
+mod flights_stage;
+mod reach_stage;
+mod sections;
+mod spec_check;
+#[cfg(test)]
+mod stage_tests;
 pub mod stages;
+mod train_stage;
+mod verify_stage;
 
 use cache::Cache;
 use doc::{Block, Document};
@@ -56,7 +63,7 @@ impl ReproSpec {
     }
 
     fn checked(spec: Spec) -> Result<Self, ReproError> {
-        more::check_spec(&spec).map_err(|message| ReproError::Spec { message })?;
+        spec_check::check_spec(&spec).map_err(|message| ReproError::Spec { message })?;
         Ok(ReproSpec { spec })
     }
 

@@ -12,14 +12,27 @@ use samara_sim::{
 };
 use serde_json::{json, Value};
 
+/// samara's training methods, in the order of the train stage's table.
+pub(crate) const METHODS: [&str; 6] = [
+    "plain",
+    "adversarial",
+    "lipschitz",
+    "dl2",
+    "goedel",
+    "closed-loop",
+];
+/// The spec's global properties, verified by critical values and trained for by DL2 and
+/// Goedel.
+pub(crate) const P1_TO_P4: [&str; 4] = ["p1", "p2", "p3", "p4"];
+
 /// Every stage, in order.
 pub fn all() -> Vec<(&'static str, StageFn)> {
     vec![
         ("data", data as StageFn),
-        ("train", crate::more::train as StageFn),
-        ("verify", crate::more::verify as StageFn),
-        ("closed_loop", crate::more::closed_loop as StageFn),
-        ("reach", crate::more::reach as StageFn),
+        ("train", crate::train_stage::train as StageFn),
+        ("verify", crate::verify_stage::verify as StageFn),
+        ("closed_loop", crate::flights_stage::closed_loop as StageFn),
+        ("reach", crate::reach_stage::reach as StageFn),
     ]
 }
 
@@ -207,7 +220,7 @@ pub fn report(full: &Value, _opts: &ReproduceOptions) -> Document {
         }
     }
 
-    crate::more::report(st, &mut d, &mut findings);
+    crate::sections::report(st, &mut d, &mut findings);
     d.push(Block::Heading(1, "Findings".into()));
     if findings.is_empty() {
         d.push(Block::Para(

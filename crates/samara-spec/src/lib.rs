@@ -12,5 +12,5 @@ pub mod normal;
 pub mod syntax;
 pub mod vnnlib;
 
-pub use lower::{Bindings, Instance, Spec};
+pub use lower::{BandGoal, Bindings, Instance, LoopDecl, Spec};
 pub use syntax::SpecError;

@@ -475,6 +475,42 @@ pub enum Stmt {
         /// Position.
         pos: Pos,
     },
+    /// `loop NAME of NET: model M, period P, horizon T[, clip OUT in [a, b]]`: a closed
+    /// loop of the built-in plate model flown by network `NET` (sample and hold).
+    Loop {
+        /// Name of the loop.
+        name: String,
+        /// The controller network.
+        net: String,
+        /// Clauses `(keyword, value, position)` in the order written.
+        clauses: Vec<(String, LoopValue, Pos)>,
+        /// Position.
+        pos: Pos,
+    },
+    /// `start NAME: state = v, state in [a, b], ...`: the loop's initial set.
+    Start {
+        /// The loop.
+        lp: String,
+        /// Intervals by state name (a point `= v` is `[v, v]`).
+        states: Vec<(String, f64, f64, Pos)>,
+        /// Position.
+        pos: Pos,
+    },
+    /// `goal NAME: expr <= bound (at T | from T0)`: what reach decides about the loop.
+    Goal {
+        /// The loop.
+        lp: String,
+        /// The bounded expression.
+        expr: Expr,
+        /// The bound.
+        bound: f64,
+        /// `at T` (`false`) or `from T0` (`true`), and the time.
+        from: bool,
+        /// The time.
+        time: f64,
+        /// Position.
+        pos: Pos,
+    },
     /// `property NAME: binders formula`.
     Property {
         /// Name.
@@ -486,6 +522,17 @@ pub enum Stmt {
         /// Position.
         pos: Pos,
     },
+}
+
+/// The value of one clause of a `loop` statement.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LoopValue {
+    /// `model reduced`.
+    Name(String),
+    /// `period 0.5`, `horizon 20`.
+    Number(f64),
+    /// `clip ex in [0.181, 0.193]`.
+    Clip(String, f64, f64),
 }
 
 /// The deepest nesting the parser accepts (parentheses, `|...|`, `not`, unary `-`,
@@ -814,6 +861,55 @@ impl Parser<'_> {
                 pos,
             });
         }
+        if self.kw("loop") {
+            return self.loop_stmt(pos);
+        }
+        if self.kw("start") {
+            let lp = self.ident("a loop name")?;
+            let hint = "start NAME: v_xp = 1, y in [1.4, 4.3], ...";
+            self.expect_sym(":", hint)?;
+            let mut states = Vec::new();
+            loop {
+                let p = self.pos();
+                let n = self.ident("a state name")?;
+                let (a, b) = if self.sym("=") {
+                    let v = self.number()?;
+                    (v, v)
+                } else if self.kw("in") {
+                    self.interval()?
+                } else {
+                    return Err(self.err("expected `=` or `in`", hint));
+                };
+                states.push((n, a, b, p));
+                if !self.sym(",") {
+                    break;
+                }
+            }
+            return Ok(Stmt::Start { lp, states, pos });
+        }
+        if self.kw("goal") {
+            let lp = self.ident("a loop name")?;
+            let hint = "goal NAME: |x + y| <= 2 at 20 (or from 15: over [15, horizon])";
+            self.expect_sym(":", hint)?;
+            let expr = self.expr()?;
+            self.expect_sym("<=", hint)?;
+            let bound = self.number()?;
+            let from = if self.kw("from") {
+                true
+            } else {
+                self.expect_kw("at", hint)?;
+                false
+            };
+            let time = self.number()?;
+            return Ok(Stmt::Goal {
+                lp,
+                expr,
+                bound,
+                from,
+                time,
+                pos,
+            });
+        }
         if self.kw("property") {
             let name = self.ident("the property's name")?;
             self.expect_sym(":", "property NAME: formula")?;
@@ -859,8 +955,50 @@ impl Parser<'_> {
         }
         Err(self.err(
             "expected a statement",
-            "statements start with network, normalise, domain, dataset, param or property",
+            "statements start with network, normalise, domain, dataset, param, property, loop, start or goal",
         ))
+    }
+
+    /// `loop NAME of NET: clause, clause, ...` (after the keyword).
+    fn loop_stmt(&mut self, pos: Pos) -> Result<Stmt, SpecError> {
+        let hint =
+            "loop NAME of f: model reduced, period 0.5, horizon 20, clip ex in [0.181, 0.193]";
+        let name = self.ident("the loop's name")?;
+        self.expect_kw("of", hint)?;
+        let net = self.ident("the controller network's name")?;
+        self.expect_sym(":", hint)?;
+        let mut clauses = Vec::new();
+        loop {
+            let (p, at) = (self.pos(), self.i);
+            let key = self.ident("a clause (model, period, horizon or clip)")?;
+            let value = match key.as_str() {
+                "model" => LoopValue::Name(self.ident("a model name")?),
+                "period" | "horizon" => LoopValue::Number(self.number()?),
+                "clip" => {
+                    let out = self.ident("an output name")?;
+                    self.expect_kw("in", "clip OUT in [lo, hi]")?;
+                    let (a, b) = self.interval()?;
+                    LoopValue::Clip(out, a, b)
+                }
+                _ => {
+                    self.i = at;
+                    return Err(self.err(
+                        &format!("unknown clause `{key}`"),
+                        "a loop's clauses are model, period, horizon and clip",
+                    ));
+                }
+            };
+            clauses.push((key, value, p));
+            if !self.sym(",") {
+                break;
+            }
+        }
+        Ok(Stmt::Loop {
+            name,
+            net,
+            clauses,
+            pos,
+        })
     }
 
     /// formula := or ('=>' formula)?

@@ -26,6 +26,7 @@ use crate::train::{train, Metrics, Restart, TrainError, TrainOptions};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rand::SeedableRng;
 use samara_nn::{Affine, Layer, Network};
+use samara_plant::Model;
 use samara_reach::{reach, Goal, ReachResult, ReachSettings, Verdict};
 use std::time::Instant;
 
@@ -154,6 +155,49 @@ pub struct CegisOutcome {
 }
 
 impl CegisOptions {
+    /// The defaults flown on a spec's closed loop ([`samara_spec::LoopDecl`]): its
+    /// interval of initial heights, period, horizon, clip and goal (with the training
+    /// bound `max(goal - 0.75, goal / 2)`: the defaults' 1.25 for the published goal 2).
+    /// The flights of closed-loop training start at `(1, 0, 0, 0, 0, y0)` on the reduced
+    /// model, so a loop with another model or another initial set is refused (the error
+    /// names the loop and says what to write).
+    pub fn from_loop(l: &samara_spec::LoopDecl) -> Result<Self, TrainError> {
+        let bad = |m: String| Err(TrainError::Settings(format!("loop `{}`: {m}", l.name)));
+        if l.model != Model::Reduced {
+            return bad(format!(
+                "closed-loop training flies the reduced model, not {}: write `model reduced`",
+                l.model.name()
+            ));
+        }
+        let fixed = [1.0, 0.0, 0.0, 0.0, 0.0];
+        if l.start.len() != 6 || l.start[..5].iter().zip(fixed).any(|(s, v)| *s != (v, v)) {
+            return bad(
+                "closed-loop training starts at v_xp = 1, v_yp = 0, omega = 0, theta = 0, x = 0 with y in an interval: write the start so"
+                    .into(),
+            );
+        }
+        let Some(goal) = &l.goal else {
+            return bad(
+                "closed-loop training needs the loop's goal: add `goal NAME: |x + y| <= 2 at 20`"
+                    .into(),
+            );
+        };
+        let d = CegisOptions::default();
+        Ok(CegisOptions {
+            y0: l.start[5],
+            goal: goal.bound,
+            loss: ClosedLoopLoss {
+                bound: (goal.bound - 0.75).max(0.5 * goal.bound),
+                from: goal.from,
+                horizon: l.horizon,
+                period: l.period,
+                clip: l.clip,
+                ..d.loss.clone()
+            },
+            ..d
+        })
+    }
+
     /// Check the settings (the pretraining's and the loss's are checked where used).
     pub fn validate(&self) -> Result<(), TrainError> {
         let bad = |m: String| Err(TrainError::Settings(m));

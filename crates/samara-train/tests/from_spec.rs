@@ -105,3 +105,50 @@ fn editing_the_spec_moves_the_training_properties() {
         "{band:?} vs {band2:?}"
     );
 }
+
+/// Issue 12: the closed loop of the reachability stage comes from the spec too. The
+/// shipped loop gives closed-loop training's published case (written out in
+/// `CegisOptions::default`: y0 in [0.1/0.07, 0.3/0.07], goal 2 at t = 20, training
+/// bound 1.25, period 0.5, clip [0.181, 0.193]) and the reach settings of the
+/// published CORA setting (`ReachSettings::published`), bit for bit; a loop training
+/// cannot fly is refused with its name.
+#[test]
+fn the_shipped_loop_is_the_published_closed_loop_case() {
+    use samara_train::cegis::CegisOptions;
+    let spec = case_study_spec();
+    let lp = spec
+        .closed_loop("published")
+        .expect("the shipped spec states its loop");
+    let o = CegisOptions::from_loop(lp).unwrap();
+    let d = CegisOptions::default();
+    assert_eq!(o.y0, d.y0);
+    assert_eq!(o.goal, d.goal);
+    assert_eq!(o.loss.bound, d.loss.bound);
+    assert_eq!(o.loss.from, d.loss.from);
+    assert_eq!(
+        (o.loss.horizon, o.loss.period),
+        (d.loss.horizon, d.loss.period)
+    );
+    assert_eq!(o.loss.clip, d.loss.clip);
+    let r = samara_reach::ReachSettings::from_loop(lp);
+    let p = samara_reach::ReachSettings::published(samara_plant::Model::Reduced);
+    assert_eq!(r.model, p.model);
+    assert_eq!(r.init, p.init);
+    assert_eq!((r.period, r.horizon, r.clip), (p.period, p.horizon, p.clip));
+    assert_eq!(
+        r.goal,
+        Some(samara_reach::Goal {
+            ystar: 2.0,
+            from: None
+        })
+    );
+    let full = CASE_STUDY_SPEC.replace("model reduced, period 0.5", "model full, period 0.5");
+    let spec = Spec::parse(&full, "full.spec", std::path::Path::new(".")).unwrap();
+    let e = CegisOptions::from_loop(&spec.loops[0])
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("loop `published`") && e.contains("model reduced"),
+        "{e}"
+    );
+}

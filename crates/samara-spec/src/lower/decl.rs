@@ -95,6 +95,8 @@ pub struct Spec {
     pub normalised_datasets: Vec<String>,
     /// Properties in order.
     pub properties: Vec<PropertyDecl>,
+    /// Closed loops in order ([`super::closed_loop`]).
+    pub loops: Vec<super::LoopDecl>,
     pub(super) source: String,
     pub(super) pending_domains: Vec<(String, String, Pos)>,
 }
@@ -162,6 +164,7 @@ impl Spec {
             datasets: HashMap::new(),
             normalised_datasets: Vec::new(),
             properties: Vec::new(),
+            loops: Vec::new(),
             source: src.into(),
             pending_domains: Vec::new(),
         };
@@ -378,6 +381,21 @@ impl Spec {
                     param_pos.push((name.clone(), pos));
                     spec.params.insert(name, ParamDecl { range, default });
                 }
+                Stmt::Loop {
+                    name,
+                    net,
+                    clauses,
+                    pos,
+                } => spec.add_loop(name, net, clauses, pos)?,
+                Stmt::Start { lp, states, pos } => spec.add_start(&lp, states, pos)?,
+                Stmt::Goal {
+                    lp,
+                    expr,
+                    bound,
+                    from,
+                    time,
+                    pos,
+                } => spec.add_goal(&lp, &expr, bound, (from, time), pos)?,
                 Stmt::Property {
                     name,
                     binders,
@@ -422,6 +440,7 @@ impl Spec {
                 ));
             }
         }
+        spec.check_loops()?;
         spec.pending_domains = domain_from;
         // Check every property once with default bindings (types, names, linearity).
         for p in spec.properties.clone() {
@@ -431,16 +450,32 @@ impl Spec {
     }
 
     pub(super) fn net_index(&self, net: &str, pos: Pos) -> Result<usize, SpecError> {
-        self.networks
-            .iter()
-            .position(|n| n.name == net)
-            .ok_or_else(|| {
-                let hint = nearest(net, self.networks.iter().map(|n| n.name.as_str()))
-                    .map(|s| format!("did you mean `{s}`?"))
-                    .unwrap_or_else(|| {
-                        "declare it first: network NAME(inputs) -> (outputs)".into()
-                    });
-                self.error(pos, format!("unknown network `{net}`"), hint)
-            })
+        let names: Vec<&str> = self.networks.iter().map(|n| n.name.as_str()).collect();
+        self.index_named(
+            &names,
+            net,
+            pos,
+            (
+                "network",
+                "declare it first: network NAME(inputs) -> (outputs)",
+            ),
+        )
+    }
+
+    /// The index of `name` among `names`, or the error `unknown KIND `name`` at `pos`
+    /// with the closest name as the hint (else `declare`).
+    pub(super) fn index_named(
+        &self,
+        names: &[&str],
+        name: &str,
+        pos: Pos,
+        (kind, declare): (&str, &str),
+    ) -> Result<usize, SpecError> {
+        names.iter().position(|n| *n == name).ok_or_else(|| {
+            let hint = nearest(name, names.iter().copied())
+                .map(|s| format!("did you mean `{s}`?"))
+                .unwrap_or_else(|| declare.into());
+            self.error(pos, format!("unknown {kind} `{name}`"), hint)
+        })
     }
 }

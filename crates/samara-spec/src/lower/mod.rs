@@ -8,16 +8,19 @@
 //! (`raw = C + S z`, `out_raw = offset + scale out`), so the normal form speaks the
 //! units of the network files.
 //!
-//! Split by meaning: [`decl`] (declarations and their checks), [`suggest`] (name
+//! Split by meaning: [`decl`] (declarations and their checks), [`closed_loop`] (closed
+//! loops of the plate: model, initial set, goal), [`suggest`] (name
 //! suggestions), `linear` (the linear-expression type of lowering), `lowering` (property
 //! instances), `nnf` (negation and disjunctive normal forms).
 
+pub mod closed_loop;
 pub mod decl;
 mod linear;
 mod lowering;
 mod nnf;
 pub mod suggest;
 
+pub use closed_loop::{BandGoal, LoopDecl};
 pub use decl::{Bindings, NetDecl, ParamDecl, PropertyDecl, Spec};
 pub use lowering::{Instance, MAX_CASES, MAX_TERMS};
 pub use suggest::nearest;
