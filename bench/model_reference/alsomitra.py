@@ -1,5 +1,5 @@
 """Independent Python (numpy/scipy) implementation of the Alsomitra plate model of
-docs/MODEL.md (shared documentation), used to produce golden values for samara's Rust
+the shared docs/MODEL.md (its facts restated in the repository as docs/model.md), used to produce golden values for samara's Rust
 tests and as the peer of the simulation benchmark. Written from the document, not from
 samara's Rust code.
 """

@@ -148,7 +148,7 @@ fn network_controller_flies_and_clips() {
     let rows = written_rows(dir.path());
     assert_eq!(rows.len(), 360);
     // Every applied ex is inside the clip range, and the naive network saturates at 0.193
-    // within its first steps (MODEL.md section 6): the clip binds there.
+    // within its first steps (docs/model.md section 6): the clip binds there.
     assert!(rows.iter().all(|r| (0.181..=0.193).contains(&r[6])));
     assert!((0..9).any(|k| rows[k * 40..k * 40 + 4].iter().any(|r| r[6] == 0.193)));
     // Unclipped, the same network can leave the range.

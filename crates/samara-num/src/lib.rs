@@ -9,6 +9,7 @@
 //!
 //! The layout follows the blanket-float trait of Clarabel.rs (`src/algebra/floats.rs`):
 //! one trait with the required operations and a constant helper.
+#![warn(missing_docs)]
 
 mod dual;
 mod idual;

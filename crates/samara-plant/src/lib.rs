@@ -3,7 +3,7 @@
 //! [`Scalar`] so the same code simulates (`f64`), differentiates ([`samara_num::Dual`])
 //! and encloses (intervals, Taylor models).
 //!
-//! The equations follow `docs/MODEL.md` of the shared documentation exactly (the MATLAB
+//! The equations follow `docs/model.md` exactly (the MATLAB
 //! code is the ground truth); evaluation order of the derived constants is kept so that
 //! the published data are reproduced bit-faithfully.
 #![warn(missing_docs)]
@@ -17,7 +17,7 @@ pub const STATE_NAMES: [&str; 7] = ["v_xp", "v_yp", "omega", "theta", "x", "y", 
 /// Allowed range of the control input `ex` (centre-of-mass offset / chord).
 pub const EX_RANGE: (f64, f64) = (0.181, 0.193);
 
-/// The three model variants of MODEL.md section 3.
+/// The three model variants of docs/model.md section 3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Model {
     /// The simulation model (7 states, fitted drag law): produced `Training_Data.csv`.
@@ -143,7 +143,7 @@ pub struct Derived {
 }
 
 impl Derived {
-    /// Compute the groups (MODEL.md section 1).
+    /// Compute the groups (docs/model.md section 1).
     pub fn new(p: &Params) -> Self {
         let rho_s = p.m / (PI * p.a * p.b);
         let m_prime = 4.0 * p.m / (PI * p.rho_f * p.l * p.l * p.s);
@@ -245,7 +245,7 @@ impl Plant {
         (cl, cd, cp)
     }
 
-    /// The four-quadrant masks of MODEL.md section 3 (`full`). Since alpha = atan(.)
+    /// The four-quadrant masks of docs/model.md section 3 (`full`). Since alpha = atan(.)
     /// lies in [-pi/2, pi/2], quadrants 1 and 4 are reached only at |alpha| = pi/2.
     /// For set-valued alpha whose position relative to a mask edge is undecided, the
     /// result is the hull of every combination that can occur.
@@ -358,7 +358,7 @@ impl Plant {
         }
     }
 
-    /// The right-hand side `ds/dt = f(s, ex)` of MODEL.md section 2. `state` and `out`
+    /// The right-hand side `ds/dt = f(s, ex)` of docs/model.md section 2. `state` and `out`
     /// have [`Plant::dim`] entries; `ex` is held constant by the caller.
     pub fn rhs<S: Scalar>(&self, state: &[S], ex: &S, out: &mut [S]) {
         let p = &self.params;

@@ -1,4 +1,4 @@
-//! The three variants against an independent implementation of MODEL.md in Python
+//! The three variants against an independent implementation of docs/model.md in Python
 //! (bench/model_reference/alsomitra.py; golden file written by make_golden.py).
 
 use samara_plant::{Model, Plant};

@@ -1,4 +1,4 @@
-//! Relations between the variants stated in MODEL.md section 3, checked numerically:
+//! Relations between the variants stated in docs/model.md section 3, checked numerically:
 //! - for alpha <= 0, `full` equals `reduced` except for the damping (omega|omega| vs
 //!   omega sqrt(omega^2 + 1e-5)); at omega = 0 the damping vanishes in both, so the
 //!   right-hand sides agree exactly;

@@ -10,6 +10,7 @@
 //! constraints, the critical values of the verify stage, the units and domain of the
 //! networks), and its text is part of every stage's cache key, so an edited spec is never
 //! served from a stage cached under another.
+#![warn(missing_docs)]
 
 pub mod cache;
 pub mod doc;

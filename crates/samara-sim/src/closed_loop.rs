@@ -1,4 +1,4 @@
-//! The sample-and-hold closed loop (MODEL.md section 4): at each control instant the
+//! The sample-and-hold closed loop (docs/model.md section 4): at each control instant the
 //! controller reads the state, its output is held for one period while the plant is
 //! integrated, and (published protocol) the filter state E restarts at 0 every period.
 

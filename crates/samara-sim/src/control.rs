@@ -1,4 +1,4 @@
-//! Controllers of the sample-and-hold loop: the published PID law (MODEL.md section 4),
+//! Controllers of the sample-and-hold loop: the published PID law (docs/model.md section 4),
 //! a constant input, and a neural network.
 
 use samara_nn::Network;

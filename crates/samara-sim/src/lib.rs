@@ -4,7 +4,7 @@
 //!   tableau ([`tableau`]: DP5(4), DOP853) under a step-control policy: the standard
 //!   control of Hairer, Norsett & Wanner (*Solving ODEs I*, II.4 and II.10), or
 //! - [`ode45`]: a clone of MATLAB's `ode45` step control (Dormand-Prince 5(4), Shampine &
-//!   Reichelt 1997), exactly as `docs/MODEL.md` section 5, so the published data are
+//!   Reichelt 1997), exactly as `docs/model.md` section 5, so the published data are
 //!   regenerated bit-faithfully.
 //! - [`dop853`]: DOP853 (order 8) under the standard control, by default at rtol 1e-10,
 //!   atol 1e-12 (the CLI's `dop853`, alias `tight`).

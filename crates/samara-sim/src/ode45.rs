@@ -2,7 +2,7 @@
 //! MATLAB ODE suite", SIAM J. Sci. Comput. 18(1), 1997) with MATLAB's default options:
 //! RelTol 1e-3, AbsTol 1e-6 (scalar), MaxStep 0.1 |tf - t0|, mixed relative/absolute
 //! infinity-norm error test, and the 4th-order `ntrp45` interpolant for output points.
-//! Every rule follows `docs/MODEL.md` section 5; the arithmetic order of the stages
+//! Every rule follows `docs/model.md` section 5; the arithmetic order of the stages
 //! (`y + h * (sum b_ij f_j)`) is kept. The step control is a policy on the one adaptive
 //! Runge-Kutta driver ([`crate::explicit_rk`]) running the [`DP54`] tableau.
 

@@ -1,5 +1,5 @@
 //! Closed-loop flights of all three variants against scipy (solve_ivp DOP853 at rtol
-//! 1e-12, atol 1e-14) on an independent Python implementation of MODEL.md
+//! 1e-12, atol 1e-14) on an independent Python implementation of docs/model.md
 //! (bench/model_reference/make_golden.py).
 
 use samara_plant::{Model, Plant};

@@ -13,6 +13,7 @@
 //! sys.rhs(&[0.5, 1.0], &[0.25], &mut dx);
 //! assert_eq!(dx, [1.0, -(0.5f64.sin()) + 0.25]);
 //! ```
+#![warn(missing_docs)]
 
 mod compile;
 mod error;

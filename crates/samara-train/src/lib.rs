@@ -5,7 +5,7 @@
 //! as the IR's input/output layers and exports to ONNX through `samara-nn`. The
 //! closed-loop method ([`cegis`]) trains through the sample-and-hold loop and checks the
 //! result with `samara-reach` in counterexample-guided rounds.
-
+#![warn(missing_docs)]
 // Numeric kernels index parameter, gradient and cache arrays by the same index.
 #![allow(clippy::needless_range_loop)]
 

@@ -38,7 +38,7 @@ fn plain_training_reaches_r2_0_9_and_flies_along_the_line() {
     // "Follows the line": over 20 time units the glider travels about 40 chords along
     // it. Holding any constant ex in [0.181, 0.193] drifts 15 to 27 chords off the line;
     // the PID that made the data ends within 0.6, the published networks within about
-    // 2.1 (MODEL.md). The learned controller must stay within 4 chords and beat the
+    // 2.1 (docs/model.md). The learned controller must stay within 4 chords and beat the
     // best constant input by a factor of 4.
     let best_constant = [0.181, 0.187, 0.193]
         .iter()

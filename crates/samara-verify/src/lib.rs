@@ -37,7 +37,7 @@
 //!   agree to 1e-9; `vacuous` when the witness value reaches the domain extreme to 1e-6
 //!   relative. Networks are taken with their weights as stored (float32 weights
 //!   are exact in f64).
-
+#![warn(missing_docs)]
 // Numeric kernels index several arrays (columns, bounds, weights) by one index.
 #![allow(clippy::needless_range_loop)]
 
