@@ -18,11 +18,15 @@
 //!   outputs in the set's parameters, with the same rigorous rounding.
 //! - [`search`]: input-domain branch and bound for queries "is there an `x` in a box with
 //!   `f(x)` in a polytope?" (the VNN-LIB shape): a projected-gradient attack first,
-//!   then splitting the box along the input with the largest smear (ReluVal, Wang et al.,
+//!   then splitting the box (look-ahead, or the largest smear as in ReluVal, Wang et al.,
 //!   USENIX Security 2018) until every piece is proved empty or a point is found. Points
 //!   are re-evaluated concretely before they are reported.
+//! - [`lp`]: the min-max LP over a few linear bounds that gives the search its weights
+//!   for combining a conjunction's constraints.
+#![warn(missing_docs)]
 
 pub mod linset;
+pub mod lp;
 pub mod pwl;
 pub mod search;
 pub mod symbolic;

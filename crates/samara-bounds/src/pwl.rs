@@ -108,6 +108,8 @@ pub fn down(x: f64) -> f64 {
     }
 }
 
+/// The next float above `x` when `x` is finite (an upper bound rounded outward), `x`
+/// itself otherwise.
 pub fn up(x: f64) -> f64 {
     if x.is_finite() {
         x.next_up()

@@ -2,22 +2,57 @@
 //! outputs satisfy every constraint of a conjunction (the VNN-LIB counterexample shape)?
 //!
 //! Per case (one input box, one conjunction over the outputs): a projected-gradient
-//! attack (Madry et al., ICLR 2018) with seeded random restarts looks for a point first;
-//! then the box is split, depth first and in parallel batches, along the input with the
-//! largest smear `|coefficient| * width` of the objective's linear lower bound (ReluVal,
-//! Wang et al., USENIX Security 2018). A piece is closed when the symbolic lower bound of
-//! one constraint shows it cannot hold there ([`crate::symbolic`], sound in floating
-//! point). A candidate point (the piece's centre, the minimising corner of each linear
-//! bound) is reported only when its f64 evaluation satisfies every constraint with a
-//! margin above the evaluation's own rounding error. Anything cut short (time, piece
-//! budget) is [`Outcome::Unknown`] with its reason.
+//! attack (Madry et al., ICLR 2018) with seeded random restarts looks for a point first
+//! (all cases in parallel; short bursts recur during the search). Then the box is split,
+//! depth first and in parallel batches; cases with the same box (a disjunction over the
+//! outputs) share its pieces, so each piece's CROWN intermediate bounds and look-ahead
+//! serve all of them. Each piece gets full CROWN intermediate bounds (Zhang et al.,
+//! NeurIPS 2018) and alpha-CROWN bounds (Xu et al., ICLR 2021) of every constraint; a
+//! conjunction is closed when one constraint's bound shows it cannot hold, or when a
+//! non-negative combination of the constraints is positive on the piece: the weights come
+//! from the exact min-max LP over the linear bounds ([`crate::lp`]), and the combination
+//! is also bounded as one objective (its own alpha-CROWN slopes). The split is chosen by
+//! look-ahead (every input halved, both halves bounded by CROWN, the split that leaves
+//! the least to prove for the most promising case wins), by smear `|coefficient| *
+//! width` (ReluVal, Wang et al., USENIX Security 2018) when the look-ahead stalls. Every
+//! bound is sound in floating point ([`crate::symbolic`]). A candidate point (the
+//! piece's centre, the LP's minimiser, the minimising corner of each linear bound, a
+//! short local attack) is reported only when its f64 evaluation satisfies every
+//! constraint with a margin above the evaluation's own rounding error. Anything cut short
+//! (time, piece budget) is [`Outcome::Unknown`] with its reason.
 
 use crate::symbolic::{self, Objective};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::Affine;
+use std::sync::atomic::{AtomicU64, Ordering as AtOrd};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+
+/// Profile counters (nanoseconds / counts), printed to stderr at the end of [`solve`]
+/// when the environment variable `SAMARA_SEARCH_PROFILE` is set.
+static PROF: [AtomicU64; 8] = [
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+    AtomicU64::new(0),
+];
+const P_ATTACK: usize = 0;
+const P_OWNB: usize = 1;
+const P_ALPHA: usize = 2;
+const P_LOOK: usize = 3;
+const P_PGD: usize = 4;
+const P_MAXDEPTH: usize = 5;
+const P_COMB: usize = 6;
+const P_CLOSED: usize = 7;
+
+fn prof_add(k: usize, t0: Instant) {
+    PROF[k].fetch_add(t0.elapsed().as_nanos() as u64, AtOrd::Relaxed);
+}
 
 /// Concrete pre-activation bounds of every map but the last.
 type Bounds = Vec<Vec<(f64, f64)>>;
@@ -57,8 +92,10 @@ pub struct Settings {
     /// Gradient steps per restart (a restart whose gradient vanishes, e.g. in a region
     /// where every ReLU of a layer is off, ends early: restarts are then cheap samples).
     pub steps: usize,
-    /// Wall-clock budget of the attack per case, before the search (seconds); the
-    /// search repeats a burst of the same length, with fresh starts, every 2 seconds.
+    /// Wall-clock budget of the attack per case, before the search (seconds). The
+    /// search repeats bursts with fresh starts, every `max(0.5, t / 4)` seconds at time
+    /// `t`, each 15% of that interval long but at most four times this budget (shared
+    /// by the cases), so bursts stay a small share of a long proof.
     pub attack_seconds: f64,
     /// alpha-CROWN gradient steps for each piece's own constraint bounds (0: CROWN's
     /// slopes; the look-ahead always uses CROWN's, for speed).
@@ -74,7 +111,7 @@ impl Default for Settings {
             max_pieces: 0,
             batch: 32,
             restarts: 1_000_000,
-            attack_seconds: 0.2,
+            attack_seconds: 0.05,
             alpha_iters: 10,
             steps: 60,
             seed: 0,
@@ -233,20 +270,23 @@ fn pgd(
 }
 
 /// The attack: [`pgd`] from the centre and from seeded random starts, until
-/// `s.restarts` starts or `s.attack_seconds` are spent. `round` varies the seed.
+/// `s.restarts` starts or `seconds` are spent. `round` varies the seed. Returns the point
+/// found and the gradient steps taken.
 fn attack(
     maps: &[(Affine, bool)],
     case: &Case,
     s: &Settings,
     round: u64,
-    stats: &mut Stats,
-) -> Option<Vec<f64>> {
+    seconds: f64,
+) -> (Option<Vec<f64>>, u64) {
     let t0 = Instant::now();
+    let _guard = ProfGuard(t0);
     let mut rng =
         rand_chacha::ChaCha8Rng::seed_from_u64(s.seed ^ round.wrapping_mul(0x9E37_79B9_7F4A_7C15));
     let n = case.lo.len();
+    let mut steps = 0u64;
     for r in 0..s.restarts.max(1) {
-        if r > 0 && t0.elapsed().as_secs_f64() > s.attack_seconds {
+        if r > 0 && t0.elapsed().as_secs_f64() > seconds {
             break;
         }
         let x: Vec<f64> = (0..n)
@@ -258,16 +298,43 @@ fn attack(
                 }
             })
             .collect();
-        stats.attack_steps += s.steps as u64;
+        steps += s.steps as u64;
         if let Some(x) = pgd(maps, &case.constraints, &case.lo, &case.hi, x, s.steps) {
-            return Some(x);
+            return (Some(x), steps);
         }
     }
-    None
+    (None, steps)
 }
 
-/// A piece of a case's box, with intermediate bounds proved on it (`final`) or on a box
-/// containing it (to be tightened).
+/// [`attack`] on every case, in parallel, `seconds` each; the point of the first case
+/// (in order) that has one.
+fn attack_all(
+    maps: &[(Affine, bool)],
+    cases: &[Case],
+    s: &Settings,
+    round: u64,
+    seconds: f64,
+    stats: &mut Stats,
+) -> Option<(usize, Vec<f64>)> {
+    let res: Vec<(Option<Vec<f64>>, u64)> = cases
+        .par_iter()
+        .map(|c| attack(maps, c, s, round, seconds))
+        .collect();
+    stats.attack_steps += res.iter().map(|r| r.1).sum::<u64>();
+    res.into_iter()
+        .enumerate()
+        .find_map(|(ci, r)| r.0.map(|x| (ci, x)))
+}
+
+struct ProfGuard(Instant);
+impl Drop for ProfGuard {
+    fn drop(&mut self) {
+        prof_add(P_ATTACK, self.0);
+    }
+}
+
+/// A piece of the box shared by one or more cases, with intermediate bounds proved on it
+/// (`fin`) or on a box containing it (to be tightened).
 struct Work {
     lo: Vec<f64>,
     hi: Vec<f64>,
@@ -279,8 +346,11 @@ struct Work {
     /// Number of splits from the case's box: the deepest pieces go first (depth first,
     /// so the frontier stays small and pieces get cheap quickly).
     depth: u32,
-    /// The case the piece belongs to.
-    case: usize,
+    /// The cases (indices into the query's cases, all with this piece's box) not yet
+    /// closed on the piece. Cases that share their box (a disjunction over the outputs,
+    /// e.g. "some output is below `y_0`") share its pieces: the intermediate bounds and
+    /// the look-ahead are computed once for all of them.
+    open: Vec<usize>,
 }
 
 impl PartialEq for Work {
@@ -304,8 +374,10 @@ impl Ord for Work {
 /// What one piece came to.
 enum Piece {
     Closed,
-    Found(Vec<f64>),
-    Split(Work, Work),
+    /// A point of the given case.
+    Found(usize, Vec<f64>),
+    /// The pieces left open (a half closed by the look-ahead is dropped).
+    Split(Vec<Work>),
     Stuck,
     /// Past the deadline before the piece was done.
     Late,
@@ -313,12 +385,27 @@ enum Piece {
 
 /// Full CROWN intermediate bounds of a piece, starting from bounds of a containing box.
 fn piece_bounds(maps: &[(Affine, bool)], lo: &[f64], hi: &[f64], known: Option<&Bounds>) -> Bounds {
-    let (_, _, fwd) = symbolic::hidden(maps, lo, hi, known.map(|v| &v[..]));
+    let fwd = symbolic::hidden_pre(maps, lo, hi, known.map(|v| &v[..]));
     symbolic::crown_pre(maps, lo, hi, Some(&fwd))
 }
 
+/// A conjunction's bounds on one piece.
+struct ConjBound {
+    /// The best lower bound over the conjunction's constraints (or of a certified
+    /// combination of them).
+    lb: f64,
+    /// Whether the conjunction is shown to have no point on the piece.
+    closed: bool,
+    /// The linear lower bound of the constraint with the best bound.
+    f: Option<symbolic::Linear>,
+    /// The point of the piece where every linear lower bound is smallest together (the
+    /// min-max LP's minimiser), a candidate for a point of the conjunction.
+    x: Option<Vec<f64>>,
+}
+
 /// The best lower bound over the conjunction's constraints (the piece is closed when it
-/// is positive, or non-negative for a strict constraint) and the constraint's bound.
+/// is positive, or non-negative for a strict constraint), or failing that a non-negative
+/// combination of the constraints' linear bounds positive on the whole piece.
 fn best_bound(
     maps: &[(Affine, bool)],
     cs: &[OutputConstraint],
@@ -326,8 +413,13 @@ fn best_bound(
     lo: &[f64],
     hi: &[f64],
     alpha_iters: usize,
-) -> (f64, bool, Option<symbolic::Linear>) {
-    let mut best: (f64, bool, Option<symbolic::Linear>) = (f64::NEG_INFINITY, false, None);
+) -> ConjBound {
+    let mut best = ConjBound {
+        lb: f64::NEG_INFINITY,
+        closed: false,
+        f: None,
+        x: None,
+    };
     let mut fs = Vec::with_capacity(cs.len());
     for k in cs {
         let f = if alpha_iters > 0 {
@@ -338,26 +430,141 @@ fn best_bound(
         let lb = f.min_over(lo, hi);
         let closed = if k.strict { lb >= 0.0 } else { lb > 0.0 };
         if closed {
-            return (lb, true, Some(f));
+            return ConjBound {
+                lb,
+                closed: true,
+                f: Some(f),
+                x: None,
+            };
         }
-        if best.2.is_none() || lb > best.0 {
-            best = (lb, false, Some(f.clone()));
+        if best.f.is_none() || lb > best.lb {
+            best.lb = lb;
+            best.f = Some(f.clone());
         }
         fs.push(f);
     }
     // No single constraint is excluded: a non-negative combination `sum_k l_k g_k > 0`
     // everywhere still shows that the `g_k <= 0` never hold together.
-    if fs.len() >= 2 && combination_certifies(&fs, lo, hi) {
-        return (best.0, true, best.2);
+    if fs.len() >= 2 {
+        let tc = Instant::now();
+        let (ok, mm) = combination_certifies(&fs, lo, hi);
+        prof_add(P_COMB, tc);
+        if ok {
+            best.closed = true;
+        } else if let Some(mm) = mm {
+            best.x = Some(mm.x.clone());
+            // One bound of the LP's combination as a single objective: its backward pass
+            // relaxes every neuron once for the combination (by the sign of the combined
+            // coefficient) instead of summing relaxations chosen for each constraint alone,
+            // and alpha-CROWN optimises the slopes for it (the conjunction's weights and the
+            // slopes together, as in the joint optimisation of Xu et al. 2021).
+            if let Some(lb) = combined_bound(maps, cs, pre, lo, hi, &mm.lambda, alpha_iters) {
+                // Only the proof is taken: steering the look-ahead by the LP's value or
+                // by this bound (instead of the best single constraint's) did not help
+                // on ACAS Xu property 2.
+                if lb > 0.0 {
+                    best.closed = true;
+                }
+            }
+        }
     }
     best
 }
 
-/// Look for weights `l >= 0` with `min_x sum_k l_k f_k(x) > 0` over the box (a matrix
-/// game between the weights and the box corners, played by multiplicative weights against
-/// the best-response corner; Freund and Schapire, 1999), and certify the averaged weights
-/// with the rigorous combination [`symbolic::Linear::combine`].
-fn combination_certifies(fs: &[symbolic::Linear], lo: &[f64], hi: &[f64]) -> bool {
+/// A sound lower bound, over the piece, of `sum_k lam_k g_k(f(x))` for the constraints
+/// `g_k` (so a positive one shows that the conjunction has no point): the combined
+/// objective `c' = fl(sum_k lam_k c_k)`, `d' = fl(sum_k lam_k d_k)` is bounded by
+/// ([`symbolic::alpha_lower`] or [`symbolic::backward_lower`]), and the rounding of the
+/// combination is subtracted: `|c'_o - sum_k lam_k c_ko| <= gamma * sum_k |lam_k c_ko|`
+/// (Higham's bound, as in [`crate::symbolic`]), times a sound bound on `|y_o|` from the
+/// last hidden layer's bounds by interval arithmetic. `None` when the output bounds are
+/// not finite.
+fn combined_bound(
+    maps: &[(Affine, bool)],
+    cs: &[OutputConstraint],
+    pre: &Bounds,
+    lo: &[f64],
+    hi: &[f64],
+    lam: &[f64],
+    alpha_iters: usize,
+) -> Option<f64> {
+    let (last, _) = maps.last()?;
+    // The argument needs non-negative weights (a negative one flips its constraint).
+    if lam.len() != cs.len() || lam.iter().any(|l| !(l.is_finite() && *l >= 0.0)) {
+        return None;
+    }
+    let no = last.out;
+    let k = cs.len();
+    let gam = (k as f64 + 3.0) * f64::EPSILON;
+    let mut c = vec![0.0; no];
+    let mut cerr = vec![0.0; no];
+    for o in 0..no {
+        let mut mag = 0.0;
+        for (kc, l) in cs.iter().zip(lam) {
+            let p = l * kc.obj.c[o];
+            c[o] += p;
+            mag += p.abs();
+        }
+        cerr[o] = gam * mag;
+    }
+    let mut d = 0.0;
+    let mut dmag = 0.0;
+    for (kc, l) in cs.iter().zip(lam) {
+        let p = l * kc.obj.d;
+        d += p;
+        dmag += p.abs();
+    }
+    // |y_o| <= |b_o| + sum_i |w_oi| * max|a_i|, a = the last map's input.
+    let amax = symbolic::input_magnitudes(maps, pre, lo, hi, maps.len()).pop()?;
+    let mut err = gam * dmag;
+    for (o, ce) in cerr.iter().enumerate() {
+        let row = &last.w[o * last.inp..(o + 1) * last.inp];
+        let ymax = (last.b[o].abs() + row.iter().zip(&amax).map(|(w, a)| w.abs() * a).sum::<f64>())
+            * (1.0 + gam * (last.inp as f64 + 2.0));
+        err += ce * ymax;
+    }
+    if !err.is_finite() {
+        return None;
+    }
+    let obj = Objective { c, d };
+    let f = if alpha_iters > 0 {
+        symbolic::alpha_lower(maps, pre, &obj, lo, hi, alpha_iters)
+    } else {
+        symbolic::backward_lower(maps, pre, &obj, lo, hi)
+    };
+    let v = f.min_over(lo, hi) - (err * (1.0 + 1e-9)).next_up();
+    Some(v.next_down())
+}
+
+/// Look for weights `l >= 0` with `min_x sum_k l_k f_k(x) > 0` over the box: the exact
+/// min-max LP [`crate::lp::minmax`] (its optimal dual weights), and failing that a
+/// matrix game between the weights and the box corners played by multiplicative weights
+/// against the best-response corner (Freund and Schapire, 1999). Weights are certified
+/// only by the rigorous combination [`symbolic::Linear::combine`]. Also returns the LP's
+/// minimiser (where the bounds leave room for a point).
+fn combination_certifies(
+    fs: &[symbolic::Linear],
+    lo: &[f64],
+    hi: &[f64],
+) -> (bool, Option<crate::lp::MinMax>) {
+    let certify = |lam: &[f64]| {
+        let mut h = fs[0].combine(lam[0], &fs[1], lam[1], lo, hi);
+        for j in 2..fs.len() {
+            h = h.combine(1.0, &fs[j], lam[j], lo, hi);
+        }
+        h.min_over(lo, hi) > 0.0
+    };
+    let coefs: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
+    let csts: Vec<f64> = fs.iter().map(|f| f.cst - f.slack).collect();
+    let mm = crate::lp::minmax(&coefs, &csts, lo, hi);
+    if let Some(mm) = &mm {
+        if mm.value <= 0.0 {
+            return (false, Some(mm.clone()));
+        }
+        if certify(&mm.lambda) {
+            return (true, None);
+        }
+    }
     let k = fs.len();
     let mut lam = vec![1.0 / k as f64; k];
     let mut avg = vec![0.0; k];
@@ -386,22 +593,35 @@ fn combination_certifies(fs: &[symbolic::Linear], lo: &[f64], hi: &[f64]) -> boo
             *l /= tot;
             *a += *l;
         }
-        if it % 20 == 0 {
-            let mut h = fs[0].combine(avg[0], &fs[1], avg[1], lo, hi);
-            for j in 2..k {
-                h = h.combine(1.0, &fs[j], avg[j], lo, hi);
-            }
-            if h.min_over(lo, hi) > 0.0 {
-                return true;
-            }
+        if it % 20 == 0 && certify(&avg) {
+            return (true, None);
         }
     }
-    false
+    (false, mm)
+}
+
+/// The open cases' bounds on one piece: the cases still open, with their bounds.
+fn open_bounds(
+    maps: &[(Affine, bool)],
+    cases: &[Case],
+    open: &[usize],
+    pre: &Bounds,
+    lo: &[f64],
+    hi: &[f64],
+    alpha_iters: usize,
+) -> Vec<(usize, ConjBound)> {
+    open.iter()
+        .map(|&ci| {
+            let b = best_bound(maps, &cases[ci].constraints, pre, lo, hi, alpha_iters);
+            (ci, b)
+        })
+        .filter(|(_, b)| !b.closed)
+        .collect()
 }
 
 fn examine(
     maps: &[(Affine, bool)],
-    cs: &[OutputConstraint],
+    cases: &[Case],
     w: Work,
     alpha_iters: usize,
     deadline: Option<Instant>,
@@ -415,43 +635,73 @@ fn examine(
         hi,
         bounds,
         fin,
-        case,
+        open,
         depth,
         ..
     } = w;
+    PROF[P_MAXDEPTH].fetch_max(depth as u64, AtOrd::Relaxed);
+    let tp = Instant::now();
     let pre = match (bounds, fin) {
         (Some(b), true) => b,
         (b, _) => Arc::new(piece_bounds(maps, &lo, &hi, b.as_deref())),
     };
-    let (lbv, closed, f) = best_bound(maps, cs, &pre, &lo, &hi, alpha_iters);
-    if closed {
+    prof_add(P_OWNB, tp);
+    let tp = Instant::now();
+    let left = open_bounds(maps, cases, &open, &pre, &lo, &hi, alpha_iters);
+    prof_add(P_ALPHA, tp);
+    if left.is_empty() {
+        PROF[P_CLOSED].fetch_add(1, AtOrd::Relaxed);
         return Piece::Closed;
     }
+    let tp = Instant::now();
     let centre: Vec<f64> = lo.iter().zip(&hi).map(|(a, b)| 0.5 * (a + b)).collect();
-    let mut candidates = vec![centre];
-    if let Some(f) = &f {
-        candidates.push(f.argmin_corner(&lo, &hi));
-    }
-    for x in &candidates {
-        if satisfies(cs, &forward(maps, x, None)) {
-            return Piece::Found(x.clone());
+    let mut candidates = vec![centre.clone()];
+    for (_, b) in &left {
+        candidates.extend(b.x.iter().cloned());
+        if let Some(f) = &b.f {
+            candidates.push(f.argmin_corner(&lo, &hi));
         }
     }
-    // A short local attack from the corner that the most promising bound points at.
-    if let Some(x) = pgd(maps, cs, &lo, &hi, candidates.pop().unwrap_or_default(), 10) {
-        return Piece::Found(x);
+    for x in &candidates {
+        let y = forward(maps, x, None);
+        if let Some((ci, _)) = left
+            .iter()
+            .find(|(ci, _)| satisfies(&cases[*ci].constraints, &y))
+        {
+            return Piece::Found(*ci, x.clone());
+        }
     }
-    if f.is_none() {
+    // The most promising case: the lowest bound (closest to holding a point).
+    let (pci, pb) = left
+        .iter()
+        .min_by(|a, b| a.1.lb.total_cmp(&b.1.lb))
+        .expect("some case is open");
+    let Some(pf) = &pb.f else {
         // An empty conjunction holds at the centre: found above.
         return Piece::Stuck;
+    };
+    // A short local attack from where the most promising bounds point.
+    let start = pb.x.clone().unwrap_or_else(|| pf.argmin_corner(&lo, &hi));
+    if let Some(x) = pgd(maps, &cases[*pci].constraints, &lo, &hi, start, 10) {
+        return Piece::Found(*pci, x);
     }
+    prof_add(P_PGD, tp);
     if late() {
         return Piece::Late;
     }
+    let open: Vec<usize> = left.iter().map(|l| l.0).collect();
+    // The look-ahead scores the splits by one case, the most promising one (the others
+    // close along the way or take over once it is closed): scoring by the sum over the
+    // open cases favours splits that help the case with the largest scale, and on ACAS
+    // Xu property 5 took fifteen times the pieces of separate searches.
+    let driver = *pci;
+    let deficit = (-pb.lb).max(0.0);
+    let tp = Instant::now();
     // Branching by look-ahead: split every input at its midpoint, bound both halves with
-    // full CROWN, keep the split that leaves the least to prove (ties: the widest input). The
-    // chosen halves keep their bounds, so they are not computed again.
-    let mut tries: Vec<(f64, Work, Work, usize)> = (0..lo.len())
+    // full CROWN, keep the split that leaves the least to prove over the open cases (ties:
+    // the widest input). The chosen halves keep their bounds, so they are not computed
+    // again.
+    let mut tries: Vec<(f64, Vec<Work>, usize)> = (0..lo.len())
         .into_par_iter()
         .filter_map(|t| {
             let mid = 0.5 * (lo[t] + hi[t]);
@@ -461,61 +711,49 @@ fn examine(
             let (mut h1, mut l2) = (hi.clone(), lo.clone());
             h1[t] = mid;
             l2[t] = mid;
-            let b1 = piece_bounds(maps, &lo, &h1, Some(&pre));
-            let b2 = piece_bounds(maps, &l2, &hi, Some(&pre));
-            let s1 = best_bound(maps, cs, &b1, &lo, &h1, 0);
-            let s2 = best_bound(maps, cs, &b2, &l2, &hi, 0);
+            let mut halves = Vec::with_capacity(2);
+            let mut total = 0.0;
+            for (a, b) in [(&lo, &h1), (&l2, &hi)] {
+                let bd = piece_bounds(maps, a, b, Some(&pre));
+                let hl = open_bounds(maps, cases, &open, &bd, a, b, 0);
+                total += hl
+                    .iter()
+                    .find(|h| h.0 == driver)
+                    .map(|h| (-h.1.lb).max(0.0))
+                    .unwrap_or(0.0);
+                if hl.is_empty() {
+                    continue;
+                }
+                halves.push(Work {
+                    lo: a.clone(),
+                    hi: b.clone(),
+                    bounds: Some(Arc::new(bd)),
+                    fin: true,
+                    key: hl.iter().map(|h| h.1.lb).fold(f64::INFINITY, f64::min),
+                    depth: depth + 1,
+                    open: hl.into_iter().map(|h| h.0).collect(),
+                });
+            }
             // What is left to prove in each half (0 once closed); the split that leaves
             // the least in total wins, so closing one half outright counts fully.
-            let deficit = |b: &(f64, bool, Option<symbolic::Linear>)| {
-                if b.1 {
-                    0.0
-                } else {
-                    (-b.0).max(0.0)
-                }
-            };
-            let sc = -(deficit(&s1) + deficit(&s2)) + 1e-12 * (hi[t] - lo[t]);
-            Some((
-                sc,
-                Work {
-                    lo: lo.clone(),
-                    hi: h1,
-                    bounds: Some(Arc::new(b1)),
-                    fin: true,
-                    key: if s1.1 { f64::INFINITY } else { s1.0 },
-                    depth: depth + 1,
-                    case,
-                },
-                Work {
-                    lo: l2,
-                    hi: hi.clone(),
-                    bounds: Some(Arc::new(b2)),
-                    fin: true,
-                    key: if s2.1 { f64::INFINITY } else { s2.0 },
-                    depth: depth + 1,
-                    case,
-                },
-                t,
-            ))
+            Some((-total + 1e-12 * (hi[t] - lo[t]), halves, t))
         })
         .collect();
+    prof_add(P_LOOK, tp);
     // When no split makes real progress (less than 1% of the piece's own deficit, counted
     // for both halves), the look-ahead only sees rounding noise and would keep cutting
     // already thin sides: split by smear instead (|coefficient| * width of the most
     // promising constraint's bound), so every side keeps shrinking.
-    let parent_deficit = 2.0 * (-lbv).max(0.0);
+    let parent_deficit = 2.0 * deficit;
     let best = tries.iter().map(|t| t.0).fold(f64::NEG_INFINITY, f64::max);
     let stalled = best + parent_deficit <= 0.01 * parent_deficit;
-    let smear_pick = f.as_ref().and_then(|f| {
-        let sm = |t: usize| f.coef[t].abs() * (hi[t] - lo[t]) + 1e-300;
+    let pick = if stalled {
+        let sm = |t: usize| pf.coef[t].abs() * (hi[t] - lo[t]) + 1e-300;
         tries
             .iter()
             .enumerate()
-            .max_by(|a, b| sm(a.1 .3).total_cmp(&sm(b.1 .3)))
+            .max_by(|a, b| sm(a.1 .2).total_cmp(&sm(b.1 .2)))
             .map(|(i, _)| i)
-    });
-    let pick = if stalled {
-        smear_pick
     } else {
         tries
             .iter()
@@ -524,10 +762,7 @@ fn examine(
             .map(|(i, _)| i)
     };
     match pick {
-        Some(i) => {
-            let (_, w1, w2, _) = tries.swap_remove(i);
-            Piece::Split(w1, w2)
-        }
+        Some(i) => Piece::Split(tries.swap_remove(i).1),
         None => Piece::Stuck,
     }
 }
@@ -535,31 +770,72 @@ fn examine(
 /// Decide the query: is there a case with a point? Cases are searched in order.
 pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome, Stats) {
     let t0 = Instant::now();
+    let profile = std::env::var_os("SAMARA_SEARCH_PROFILE").is_some();
+    if profile {
+        PROF.iter().for_each(|p| p.store(0, AtOrd::Relaxed));
+    }
+    let (o, st) = solve_inner(maps, cases, s);
+    if profile {
+        let ms = |k: usize| PROF[k].load(AtOrd::Relaxed) as f64 * 1e-6;
+        eprintln!(
+            "profile: {:.0} ms wall, {} cases, {} pieces, {} closed, max depth {}; \
+             cpu ms: attack {:.0}, own bounds {:.0}, alpha+comb {:.0} (comb {:.0}), \
+             pgd {:.0}, look-ahead {:.0}; outcome {:?}",
+            t0.elapsed().as_secs_f64() * 1e3,
+            cases.len(),
+            st.pieces,
+            PROF[P_CLOSED].load(AtOrd::Relaxed),
+            PROF[P_MAXDEPTH].load(AtOrd::Relaxed),
+            ms(P_ATTACK),
+            ms(P_OWNB),
+            ms(P_ALPHA),
+            ms(P_COMB),
+            ms(P_PGD),
+            ms(P_LOOK),
+            match &o {
+                Outcome::Point { .. } => "point".to_string(),
+                o => format!("{o:?}"),
+            }
+        );
+    }
+    (o, st)
+}
+
+fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome, Stats) {
+    let t0 = Instant::now();
     let mut stats = Stats::default();
     let out_of_time = |t0: &Instant| s.timeout.is_some_and(|d| t0.elapsed() >= d);
-    // Attack every case first: a cheap refutation beats any proof.
+    // Attack every case first (in parallel): a cheap refutation beats any proof.
+    if let Some((ci, x)) = attack_all(maps, cases, s, 0, s.attack_seconds, &mut stats) {
+        let y = forward(maps, &x, None);
+        return (Outcome::Point { case: ci, x, y }, stats);
+    }
+    if out_of_time(&t0) {
+        return (Outcome::Unknown(StopReason::Timeout), stats);
+    }
+    // Cases with the same box share its pieces.
+    let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
     for (ci, case) in cases.iter().enumerate() {
-        if let Some(x) = attack(maps, case, s, 0, &mut stats) {
-            let y = forward(maps, &x, None);
-            return (Outcome::Point { case: ci, x, y }, stats);
-        }
-        if out_of_time(&t0) {
-            return (Outcome::Unknown(StopReason::Timeout), stats);
+        match groups
+            .iter_mut()
+            .find(|g| cases[g.0].lo == case.lo && cases[g.0].hi == case.hi)
+        {
+            Some(g) => g.1.push(ci),
+            None => groups.push((ci, vec![ci])),
         }
     }
-    // Depth first over the pieces of every case together, the most promising first.
+    // Depth first over the pieces of every box together, the most promising first.
     let mut stuck = false;
-    let mut heap: std::collections::BinaryHeap<Work> = cases
-        .iter()
-        .enumerate()
-        .map(|(ci, case)| Work {
-            lo: case.lo.clone(),
-            hi: case.hi.clone(),
+    let mut heap: std::collections::BinaryHeap<Work> = groups
+        .into_iter()
+        .map(|(first, open)| Work {
+            lo: cases[first].lo.clone(),
+            hi: cases[first].hi.clone(),
             bounds: None,
             fin: false,
             key: f64::NEG_INFINITY,
             depth: 0,
-            case: ci,
+            open,
         })
         .collect();
     let deadline = s.timeout.map(|d| t0 + d);
@@ -573,38 +849,33 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
             return (Outcome::Unknown(StopReason::PieceLimit), stats);
         }
         batches += 1;
-        if last_burst.elapsed().as_secs_f64() >= 2.0 {
-            last_burst = Instant::now();
-            for (ci, case) in cases.iter().enumerate() {
-                if let Some(x) = attack(maps, case, s, batches, &mut stats) {
-                    let y = forward(maps, &x, None);
-                    return (Outcome::Point { case: ci, x, y }, stats);
-                }
+        // A fresh attack burst (see `Settings::attack_seconds`), shared by all cases so
+        // bursts stay a small share of the search however many cases there are.
+        let interval = (0.25 * t0.elapsed().as_secs_f64()).max(0.5);
+        if last_burst.elapsed().as_secs_f64() >= interval {
+            let share = rayon::current_num_threads().max(1) as f64 / cases.len().max(1) as f64;
+            let per_case = (0.15 * interval).min(4.0 * s.attack_seconds) * share.min(1.0);
+            if let Some((ci, x)) = attack_all(maps, cases, s, batches, per_case, &mut stats) {
+                let y = forward(maps, &x, None);
+                return (Outcome::Point { case: ci, x, y }, stats);
             }
+            last_burst = Instant::now();
         }
         let take = s.batch.max(1).min(heap.len());
         let batch: Vec<Work> = (0..take).filter_map(|_| heap.pop()).collect();
         stats.pieces += batch.len() as u64;
-        let results: Vec<(usize, Piece)> = batch
+        let results: Vec<Piece> = batch
             .into_par_iter()
-            .map(|w| {
-                (
-                    w.case,
-                    examine(maps, &cases[w.case].constraints, w, s.alpha_iters, deadline),
-                )
-            })
+            .map(|w| examine(maps, cases, w, s.alpha_iters, deadline))
             .collect();
-        for (ci, r) in results {
+        for r in results {
             match r {
                 Piece::Closed => {}
-                Piece::Found(x) => {
+                Piece::Found(ci, x) => {
                     let y = forward(maps, &x, None);
                     return (Outcome::Point { case: ci, x, y }, stats);
                 }
-                Piece::Split(w1, w2) => {
-                    heap.push(w1);
-                    heap.push(w2);
-                }
+                Piece::Split(ws) => heap.extend(ws),
                 Piece::Stuck => stuck = true,
                 Piece::Late => return (Outcome::Unknown(StopReason::Timeout), stats),
             }

@@ -332,6 +332,163 @@ pub fn hidden<'a>(
     (a, &last.0, pre)
 }
 
+/// Linear functions of one layer stored flat (`coef` row-major, one row of `n` per
+/// neuron), for [`hidden_pre`].
+struct Flat {
+    coef: Vec<f64>,
+    cst: Vec<f64>,
+    slack: Vec<f64>,
+}
+
+impl Flat {
+    fn zeros(m: usize, n: usize) -> Self {
+        Flat {
+            coef: vec![0.0; m * n],
+            cst: vec![0.0; m],
+            slack: vec![0.0; m],
+        }
+    }
+
+    /// [`Linear::min_over`] / [`Linear::max_over`] of row `i`, the same operations in
+    /// the same order (so the same f64 result).
+    fn bound(&self, i: usize, n: usize, lo: &[f64], hi: &[f64], max: bool) -> f64 {
+        let c = &self.coef[i * n..(i + 1) * n];
+        let mut v = self.cst[i];
+        let mut mag = self.cst[i].abs();
+        for t in 0..n {
+            let (a, b) = (c[t] * lo[t], c[t] * hi[t]);
+            v += if max { a.max(b) } else { a.min(b) };
+            mag += a.abs().max(b.abs());
+        }
+        let err = gamma(n + 1) * mag;
+        if max {
+            (v + inflate(err + self.slack[i])).next_up()
+        } else {
+            (v - inflate(err + self.slack[i])).next_down()
+        }
+    }
+}
+
+/// The concrete pre-activation bounds of [`hidden`] (its third result), computed with the
+/// same operations in the same order but on flat arrays, without a heap allocation per
+/// neuron: the forward symbolic pass is the inner loop of every piece of the search.
+pub fn hidden_pre(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    known: Option<&[Vec<(f64, f64)>]>,
+) -> Vec<Vec<(f64, f64)>> {
+    let n = lo.len();
+    let xmax = magnitudes(lo, hi);
+    let (last, body) = maps.split_last().expect("a network has at least one map");
+    assert!(!last.1, "the last map of a chain carries no ReLU");
+    // The identity.
+    let mut al = Flat::zeros(n, n);
+    for i in 0..n {
+        al.coef[i * n + i] = 1.0;
+    }
+    let mut au = Flat {
+        coef: al.coef.clone(),
+        cst: al.cst.clone(),
+        slack: al.slack.clone(),
+    };
+    let mut pre = Vec::with_capacity(body.len());
+    let mut mag = vec![0.0; n];
+    for (m, r) in body {
+        let k = m.inp + 1;
+        let mut zl = Flat::zeros(m.out, n);
+        let mut zu = Flat::zeros(m.out, n);
+        for (upper, z) in [(false, &mut zl), (true, &mut zu)] {
+            for o in 0..m.out {
+                let w = &m.w[o * m.inp..(o + 1) * m.inp];
+                let out = &mut z.coef[o * n..(o + 1) * n];
+                mag.iter_mut().for_each(|v| *v = 0.0);
+                let mut cst = m.b[o];
+                let mut mag_c = m.b[o].abs();
+                let mut slack = 0.0;
+                for (i, &wi) in w.iter().enumerate() {
+                    if wi == 0.0 {
+                        continue;
+                    }
+                    let src = if (wi > 0.0) == upper { &au } else { &al };
+                    let sc = &src.coef[i * n..(i + 1) * n];
+                    for t in 0..n {
+                        let c = sc[t];
+                        if c != 0.0 {
+                            let p = wi * c;
+                            out[t] += p;
+                            mag[t] += p.abs();
+                        }
+                    }
+                    let p = wi * src.cst[i];
+                    cst += p;
+                    mag_c += p.abs();
+                    slack += wi.abs() * src.slack[i];
+                }
+                let mut err = gamma(k) * mag_c;
+                for t in 0..n {
+                    err += gamma(k) * mag[t] * xmax[t];
+                }
+                z.cst[o] = cst;
+                z.slack[o] = inflate(slack + err);
+            }
+        }
+        let mut b: Vec<(f64, f64)> = (0..m.out)
+            .map(|i| (zl.bound(i, n, lo, hi, false), zu.bound(i, n, lo, hi, true)))
+            .collect();
+        if let Some(kn) = known {
+            for (bi, ki) in b.iter_mut().zip(&kn[pre.len()]) {
+                *bi = (bi.0.max(ki.0), bi.1.min(ki.1));
+            }
+        }
+        if *r {
+            // relu (the same cases as [`relu`]).
+            for (i, &(kl, ku)) in b.iter().enumerate() {
+                let row = i * n..(i + 1) * n;
+                if kl >= 0.0 {
+                    continue;
+                }
+                if ku <= 0.0 {
+                    for f in [&mut zl, &mut zu] {
+                        f.coef[row.clone()].iter_mut().for_each(|v| *v = 0.0);
+                        f.cst[i] = 0.0;
+                        f.slack[i] = 0.0;
+                    }
+                    continue;
+                }
+                let (ul, uh) = (zu.bound(i, n, lo, hi, false), zu.bound(i, n, lo, hi, true));
+                if uh <= 0.0 {
+                    zu.coef[row.clone()].iter_mut().for_each(|v| *v = 0.0);
+                    zu.cst[i] = 0.0;
+                    zu.slack[i] = 0.0;
+                } else if ul < 0.0 {
+                    let d = (uh - ul).next_down();
+                    let s = (uh / d).next_up();
+                    let mut mg = 0.0;
+                    for (fc, xm) in zu.coef[row.clone()].iter_mut().zip(&xmax) {
+                        *fc *= s;
+                        mg += fc.abs() * xm;
+                    }
+                    let (sc, sl) = (s * zu.cst[i], s * ul);
+                    zu.cst[i] = sc - sl;
+                    mg += sc.abs() + sl.abs();
+                    zu.slack[i] = inflate(s * zu.slack[i] + gamma(3) * mg);
+                }
+                let (ll, lh) = (zl.bound(i, n, lo, hi, false), zl.bound(i, n, lo, hi, true));
+                if lh <= 0.0 || !(ll >= 0.0 || lh > -ll) {
+                    zl.coef[row].iter_mut().for_each(|v| *v = 0.0);
+                    zl.cst[i] = 0.0;
+                    zl.slack[i] = 0.0;
+                }
+            }
+        }
+        al = zl;
+        au = zu;
+        pre.push(b);
+    }
+    pre
+}
+
 /// CROWN's backward bound (Zhang et al., NeurIPS 2018) of `c . f(x) + d` over the box:
 /// the objective is pulled back through every map, each ReLU replaced by its linear
 /// relaxation from the concrete pre-activation bounds `pre` (from [`hidden`]): the chord
@@ -361,31 +518,64 @@ pub fn backward_lower_alpha(
     hi: &[f64],
     alpha: Option<&[Vec<f64>]>,
 ) -> Linear {
-    let xmax = magnitudes(lo, hi);
-    let mut mu = obj.c.clone();
-    let mut cst = obj.d;
+    let inmax = input_magnitudes(maps, pre, lo, hi, maps.len());
+    backward_core(maps, pre, &obj.c, obj.d, alpha, &inmax)
+}
+
+/// Bounds of `|input of map j|` for `j < upto`: the box's magnitudes for map 0, the
+/// (ReLU'd) pre-activation bounds of map `j - 1` after.
+pub(crate) fn input_magnitudes(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    lo: &[f64],
+    hi: &[f64],
+    upto: usize,
+) -> Vec<Vec<f64>> {
+    (0..upto)
+        .map(|j| {
+            if j == 0 {
+                magnitudes(lo, hi)
+            } else {
+                let r = maps[j - 1].1;
+                pre[j - 1]
+                    .iter()
+                    .map(|&(l, u)| {
+                        if r {
+                            l.max(0.0).abs().max(u.max(0.0).abs())
+                        } else {
+                            l.abs().max(u.abs())
+                        }
+                    })
+                    .collect()
+            }
+        })
+        .collect()
+}
+
+/// The pull-back of [`backward_lower_alpha`] with the input magnitudes precomputed
+/// ([`input_magnitudes`]); the objective is `c . y + d`.
+fn backward_core(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    c: &[f64],
+    d: f64,
+    alpha: Option<&[Vec<f64>]>,
+    inmaxes: &[Vec<f64>],
+) -> Linear {
+    let mut mu = c.to_vec();
+    let mut cst = d;
     let mut err = 0.0;
+    let mut nu: Vec<f64> = Vec::new();
+    let mut mag: Vec<f64> = Vec::new();
     for j in (0..maps.len()).rev() {
         let m = &maps[j].0;
         // Bounds of |input of map j|.
-        let inmax: Vec<f64> = if j == 0 {
-            xmax.clone()
-        } else {
-            let r = maps[j - 1].1;
-            pre[j - 1]
-                .iter()
-                .map(|&(l, u)| {
-                    if r {
-                        l.max(0.0).abs().max(u.max(0.0).abs())
-                    } else {
-                        l.abs().max(u.abs())
-                    }
-                })
-                .collect()
-        };
+        let inmax = &inmaxes[j];
         let k = m.out + 1;
-        let mut nu = vec![0.0; m.inp];
-        let mut mag = vec![0.0; m.inp];
+        nu.clear();
+        nu.resize(m.inp, 0.0);
+        mag.clear();
+        mag.resize(m.inp, 0.0);
         // The running constant is the first term of this layer's sum: its magnitude
         // counts in the sum's rounding bound (a large constant carried from later
         // layers makes every addition round at its scale).
@@ -398,26 +588,27 @@ pub fn backward_lower_alpha(
             cst += p;
             cmag += p.abs();
             let row = &m.w[i * m.inp..(i + 1) * m.inp];
-            for (t, &w) in row.iter().enumerate() {
+            for ((nt, mt), &w) in nu.iter_mut().zip(mag.iter_mut()).zip(row) {
                 let p = mi * w;
-                nu[t] += p;
-                mag[t] += p.abs();
+                *nt += p;
+                *mt += p.abs();
             }
         }
         err += gamma(k) * cmag;
         for t in 0..m.inp {
             err += gamma(k) * mag[t] * inmax[t];
         }
-        if j == 0 {
-            mu = nu;
-            break;
-        }
-        // nu is over the output a of map j - 1.
-        if !maps[j - 1].1 {
-            mu = nu;
+        if j == 0 || !maps[j - 1].1 {
+            std::mem::swap(&mut mu, &mut nu);
+            if j == 0 {
+                break;
+            }
             continue;
         }
-        let mut z = vec![0.0; nu.len()];
+        // nu is over the output a of map j - 1.
+        mu.clear();
+        mu.resize(nu.len(), 0.0);
+        let z = &mut mu;
         for (t, &v) in nu.iter().enumerate() {
             let (l, u) = pre[j - 1][t];
             if v == 0.0 || u <= 0.0 {
@@ -442,7 +633,6 @@ pub fn backward_lower_alpha(
                 z[t] = v;
             }
         }
-        mu = z;
     }
     Linear {
         coef: mu,
@@ -609,9 +799,12 @@ pub fn crown_pre(
 ) -> Vec<Vec<(f64, f64)>> {
     let body = maps.len() - 1;
     let mut pre: Vec<Vec<(f64, f64)>> = Vec::with_capacity(body);
+    let mut c = Vec::new();
     for k in 0..body {
         let m = &maps[k].0;
         let sub = &maps[..=k];
+        // The magnitudes of every map's input up to k (only the last one is new).
+        let inmax = input_magnitudes(sub, &pre, lo, hi, k + 1);
         let mut bounds = Vec::with_capacity(m.out);
         for i in 0..m.out {
             let (fl, fu) = fwd
@@ -622,21 +815,12 @@ pub fn crown_pre(
                 bounds.push((fl, fu));
                 continue;
             }
-            let mut c = vec![0.0; m.out];
+            c.clear();
+            c.resize(m.out, 0.0);
             c[i] = 1.0;
-            let l = backward_lower(
-                sub,
-                &pre,
-                &Objective {
-                    c: c.clone(),
-                    d: 0.0,
-                },
-                lo,
-                hi,
-            )
-            .min_over(lo, hi);
+            let l = backward_core(sub, &pre, &c, 0.0, None, &inmax).min_over(lo, hi);
             c[i] = -1.0;
-            let u = -backward_lower(sub, &pre, &Objective { c, d: 0.0 }, lo, hi).min_over(lo, hi);
+            let u = -backward_core(sub, &pre, &c, 0.0, None, &inmax).min_over(lo, hi);
             bounds.push((l.max(fl), u.min(fu)));
         }
         pre.push(bounds);

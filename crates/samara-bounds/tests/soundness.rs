@@ -282,3 +282,141 @@ fn alpha_crown_is_never_looser_than_crown_and_tightens_somewhere() {
         "alpha-CROWN improved only {tighter} of 30 bounds"
     );
 }
+
+#[test]
+fn flat_forward_pass_equals_the_linear_one() {
+    // hidden_pre must be hidden's third result bit for bit (same operations, same order),
+    // with and without bounds of a containing box.
+    let mut rng = ChaCha8Rng::seed_from_u64(23);
+    for trial in 0..40 {
+        let dims: &[usize] = [&[5, 20, 20, 20, 5][..], &[3, 8, 8, 2], &[6, 30, 1]][trial % 3];
+        let wscale = [0.5, 1.0, 3.0][trial % 3];
+        let net = Network::random_mlp(dims, Activation::Relu, wscale, 0.5 * wscale, &mut rng);
+        let maps = chain(&net);
+        let (lo, hi) = random_box(&mut rng, dims[0], [1.0, 1e-3, 10.0][trial % 3]);
+        let (_, _, a) = symbolic::hidden(&maps, &lo, &hi, None);
+        let b = symbolic::hidden_pre(&maps, &lo, &hi, None);
+        assert_eq!(a, b, "trial {trial}");
+        // A sub-box with the parent's CROWN bounds as known bounds.
+        let parent = symbolic::crown_pre(&maps, &lo, &hi, Some(&a));
+        let mut h = hi.clone();
+        h[trial % dims[0]] = 0.5 * (lo[trial % dims[0]] + hi[trial % dims[0]]);
+        let (_, _, a) = symbolic::hidden(&maps, &lo, &h, Some(&parent));
+        let b = symbolic::hidden_pre(&maps, &lo, &h, Some(&parent));
+        assert_eq!(a, b, "trial {trial} (sub-box)");
+    }
+}
+
+#[test]
+fn conjunction_and_disjunction_verdicts_survive_sampling() {
+    // Conjunctions of two or three output constraints (closed by the min-max LP and the
+    // bound of the combined objective) and several cases sharing one box (the shared
+    // pieces): every Empty must survive dense sampling and every point must be real.
+    let mut rng = ChaCha8Rng::seed_from_u64(29);
+    let (mut empty, mut found) = (0, 0);
+    for trial in 0..40 {
+        let dims: &[usize] = if trial % 2 == 0 {
+            &[3, 10, 10, 4]
+        } else {
+            &[4, 12, 12, 12, 4]
+        };
+        let net = Network::random_mlp(dims, Activation::Relu, 1.0, 0.5, &mut rng);
+        let maps = chain(&net);
+        let (lo, hi) = random_box(&mut rng, dims[0], 1.0);
+        let no = *dims.last().unwrap();
+        // "y_0 is the largest" (as ACAS Xu property 2), shifted so that both answers occur.
+        let ys: Vec<Vec<f64>> = (0..400)
+            .map(|k| net.eval_f64(&sample(&mut rng, &lo, &hi, k)))
+            .collect();
+        let gap = |y: &[f64]| {
+            (1..no)
+                .map(|j| y[j] - y[0])
+                .fold(f64::NEG_INFINITY, f64::max)
+        };
+        let best = ys.iter().map(|y| gap(y)).fold(f64::INFINITY, f64::min);
+        let shift = best + rng.gen_range(-0.3..0.3) * best.abs().max(0.1);
+        let conj: Vec<OutputConstraint> = (1..no)
+            .take(2 + trial % 2)
+            .map(|j| {
+                let mut c = vec![0.0; no];
+                c[j] = 1.0;
+                c[0] = -1.0;
+                OutputConstraint {
+                    obj: Objective { c, d: -shift },
+                    strict: false,
+                }
+            })
+            .collect();
+        let mut cases = vec![Case {
+            lo: lo.clone(),
+            hi: hi.clone(),
+            constraints: conj.clone(),
+        }];
+        if trial % 3 == 0 {
+            // A second case on the same box: y_1 - y_2 <= t, t below its sampled range.
+            let t = ys.iter().map(|y| y[1] - y[2]).fold(f64::INFINITY, f64::min) - 0.05;
+            let mut c = vec![0.0; no];
+            c[1] = 1.0;
+            c[2] = -1.0;
+            cases.push(Case {
+                lo: lo.clone(),
+                hi: hi.clone(),
+                constraints: vec![OutputConstraint {
+                    obj: Objective { c, d: -t },
+                    strict: false,
+                }],
+            });
+        }
+        let holds = |ci: usize, y: &[f64]| {
+            cases[ci]
+                .constraints
+                .iter()
+                .all(|k| k.obj.d + k.obj.c.iter().zip(y).map(|(c, v)| c * v).sum::<f64>() <= 0.0)
+        };
+        let (o, _) = solve(
+            &maps,
+            &cases,
+            &Settings {
+                timeout: None,
+                ..Default::default()
+            },
+        );
+        match o {
+            Outcome::Empty => {
+                empty += 1;
+                for k in 0..20_000 {
+                    let y = net.eval_f64(&sample(&mut rng, &lo, &hi, k));
+                    for (ci, case) in cases.iter().enumerate() {
+                        let margin = case
+                            .constraints
+                            .iter()
+                            .map(|c| {
+                                c.obj.d + c.obj.c.iter().zip(&y).map(|(a, v)| a * v).sum::<f64>()
+                            })
+                            .fold(f64::NEG_INFINITY, f64::max);
+                        assert!(
+                            margin > -1e-9,
+                            "trial {trial}: Empty contradicted in case {ci}: {margin}"
+                        );
+                    }
+                }
+            }
+            Outcome::Point { case, x, .. } => {
+                found += 1;
+                assert!(x
+                    .iter()
+                    .zip(lo.iter().zip(&hi))
+                    .all(|(v, (a, b))| a <= v && v <= b));
+                assert!(
+                    holds(case, &net.eval_f64(&x)),
+                    "trial {trial}: point not real"
+                );
+            }
+            Outcome::Unknown(r) => panic!("trial {trial}: no limit was set, yet {r:?}"),
+        }
+    }
+    assert!(
+        empty >= 5 && found >= 5,
+        "both verdicts exercised: {empty} empty, {found} found"
+    );
+}
