@@ -44,7 +44,7 @@ mkdir -p "$out"
 benchmarks='acc|acc.sys|ACC/controller_5_20.onnx|verified|ACC|safe-distance (ReLU)
 tora|tora.sys|Benchmark9-Tora/controllerTora.onnx|verified|TORA|remain (ReLU)
 tora_het_relu_tanh|tora_heterogeneous.sys|Tora_Heterogeneous/nn_tora_relu_tanh.onnx;txt:Tora_Heterogeneous/nn_tora_relu_tanh.txt:relu:tanh|verified|TORA Heterogeneous|reach-tanh (ReLU/tanh)
-tora_het_sigmoid|tora_heterogeneous_sigmoid.sys|Tora_Heterogeneous/nn_tora_sigmoid.onnx;txt:Tora_Heterogeneous/nn_tora_sigmoid.txt:sigmoid:sigmoid|verified|TORA Heterogeneous|reach-sigmoid
+tora_het_sigmoid|tora_heterogeneous_sigmoid.sys|Tora_Heterogeneous/nn_tora_sigmoid.onnx;txt:Tora_Heterogeneous/nn_tora_sigmoid.txt:sigmoid:sigmoid|verified|TORA Heterogeneous|reach-sigmoid (u = 22 (N - 0.5))
 tora_het_sigmoid_11N|tora_heterogeneous.sys|Tora_Heterogeneous/nn_tora_sigmoid.onnx;txt:Tora_Heterogeneous/nn_tora_sigmoid.txt:sigmoid:sigmoid|verified|TORA Heterogeneous|reach-sigmoid
 unicycle|unicycle.sys|Benchmark10-Unicycle/controllerB.onnx|verified|Unicycle|reach
 single_pendulum|single_pendulum.sys|Single_Pendulum/controller_single_pendulum.onnx|verified|Single Pendulum|reach
@@ -97,10 +97,14 @@ else:
 PY
 }
 
-# Best published 2024 time for a benchmark/instance among the tools whose verdict matches.
-best_published() {  # $1: benchmark, $2: instance, $3: expected verdict; prints "tool|seconds" or "|"
+# Best published time for a benchmark/instance among the rows of published.csv whose
+# tool_verdict is the expected one (any year: the instance label carries the specification,
+# rows for other specifications have other labels). tool_seconds is a number, optionally
+# prefixed by "~" (approximate, e.g. a developer comment) or "<" (upper bound, e.g. a log
+# with whole-second resolution). Prints "tool year|prefix|seconds", or "||" when none.
+best_published() {  # $1: benchmark, $2: instance, $3: expected verdict
     python3 - "$published" "$1" "$2" "$3" <<'PY'
-import csv, sys
+import csv, re, sys
 path, bench, inst, exp = sys.argv[1:5]
 best = None
 try:
@@ -108,14 +112,17 @@ try:
 except OSError:
     rows = []
 for r in rows:
-    if r["benchmark"] != bench or r["instance"] != inst or r["year"] != "2024":
+    if r["benchmark"] != bench or r["instance"] != inst:
         continue
-    if not r["tool_seconds"] or (exp in ("verified", "falsified") and r["tool_verdict"] != exp):
+    m = re.fullmatch(r"\s*([~<]?)\s*([0-9]*\.?[0-9]+(?:[eE][-+]?[0-9]+)?)\s*", r["tool_seconds"] or "")
+    if not m or (exp in ("verified", "falsified") and r["tool_verdict"] != exp):
         continue
-    s = float(r["tool_seconds"])
-    if best is None or s < best[1]:
-        best = (r["tool"], s)
-print("%s|%g" % best if best else "|")
+    prefix, s = m.group(1), float(m.group(2))
+    # smallest time first; at equal times an exact figure before "<" and "~"
+    key = (s, {"": 0, "<": 1, "~": 2}[prefix])
+    if best is None or key < best[0]:
+        best = (key, "%s %s" % (r["tool"], r["year"]), prefix)
+print("%s|%s|%g" % (best[1], best[2], best[0][0]) if best else "||")
 PY
 }
 
@@ -125,8 +132,8 @@ notes=""
 while IFS='|' read -r name sys nets expected pbench pinst; do
     [ -n "${ONLY:-}" ] && case "$name" in *"$ONLY"*) ;; *) continue ;; esac
     bp=$(best_published "$pbench" "$pinst" "$expected")
-    btool=${bp%%|*}; bsec=${bp#*|}
-    best="n/a"; [ -n "$btool" ] && best="$btool ($bsec)"
+    IFS='|' read -r btool bpre bsec <<<"$bp"
+    best="n/a"; [ -n "$btool" ] && best="$btool ($bpre$bsec)"
     if ! net=$(find_net "$nets"); then
         echo "| $name | no network | | $expected | $best | |"
         notes="$notes\n- $name: no loadable network found ($nets); see bench/archcomp/README.md"
@@ -152,8 +159,11 @@ while IFS='|' read -r name sys nets expected pbench pinst; do
     fi
     [ -z "$secs" ] && [ "$rc" -lt 2 ] && secs=$wall
     ratio=""
-    if [ -n "$bsec" ] && [ -n "$secs" ] && [ "${secs#>}" = "$secs" ]; then
+    # only where samara reached the expected verdict (a ratio for `unknown` would mislead)
+    if [ -n "$bsec" ] && [ -n "$secs" ] && [ "${secs#>}" = "$secs" ] && [ "$verdict" = "$expected" ]; then
+        # samara / published; a published upper bound ("<1") makes the ratio a lower bound
         ratio=$(python3 -c "import sys; print('%.2g' % (float(sys.argv[1]) / float(sys.argv[2])))" "$secs" "$bsec")
+        case "$bpre" in "<") ratio=">$ratio" ;; "~") ratio="~$ratio" ;; esac
     fi
     echo "| $name | $verdict | $secs | $expected | $best | $ratio |"
 done <<EOF
