@@ -769,24 +769,27 @@ fn needs_precondition(x: &[Tm], hull: &[Interval]) -> bool {
     })
 }
 
-/// Orthonormal basis of `R^d` whose leading vectors span the columns of `l` (`d x n`,
-/// columns taken in order of decreasing norm): modified Gram-Schmidt over those columns,
-/// then the unit vectors.
-fn basis(l: &[Vec<f64>], d: usize) -> Vec<Vec<f64>> {
+/// Columns of `l` (`d x n`, taken in order of decreasing norm, then the unit vectors)
+/// that are far from the span of the ones chosen before (Gram-Schmidt residual above
+/// `1e-3` of the norm, so the chosen set is well conditioned): `(the chosen columns as
+/// they are, their orthonormalised versions)`, each up to `d` of them.
+fn independent_columns(l: &[Vec<f64>], d: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
     let n = l.first().map_or(0, |r| r.len());
     let mut cols: Vec<Vec<f64>> = (0..n).map(|k| (0..d).map(|i| l[i][k]).collect()).collect();
     let norm = |v: &[f64]| v.iter().map(|a| a * a).sum::<f64>().sqrt();
     cols.sort_by(|a, b| norm(b).total_cmp(&norm(a)));
     cols.extend((0..d).map(|j| (0..d).map(|i| if i == j { 1.0 } else { 0.0 }).collect()));
+    let mut raw: Vec<Vec<f64>> = Vec::with_capacity(d);
     let mut q: Vec<Vec<f64>> = Vec::with_capacity(d);
-    for mut v in cols {
+    for v0 in cols {
         if q.len() == d {
             break;
         }
-        let n0 = norm(&v);
+        let n0 = norm(&v0);
         if !(n0.is_finite() && n0 > 0.0) {
             continue;
         }
+        let mut v = v0.clone();
         for _ in 0..2 {
             for u in &q {
                 let dot: f64 = u.iter().zip(&v).map(|(a, b)| a * b).sum();
@@ -796,76 +799,166 @@ fn basis(l: &[Vec<f64>], d: usize) -> Vec<Vec<f64>> {
             }
         }
         let n1 = norm(&v);
-        if n1 > 1e-8 * n0 {
+        if n1 > 1e-3 * n0 {
             q.push(v.iter().map(|a| a / n1).collect());
+            raw.push(v0);
         }
     }
-    q // q[k] is the k-th basis vector
+    (raw, q)
+}
+
+/// Inverse of the `d x d` matrix with columns `a` by Gauss-Jordan elimination with
+/// partial pivoting, as rows; `None` when a pivot vanishes or an entry is not finite.
+/// Only an approximation: [`reparameterise`] encloses the error `I - A B` it leaves.
+fn inverse(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
+    let d = a.len();
+    // m = [A | I], rows.
+    let mut m: Vec<Vec<f64>> = (0..d)
+        .map(|i| {
+            let mut r: Vec<f64> = (0..d).map(|k| a[k][i]).collect();
+            r.extend((0..d).map(|j| if i == j { 1.0 } else { 0.0 }));
+            r
+        })
+        .collect();
+    for col in 0..d {
+        let piv = (col..d).max_by(|&x, &y| m[x][col].abs().total_cmp(&m[y][col].abs()))?;
+        if !(m[piv][col].abs() > 0.0) {
+            return None;
+        }
+        m.swap(col, piv);
+        let p = m[col][col];
+        for v in m[col].iter_mut() {
+            *v /= p;
+        }
+        for r in 0..d {
+            if r != col {
+                let f = m[r][col];
+                if f != 0.0 {
+                    for k in 0..2 * d {
+                        let t = m[col][k];
+                        m[r][k] -= f * t;
+                    }
+                }
+            }
+        }
+    }
+    let b: Vec<Vec<f64>> = m.into_iter().map(|r| r[d..].to_vec()).collect();
+    b.iter()
+        .all(|r| r.iter().all(|v| v.is_finite()))
+        .then_some(b)
 }
 
 /// Re-parameterise a set of Taylor models as a parallelotope in fresh parameters
-/// `zeta in [-1, 1]^d` (Lohner's QR method, *Einschliessung der Loesung gewoehnlicher
-/// Anfangs- und Randwertaufgaben*, 1988; the preconditioning of Makino & Berz, 2009):
-/// with `c` the constant coefficients, `Q` an orthonormal basis aligned with the
-/// linear part, `y = Q^T (x - c)` is bounded in Taylor-model arithmetic by boxes
-/// `m_k +- r_k`, and `x = c + Q y + (I - Q Q^T)(x - c)`; the new models are
-/// `c + Q (m + r zeta)` with every rounding of their f64 coefficients, and the
-/// non-orthogonality term `(I - Q Q^T)(x - c)` of the floating-point `Q`, enclosed by
-/// interval arithmetic in the remainders. The remainders and higher-order terms become
-/// parameters, so the network and the dynamics see them as directions they can map
-/// (and feedback can contract), at the price of the higher-order dependence.
+/// `zeta in [-1, 1]^d` (Lohner, *Einschliessung der Loesung gewoehnlicher Anfangs- und
+/// Randwertaufgaben*, 1988; the preconditioning of Makino & Berz, *Int. J. Diff. Eq.
+/// Appl.* 10, 2005, and 2009). Two frames are tried and the one whose new set has the
+/// smaller hull (the sum of its widths, each relative to the old set's) is kept:
+/// - the **parallelepiped** frame `A` = the linear part's own columns (the largest,
+///   well-conditioned ones, completed by unit vectors): the linear part maps to the
+///   identity, so a set whose higher-order terms and remainders are small keeps its
+///   shape exactly and only those are wrapped;
+/// - the **QR** frame `A = Q`, an orthonormal basis aligned with the linear part, which
+///   stays well conditioned when the set is thin and the parallelepiped frame would
+///   amplify the remainders by its condition number.
+///
+/// With `c` the constant coefficients and `B` an approximate inverse of `A`,
+/// `y = B (x - c)` is bounded in Taylor-model arithmetic by boxes `m_k +- r_k`, and
+/// `x = c + A y + (I - A B)(x - c)`; the new models are `c + A (m + r zeta)` with every
+/// rounding of their f64 coefficients, and the term `(I - A B)(x - c)` (A B is the
+/// identity only to rounding), enclosed by interval arithmetic in the remainders. The
+/// remainders and higher-order terms become parameters, so the network and the dynamics
+/// see them as directions they can map (and feedback can contract), at the price of the
+/// higher-order dependence.
 pub fn precondition(x: &[Tm], order: u32) -> Vec<Tm> {
     let d = x.len();
     let (c, l) = linear_parts(x);
-    let q = basis(&l, d);
+    let (raw, q) = independent_columns(&l, d);
     if q.len() != d {
         return x.to_vec();
     }
+    let hull: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
+    let size = |y: &[Tm]| -> f64 {
+        y.iter()
+            .zip(&hull)
+            .map(|(v, h)| {
+                let w = v.bound().width();
+                let h = h.width();
+                if h > 0.0 {
+                    w / h
+                } else {
+                    w
+                }
+            })
+            .sum()
+    };
+    let qr = reparameterise(x, &c, &q, &q, order);
+    let pp = inverse(&raw).and_then(|b| reparameterise(x, &c, &raw, &b, order));
+    match (qr, pp) {
+        (Some(a), Some(b)) => {
+            if size(&b) <= size(&a) {
+                b
+            } else {
+                a
+            }
+        }
+        (Some(a), None) | (None, Some(a)) => a,
+        (None, None) => x.to_vec(),
+    }
+}
+
+/// The set `x` written as `c + A (m + r zeta)` (see [`precondition`]): `a[k]` the `k`-th
+/// column of `A`, `b[k]` the `k`-th row of an approximate inverse `B`. `None` when a
+/// bound is not finite.
+fn reparameterise(
+    x: &[Tm],
+    c: &[f64],
+    a: &[Vec<f64>],
+    b: &[Vec<f64>],
+    order: u32,
+) -> Option<Vec<Tm>> {
+    let d = x.len();
     // Centred models and their boxes.
-    let dx: Vec<Tm> = x.iter().zip(&c).map(|(v, ci)| v.clone() - *ci).collect();
+    let dx: Vec<Tm> = x.iter().zip(c).map(|(v, ci)| v.clone() - *ci).collect();
     let dbox: Vec<Interval> = dx.iter().map(|v| v.bound()).collect();
     if dbox.iter().any(|b| !(b.lo.is_finite() && b.hi.is_finite())) {
-        return x.to_vec();
+        return None;
     }
-    // y_k = sum_i q[k][i] dx_i, bounded.
-    let yk: Vec<Interval> = q
+    // y_k = sum_i b[k][i] dx_i, bounded.
+    let ys: Vec<(f64, Interval)> = b
         .iter()
-        .map(|qk| {
+        .map(|bk| {
             let mut acc = Tm::cst(0.0);
-            for (qi, dxi) in qk.iter().zip(&dx) {
-                if *qi != 0.0 {
-                    acc += dxi.clone() * *qi;
+            for (bi, dxi) in bk.iter().zip(&dx) {
+                if *bi != 0.0 {
+                    acc += dxi.clone() * *bi;
                 }
             }
-            acc.bound()
-        })
-        .collect();
-    let ys: Vec<(f64, Interval)> = yk
-        .iter()
-        .map(|b| {
-            let (m, r) = mid_rad(*b);
+            let (m, r) = mid_rad(acc.bound());
             (m, Interval::point(r))
         })
         .collect();
-    (0..d)
+    if ys.iter().any(|(m, r)| !(m.is_finite() && r.hi.is_finite())) {
+        return None;
+    }
+    let out: Vec<Tm> = (0..d)
         .map(|i| {
-            // Exact x_i = c_i + sum_k Q_ik y_k + e_i with e = (I - Q Q^T)(x - c).
+            // Exact x_i = c_i + sum_k A_ik y_k + e_i with e = (I - A B)(x - c).
             let mut e = Interval::point(0.0);
             for j in 0..d {
                 let mut mij = Interval::point(if i == j { 1.0 } else { 0.0 });
-                for qk in &q {
-                    mij -= Interval::point(qk[i]) * qk[j];
+                for (ak, bk) in a.iter().zip(b) {
+                    mij -= Interval::point(ak[i]) * bk[j];
                 }
                 e += mij * dbox[j];
             }
             let mut cst = Interval::point(c[i]);
             let mut coef = Vec::with_capacity(d);
             let mut slack = Interval::point(0.0);
-            for (k, qk) in q.iter().enumerate() {
+            for (k, ak) in a.iter().enumerate() {
                 let (m, r) = ys[k];
-                cst += Interval::point(qk[i]) * m;
-                // (ck - mid) zeta_k with |zeta_k| <= 1.
-                let (mid, dev) = mid_rad(r * qk[i]);
+                cst += Interval::point(ak[i]) * m;
+                // (coefficient - mid) zeta_k with |zeta_k| <= 1.
+                let (mid, dev) = mid_rad(r * ak[i]);
                 coef.push(mid);
                 slack += Interval::new(-dev, dev);
             }
@@ -874,7 +967,13 @@ pub fn precondition(x: &[Tm], order: u32) -> Vec<Tm> {
             Tm::affine(cm, &coef, order)
                 .with_rem(Interval::new(rem.lo.next_down(), rem.hi.next_up()))
         })
-        .collect()
+        .collect();
+    out.iter()
+        .all(|v| {
+            let b = v.bound();
+            b.lo.is_finite() && b.hi.is_finite()
+        })
+        .then_some(out)
 }
 
 #[cfg(test)]
