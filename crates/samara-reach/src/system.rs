@@ -822,7 +822,7 @@ fn inverse(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
         .collect();
     for col in 0..d {
         let piv = (col..d).max_by(|&x, &y| m[x][col].abs().total_cmp(&m[y][col].abs()))?;
-        if !(m[piv][col].abs() > 0.0) {
+        if m[piv][col] == 0.0 || !m[piv][col].is_finite() {
             return None;
         }
         m.swap(col, piv);
@@ -830,14 +830,12 @@ fn inverse(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
         for v in m[col].iter_mut() {
             *v /= p;
         }
-        for r in 0..d {
-            if r != col {
-                let f = m[r][col];
-                if f != 0.0 {
-                    for k in 0..2 * d {
-                        let t = m[col][k];
-                        m[r][k] -= f * t;
-                    }
+        let pivot_row = m[col].clone();
+        for (r, row) in m.iter_mut().enumerate() {
+            let f = row[col];
+            if r != col && f != 0.0 {
+                for (x, t) in row.iter_mut().zip(&pivot_row) {
+                    *x -= f * t;
                 }
             }
         }
