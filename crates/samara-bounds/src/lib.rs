@@ -23,10 +23,15 @@
 //!   are re-evaluated concretely before they are reported.
 //! - [`lp`]: the min-max LP over a few linear bounds that gives the search its weights
 //!   for combining a conjunction's constraints.
+//! - [`phases`]: ReLU-phase splitting of the search's pieces that few ReLUs cross, with
+//!   bounds over each phase set from a small LP certified by weak duality (nnenum's
+//!   exact star-set step, Bak et al., CAV 2020; the phase multipliers play the part of
+//!   beta-CROWN's, Wang et al., NeurIPS 2021); [`lp`] also gives those LP multipliers.
 #![warn(missing_docs)]
 
 pub mod linset;
 pub mod lp;
+pub mod phases;
 pub mod pwl;
 pub mod search;
 pub mod symbolic;

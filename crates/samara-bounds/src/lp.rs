@@ -100,23 +100,7 @@ pub fn minmax(coef: &[&[f64]], cst: &[f64], lo: &[f64], hi: &[f64]) -> Option<Mi
             }
         }
         let (_, p) = best?; // unbounded cannot happen (tau <= T - e_k); bail out if so
-        let piv = tab[p * cols + q];
-        for c in 0..cols {
-            tab[p * cols + c] /= piv;
-        }
-        for i in 0..=m {
-            if i == p {
-                continue;
-            }
-            let f = tab[i * cols + q];
-            if f != 0.0 {
-                for c in 0..cols {
-                    let v = tab[p * cols + c];
-                    tab[i * cols + c] -= f * v;
-                }
-            }
-        }
-        basis[p] = q;
+        pivot(&mut tab, cols, m, &mut basis, p, q);
     }
     if !solved || tab.iter().any(|v| !v.is_finite()) {
         return None;
@@ -143,6 +127,139 @@ pub fn minmax(coef: &[&[f64]], cst: &[f64], lo: &[f64], hi: &[f64]) -> Option<Mi
         x,
         lambda,
     })
+}
+
+/// Weights for `min c . x` over `{x in [lo, hi] : a_p . x + d_p <= 0 (all p)}`: the
+/// optimal dual multipliers `lambda_p >= 0` of the constraints, by the dense tableau
+/// simplex method with Bland's rule (Bland, 1977) on the box shifted to `[0, 1]^n`, with
+/// a single artificial variable of large cost entering on the most violated row first
+/// (so the start is feasible). By weak duality, for *any* `lambda >= 0`,
+/// `min over the box of c . x + sum_p lambda_p (a_p . x + d_p)` is at most the
+/// constrained minimum, so the caller gets a sound bound from these weights by
+/// evaluating that combination with outward rounding; the solver itself is plain f64.
+/// `None` when the simplex method does not finish within its iteration cap or meets
+/// non-finite numbers.
+pub fn min_linear_duals(
+    c: &[f64],
+    a: &[&[f64]],
+    d: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+) -> Option<Vec<f64>> {
+    let m = a.len();
+    let n = lo.len();
+    if d.len() != m {
+        return None;
+    }
+    if m == 0 {
+        return Some(Vec::new());
+    }
+    let w: Vec<f64> = lo.iter().zip(hi).map(|(l, h)| h - l).collect();
+    // Scale each constraint row to unit size (the multipliers are scaled back).
+    let mut scale = vec![1.0; m];
+    let rows = m + n;
+    let nv = n + 1; // s, r
+    let cols = nv + rows + 1;
+    let mut tab = vec![0.0; (rows + 1) * cols];
+    for p in 0..m {
+        let e = d[p] + a[p].iter().zip(lo).map(|(ai, l)| ai * l).sum::<f64>();
+        let sz = a[p]
+            .iter()
+            .zip(&w)
+            .map(|(ai, wi)| (ai * wi).abs())
+            .sum::<f64>()
+            .max(e.abs())
+            .max(1e-300);
+        scale[p] = sz;
+        let r = &mut tab[p * cols..(p + 1) * cols];
+        for t in 0..n {
+            r[t] = a[p][t] * w[t] / sz;
+        }
+        r[n] = -1.0;
+        r[nv + p] = 1.0;
+        r[cols - 1] = -e / sz;
+    }
+    for t in 0..n {
+        let r = &mut tab[(m + t) * cols..(m + t + 1) * cols];
+        r[t] = 1.0;
+        r[nv + m + t] = 1.0;
+        r[cols - 1] = 1.0;
+    }
+    let cs: Vec<f64> = c.iter().zip(&w).map(|(ci, wi)| ci * wi).collect();
+    let big = 1e4 * (1.0 + cs.iter().map(|v| v.abs()).sum::<f64>());
+    {
+        let o = &mut tab[rows * cols..];
+        o[..n].copy_from_slice(&cs);
+        o[n] = big;
+    }
+    if tab.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let mut basis: Vec<usize> = (nv..nv + rows).collect();
+    let pivot = |tab: &mut Vec<f64>, basis: &mut Vec<usize>, p: usize, q: usize| {
+        pivot(tab, cols, rows, basis, p, q)
+    };
+    // The most violated row takes the artificial variable r.
+    let (q, minr) = (0..m)
+        .map(|p| (p, tab[p * cols + cols - 1]))
+        .fold((0, 0.0), |b, x| if x.1 < b.1 { x } else { b });
+    if minr < 0.0 {
+        pivot(&mut tab, &mut basis, q, n);
+    }
+    let tol = 1e-12;
+    let mut solved = false;
+    for _ in 0..50 * (rows + nv) {
+        let obj = &tab[rows * cols..];
+        let Some(q) = (0..nv + rows).find(|&c| obj[c] < -1e-12 * big) else {
+            solved = true;
+            break;
+        };
+        let mut best: Option<(f64, usize)> = None;
+        for i in 0..rows {
+            let piv = tab[i * cols + q];
+            if piv > tol {
+                let ratio = tab[i * cols + cols - 1].max(0.0) / piv;
+                best = match best {
+                    Some((br, bi)) if ratio > br || (ratio == br && basis[i] > basis[bi]) => {
+                        Some((br, bi))
+                    }
+                    _ => Some((ratio, i)),
+                };
+            }
+        }
+        let (_, p) = best?;
+        pivot(&mut tab, &mut basis, p, q);
+    }
+    if !solved || tab.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    Some(
+        (0..m)
+            .map(|p| (tab[rows * cols + nv + p].max(0.0) / scale[p]).max(0.0))
+            .collect(),
+    )
+}
+
+/// One simplex pivot on the dense tableau `tab` (`cols` columns, rows `0..=last`, the
+/// objective row included) at row `p`, column `q`; `q` enters the basis at row `p`.
+fn pivot(tab: &mut [f64], cols: usize, last: usize, basis: &mut [usize], p: usize, q: usize) {
+    let piv = tab[p * cols + q];
+    for c in 0..cols {
+        tab[p * cols + c] /= piv;
+    }
+    for i in 0..=last {
+        if i == p {
+            continue;
+        }
+        let f = tab[i * cols + q];
+        if f != 0.0 {
+            for c in 0..cols {
+                let v = tab[p * cols + c];
+                tab[i * cols + c] -= f * v;
+            }
+        }
+    }
+    basis[p] = q;
 }
 
 #[cfg(test)]
@@ -208,5 +325,51 @@ mod tests {
             assert!(r.lambda.iter().all(|l| *l >= 0.0));
             assert!((r.lambda.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         }
+    }
+
+    /// The multipliers of [`min_linear_duals`] give, by weak duality, a lower bound of
+    /// the constrained minimum that no feasible sample beats, and close to the best
+    /// feasible sample (the LP optimum) on random small problems.
+    #[test]
+    fn duals_bound_the_constrained_minimum() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut tight = 0;
+        for trial in 0..200 {
+            let n = 1 + trial % 3;
+            let m = 1 + trial % 5;
+            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..0.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.01..3.0)).collect();
+            let c: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            let a: Vec<Vec<f64>> = (0..m)
+                .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
+                .collect();
+            let d: Vec<f64> = (0..m).map(|_| rng.gen_range(-1.0..0.5)).collect();
+            let refs: Vec<&[f64]> = a.iter().map(|r| &r[..]).collect();
+            let lam = min_linear_duals(&c, &refs, &d, &lo, &hi).expect("solved");
+            assert!(lam.iter().all(|l| *l >= 0.0 && l.is_finite()));
+            // The Lagrangian's minimum over the box (a lower bound by weak duality).
+            let coef: Vec<f64> = (0..n)
+                .map(|t| c[t] + (0..m).map(|p| lam[p] * a[p][t]).sum::<f64>())
+                .collect();
+            let lb = (0..m).map(|p| lam[p] * d[p]).sum::<f64>()
+                + (0..n)
+                    .map(|t| (coef[t] * lo[t]).min(coef[t] * hi[t]))
+                    .sum::<f64>();
+            let mut best = f64::INFINITY;
+            for _ in 0..4000 {
+                let x: Vec<f64> = (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
+                let feas = (0..m)
+                    .all(|p| d[p] + a[p].iter().zip(&x).map(|(u, v)| u * v).sum::<f64>() <= 0.0);
+                if feas {
+                    let v = c.iter().zip(&x).map(|(u, v)| u * v).sum::<f64>();
+                    assert!(v >= lb - 1e-9, "trial {trial}: sample {v} below bound {lb}");
+                    best = best.min(v);
+                }
+            }
+            if best.is_finite() && best - lb < 0.05 * (1.0 + best.abs()) {
+                tight += 1;
+            }
+        }
+        assert!(tight > 100, "the multipliers are rarely tight: {tight}");
     }
 }

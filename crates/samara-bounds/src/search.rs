@@ -14,8 +14,10 @@
 //! is also bounded as one objective (its own alpha-CROWN slopes). The split is chosen by
 //! look-ahead (every input halved, both halves bounded by CROWN, the split that leaves
 //! the least to prove for the most promising case wins), by smear `|coefficient| *
-//! width` (ReluVal, Wang et al., USENIX Security 2018) when the look-ahead stalls. Every
-//! bound is sound in floating point ([`crate::symbolic`]). A candidate point (the
+//! width` (ReluVal, Wang et al., USENIX Security 2018) when the look-ahead stalls. A
+//! piece that at most [`Settings::phase_max_unstable`] ReLUs cross is first handed to
+//! ReLU-phase splitting ([`crate::phases`]), which decides it exactly unless its node
+//! budget runs out. Every bound is sound in floating point ([`crate::symbolic`]). A candidate point (the
 //! piece's centre, the LP's minimiser, the minimising corner of each linear bound, a
 //! short local attack) is reported only when its f64 evaluation satisfies every
 //! constraint with a margin above the evaluation's own rounding error. Anything cut short
@@ -31,7 +33,9 @@ use std::time::{Duration, Instant};
 
 /// Profile counters (nanoseconds / counts), printed to stderr at the end of [`solve`]
 /// when the environment variable `SAMARA_SEARCH_PROFILE` is set.
-static PROF: [AtomicU64; 8] = [
+static PROF: [AtomicU64; 10] = [
+    AtomicU64::new(0),
+    AtomicU64::new(0),
     AtomicU64::new(0),
     AtomicU64::new(0),
     AtomicU64::new(0),
@@ -49,6 +53,8 @@ const P_PGD: usize = 4;
 const P_MAXDEPTH: usize = 5;
 const P_COMB: usize = 6;
 const P_CLOSED: usize = 7;
+const P_PHASE: usize = 8;
+const P_PHASE_CLOSED: usize = 9;
 
 fn prof_add(k: usize, t0: Instant) {
     PROF[k].fetch_add(t0.elapsed().as_nanos() as u64, AtOrd::Relaxed);
@@ -95,11 +101,22 @@ pub struct Settings {
     /// Wall-clock budget of the attack per case, before the search (seconds). The
     /// search repeats bursts with fresh starts, every `max(0.5, t / 4)` seconds at time
     /// `t`, each 15% of that interval long but at most four times this budget (shared
-    /// by the cases), so bursts stay a small share of a long proof.
+    /// by the cases), so bursts stay a small share of a long proof. The first burst gets
+    /// ten times this budget when fewer than one piece in ten has closed by then (a
+    /// search that makes no headway, typical of a query with points). A point found for
+    /// one case ends the other cases' attacks.
     pub attack_seconds: f64,
     /// alpha-CROWN gradient steps for each piece's own constraint bounds (0: CROWN's
     /// slopes; the look-ahead always uses CROWN's, for speed).
     pub alpha_iters: usize,
+    /// A piece that at most this many ReLUs cross (after its bounds, its constraint
+    /// bounds, its candidate points and its local attack failed) is decided by splitting
+    /// those ReLUs' phases instead of its inputs, with LP bounds over each phase set
+    /// ([`crate::phases`]; 0: never).
+    pub phase_max_unstable: usize,
+    /// Most nodes of one piece's phase splitting, before the piece goes back to input
+    /// splitting.
+    pub phase_budget: usize,
     /// Seed of the attack's random starts.
     pub seed: u64,
 }
@@ -114,6 +131,8 @@ impl Default for Settings {
             attack_seconds: 0.05,
             alpha_iters: 10,
             steps: 60,
+            phase_max_unstable: 40,
+            phase_budget: 5000,
             seed: 0,
         }
     }
@@ -159,7 +178,11 @@ pub struct Stats {
 }
 
 /// Evaluate the chain in f64, keeping each ReLU map's activation mask.
-fn forward(maps: &[(Affine, bool)], x: &[f64], masks: Option<&mut Vec<Vec<bool>>>) -> Vec<f64> {
+pub(crate) fn forward(
+    maps: &[(Affine, bool)],
+    x: &[f64],
+    masks: Option<&mut Vec<Vec<bool>>>,
+) -> Vec<f64> {
     let mut a = x.to_vec();
     let mut ms = Vec::new();
     for (m, r) in maps {
@@ -278,6 +301,7 @@ fn attack(
     s: &Settings,
     round: u64,
     seconds: f64,
+    stop: &std::sync::atomic::AtomicBool,
 ) -> (Option<Vec<f64>>, u64) {
     let t0 = Instant::now();
     let _guard = ProfGuard(t0);
@@ -286,7 +310,7 @@ fn attack(
     let n = case.lo.len();
     let mut steps = 0u64;
     for r in 0..s.restarts.max(1) {
-        if r > 0 && t0.elapsed().as_secs_f64() > seconds {
+        if r > 0 && (t0.elapsed().as_secs_f64() > seconds || stop.load(AtOrd::Relaxed)) {
             break;
         }
         let x: Vec<f64> = (0..n)
@@ -300,6 +324,7 @@ fn attack(
             .collect();
         steps += s.steps as u64;
         if let Some(x) = pgd(maps, &case.constraints, &case.lo, &case.hi, x, s.steps) {
+            stop.store(true, AtOrd::Relaxed);
             return (Some(x), steps);
         }
     }
@@ -316,9 +341,11 @@ fn attack_all(
     seconds: f64,
     stats: &mut Stats,
 ) -> Option<(usize, Vec<f64>)> {
+    // A point of one case ends the other cases' attacks.
+    let stop = std::sync::atomic::AtomicBool::new(false);
     let res: Vec<(Option<Vec<f64>>, u64)> = cases
         .par_iter()
-        .map(|c| attack(maps, c, s, round, seconds))
+        .map(|c| attack(maps, c, s, round, seconds, &stop))
         .collect();
     stats.attack_steps += res.iter().map(|r| r.1).sum::<u64>();
     res.into_iter()
@@ -542,7 +569,7 @@ fn combined_bound(
 /// against the best-response corner (Freund and Schapire, 1999). Weights are certified
 /// only by the rigorous combination [`symbolic::Linear::combine`]. Also returns the LP's
 /// minimiser (where the bounds leave room for a point).
-fn combination_certifies(
+pub(crate) fn combination_certifies(
     fs: &[symbolic::Linear],
     lo: &[f64],
     hi: &[f64],
@@ -623,9 +650,10 @@ fn examine(
     maps: &[(Affine, bool)],
     cases: &[Case],
     w: Work,
-    alpha_iters: usize,
+    s: &Settings,
     deadline: Option<Instant>,
 ) -> Piece {
+    let alpha_iters = s.alpha_iters;
     let late = || deadline.is_some_and(|d| Instant::now() >= d);
     if late() {
         return Piece::Late;
@@ -690,6 +718,31 @@ fn examine(
         return Piece::Late;
     }
     let open: Vec<usize> = left.iter().map(|l| l.0).collect();
+    let nu = crate::phases::unstable(maps, &pre).len();
+    if nu <= s.phase_max_unstable {
+        let tp = Instant::now();
+        let mut nodes = 0;
+        let r = crate::phases::split_phases(
+            maps,
+            cases,
+            &open,
+            &pre,
+            &lo,
+            &hi,
+            s.phase_budget,
+            deadline,
+            &mut nodes,
+        );
+        prof_add(P_PHASE, tp);
+        match r {
+            crate::phases::PhaseResult::Closed => {
+                PROF[P_PHASE_CLOSED].fetch_add(1, AtOrd::Relaxed);
+                return Piece::Closed;
+            }
+            crate::phases::PhaseResult::Found(ci, x) => return Piece::Found(ci, x),
+            crate::phases::PhaseResult::GaveUp => {}
+        }
+    }
     // The look-ahead scores the splits by one case, the most promising one (the others
     // close along the way or take over once it is closed): scoring by the sum over the
     // open cases favours splits that help the case with the largest scale, and on ACAS
@@ -780,7 +833,7 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
         eprintln!(
             "profile: {:.0} ms wall, {} cases, {} pieces, {} closed, max depth {}; \
              cpu ms: attack {:.0}, own bounds {:.0}, alpha+comb {:.0} (comb {:.0}), \
-             pgd {:.0}, look-ahead {:.0}; outcome {:?}",
+             pgd {:.0}, look-ahead {:.0}, phases {:.0} ({} closed); outcome {:?}",
             t0.elapsed().as_secs_f64() * 1e3,
             cases.len(),
             st.pieces,
@@ -792,6 +845,8 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
             ms(P_COMB),
             ms(P_PGD),
             ms(P_LOOK),
+            ms(P_PHASE),
+            PROF[P_PHASE_CLOSED].load(AtOrd::Relaxed),
             match &o {
                 Outcome::Point { .. } => "point".to_string(),
                 o => format!("{o:?}"),
@@ -841,6 +896,8 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     let deadline = s.timeout.map(|d| t0 + d);
     let mut batches = 0u64;
     let mut last_burst = Instant::now();
+    let mut batches_burst = 0u64;
+    let mut closed = 0u64;
     while !heap.is_empty() {
         if out_of_time(&t0) {
             return (Outcome::Unknown(StopReason::Timeout), stats);
@@ -854,7 +911,15 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
         let interval = (0.25 * t0.elapsed().as_secs_f64()).max(0.5);
         if last_burst.elapsed().as_secs_f64() >= interval {
             let share = rayon::current_num_threads().max(1) as f64 / cases.len().max(1) as f64;
-            let per_case = (0.15 * interval).min(4.0 * s.attack_seconds) * share.min(1.0);
+            let mut per_case = (0.15 * interval).min(4.0 * s.attack_seconds) * share.min(1.0);
+            // The first burst is long when hardly any piece has closed yet (fewer than
+            // 1 in 10): the search is then making no headway, which is typical of a
+            // query with points (ACAS Xu properties 7 and 8), where the attack is the
+            // faster way to one.
+            if batches_burst == 0 && closed * 10 < stats.pieces {
+                per_case = 10.0 * s.attack_seconds;
+            }
+            batches_burst += 1;
             if let Some((ci, x)) = attack_all(maps, cases, s, batches, per_case, &mut stats) {
                 let y = forward(maps, &x, None);
                 return (Outcome::Point { case: ci, x, y }, stats);
@@ -866,11 +931,11 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
         stats.pieces += batch.len() as u64;
         let results: Vec<Piece> = batch
             .into_par_iter()
-            .map(|w| examine(maps, cases, w, s.alpha_iters, deadline))
+            .map(|w| examine(maps, cases, w, s, deadline))
             .collect();
         for r in results {
             match r {
-                Piece::Closed => {}
+                Piece::Closed => closed += 1,
                 Piece::Found(ci, x) => {
                     let y = forward(maps, &x, None);
                     return (Outcome::Point { case: ci, x, y }, stats);

@@ -797,10 +797,30 @@ pub fn crown_pre(
     hi: &[f64],
     fwd: Option<&[Vec<(f64, f64)>]>,
 ) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_from(maps, lo, hi, fwd, 0)
+}
+
+/// [`crown_pre`] that takes the bounds of the maps before `from` from `fwd` as they are
+/// (they must be given, and sound), and recomputes only the later ones: after a change
+/// of the bounds of map `from - 1` (a ReLU's phase fixed), the earlier maps' bounds
+/// cannot change.
+pub fn crown_pre_from(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: Option<&[Vec<(f64, f64)>]>,
+    from: usize,
+) -> Vec<Vec<(f64, f64)>> {
     let body = maps.len() - 1;
     let mut pre: Vec<Vec<(f64, f64)>> = Vec::with_capacity(body);
     let mut c = Vec::new();
     for k in 0..body {
+        if k < from {
+            if let Some(f) = fwd {
+                pre.push(f[k].clone());
+                continue;
+            }
+        }
         let m = &maps[k].0;
         let sub = &maps[..=k];
         // The magnitudes of every map's input up to k (only the last one is new).

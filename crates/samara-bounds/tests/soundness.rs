@@ -312,7 +312,28 @@ fn conjunction_and_disjunction_verdicts_survive_sampling() {
     // Conjunctions of two or three output constraints (closed by the min-max LP and the
     // bound of the combined objective) and several cases sharing one box (the shared
     // pieces): every Empty must survive dense sampling and every point must be real.
-    let mut rng = ChaCha8Rng::seed_from_u64(29);
+    conjunctions_survive_sampling(29, &Settings::default());
+}
+
+#[test]
+fn phase_splitting_verdicts_survive_sampling() {
+    // The same queries decided by ReLU-phase splitting on every piece (any number of
+    // unstable ReLUs, no opening attack): the LP bounds over each phase set and the
+    // certified combinations with the phase constraints must never prove a false Empty.
+    conjunctions_survive_sampling(
+        31,
+        &Settings {
+            phase_max_unstable: usize::MAX,
+            phase_budget: 1 << 20,
+            attack_seconds: 0.0,
+            restarts: 1,
+            ..Default::default()
+        },
+    );
+}
+
+fn conjunctions_survive_sampling(seed: u64, settings: &Settings) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut empty, mut found) = (0, 0);
     for trial in 0..40 {
         let dims: &[usize] = if trial % 2 == 0 {
@@ -378,7 +399,7 @@ fn conjunction_and_disjunction_verdicts_survive_sampling() {
             &cases,
             &Settings {
                 timeout: None,
-                ..Default::default()
+                ..settings.clone()
             },
         );
         match o {

@@ -1,0 +1,311 @@
+//! ReLU-phase splitting inside one input piece, for the pieces of the input search
+//! ([`crate::search`]) that only a few ReLUs cross.
+//!
+//! A node is the piece's box together with a phase for some of its unstable ReLUs
+//! (`z_i >= 0`, active, or `z_i <= 0`, inactive); it stands for the set `S` of inputs of
+//! the box where every fixed phase holds. Its pre-activation bounds are full CROWN
+//! (Zhang et al., NeurIPS 2018) with the fixed neurons clamped (`[max(l, 0), u]` or
+//! `[l, min(u, 0)]`): valid on `S`, and the later layers tighten since a fixed neuron
+//! is passed exactly. Each fixed phase is itself a linear constraint on the inputs: its
+//! CROWN lower bound (of `z_i` for an inactive one, of `-z_i` for an active one, through
+//! the earlier layers' bounds) must be `<= 0` on `S`. A case of the query is closed on
+//! the node when no input satisfies, at once, its output constraints' linear lower
+//! bounds and the phases' ones: one of them is positive over the box, or a non-negative
+//! combination is (the min-max LP of [`crate::lp`], its weights certified with outward
+//! rounding by [`crate::symbolic::Linear::combine`]). The argument only evaluates the
+//! bounds at a hypothetical point of `S`, where all of them are valid, so bounds that
+//! were computed under the node's own phases are sound for it. The weights on the
+//! phase constraints play the role of beta-CROWN's split multipliers (Wang et al.,
+//! NeurIPS 2021), chosen here by an LP over the final linear bounds instead of by
+//! gradient ascent through the pull-back.
+//!
+//! With every unstable ReLU fixed, the network is affine on `S` and the bounds are exact
+//! up to their rounding slack: the LP is then the exact feasibility check of the linear
+//! region (the star-set step of nnenum, Bak et al., CAV 2020), so the splitting decides
+//! the piece unless a point sits within rounding distance of a constraint. Before that,
+//! the earliest layer with unstable neurons is already affine on `S`: its neurons are
+//! bounded over `S` (not the box) by an LP with the phases as constraints
+//! ([`crate::lp::min_linear_duals`]), the bound certified by weak duality with outward
+//! rounding, so neurons that `S` decides become stable. Nodes are split in the earliest
+//! layer with unstable neurons (layer order, as nnenum does), at its most balanced
+//! neuron (largest `min(-l, u)`), depth first, within a node budget; a node that can
+//! neither be closed nor split (or an exhausted budget) hands the piece back to input
+//! splitting. Candidate points (each node's LP
+//! minimiser) are only reported after a concrete f64 evaluation with a margin
+//! ([`crate::search::satisfies`]).
+
+use crate::search::{combination_certifies, forward, satisfies, Case};
+use crate::symbolic::{self, Linear, Objective};
+use samara_nn::Affine;
+use std::sync::Arc;
+
+/// What the phase splitting of one piece came to.
+pub(crate) enum PhaseResult {
+    /// Every open case is closed on the piece.
+    Closed,
+    /// A point of the given case.
+    Found(usize, Vec<f64>),
+    /// Undecided (budget spent, or a fully split node neither closed nor refuted).
+    GaveUp,
+}
+
+/// The unstable ReLUs of a piece (`l < 0 < u`), as `(map, neuron)`, in layer order.
+pub(crate) fn unstable(maps: &[(Affine, bool)], pre: &[Vec<(f64, f64)>]) -> Vec<(usize, usize)> {
+    let mut v = Vec::new();
+    for (j, b) in pre.iter().enumerate() {
+        if !maps[j].1 {
+            continue;
+        }
+        for (i, &(l, u)) in b.iter().enumerate() {
+            if l < 0.0 && u > 0.0 {
+                v.push((j, i));
+            }
+        }
+    }
+    v
+}
+
+/// One fixed phase: map, neuron, active.
+type Fix = (usize, usize, bool);
+
+/// Decide the open cases `open` on the piece `[lo, hi]` (pre-activation bounds `pre`,
+/// valid on the whole piece) by splitting its unstable ReLUs, examining at most
+/// `budget` nodes and stopping at `deadline`. See the module doc.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn split_phases(
+    maps: &[(Affine, bool)],
+    cases: &[Case],
+    open: &[usize],
+    pre: &[Vec<(f64, f64)>],
+    lo: &[f64],
+    hi: &[f64],
+    budget: usize,
+    deadline: Option<std::time::Instant>,
+    nodes: &mut u64,
+) -> PhaseResult {
+    // Each node: its phases, the cases still open, bounds valid on its set (the
+    // parent's, to be clamped by the last phase and tightened).
+    #[allow(clippy::type_complexity)]
+    let mut stack: Vec<(
+        Vec<Fix>,
+        Vec<usize>,
+        Arc<Vec<Vec<(f64, f64)>>>,
+        Arc<Vec<Linear>>,
+    )> = Vec::new();
+    let Some(&(j0, i0)) = unstable(maps, pre).first() else {
+        return PhaseResult::GaveUp;
+    };
+    let root = Arc::new(pre.to_vec());
+    let none = Arc::new(Vec::new());
+    stack.push((
+        vec![(j0, i0, false)],
+        open.to_vec(),
+        root.clone(),
+        none.clone(),
+    ));
+    stack.push((vec![(j0, i0, true)], open.to_vec(), root, none));
+    let mut seen = 0usize;
+    while let Some((fixes, open, parent, parent_fs)) = stack.pop() {
+        seen += 1;
+        *nodes += 1;
+        if seen > budget || deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+            return PhaseResult::GaveUp;
+        }
+        // Bounds valid on S: the parent's, clamped by the new phase, then full CROWN of
+        // the maps after it.
+        let mut clamped = (*parent).clone();
+        let &(jl, il, on) = fixes.last().expect("a node has a phase");
+        {
+            let b = &mut clamped[jl][il];
+            if on {
+                b.0 = b.0.max(0.0);
+            } else {
+                b.1 = b.1.min(0.0);
+            }
+        }
+        let nb = symbolic::crown_pre_from(maps, lo, hi, Some(&clamped), jl + 1);
+        // A bound that crosses shows S empty (every bound is valid on S).
+        if nb.iter().flatten().any(|&(l, u)| l > u) {
+            continue;
+        }
+        // The phases as constraints `h <= 0` with linear lower bounds of `h`: the
+        // parent's (valid on its set, so on this one), and the new phase's. Phases are
+        // fixed in layer order, so every earlier layer is fixed or stable and the new
+        // phase's bound is exact up to rounding.
+        let mut phase_fs: Vec<Linear> = (*parent_fs).clone();
+        let mut empty = false;
+        {
+            let (j, i) = (jl, il);
+            let mut c = vec![0.0; maps[j].0.out];
+            c[i] = if on { -1.0 } else { 1.0 };
+            let f =
+                symbolic::backward_lower(&maps[..=j], &nb[..j], &Objective { c, d: 0.0 }, lo, hi);
+            if f.min_over(lo, hi) > 0.0 {
+                empty = true;
+            }
+            phase_fs.push(f);
+        }
+        if empty {
+            continue;
+        }
+        // The earliest layer with unstable neurons is affine on S (every earlier neuron
+        // is fixed or stable): bound its neurons over S, not the box, by the LP with the
+        // phases as constraints (nnenum's exact bounds of a star set), certified by weak
+        // duality; layers that become stable let the next one be bounded the same way.
+        let mut nb = nb;
+        if !phase_fs.is_empty() && tighten(maps, &mut nb, &phase_fs, lo, hi).is_none() {
+            continue;
+        }
+        let mut still = Vec::new();
+        for &ci in &open {
+            let cs = &cases[ci].constraints;
+            let mut fs = phase_fs.clone();
+            let mut closed = false;
+            for k in cs {
+                let f = symbolic::backward_lower(maps, &nb, &k.obj, lo, hi);
+                let lb = f.min_over(lo, hi);
+                if if k.strict { lb >= 0.0 } else { lb > 0.0 } {
+                    closed = true;
+                    break;
+                }
+                fs.push(f);
+            }
+            if closed {
+                continue;
+            }
+            if fs.is_empty() {
+                // An empty conjunction without phases: the centre is a point.
+                let x: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * (a + b)).collect();
+                return PhaseResult::Found(ci, x);
+            }
+            let (ok, mm) = if fs.len() >= 2 {
+                combination_certifies(&fs, lo, hi)
+            } else {
+                (false, None)
+            };
+            if ok {
+                continue;
+            }
+            let mut cands = Vec::with_capacity(2);
+            if let Some(mm) = mm {
+                cands.push(mm.x);
+            }
+            cands.push(fs[fs.len() - 1].argmin_corner(lo, hi));
+            for x in cands {
+                let y = forward(maps, &x, None);
+                if satisfies(cs, &y) {
+                    return PhaseResult::Found(ci, x);
+                }
+            }
+            still.push(ci);
+        }
+        if still.is_empty() {
+            continue;
+        }
+        // Split in the earliest layer with unstable neurons on S, the neuron whose
+        // range is the most balanced (both phases far from excluded).
+        let un = unstable(maps, &nb);
+        let Some(&(j0, _)) = un.first() else {
+            return PhaseResult::GaveUp;
+        };
+        let (j, i) = un
+            .iter()
+            .take_while(|u| u.0 == j0)
+            .max_by(|a, b| {
+                let s = |u: &(usize, usize)| {
+                    let (l, h) = nb[u.0][u.1];
+                    (-l).min(h)
+                };
+                s(a).total_cmp(&s(b))
+            })
+            .copied()
+            .expect("some neuron");
+        let nb = Arc::new(nb);
+        let fsa = Arc::new(phase_fs);
+        for on in [false, true] {
+            let mut f = fixes.clone();
+            f.push((j, i, on));
+            stack.push((f, still.clone(), nb.clone(), fsa.clone()));
+        }
+    }
+    PhaseResult::Closed
+}
+
+/// A sound lower bound over `S` of a function with linear lower bound `g` (valid on
+/// `S`), where `fs` are linear lower bounds (valid on `S`) of functions `<= 0` on `S`:
+/// `min over the box of g + sum_p lambda_p f_p` for the LP's multipliers
+/// ([`crate::lp::min_linear_duals`]; weak duality), formed and minimised with outward
+/// rounding ([`Linear::combine`], [`Linear::min_over`]); never below `g`'s own minimum.
+fn min_over_set(g: &Linear, fs: &[Linear], lo: &[f64], hi: &[f64]) -> f64 {
+    let own = g.min_over(lo, hi);
+    let a: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
+    let d: Vec<f64> = fs.iter().map(|f| f.cst - f.slack).collect();
+    let Some(lam) = crate::lp::min_linear_duals(&g.coef, &a, &d, lo, hi) else {
+        return own;
+    };
+    let mut h = g.clone();
+    for (f, &l) in fs.iter().zip(&lam) {
+        if l > 0.0 && l.is_finite() {
+            h = h.combine(1.0, f, l, lo, hi);
+        }
+    }
+    let v = h.min_over(lo, hi);
+    if v.is_nan() {
+        own
+    } else {
+        v.max(own)
+    }
+}
+
+/// Tighten the bounds `nb` (valid on `S`) of the earliest layers with unstable neurons
+/// by [`min_over_set`], recomputing the later layers by CROWN after each; `None` when
+/// the bounds show `S` empty.
+fn tighten(
+    maps: &[(Affine, bool)],
+    nb: &mut Vec<Vec<(f64, f64)>>,
+    fs: &[Linear],
+    lo: &[f64],
+    hi: &[f64],
+) -> Option<()> {
+    loop {
+        let un = unstable(maps, nb);
+        let Some(&(lj, _)) = un.first() else {
+            return Some(());
+        };
+        let mut changed = false;
+        for &(j, i) in un.iter().take_while(|u| u.0 == lj) {
+            let mut c = vec![0.0; maps[j].0.out];
+            c[i] = 1.0;
+            let obj = Objective { c, d: 0.0 };
+            let g = symbolic::backward_lower(&maps[..=j], &nb[..j], &obj, lo, hi);
+            let l = min_over_set(&g, fs, lo, hi);
+            let mut c = obj.c;
+            c[i] = -1.0;
+            let obj = Objective { c, d: 0.0 };
+            let g = symbolic::backward_lower(&maps[..=j], &nb[..j], &obj, lo, hi);
+            let u = -min_over_set(&g, fs, lo, hi);
+            let b = &mut nb[j][i];
+            if l > b.0 {
+                b.0 = l;
+                changed = true;
+            }
+            if u < b.1 {
+                b.1 = u;
+                changed = true;
+            }
+            if b.0 > b.1 {
+                return None;
+            }
+        }
+        if !changed {
+            return Some(());
+        }
+        *nb = symbolic::crown_pre_from(maps, lo, hi, Some(nb), lj + 1);
+        if nb.iter().flatten().any(|&(l, u)| l > u) {
+            return None;
+        }
+        if unstable(maps, nb).first().is_some_and(|u| u.0 == lj) {
+            return Some(());
+        }
+    }
+}
