@@ -86,20 +86,7 @@ pub fn minmax(coef: &[&[f64]], cst: &[f64], lo: &[f64], hi: &[f64]) -> Option<Mi
             break;
         };
         // Ratio test; ties to the lowest basic index.
-        let mut best: Option<(f64, usize)> = None;
-        for i in 0..m {
-            let piv = tab[i * cols + q];
-            if piv > piv_tol {
-                let ratio = tab[i * cols + cols - 1] / piv;
-                best = match best {
-                    Some((br, bi)) if ratio > br || (ratio == br && basis[i] > basis[bi]) => {
-                        Some((br, bi))
-                    }
-                    _ => Some((ratio, i)),
-                };
-            }
-        }
-        let (_, p) = best?; // unbounded cannot happen (tau <= T - e_k); bail out if so
+        let p = leaving_row(&tab, cols, m, &basis, q, piv_tol, |r| r)?; // unbounded cannot happen (tau <= T - e_k); bail out if so
         pivot(&mut tab, cols, m, &mut basis, p, q);
     }
     if !solved || tab.iter().any(|v| !v.is_finite()) {
@@ -214,20 +201,7 @@ pub fn min_linear_duals(
             solved = true;
             break;
         };
-        let mut best: Option<(f64, usize)> = None;
-        for i in 0..rows {
-            let piv = tab[i * cols + q];
-            if piv > tol {
-                let ratio = tab[i * cols + cols - 1].max(0.0) / piv;
-                best = match best {
-                    Some((br, bi)) if ratio > br || (ratio == br && basis[i] > basis[bi]) => {
-                        Some((br, bi))
-                    }
-                    _ => Some((ratio, i)),
-                };
-            }
-        }
-        let (_, p) = best?;
+        let p = leaving_row(&tab, cols, rows, &basis, q, tol, |r| r.max(0.0))?;
         pivot(&mut tab, &mut basis, p, q);
     }
     if !solved || tab.iter().any(|v| !v.is_finite()) {
@@ -238,6 +212,35 @@ pub fn min_linear_duals(
             .map(|p| (tab[rows * cols + nv + p].max(0.0) / scale[p]).max(0.0))
             .collect(),
     )
+}
+
+/// The ratio test of a simplex step on the dense tableau `tab` (`cols` columns, `rows`
+/// constraint rows, right-hand side last): among the rows whose entry in the entering
+/// column `q` exceeds `tol`, the one with the smallest ratio `rhs(b_i) / a_iq`, ties to
+/// the lowest basic index (Bland's rule); `None` when no row qualifies (unbounded).
+fn leaving_row(
+    tab: &[f64],
+    cols: usize,
+    rows: usize,
+    basis: &[usize],
+    q: usize,
+    tol: f64,
+    rhs: impl Fn(f64) -> f64,
+) -> Option<usize> {
+    let mut best: Option<(f64, usize)> = None;
+    for i in 0..rows {
+        let piv = tab[i * cols + q];
+        if piv > tol {
+            let ratio = rhs(tab[i * cols + cols - 1]) / piv;
+            best = match best {
+                Some((br, bi)) if ratio > br || (ratio == br && basis[i] > basis[bi]) => {
+                    Some((br, bi))
+                }
+                _ => Some((ratio, i)),
+            };
+        }
+    }
+    best.map(|(_, p)| p)
 }
 
 /// One simplex pivot on the dense tableau `tab` (`cols` columns, rows `0..=last`, the
