@@ -116,6 +116,13 @@ pub struct ReachArgs {
     /// with the reason (checked between splitting rounds).
     #[arg(long, allow_hyphen_values = true)]
     pub timeout: Option<f64>,
+    /// How the network step's error enters Taylor-model sets (--system, --sets taylor):
+    /// `interval` (a remainder per input: cheapest), `symbolic` or `symbolic:N` (a fresh
+    /// parameter per input and period, at most N beyond the state count, default 20:
+    /// keeps the driven states correlated), or `auto` (default: tried on the whole
+    /// initial set cheapest first, docs/reach.md).
+    #[arg(long)]
+    pub network_error: Option<String>,
     /// A spec file whose closed loop to fly (`loop`, `start`, `goal` statements; e.g.
     /// models/alsomitra/alsomitra.spec, loop `published`): model, initial set, period,
     /// horizon, clip and goal come from it, so the flags that set them are refused
@@ -449,6 +456,9 @@ fn check_zonotope_flags(a: &ReachArgs) -> Result<()> {
     }
     if a.timeout.is_some() {
         bail!("--timeout applies to Taylor-model sets (--sets taylor or --system); bound the zonotope run with --max-leaves");
+    }
+    if a.network_error.is_some() {
+        bail!("--network-error applies to Taylor-model sets (--sets taylor or --system); the zonotope sets keep the network's error as generators already");
     }
     Ok(())
 }

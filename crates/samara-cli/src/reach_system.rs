@@ -6,7 +6,9 @@
 
 use crate::reach::ReachArgs;
 use anyhow::{anyhow, bail, Context, Result};
-use samara_reach::system::{reach_system, SystemReach, SystemReachSettings, SystemVerdict};
+use samara_reach::system::{
+    reach_system, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
+};
 use samara_report::write_atomic;
 use std::path::Path;
 use std::process::ExitCode;
@@ -84,6 +86,14 @@ pub fn run_system(
         }
         s.timeout = Some(t);
     }
+    if let Some(v) = &a.network_error {
+        s.network_error = parse_network_error(v)?;
+        // Symbolic remainders go with order 3 unless --order says otherwise (as in
+        // the automatic choice, samara_reach::system::NETWORK_ERROR_LADDER).
+        if a.order.is_none() && matches!(s.network_error, Some(NetworkError::Symbolic { .. })) {
+            s.order = 3;
+        }
+    }
     crate::reach::check_budget(a, s.max_boxes)?;
     if let Some(n) = a.max_leaves {
         s.max_boxes = n;
@@ -127,12 +137,33 @@ pub fn run_system(
     })
 }
 
+/// `--network-error`: `interval`, `symbolic`, `symbolic:N` or `auto`.
+fn parse_network_error(v: &str) -> Result<Option<NetworkError>> {
+    let bad = || {
+        anyhow!("--network-error {v:?}: give `interval`, `symbolic`, `symbolic:N` (N = 1 to 64 extra parameters) or `auto`")
+    };
+    Ok(match v {
+        "auto" => None,
+        "interval" => Some(NetworkError::Interval),
+        "symbolic" => Some(NetworkError::Symbolic { extra: 20 }),
+        _ => {
+            let n: usize = v
+                .strip_prefix("symbolic:")
+                .and_then(|n| n.parse().ok())
+                .filter(|n| (1..=64).contains(n))
+                .ok_or_else(bad)?;
+            Some(NetworkError::Symbolic { extra: n })
+        }
+    })
+}
+
 fn summary(r: &SystemReach) -> serde_json::Value {
     serde_json::json!({
         "system": r.system,
         "verdict": &r.verdict,
         "boxes": r.boxes,
         "order": r.order,
+        "network_error": r.network_error,
         "seconds": r.seconds,
         "final": r.instants.last(),
     })
@@ -147,8 +178,12 @@ fn human_line(path: &Path, r: &SystemReach) -> String {
         SystemVerdict::Unknown { reason } => format!("unknown: {reason}"),
         SystemVerdict::NoGoal => "no goal in the file; sets computed".to_string(),
     };
+    let ne = match r.network_error {
+        NetworkError::Interval => "interval".to_string(),
+        NetworkError::Symbolic { extra } => format!("symbolic:{extra}"),
+    };
     format!(
-        "{}: {what} ({} sub-boxes, Taylor models of order {}, {:.2} s)",
+        "{}: {what} ({} sub-boxes, Taylor models of order {}, network error {ne}, {:.2} s)",
         path.display(),
         r.boxes,
         r.order,

@@ -443,6 +443,15 @@ impl Tm {
         self.finish()
     }
 
+    /// The model split into its polynomial part (remainder zero) and its remainder:
+    /// `self = poly + rem` exactly, so a caller can give the remainder a parameter of
+    /// its own (a symbolic remainder) instead of an interval.
+    pub fn split_rem(mut self) -> (Tm, Interval) {
+        let r = self.rem;
+        self.rem = Interval::point(0.0);
+        (self, r)
+    }
+
     /// The remainder interval.
     pub fn rem(&self) -> Interval {
         self.rem

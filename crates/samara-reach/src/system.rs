@@ -56,7 +56,45 @@ pub struct SystemReachSettings {
     /// Re-parameterise the set at a control instant when its remainders have grown
     /// ([`precondition`]; default on).
     pub precondition: bool,
+    /// How the network step's error enters the set (`None`: chosen per run, see
+    /// [`NetworkError`]; default).
+    pub network_error: Option<NetworkError>,
 }
+
+/// How the error of the network step (CROWN's gap, the remainder of the controller's
+/// Taylor model) enters the set that the plant then carries over the period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NetworkError {
+    /// As an interval remainder of each input: cheapest, but the states the input
+    /// drives lose their correlation through it.
+    Interval,
+    /// As a fresh parameter per input and period (a symbolic remainder, as a
+    /// zonotope's new generator or the predicate variable of NNV's star sets), so the
+    /// flow keeps the states it drives correlated; at most `extra` parameters beyond
+    /// the state count are kept before the set is re-parameterised ([`precondition`]),
+    /// and never more than the term budget of the order allows.
+    Symbolic {
+        /// Parameters allowed beyond the number of states.
+        extra: usize,
+    },
+}
+
+/// The modes tried on the whole initial set when the run chooses (`network_error:
+/// None`), cheapest first, each with the largest Taylor-model order it uses (`None`:
+/// the run's): the first to decide the goals is kept; when none does, the sub-boxes
+/// are flown with the one whose flight got furthest. Symbolic remainders go with
+/// order 3: the parameters they add cost less there, and on TORA, the unicycle and
+/// NAV order 3 with 20 extra parameters decides where order 4 with 6 or 19 does not
+/// (docs/reach.md).
+pub const NETWORK_ERROR_LADDER: [(NetworkError, Option<usize>); 2] = [
+    (NetworkError::Interval, None),
+    (NetworkError::Symbolic { extra: 20 }, Some(3)),
+];
+
+/// Most polynomial terms a symbolic remainder may grow the models to (the number of
+/// monomials of the order in the parameters kept).
+const TERM_BUDGET: usize = 30_000;
 
 impl Default for SystemReachSettings {
     fn default() -> Self {
@@ -68,6 +106,7 @@ impl Default for SystemReachSettings {
             flow: TmFlowSettings::default(),
             timeout: None,
             precondition: true,
+            network_error: None,
         }
     }
 }
@@ -175,6 +214,8 @@ pub struct SystemReach {
     pub boxes: usize,
     /// Taylor-model order used.
     pub order: usize,
+    /// How the network step's error entered the sets (chosen by the run unless set).
+    pub network_error: NetworkError,
     /// Wall time in seconds.
     pub seconds: f64,
     /// The sub-boxes.
@@ -285,23 +326,60 @@ pub fn reach_system(
         .map(|&(l, h)| Interval { lo: l, hi: h })
         .collect();
     let mut leaves: Vec<SystemLeaf> = Vec::new();
+    let mut mode = s.network_error.unwrap_or(NetworkError::Interval);
+    let mut run_s = s.clone();
     let mut verdict = if let Some(v) = violation {
         // The sets are still computed once (for the figure), without refinement.
-        let leaf = fly_box(sys, net, &init, s, deadline);
+        let leaf = fly_box(sys, net, &init, s, mode, deadline);
         leaves.push(leaf);
         v
     } else if sys.goals.is_empty() {
-        leaves.push(fly_box(sys, net, &init, s, deadline));
+        leaves.push(fly_box(sys, net, &init, s, mode, deadline));
         SystemVerdict::NoGoal
     } else {
+        // The whole initial set first, in each mode of the ladder until one decides;
+        // else the sub-boxes are flown in the mode that got furthest.
+        let mut root: Option<SystemLeaf> = None;
+        if s.network_error.is_none() {
+            let mut best: Option<(usize, NetworkError, SystemReachSettings, SystemLeaf)> = None;
+            for (m, cap) in NETWORK_ERROR_LADDER {
+                let mut rs = s.clone();
+                if let Some(k) = cap {
+                    rs.order = rs.order.min(k);
+                    rs.flow.order = rs.order as u32;
+                }
+                let l = fly_box(sys, net, &init, &rs, m, deadline);
+                let done =
+                    l.decided.contains(&Some(false)) || l.decided.iter().all(|d| *d == Some(true));
+                let p = progress(&l, sys);
+                if done {
+                    best = Some((usize::MAX, m, rs, l));
+                    break;
+                }
+                if best.as_ref().is_none_or(|(bp, ..)| p >= *bp) {
+                    best = Some((p, m, rs, l));
+                }
+                if past(deadline) {
+                    break;
+                }
+            }
+            if let Some((_, m, rs, l)) = best {
+                mode = m;
+                run_s = rs;
+                root = Some(l);
+            }
+        }
         let mut frontier = vec![init.clone()];
         let mut reason = None;
         let mut violation_from_sets = None;
         loop {
-            let flown: Vec<SystemLeaf> = frontier
-                .par_iter()
-                .map(|b| fly_box(sys, net, b, s, deadline))
-                .collect();
+            let flown: Vec<SystemLeaf> = match root.take() {
+                Some(l) => vec![l],
+                None => frontier
+                    .par_iter()
+                    .map(|b| fly_box(sys, net, b, &run_s, mode, deadline))
+                    .collect(),
+            };
             let mut next = Vec::new();
             let mut refuted = None;
             for l in flown {
@@ -415,11 +493,22 @@ pub fn reach_system(
         instants,
         periods,
         boxes: leaves.len(),
-        order: s.order,
+        order: run_s.order,
+        network_error: mode,
         seconds: t0.elapsed().as_secs_f64(),
         leaves,
         flights: ok_flights,
     })
+}
+
+/// How far a sub-box's flight got, in control instants: where its goals became
+/// undecidable or its enclosure was lost, else the whole horizon.
+fn progress(l: &SystemLeaf, sys: &System) -> usize {
+    match (l.stopped_at, &l.failure) {
+        (_, Some(_)) => l.instants.len().saturating_sub(1),
+        (Some(t), None) => (t / sys.period).round() as usize,
+        (None, None) => sys.steps(),
+    }
 }
 
 /// Cut `b` in two along the parameter widest relative to the initial set `init`.
@@ -569,6 +658,52 @@ fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
         .collect()
 }
 
+/// The network's outputs with each remainder given a fresh parameter of its own
+/// (`u_j = p_j + m_j + r_j xi_{n + j}` with `[m_j - r_j, m_j + r_j]` containing the
+/// remainder): the error of the network step becomes a symbol the flow carries, so the
+/// states it reaches stay correlated through it (symbolic remainders, as the generators
+/// of a zonotope or the new variables of NNV's star sets) instead of independent
+/// intervals. `n` is the number of parameters the states already use.
+fn lift_remainders(y: Vec<Tm>, n: usize, order: u32) -> Vec<Tm> {
+    // Rounding-size remainders stay intervals: a parameter would cost more than it
+    // keeps.
+    let lift = |v: &Tm| {
+        let b = v.bound();
+        v.rem().width() > 1e-9 * (1.0 + b.lo.abs().max(b.hi.abs()))
+    };
+    let lifted = y.iter().filter(|v| lift(v)).count();
+    let total = n + lifted;
+    let mut k = n;
+    y.into_iter()
+        .map(|v| {
+            let l = lift(&v);
+            let (p, r) = v.split_rem();
+            if l {
+                let (m, rad) = mid_rad(r);
+                let out = p + Tm::var(k, total, order) * rad + m;
+                k += 1;
+                out
+            } else {
+                p.with_rem(r)
+            }
+        })
+        .collect()
+}
+
+/// How many times its initial magnitude (`1 + max |x_i|` over the sub-box) a state's
+/// enclosure may grow before the sub-box is given up as lost (and split).
+const EXPLODED: f64 = 1e3;
+
+/// Number of monomials of total degree at most `order` in `n` variables.
+fn monomials(n: usize, order: usize) -> usize {
+    // C(n + order, order), computed incrementally (exact: each prefix is a binomial).
+    let mut c: usize = 1;
+    for k in 1..=order {
+        c = c.saturating_mul(n + k) / k;
+    }
+    c
+}
+
 /// Whether the run's time budget (its deadline, if any) is spent.
 fn past(deadline: Option<Instant>) -> bool {
     deadline.is_some_and(|d| Instant::now() > d)
@@ -580,9 +715,31 @@ fn fly_box(
     net: &Network,
     b: &[Interval],
     s: &SystemReachSettings,
+    mode: NetworkError,
     deadline: Option<Instant>,
 ) -> SystemLeaf {
     let mut x = box_models(b, s.order as u32);
+    // Most parameters the models may carry before the set is re-parameterised (0: the
+    // network's error stays an interval).
+    let max_params = match mode {
+        NetworkError::Symbolic { extra } if s.precondition => {
+            let base = sys.dim();
+            let m = net.n_outputs();
+            let mut e = extra;
+            while e > 0 && monomials(base + e + m, s.order) > TERM_BUDGET {
+                e -= 1;
+            }
+            if e == 0 {
+                0
+            } else {
+                base + e
+            }
+        }
+        _ => 0,
+    };
+    // A set this much wider than the initial box's magnitude is lost: stop the
+    // sub-box (its flow would crawl on) so that it is split.
+    let scale: Vec<f64> = b.iter().map(|v| 1.0 + v.lo.abs().max(v.hi.abs())).collect();
     let mut leaf = SystemLeaf {
         init: to_pairs(b),
         instants: Vec::new(),
@@ -608,6 +765,16 @@ fn fly_box(
         if k == steps {
             break;
         }
+        if hull
+            .iter()
+            .zip(&scale)
+            .any(|(h, sc)| h.width().is_nan() || h.width() > EXPLODED * sc)
+        {
+            leaf.failure = Some(format!(
+                "the enclosure grew past {EXPLODED} times the initial set's magnitude by t = {t}"
+            ));
+            break;
+        }
         if undecidable(sys, &ok) {
             leaf.stopped_at = Some(t);
             break;
@@ -618,11 +785,18 @@ fn fly_box(
             ));
             break;
         }
-        if s.precondition && needs_precondition(&x, &hull) {
+        // Room for this period's symbolic remainders (one per input at most).
+        let crowded =
+            max_params > 0 && x.iter().map(|v| v.n_vars()).max().unwrap_or(0) > max_params;
+        if s.precondition && (crowded || needs_precondition(&x, &hull)) {
             x = precondition(&x, s.order as u32);
         }
         sys.observe(&x, &mut obs);
-        let y = network_over(net, &obs, s.order as u32);
+        let mut y = network_over(net, &obs, s.order as u32);
+        if max_params > 0 {
+            let n = x.iter().map(|v| v.n_vars()).max().unwrap_or(0);
+            y = lift_remainders(y, n, s.order as u32);
+        }
         sys.actuate(&y, &mut u);
         match tm_period(sys, &x, &u, sys.period, &s.flow) {
             Ok((next, boxes)) => {
@@ -977,6 +1151,60 @@ fn reparameterise(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A lifted output (its remainder turned into a fresh parameter) still holds
+    /// every value of the original model: at random parameter points, the original's
+    /// enclosure `p(xi) + rem` (both ends) is reached by the lifted polynomial at the
+    /// new parameter's ends, whose enclosures contain those values; the new parameters
+    /// are numbered after the states' and the polynomial part is unchanged.
+    #[test]
+    fn lifted_remainders_keep_every_value() {
+        let mut seed = 11u64;
+        let mut rnd = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+        };
+        for _ in 0..200 {
+            let n = 3;
+            let x: Vec<Tm> = (0..n)
+                .map(|k| Tm::var(k, n, 3) * (0.5 + rnd().abs()) + rnd())
+                .collect();
+            let y0 = (x[0].clone() * x[1].clone() + x[2].clone().sqr()) * rnd();
+            let r = Interval::new(-rnd().abs() - 1e-3, rnd().abs());
+            let y = vec![y0.clone().with_rem(r), Tm::var(0, n, 3)];
+            let lifted = lift_remainders(y, n, 3);
+            assert_eq!(lifted[0].n_vars(), n + 1);
+            assert!(
+                lifted[1].rem().width() < 1e-300,
+                "rounding-size remainders stay"
+            );
+            let xi: Vec<f64> = (0..n).map(|_| rnd()).collect();
+            let v = y0.eval_at(&xi);
+            for (end, target) in [(-1.0, v.lo + r.lo), (1.0, v.hi + r.hi)] {
+                let mut p = xi.clone();
+                p.push(end);
+                let w = lifted[0].eval_at(&p);
+                // The ends of the original enclosure are met at the new parameter's
+                // ends, up to rounding.
+                let tol = 1e-12 * (1.0 + target.abs());
+                if end < 0.0 {
+                    assert!(w.lo <= target + tol, "{w:?} vs {target}");
+                } else {
+                    assert!(w.hi >= target - tol, "{w:?} vs {target}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn monomial_counts_are_binomials() {
+        assert_eq!(monomials(4, 4), 70);
+        assert_eq!(monomials(27, 4), 31_465);
+        assert_eq!(monomials(24, 3), 2_925);
+        assert_eq!(monomials(0, 5), 1);
+    }
 
     /// `mid_rad` ends for intervals whose radius is tiny against their midpoint (it
     /// looped ~2^52 times on `[1, 1 + ulp]`), its range contains the interval under

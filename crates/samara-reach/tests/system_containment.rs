@@ -10,7 +10,9 @@
 //! published Alsomitra controller (../shared/reference).
 
 use rand::{Rng, SeedableRng};
-use samara_reach::system::{reach_system, SystemReach, SystemReachSettings, SystemVerdict};
+use samara_reach::system::{
+    reach_system, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
+};
 use samara_system::sim::fly;
 use samara_system::System;
 use std::path::{Path, PathBuf};
@@ -159,6 +161,51 @@ fn nav_robust_sets_contain_flights_and_avoid_the_obstacle() {
     let n = check_contains(&sys, &net, &r, 300, 31);
     assert!(n > 300 * sys.steps());
     assert_eq!(r.verdict, SystemVerdict::Proved, "{:?}", r.verdict);
+}
+
+/// Unicycle (ARCH-COMP: verified; POLAR 10 s in 2022): with the network's error an
+/// interval remainder per input, the sets of the whole initial set blow up before
+/// t = 10; as a fresh parameter per input and period (symbolic remainders), one box at
+/// order 3 reaches the goal box at t = 10. Flights inside the sets at every instant
+/// and over every period.
+#[test]
+fn unicycle_symbolic_remainders_prove_the_goal_and_contain_flights() {
+    let sys = system("unicycle.sys");
+    let net = fixture("controller_unicycle_b.onnx");
+    let sym = SystemReachSettings {
+        order: 3,
+        max_boxes: 1,
+        network_error: Some(NetworkError::Symbolic { extra: 20 }),
+        ..Default::default()
+    };
+    let r = reach_system(&sys, &net, &sym).unwrap();
+    assert_eq!(r.instants.len(), sys.steps() + 1, "every instant enclosed");
+    let n = check_contains(&sys, &net, &r, 300, 41);
+    assert!(n > 300 * sys.steps());
+    assert_eq!(r.verdict, SystemVerdict::Proved, "{:?}", r.verdict);
+    // The same box with interval remainders: not decided (the mode is what decides).
+    let plain = SystemReachSettings {
+        network_error: Some(NetworkError::Interval),
+        ..sym
+    };
+    let r0 = reach_system(&sys, &net, &plain).unwrap();
+    assert_ne!(r0.verdict, SystemVerdict::Proved);
+    check_contains(&sys, &net, &r0, 100, 43);
+}
+
+/// TORA (ARCH-COMP: verified; NNV ~25 s): the run chooses how the network's error
+/// enters (`network_error: None`), climbs to symbolic remainders at order 3, and proves
+/// the box goal at every time; flights inside every sub-box's sets.
+#[test]
+fn tora_auto_mode_proves_the_goal_and_contains_flights() {
+    let sys = system("tora.sys");
+    let net = fixture("controller_tora.onnx");
+    let r = reach_system(&sys, &net, &SystemReachSettings::default()).unwrap();
+    assert_eq!(r.verdict, SystemVerdict::Proved, "{:?}", r.verdict);
+    assert!(matches!(r.network_error, NetworkError::Symbolic { .. }));
+    assert_eq!(r.order, 3);
+    let n = check_contains(&sys, &net, &r, 300, 47);
+    assert!(n > 300 * sys.steps());
 }
 
 #[test]
