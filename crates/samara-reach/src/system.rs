@@ -27,7 +27,7 @@
 //! Verdicts: `proved` only when every sub-box's sets decide every goal true; `violated`
 //! only with a simulated flight that misses a goal; `unknown` with the reason otherwise.
 
-use crate::tmflow::{tm_period, TmFlowSettings};
+use crate::tmflow::{tm_period_parts, TmFlowSettings};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::Network;
@@ -798,24 +798,25 @@ fn fly_box(
             y = lift_remainders(y, n, s.order as u32);
         }
         sys.actuate(&y, &mut u);
-        match tm_period(sys, &x, &u, sys.period, &s.flow) {
-            Ok((next, boxes)) => {
-                let mut ph = boxes.first().cloned().unwrap_or_else(|| hull.clone());
+        match tm_period_parts(sys, &x, &u, sys.period, &s.flow) {
+            Ok((next, parts)) => {
+                let boxes: Vec<&Vec<Interval>> = parts.iter().map(|p| &p.bounds).collect();
+                let mut ph = boxes.first().map_or_else(|| hull.clone(), |b| (*b).clone());
                 for bx in &boxes {
-                    for (a, v) in ph.iter_mut().zip(bx) {
+                    for (a, v) in ph.iter_mut().zip(bx.iter()) {
                         *a = Scalar::hull(a, v);
                     }
                 }
                 leaf.periods.push(to_pairs(&ph));
-                // Each part's box on its own (they cover the period together): an
+                // Each part on its own (they cover the period together): an
                 // obstacle the flight passes diagonally misses the parts but not
-                // their hull.
+                // their hull; a band is decided on the part's Taylor models too.
                 let empty: Vec<Tm> = Vec::new();
-                for bx in &boxes {
+                for part in &parts {
                     check_goals(
                         sys,
-                        &empty,
-                        bx,
+                        part.models.as_deref().unwrap_or(&empty),
+                        &part.bounds,
                         t,
                         t + sys.period,
                         &mut ok,
@@ -901,9 +902,38 @@ fn check_goals(
     }
 }
 
-/// A goal on a set: by the Taylor models for an affine band (the dependence kept),
-/// else by the interval hull.
+/// A goal on a set: by the Taylor models for an affine band (the dependence kept); a
+/// band of any other expression by the expression evaluated on the Taylor models and on
+/// the interval hull, whichever decides (both enclose it); boxes by the hull.
 fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<bool> {
+    if let (
+        GoalKind::Band {
+            graph,
+            lo,
+            hi,
+            linear: None,
+            ..
+        },
+        false,
+    ) = (&g.kind, x.is_empty())
+    {
+        let by_hull = g.decide(hull);
+        if by_hull.is_some() {
+            return by_hull;
+        }
+        let mut o = [Tm::cst(0.0)];
+        graph.eval(x, &[], &mut o);
+        let r = o[0].bound();
+        return if r.lo.is_nan() || r.hi.is_nan() {
+            None
+        } else if *lo <= r.lo && r.hi <= *hi {
+            Some(true)
+        } else if r.hi < *lo || r.lo > *hi {
+            Some(false)
+        } else {
+            None
+        };
+    }
     if let (
         GoalKind::Band {
             lo,
@@ -1194,6 +1224,36 @@ mod tests {
                 } else {
                     assert!(w.hi >= target - tol, "{w:?} vs {target}");
                 }
+            }
+        }
+    }
+
+    /// A band of a non-affine expression is decided on the Taylor models where the
+    /// interval hull cannot: on the diagonal set `x = y = xi`, `(x - y)^2 + x^2` ranges
+    /// over `[0, 1]` while the hull gives `[0, 5]`; a band `<= 1.5` is proved, a band
+    /// `>= 2` refuted, and the hull alone decides neither. Sampling the set agrees.
+    #[test]
+    fn nonlinear_bands_are_decided_on_the_taylor_models() {
+        let src = |band: &str| {
+            format!(
+                "state x, y\ninput u\nx' = u\ny' = u\nperiod 1\nhorizon 1\n\
+                 actuate u = net[0]\ninit x in [-1, 1]\ninit y in [-1, 1]\n\
+                 goal band {band} always\n"
+            )
+        };
+        let x = vec![Tm::var(0, 1, 4), Tm::var(0, 1, 4)];
+        let hull = vec![Interval::new(-1.0, 1.0); 2];
+        for (band, want) in [
+            ("(x - y)^2 + x^2 <= 1.5", Some(true)),
+            ("(x - y)^2 + x^2 >= 2", Some(false)),
+        ] {
+            let sys = System::parse(&src(band), "t.sys").unwrap();
+            let g = &sys.goals[0];
+            assert_eq!(g.decide(&hull), None, "{band}: the hull decides nothing");
+            assert_eq!(decide_on(g, &x, &hull), want, "{band}");
+            for k in 0..=100 {
+                let v = -1.0 + 0.02 * k as f64;
+                assert_eq!(g.holds(&[v, v]), want == Some(true), "{band} at {v}");
             }
         }
     }

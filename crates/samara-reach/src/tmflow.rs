@@ -110,8 +110,20 @@ fn taylor<S: Scalar>(sys: &System, x0: &[S], u: &[S], upto: usize) -> Option<Vec
     Some(x)
 }
 
+/// One part of a period's flowpipe: a box enclosing every state over its time span and,
+/// where a Taylor step validated, Taylor models in the set's parameters that enclose
+/// them too (the part's polynomial at its start plus interval terms for the time
+/// inside it), which keep the states' dependence for goals that are not boxes.
+#[derive(Clone, Debug)]
+pub struct Part {
+    /// The box.
+    pub bounds: Vec<Interval>,
+    /// The Taylor models (`None`: the a-priori box only).
+    pub models: Option<Vec<Tm>>,
+}
+
 /// One step of length `h`; `None` if it cannot be validated at this `h` (then the caller
-/// halves it). Returns the state at `h` and boxes enclosing the states over `[0, h]`.
+/// halves it). Returns the state at `h` and parts enclosing the states over `[0, h]`.
 fn step(
     sys: &System,
     x: &[Tm],
@@ -120,7 +132,7 @@ fn step(
     h: f64,
     s: &TmFlowSettings,
     last_chance: bool,
-) -> Option<(Vec<Tm>, Vec<Vec<Interval>>)> {
+) -> Option<(Vec<Tm>, Vec<Part>)> {
     let bz: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
     let b = apriori_by(|x| rhs_box(sys, x, bu), &bz, h)?;
     let pmax = s.time_order.clamp(1, K - 2);
@@ -176,7 +188,13 @@ fn step(
         .zip(&fb)
         .map(|(xi, f)| xi.clone().with_rem(Interval::point(h) * *f))
         .collect();
-    Some((next, vec![b]))
+    Some((
+        next,
+        vec![Part {
+            bounds: b,
+            models: None,
+        }],
+    ))
 }
 
 /// Parts of a step that [`sub_boxes`] encloses separately.
@@ -197,7 +215,7 @@ fn sub_boxes(
     p: usize,
     h: f64,
     b: &[Interval],
-) -> Vec<Vec<Interval>> {
+) -> Vec<Part> {
     let ends: Vec<f64> = (0..=SUB_STEPS)
         .map(|k| {
             if k == SUB_STEPS {
@@ -216,7 +234,8 @@ fn sub_boxes(
                 lo: 0.0,
                 hi: pow_up(tbe, p + 1).hi,
             };
-            tx.iter()
+            let (bounds, models): (Vec<Interval>, Vec<Tm>) = tx
+                .iter()
                 .zip(tb)
                 .zip(b)
                 .map(|((c, cb), bj)| {
@@ -228,17 +247,23 @@ fn sub_boxes(
                     for i in (1..p).rev() {
                         d = d * t + c.c[i].bound() * i as f64;
                     }
-                    let v = at.bound() + Interval { lo: 0.0, hi: dt } * d + cb.c[p + 1] * tail;
+                    let m = at.with_rem(Interval { lo: 0.0, hi: dt } * d + cb.c[p + 1] * tail);
+                    let v = m.bound();
                     let (lo, hi) = (v.lo.max(bj.lo), v.hi.min(bj.hi));
-                    if lo <= hi {
+                    let bx = if lo <= hi {
                         Interval { lo, hi }
                     } else {
                         // Both enclose the solution, so they meet; an empty intersection
                         // can only be NaN noise: keep the a-priori box.
                         *bj
-                    }
+                    };
+                    (bx, m)
                 })
-                .collect()
+                .unzip();
+            Part {
+                bounds,
+                models: Some(models),
+            }
         })
         .collect()
 }
@@ -254,6 +279,18 @@ pub fn tm_period(
     period: f64,
     s: &TmFlowSettings,
 ) -> Result<(Vec<Tm>, Vec<Vec<Interval>>), TmFlowError> {
+    let (next, parts) = tm_period_parts(sys, x, u, period, s)?;
+    Ok((next, parts.into_iter().map(|p| p.bounds).collect()))
+}
+
+/// [`tm_period`] with the parts' Taylor models ([`Part`]).
+pub fn tm_period_parts(
+    sys: &System,
+    x: &[Tm],
+    u: &[Tm],
+    period: f64,
+    s: &TmFlowSettings,
+) -> Result<(Vec<Tm>, Vec<Part>), TmFlowError> {
     let bu: Vec<Interval> = u.iter().map(|v| v.bound()).collect();
     let jmax = s.max_halvings.min(30);
     let units: u64 = 1 << jmax; // the period in units of period / 2^jmax
