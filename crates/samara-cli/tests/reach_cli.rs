@@ -128,6 +128,18 @@ fn bad_flags_exit_2_with_a_message_and_no_files() {
         (&["--threads", "0"], &["--threads"]),
         (&["--max-leaves", "0"], &["--max-leaves"]),
         (&["--samples", "0"], &["--samples"]),
+        (
+            &["--network-error", "symbolic"],
+            &["--network-error", "Taylor-model sets"],
+        ),
+        (
+            &["--sets", "taylor", "--network-error", "symbolic:0"],
+            &["--network-error", "symbolic:N"],
+        ),
+        (
+            &["--sets", "taylor", "--network-error", "zonotope"],
+            &["--network-error", "interval"],
+        ),
     ];
     for (args, needles) in cases {
         let mut all = vec!["--network", net];
