@@ -33,7 +33,7 @@ use rayon::prelude::*;
 use samara_nn::Network;
 use samara_num::{Interval, Scalar, Tm};
 use samara_system::sim::{fly, goals_hold, SystemFlight};
-use samara_system::{GoalKind, System, When};
+use samara_system::{band_decision, GoalKind, System, When};
 use serde::Serialize;
 use std::time::Instant;
 
@@ -667,16 +667,18 @@ fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
 fn lift_remainders(y: Vec<Tm>, n: usize, order: u32) -> Vec<Tm> {
     // Rounding-size remainders stay intervals: a parameter would cost more than it
     // keeps.
-    let lift = |v: &Tm| {
-        let b = v.bound();
-        v.rem().width() > 1e-9 * (1.0 + b.lo.abs().max(b.hi.abs()))
-    };
-    let lifted = y.iter().filter(|v| lift(v)).count();
-    let total = n + lifted;
+    let lift: Vec<bool> = y
+        .iter()
+        .map(|v| {
+            let b = v.bound();
+            v.rem().width() > 1e-9 * (1.0 + b.lo.abs().max(b.hi.abs()))
+        })
+        .collect();
+    let total = n + lift.iter().filter(|l| **l).count();
     let mut k = n;
     y.into_iter()
-        .map(|v| {
-            let l = lift(&v);
+        .zip(lift)
+        .map(|(v, l)| {
             let (p, r) = v.split_rem();
             if l {
                 let (m, rad) = mid_rad(r);
@@ -800,10 +802,11 @@ fn fly_box(
         sys.actuate(&y, &mut u);
         match tm_period_parts(sys, &x, &u, sys.period, &s.flow) {
             Ok((next, parts)) => {
-                let boxes: Vec<&Vec<Interval>> = parts.iter().map(|p| &p.bounds).collect();
-                let mut ph = boxes.first().map_or_else(|| hull.clone(), |b| (*b).clone());
-                for bx in &boxes {
-                    for (a, v) in ph.iter_mut().zip(bx.iter()) {
+                let mut ph = parts
+                    .first()
+                    .map_or_else(|| hull.clone(), |p| p.bounds.clone());
+                for part in &parts {
+                    for (a, v) in ph.iter_mut().zip(&part.bounds) {
                         *a = Scalar::hull(a, v);
                     }
                 }
@@ -923,16 +926,7 @@ fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<boo
         }
         let mut o = [Tm::cst(0.0)];
         graph.eval(x, &[], &mut o);
-        let r = o[0].bound();
-        return if r.lo.is_nan() || r.hi.is_nan() {
-            None
-        } else if *lo <= r.lo && r.hi <= *hi {
-            Some(true)
-        } else if r.hi < *lo || r.lo > *hi {
-            Some(false)
-        } else {
-            None
-        };
+        return band_decision(o[0].bound(), *lo, *hi);
     }
     if let (
         GoalKind::Band {
@@ -950,14 +944,7 @@ fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<boo
                 v += xi.clone() * *ai;
             }
         }
-        let r = v.bound();
-        return if *lo <= r.lo && r.hi <= *hi {
-            Some(true)
-        } else if r.hi < *lo || r.lo > *hi {
-            Some(false)
-        } else {
-            None
-        };
+        return band_decision(v.bound(), *lo, *hi);
     }
     g.decide(hull)
 }
@@ -1189,13 +1176,8 @@ mod tests {
     /// are numbered after the states' and the polynomial part is unchanged.
     #[test]
     fn lifted_remainders_keep_every_value() {
-        let mut seed = 11u64;
-        let mut rnd = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-        };
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(11);
+        let mut rnd = || rng.gen_range(-1.0..1.0);
         for _ in 0..200 {
             let n = 3;
             let x: Vec<Tm> = (0..n)

@@ -137,18 +137,25 @@ impl Goal {
             GoalKind::Band { graph, lo, hi, .. } => {
                 let mut o = [Interval::point(0.0)];
                 graph.eval(x, &[], &mut o);
-                let g = o[0];
-                if g.lo.is_nan() || g.hi.is_nan() {
-                    None
-                } else if *lo <= g.lo && g.hi <= *hi {
-                    Some(true)
-                } else if g.hi < *lo || g.lo > *hi {
-                    Some(false)
-                } else {
-                    None
-                }
+                band_decision(o[0], *lo, *hi)
             }
         }
+    }
+}
+
+/// A band `lo <= g <= hi` decided on an enclosure `r` of `g` over a set: `Some(true)`
+/// when `r` lies inside, `Some(false)` when it misses the band, `None` when it
+/// straddles an end or has a NaN end. Shared by every set representation that bounds a
+/// band's expression (intervals here, Taylor models in `samara-reach`).
+pub fn band_decision(r: Interval, lo: f64, hi: f64) -> Option<bool> {
+    if r.lo.is_nan() || r.hi.is_nan() {
+        None
+    } else if lo <= r.lo && r.hi <= hi {
+        Some(true)
+    } else if r.hi < lo || r.lo > hi {
+        Some(false)
+    } else {
+        None
     }
 }
 
