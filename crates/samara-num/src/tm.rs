@@ -552,6 +552,83 @@ impl Tm {
         acc + self.rem
     }
 
+    /// Per parameter `k`, the sum of `|c|` over the monomials that contain `xi_k`: how
+    /// much of the model's range depends on it (the weight by which order reduction
+    /// chooses the parameters to keep, as Girard's reduction ranks a zonotope's
+    /// generators by their norms; Girard, HSCC 2005).
+    pub fn param_weights(&self) -> Vec<f64> {
+        let n = self.t.n;
+        let mut w = vec![0.0; n];
+        for i in 1..self.t.len() {
+            let v = self.c[i].abs();
+            if v == 0.0 {
+                continue;
+            }
+            for (k, &e) in self.t.exps(i).iter().enumerate() {
+                if e > 0 {
+                    w[k] += v;
+                }
+            }
+        }
+        w
+    }
+
+    /// The model with its parameters renumbered: parameter `k` becomes `map[k]` of `n`
+    /// new ones (kept at the same order), or is dropped when `map[k]` is `None`. Every
+    /// monomial containing a dropped parameter is bounded over the box (`[0, |c|]`-style
+    /// for even monomials, `[-|c|, |c|]` otherwise) and added to the remainder, so the
+    /// result contains the model for every value of the dropped parameters: the
+    /// order-reduction step of Taylor-model flows (the dropped dependence becomes an
+    /// interval, as a zonotope's reduced generators become a box).
+    pub fn reparam(&self, map: &[Option<usize>], n: usize) -> Tm {
+        assert!(
+            map.len() >= self.t.n,
+            "Tm::reparam: {} entries for {} parameters",
+            map.len(),
+            self.t.n
+        );
+        let mut seen = vec![false; n];
+        for j in map.iter().take(self.t.n).flatten() {
+            assert!(*j < n, "Tm::reparam: parameter {j} out of {n}");
+            assert!(!seen[*j], "Tm::reparam: two parameters map to {j}");
+            seen[*j] = true;
+        }
+        let t = table(n, self.t.order);
+        let mut c = vec![0.0; t.len()];
+        c[0] = self.c[0];
+        let (mut sn, mut sp) = (0.0, 0.0);
+        let mut key = vec![0u8; n];
+        for i in 1..self.t.len() {
+            let v = self.c[i];
+            if v == 0.0 {
+                continue;
+            }
+            key.iter_mut().for_each(|e| *e = 0);
+            let mut dropped = false;
+            for (k, &e) in self.t.exps(i).iter().enumerate() {
+                if e > 0 {
+                    match map[k] {
+                        Some(j) => key[j] = e,
+                        None => dropped = true,
+                    }
+                }
+            }
+            if dropped {
+                acc_range(v, self.t.even[i], &mut sn, &mut sp);
+            } else {
+                let idx = t.index[&key] as usize;
+                // Two old monomials never meet in one new one (the map is injective on
+                // kept parameters), so this is a copy, not a sum.
+                c[idx] = v;
+            }
+        }
+        let rem = Interval {
+            lo: sum_dn(self.rem.lo, -sn),
+            hi: sum_up(self.rem.hi, sp),
+        };
+        Tm::raw(t, self.fixed, c, rem).finish()
+    }
+
     /// This model on table `t` (more parameters and/or lower order); terms above the new
     /// order are bounded into the remainder.
     fn convert(&self, t: &'static Table, fixed: bool) -> Cow<'_, Tm> {

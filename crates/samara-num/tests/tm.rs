@@ -299,6 +299,76 @@ fn arithmetic_encloses_exact_rational_values() {
 }
 
 /// Exact polynomial identities hold with tiny remainders: `(x + y)^2 = x^2 + 2xy + y^2`.
+/// `Tm::reparam` (order reduction: parameters renumbered, some dropped) keeps every
+/// value: for random models and random maps, the exact rational value of the original
+/// expression at a random point lies in the reduced model's enclosure at the point's
+/// kept coordinates, whatever the dropped coordinates were. `param_weights` is checked
+/// against the coefficients' absolute sum read off the model's bound when only one
+/// parameter varies.
+#[test]
+fn reparameterised_models_keep_every_value() {
+    let mut rng = Rng(0x5EED_00A7);
+    let mut checked = 0usize;
+    for case in 0..1500 {
+        let n = 2 + rng.below(4) as usize;
+        let order = 1 + rng.below(5) as u32;
+        let depth = 1 + rng.below(3) as u32;
+        let e = rand_expr(&mut rng, n, order, depth);
+        let t = e.tm();
+        let nv = t.n_vars();
+        // A random injective map: each parameter kept (to a shuffled new index among
+        // `n_new`) or dropped.
+        let n_new = nv + rng.below(3) as usize;
+        let mut free: Vec<usize> = (0..n_new).collect();
+        let map: Vec<Option<usize>> = (0..nv)
+            .map(|_| {
+                if rng.below(3) == 0 || free.is_empty() {
+                    None
+                } else {
+                    let k = rng.below(free.len() as u64) as usize;
+                    Some(free.swap_remove(k))
+                }
+            })
+            .collect();
+        let r = t.reparam(&map, n_new);
+        assert_eq!(r.n_vars(), n_new);
+        let w = t.param_weights();
+        assert_eq!(w.len(), nv);
+        assert!(w.iter().all(|v| *v >= 0.0), "case {case}: weights {w:?}");
+        for _ in 0..6 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+            let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+            let v = e.exact(&xq);
+            let mut yi = vec![0.0; n_new];
+            for (k, m) in map.iter().enumerate() {
+                if let Some(j) = m {
+                    yi[*j] = xi[k];
+                }
+            }
+            let at = r.eval_at(&yi);
+            assert!(
+                contains_exact(&at, &v),
+                "case {case}: exact {} not in {at:?} after reparam {map:?}\n{t:?}\n{r:?}",
+                v.to_f64().unwrap_or(f64::NAN)
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 9000);
+    // Weights: x0 + 2 x1^2 - 3 x0 x1 puts |1| + |3| on x0 and |2| + |3| on x1.
+    let x0 = Tm::var(0, 2, 3);
+    let x1 = Tm::var(1, 2, 3);
+    let t = x0.clone() + x1.sqr() * 2.0 - x0 * x1 * 3.0;
+    assert_eq!(t.param_weights(), vec![4.0, 5.0]);
+    // Dropping x1 bounds 2 x1^2 by [0, 2] and 3 x0 x1 by [-3, 3]: x0 + [-3, 5].
+    let r = t.reparam(&[Some(0), None], 1);
+    let b = r.eval_at(&[0.5]);
+    assert!(
+        b.lo <= 0.5 - 3.0 && b.hi >= 0.5 + 5.0 && b.hi - b.lo < 8.0 + 1e-12,
+        "{b:?}"
+    );
+}
+
 #[test]
 fn products_are_exact_up_to_rounding_when_the_order_suffices() {
     let x = Tm::affine(0.5, &[0.25, 0.0], 4);

@@ -791,7 +791,17 @@ fn fly_box(
         let crowded =
             max_params > 0 && x.iter().map(|v| v.n_vars()).max().unwrap_or(0) > max_params;
         if s.precondition && (crowded || needs_precondition(&x, &hull)) {
-            x = precondition(&x, s.order as u32);
+            if max_params > 0 {
+                // Symbolic remainders: order reduction, leaving room for one period's
+                // new parameters (one per network output).
+                x = reduce(
+                    &x,
+                    max_params.saturating_sub(net.n_outputs()),
+                    s.order as u32,
+                );
+            } else {
+                x = precondition(&x, s.order as u32);
+            }
         }
         sys.observe(&x, &mut obs);
         let mut y = network_over(net, &obs, s.order as u32);
@@ -1035,6 +1045,53 @@ fn inverse(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
     b.iter()
         .all(|r| r.iter().all(|v| v.is_finite()))
         .then_some(b)
+}
+
+/// Order reduction of a set of Taylor models to at most `max_params` parameters, keeping
+/// the higher-order dependence on the parameters that matter: the parameters are ranked
+/// by the share of each state's width that depends on them (`Tm::param_weights` over the
+/// state's width, summed over states, as Girard's reduction ranks a zonotope's
+/// generators; Girard, HSCC 2005), the `max_params - d` heaviest kept and renumbered, every
+/// monomial of a dropped one bounded into the remainder (`Tm::reparam`), and each state's
+/// remainder then given a fresh parameter of its own (`d` of them): the dropped
+/// dependence becomes an axis-aligned box, as a zonotope's reduced generators do. Unlike
+/// [`precondition`], the kept parameters keep their nonlinear terms and nothing is
+/// inverted.
+pub fn reduce(x: &[Tm], max_params: usize, order: u32) -> Vec<Tm> {
+    let d = x.len();
+    let n = x.iter().map(|v| v.n_vars()).max().unwrap_or(0);
+    let keep = max_params.saturating_sub(d).min(n);
+    let mut score = vec![0.0; n];
+    for v in x {
+        let w = v.bound().width();
+        if !(w.is_finite() && w > 0.0) {
+            continue;
+        }
+        for (k, pw) in v.param_weights().into_iter().enumerate() {
+            score[k] += pw / w;
+        }
+    }
+    let mut rank: Vec<usize> = (0..n).collect();
+    rank.sort_by(|&a, &b| score[b].total_cmp(&score[a]));
+    let mut kept = rank[..keep].to_vec();
+    kept.sort_unstable();
+    let mut map: Vec<Option<usize>> = vec![None; n];
+    for (j, &k) in kept.iter().enumerate() {
+        map[k] = Some(j);
+    }
+    let total = keep + d;
+    x.iter()
+        .enumerate()
+        .map(|(i, v)| {
+            let (p, r) = v.reparam(&map, total).split_rem();
+            let (m, rad) = mid_rad(r);
+            if rad > 0.0 {
+                p + Tm::var(keep + i, total, order) * rad + m
+            } else {
+                p + m
+            }
+        })
+        .collect()
 }
 
 /// Re-parameterise a set of Taylor models as a parallelotope in fresh parameters

@@ -144,3 +144,94 @@ fn a_skewed_parallelotope_keeps_its_hull() {
         );
     }
 }
+
+/// Order reduction for symbolic remainders (`samara_reach::system::reduce`) must
+/// enclose the set it replaces. The reduced models are `p_i(kept) + rad_i zeta_i + rem`
+/// with one fresh parameter `zeta_i` per state, so a point `z` of the old set (at
+/// parameter `xi`) is inside when it lies between the new models evaluated at the
+/// point's kept coordinates with `zeta_i = -1` and `zeta_i = +1`; the kept coordinates
+/// are found independently, by matching the new models' linear parts on the old ones.
+#[test]
+fn order_reduction_contains_the_old_set() {
+    use samara_reach::system::reduce;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+    let mut checked = 0;
+    let mut dropped_some = 0;
+    for case in 0..200 {
+        let d = 2 + case % 3;
+        let n = 3 + case % 6;
+        let order = 1 + (case % 3) as u32;
+        let x: Vec<Tm> = (0..d)
+            .map(|_| {
+                let mut t = Tm::cst(rng.gen_range(-5.0..5.0));
+                for k in 0..n {
+                    let v = Tm::var(k, n, order);
+                    // Parameters of very different weight, so the ranking matters.
+                    let s = 10f64.powf(rng.gen_range(-3.0..0.0));
+                    t += v.clone() * (s * rng.gen_range(-1.0..1.0));
+                    t += v.sqr() * (0.2 * s * rng.gen_range(-1.0..1.0));
+                    t += v.clone() * Tm::var((k + 1) % n, n, order) * rng.gen_range(-0.05..0.05);
+                }
+                let r = rng.gen_range(0.0..0.1);
+                t.with_rem(Interval::new(-r, rng.gen_range(0.0..0.1)))
+            })
+            .collect();
+        let max_params = d + 1 + case % 4;
+        let y = reduce(&x, max_params, order);
+        assert_eq!(y.len(), d);
+        let total = y.iter().map(|v| v.n_vars()).max().unwrap();
+        assert!(total <= max_params, "case {case}: {total} parameters");
+        let keep = total - d;
+        if keep < n {
+            dropped_some += 1;
+        }
+        // Which old parameter each kept one is: the new linear coefficient of kept
+        // parameter j equals the old one of exactly one old parameter in every state.
+        let old_lin: Vec<Vec<f64>> = x.iter().map(|t| t.linear_part().1).collect();
+        let new_lin: Vec<Vec<f64>> = y
+            .iter()
+            .map(|t| {
+                let mut g = t.linear_part().1;
+                g.resize(total, 0.0);
+                g
+            })
+            .collect();
+        let origin: Vec<usize> = (0..keep)
+            .map(|j| {
+                (0..n)
+                    .find(|&k| (0..d).all(|i| old_lin[i][k] == new_lin[i][j]))
+                    .unwrap_or_else(|| panic!("case {case}: kept parameter {j} has no origin"))
+            })
+            .collect();
+        for _ in 0..200 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..=1.0)).collect();
+            let mut at = vec![0.0; total];
+            for (j, &k) in origin.iter().enumerate() {
+                at[j] = xi[k];
+            }
+            for (i, t) in x.iter().enumerate() {
+                let e = t.eval_at(&xi);
+                let w = e.hi - e.lo;
+                let z = e.lo + 1e-9 * w + rng.gen_range(0.0..=1.0) * (1.0 - 2e-9) * w;
+                let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+                for s in [-1.0, 1.0] {
+                    at[keep + i] = s;
+                    let f = y[i].eval_at(&at);
+                    lo = lo.min(f.lo);
+                    hi = hi.max(f.hi);
+                }
+                at[keep + i] = 0.0;
+                assert!(
+                    lo <= z && z <= hi,
+                    "case {case}: state {i}: {z} not in [{lo}, {hi}]"
+                );
+                checked += 1;
+            }
+        }
+    }
+    assert!(
+        dropped_some > 100,
+        "only {dropped_some} cases dropped a parameter"
+    );
+    assert_eq!(checked, 119_800);
+}
