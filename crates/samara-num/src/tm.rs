@@ -1028,19 +1028,31 @@ impl Scalar for Tm {
     fn sqr(&self) -> Self {
         Tm::mul_ref(self, self)
     }
-    /// `max(self, 0)`. Undecided: `self + [0, max(0, -min self)]` (as `max(x, 0) - x =
-    /// max(-x, 0)`) or the interval `[0, max self]`, whichever is narrower.
+    /// `max(self, 0)`. Undecided: the chord of the triangle relaxation (below).
     fn relu(&self) -> Self {
         let b = self.bound();
         match b.sign() {
             Sign::Positive | Sign::NonNegative | Sign::Zero => self.clone(),
             Sign::Negative | Sign::NonPositive => Tm::constant_on(self.t, self.fixed, 0.0),
             Sign::Mixed => {
-                if -b.lo <= b.hi {
-                    self.clone().with_rem(Interval { lo: 0.0, hi: -b.lo })
-                } else {
-                    Tm::from_interval_on(self.t, self.fixed, Interval { lo: 0.0, hi: b.hi })
+                // The chord of the triangle relaxation (Ehlers, ATVA 2017; DeepZ's slope,
+                // Singh et al., NeurIPS 2018): with `x in [l, u]`, l < 0 < u and any
+                // `lam in [0, 1]`, `relu(x) - lam x` is convex and piecewise linear, 0 at
+                // 0, so it lies in `[0, max(-lam l, (1 - lam) u)]`; `lam = u / (u - l)`
+                // makes both ends equal. It keeps `lam` of the dependence on the
+                // parameters where the interval `[0, u]` keeps none.
+                let lam = (b.hi / (b.hi - b.lo)).clamp(0.0, 1.0);
+                if !(b.lo.is_finite() && b.hi.is_finite() && lam.is_finite()) {
+                    return Tm::from_interval_on(
+                        self.t,
+                        self.fixed,
+                        Interval { lo: 0.0, hi: b.hi },
+                    );
                 }
+                let at_lo = Interval::point(-b.lo) * Interval::point(lam);
+                let at_hi = Interval::point(b.hi) * (Interval::point(1.0) - Interval::point(lam));
+                let gap = at_lo.hi.max(at_hi.hi);
+                (self.clone() * lam).with_rem(Interval { lo: 0.0, hi: gap })
             }
         }
     }

@@ -369,6 +369,52 @@ fn reparameterised_models_keep_every_value() {
     );
 }
 
+/// `relu` of a model whose sign is undecided is the chord of the triangle relaxation,
+/// `lam x + [0, gap]`: at every point the image of the argument's enclosure lies in the
+/// result's (up to 1e-15: the chord touches relu at the enclosure's top, where the
+/// argument's own outward rounding can exceed the true value), and the gap is the relaxation's `u |l| / (u - l)` (1/2 for `xi`
+/// over `[-1, 1]`, where the interval `[0, u]` would keep no dependence).
+#[test]
+fn relu_of_undecided_models_is_the_triangle_chord() {
+    let mut rng = Rng(0x5EED_0C0D);
+    let mut mixed = 0;
+    for _ in 0..2000 {
+        let n = 1 + rng.below(3) as usize;
+        let o = 1 + rng.below(4) as u32;
+        let coef: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
+        let a = Tm::affine(rng.range(-0.8, 0.8), &coef, o);
+        let a = if rng.below(2) == 0 {
+            a.clone() + a.sqr() * rng.range(-0.5, 0.5)
+        } else {
+            a
+        };
+        if a.sign() != Sign::Mixed {
+            continue;
+        }
+        mixed += 1;
+        let r = a.relu();
+        for _ in 0..10 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+            let u = a.eval_at(&xi);
+            let got = r.eval_at(&xi);
+            let tol = 1e-15 * (1.0 + u.hi.abs());
+            assert!(
+                got.lo <= u.lo.max(0.0) + tol && u.hi.max(0.0) <= got.hi + tol,
+                "relu image [{}, {}] not in {got:?}",
+                u.lo.max(0.0),
+                u.hi.max(0.0)
+            );
+        }
+    }
+    assert!(mixed > 1000, "only {mixed} undecided models");
+    let x = Tm::var(0, 1, 3);
+    let r = x.relu();
+    for p in [-1.0, -0.5, 0.0, 0.5, 1.0] {
+        let e = r.eval_at(&[p]);
+        assert!(e.hi - e.lo <= 0.5 + 1e-12, "{e:?} at {p}");
+    }
+}
+
 #[test]
 fn products_are_exact_up_to_rounding_when_the_order_suffices() {
     let x = Tm::affine(0.5, &[0.25, 0.0], 4);

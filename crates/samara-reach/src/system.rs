@@ -810,7 +810,10 @@ fn fly_box(
             y = lift_remainders(y, n, s.order as u32);
         }
         sys.actuate(&y, &mut u);
-        match tm_period_parts(sys, &x, &u, sys.period, &s.flow) {
+        // With symbolic remainders, the flow's own remainders become parameters too.
+        let mut fs = s.flow.clone();
+        fs.max_params = max_params;
+        match tm_period_parts(sys, &x, &u, sys.period, &fs) {
             Ok((next, parts)) => {
                 let mut ph = parts
                     .first()
@@ -1058,8 +1061,16 @@ fn inverse(a: &[Vec<f64>]) -> Option<Vec<Vec<f64>>> {
 /// [`precondition`], the kept parameters keep their nonlinear terms and nothing is
 /// inverted.
 pub fn reduce(x: &[Tm], max_params: usize, order: u32) -> Vec<Tm> {
+    reduce_with(x, &[], max_params, order).0
+}
+
+/// [`reduce`] of the states `x` with the models `u` that share their parameters (the
+/// held plant inputs inside a period): the parameters are ranked on `x` alone, and `u`
+/// is renumbered by the same map (its dropped monomials bounded into its remainder, its
+/// remainder left an interval), so the two stay consistent.
+pub fn reduce_with(x: &[Tm], u: &[Tm], max_params: usize, order: u32) -> (Vec<Tm>, Vec<Tm>) {
     let d = x.len();
-    let n = x.iter().map(|v| v.n_vars()).max().unwrap_or(0);
+    let n = x.iter().chain(u).map(|v| v.n_vars()).max().unwrap_or(0);
     let keep = max_params.saturating_sub(d).min(n);
     let mut score = vec![0.0; n];
     for v in x {
@@ -1080,7 +1091,8 @@ pub fn reduce(x: &[Tm], max_params: usize, order: u32) -> Vec<Tm> {
         map[k] = Some(j);
     }
     let total = keep + d;
-    x.iter()
+    let xs = x
+        .iter()
         .enumerate()
         .map(|(i, v)| {
             let (p, r) = v.reparam(&map, total).split_rem();
@@ -1091,7 +1103,9 @@ pub fn reduce(x: &[Tm], max_params: usize, order: u32) -> Vec<Tm> {
                 p + m
             }
         })
-        .collect()
+        .collect();
+    let us = u.iter().map(|v| v.reparam(&map, total)).collect();
+    (xs, us)
 }
 
 /// Re-parameterise a set of Taylor models as a parallelotope in fresh parameters

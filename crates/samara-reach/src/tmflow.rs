@@ -46,6 +46,12 @@ pub struct TmFlowSettings {
     pub rem_rel: f64,
     /// Largest number of halvings of the period for one step (default 12).
     pub max_halvings: u32,
+    /// Symbolic remainders inside the period: when positive, after every step whose
+    /// interval remainders pass 5 % of a state's width, the states are order-reduced to
+    /// at most this many parameters and their remainders become fresh parameters
+    /// ([`crate::system::reduce_with`]), so that the next steps map them through the
+    /// flow instead of adding them up as intervals (0: off).
+    pub max_params: usize,
 }
 
 impl Default for TmFlowSettings {
@@ -56,6 +62,7 @@ impl Default for TmFlowSettings {
             rem_tol: 1e-9,
             rem_rel: 1e-7,
             max_halvings: 12,
+            max_params: 0,
         }
     }
 }
@@ -139,12 +146,14 @@ fn step(
     let tb = taylor::<Interval>(sys, &b, bu, pmax + 1);
     let tx = taylor::<Tm>(sys, x, u, pmax);
     if let (Some(tb), Some(tx)) = (&tb, &tx) {
-        // The highest time order first; where its remainder over B overflows (the
-        // interval recurrences grow fast on stiff terms), lower orders, whose
-        // coefficients are the same, with their own remainder h^{p+1} x_{p+1}(B).
-        let mut orders = vec![pmax, (pmax / 2).max(1), 1];
-        orders.dedup();
-        for p in orders {
+        // The highest time order first; where its remainder over B overflows or is too
+        // wide (the interval recurrences grow fast on stiff terms: the k-th time
+        // coefficient of sqrt(omega^2 + eps) near omega = 0 scales like eps^(-k/2)),
+        // lower orders, whose coefficients are the same, with their own remainder
+        // h^{p+1} x_{p+1}(B). At the smallest step, the order with the narrowest
+        // remainder (relative to the set's widths) is taken.
+        let mut best: Option<(f64, usize, Vec<Interval>)> = None;
+        for p in (1..=pmax).rev() {
             let hp = pow_up(h, p + 1);
             let rem: Vec<Interval> = tb.iter().map(|c| c.c[p + 1] * hp).collect();
             if !finite(&rem) {
@@ -154,9 +163,22 @@ fn step(
                 .iter()
                 .zip(&bz)
                 .any(|(r, bx)| r.hi - r.lo > s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo)));
-            if too_wide && !last_chance {
-                continue;
+            if !too_wide {
+                best = Some((0.0, p, rem));
+                break;
             }
+            if last_chance {
+                let size: f64 = rem
+                    .iter()
+                    .zip(&bz)
+                    .map(|(r, bx)| (r.hi - r.lo) / s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo)))
+                    .fold(0.0, f64::max);
+                if best.as_ref().is_none_or(|b| size < b.0) {
+                    best = Some((size, p, rem));
+                }
+            }
+        }
+        if let Some((_, p, rem)) = best {
             let next: Vec<Tm> = tx
                 .iter()
                 .zip(&rem)
@@ -268,6 +290,15 @@ fn sub_boxes(
         .collect()
 }
 
+/// Whether a state's interval remainder passes 5 % of its width.
+fn remainders_matter(x: &[Tm]) -> bool {
+    x.iter().any(|v| {
+        let r = v.rem();
+        let w = v.bound().width();
+        w > 0.0 && r.hi - r.lo > 0.05 * w
+    })
+}
+
 /// Fly the Taylor-model state `x` under the held inputs `u` for `period`: the state at
 /// the period's end and boxes that together enclose every state over `[0, period]`
 /// (per step the boxes of `sub_boxes`, or its a-priori box where no Taylor step
@@ -292,6 +323,7 @@ pub fn tm_period_parts(
     s: &TmFlowSettings,
 ) -> Result<(Vec<Tm>, Vec<Part>), TmFlowError> {
     let bu: Vec<Interval> = u.iter().map(|v| v.bound()).collect();
+    let mut u = u.to_vec();
     let jmax = s.max_halvings.min(30);
     let units: u64 = 1 << jmax; // the period in units of period / 2^jmax
     let mut pos: u64 = 0;
@@ -307,7 +339,7 @@ pub fn tm_period_parts(
         loop {
             let h = period / (1u64 << j) as f64;
             let last = j >= jmax;
-            match step(sys, &cur, u, &bu, h, s, last) {
+            match step(sys, &cur, &u, &bu, h, s, last) {
                 Some((next, b)) => {
                     let t = pos as f64 / units as f64 * period;
                     if next.iter().any(|v| {
@@ -317,6 +349,9 @@ pub fn tm_period_parts(
                         return Err(TmFlowError::Unbounded { t });
                     }
                     cur = next;
+                    if s.max_params > 0 && remainders_matter(&cur) {
+                        (cur, u) = crate::system::reduce_with(&cur, &u, s.max_params, s.order);
+                    }
                     boxes.extend(b);
                     pos += units >> j;
                     // Let the step grow again next time.

@@ -139,3 +139,86 @@ fn a_branch_undecided_over_the_set_falls_back_soundly() {
         assert!(inside(xe, next[0].eval_at(&[xi]), 1e-14), "xi = {xi}");
     }
 }
+
+/// Symbolic remainders inside the period (`TmFlowSettings::max_params`): the flow's
+/// interval remainders become parameters that the next steps map, keeping the set
+/// narrower than adding them up as intervals, and still containing the exact states.
+/// `x' = -x^2`, `y' = -x y` has the closed form `x = x0 / (1 + x0 t)`,
+/// `y = y0 / (1 + x0 t)`; at order 2 the truncation remainders pass 5 % of the widths,
+/// so they are lifted. Checked: the exact states of 2,000 starts inside the hull at
+/// every period's end, the hull within 30 % of the exact spread over 4 periods, and
+/// narrower at t = 2 than without lifting. (At order 1 the run without lifting loses
+/// its enclosure in the third period.)
+#[test]
+fn flow_remainders_as_parameters_contain_and_tighten() {
+    let s = sys("state x, y\ninput u\nx' = -x^2 + 0 * u\ny' = -x * y\nperiod 1\nhorizon 1\nobserve x\nactuate u = net[0]\ninit x in [1, 1.5]\ninit y in [1, 2]\n");
+    let order = 2;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
+    let starts: Vec<(f64, f64)> = (0..2000)
+        .map(|_| (rng.gen_range(1.0..=1.5), rng.gen_range(1.0..=2.0)))
+        .collect();
+    let mut widths = Vec::new();
+    for max_params in [0, 8] {
+        let set = TmFlowSettings {
+            order,
+            max_params,
+            ..TmFlowSettings::default()
+        };
+        let mut x = models(&[(1.0, 1.5), (1.0, 2.0)], order);
+        let u = vec![Tm::cst(0.0)];
+        let mut t = 0.0;
+        let mut grew = false;
+        let periods = 4;
+        for _ in 0..periods {
+            let (next, _) = tm_period(&s, &x, &u, 1.0, &set)
+                .unwrap_or_else(|e| panic!("max_params {max_params}, t = {t}: {e}"));
+            t += 1.0;
+            grew |= next.iter().any(|v| v.n_vars() > 2);
+            let hull: Vec<Interval> = next.iter().map(|v| v.bound()).collect();
+            let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+            for &(x0, y0) in &starts {
+                let e = [x0 / (1.0 + x0 * t), y0 / (1.0 + x0 * t)];
+                for i in 0..2 {
+                    assert!(
+                        inside(e[i], hull[i], 1e-14),
+                        "state {i} at t = {t}: {} not in {:?}",
+                        e[i],
+                        hull[i]
+                    );
+                    lo[i] = lo[i].min(e[i]);
+                    hi[i] = hi[i].max(e[i]);
+                }
+            }
+            if max_params > 0 {
+                // Exact spread: x at x0 = 1.5 and 1; y at (1.5, 1) and (1, 2).
+                let xs = 1.5 / (1.0 + 1.5 * t) - 1.0 / (1.0 + t);
+                let ys = 2.0 / (1.0 + t) - 1.0 / (1.0 + 1.5 * t);
+                eprintln!(
+                    "t = {t}: widths {} / {xs}, {} / {ys}",
+                    hull[0].width(),
+                    hull[1].width()
+                );
+                assert!(
+                    hull[0].width() <= 1.3 * xs,
+                    "x width {} vs {xs}",
+                    hull[0].width()
+                );
+                assert!(
+                    hull[1].width() <= 1.3 * ys,
+                    "y width {} vs {ys}",
+                    hull[1].width()
+                );
+            }
+            if t == 2.0 {
+                widths.push(hull[1].width());
+            }
+            x = next;
+        }
+        assert_eq!(grew, max_params > 0, "parameters added only when asked");
+    }
+    eprintln!(
+        "y width at t = 2: intervals {}, lifted {}",
+        widths[0], widths[1]
+    );
+    assert!(widths[1] < widths[0], "lifting did not tighten: {widths:?}");
+}
