@@ -292,6 +292,13 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         }
         u
     }
+    /// The product with itself, its constant term by `S::sqr` (a square of one quantity:
+    /// intervals and Taylor models know it is `>= 0`, a product of two copies does not).
+    fn sqr(&self) -> Self {
+        let mut r = self.clone() * self.clone();
+        r.c[0] = self.c[0].sqr();
+        r
+    }
     fn sqrt(&self) -> Self {
         if self.konst {
             let mut r = self.clone();

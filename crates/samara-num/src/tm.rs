@@ -296,6 +296,10 @@ pub struct Tm {
     fixed: bool,
     c: Vec<f64>,
     rem: Interval,
+    /// A lower bound of every value the model stands for (`-inf` when unknown): squares
+    /// are `>= 0`, whatever the monomial-wise bound of their polynomial says, so
+    /// `sqrt(x^2 + eps)` keeps its domain where `x` straddles 0.
+    lo: f64,
 }
 
 impl fmt::Debug for Tm {
@@ -310,6 +314,7 @@ impl fmt::Debug for Tm {
             .field("fixed", &self.fixed)
             .field("terms", &terms)
             .field("rem", &self.rem)
+            .field("lo", &self.lo)
             .finish()
     }
 }
@@ -355,7 +360,13 @@ fn acc_range(c: f64, even: bool, sn: &mut f64, sp: &mut f64) {
 
 impl Tm {
     fn raw(t: &'static Table, fixed: bool, c: Vec<f64>, rem: Interval) -> Tm {
-        Tm { t, fixed, c, rem }
+        Tm {
+            t,
+            fixed,
+            c,
+            rem,
+            lo: f64::NEG_INFINITY,
+        }
     }
 
     /// The entire model on `t`: zero polynomial, remainder the whole line.
@@ -375,7 +386,11 @@ impl Tm {
     fn constant_on(t: &'static Table, fixed: bool, v: f64) -> Tm {
         let mut c = vec![0.0; t.len()];
         c[0] = v;
-        Tm::raw(t, fixed, c, Interval::point(0.0)).finish()
+        let mut m = Tm::raw(t, fixed, c, Interval::point(0.0)).finish();
+        if v.is_finite() {
+            m.lo = v;
+        }
+        m
     }
 
     fn from_interval_on(t: &'static Table, fixed: bool, i: Interval) -> Tm {
@@ -393,7 +408,9 @@ impl Tm {
         } else {
             i
         };
-        Tm::raw(t, fixed, c, rem)
+        let mut m = Tm::raw(t, fixed, c, rem);
+        m.lo = i.lo;
+        m
     }
 
     /// The constant `c` as a model in `n` parameters of order `order`.
@@ -440,6 +457,7 @@ impl Tm {
     /// Adds `r` to the remainder (interval sum, outward rounded).
     pub fn with_rem(mut self, r: Interval) -> Tm {
         self.rem = iadd(self.rem, r);
+        self.lo = sum_dn(self.lo, r.lo);
         self.finish()
     }
 
@@ -449,6 +467,7 @@ impl Tm {
     pub fn split_rem(mut self) -> (Tm, Interval) {
         let r = self.rem;
         self.rem = Interval::point(0.0);
+        self.lo = f64::NEG_INFINITY;
         (self, r)
     }
 
@@ -496,7 +515,15 @@ impl Tm {
     /// `[0, 1]` for monomials with all exponents even) plus the remainder.
     pub fn bound(&self) -> Interval {
         let p = self.poly_range();
-        iadd(p, self.rem)
+        let b = iadd(p, self.rem);
+        if self.lo > b.lo {
+            Interval {
+                lo: self.lo.min(b.hi),
+                hi: b.hi,
+            }
+        } else {
+            b
+        }
     }
 
     /// `(constant coefficient, degree-1 coefficients)`; the vector has length `n` (zeros
@@ -626,7 +653,9 @@ impl Tm {
             lo: sum_dn(self.rem.lo, -sn),
             hi: sum_up(self.rem.hi, sp),
         };
-        Tm::raw(t, self.fixed, c, rem).finish()
+        let mut out = Tm::raw(t, self.fixed, c, rem).finish();
+        out.lo = self.lo;
+        out
     }
 
     /// This model on table `t` (more parameters and/or lower order); terms above the new
@@ -660,7 +689,9 @@ impl Tm {
         if sn != 0.0 || sp != 0.0 {
             rem = rem + Interval { lo: -sn, hi: sp };
         }
-        Cow::Owned(Tm::raw(t, fixed, c, rem).finish())
+        let mut out = Tm::raw(t, fixed, c, rem).finish();
+        out.lo = self.lo;
+        Cow::Owned(out)
     }
 
     fn into_table(self, t: &'static Table, fixed: bool) -> Tm {
@@ -691,6 +722,12 @@ impl Tm {
         if sa != 0.0 {
             a.rem = a.rem + sym(up(sa * U));
         }
+        // The sum of two values is at least the sum of their lower bounds.
+        a.lo = if s > 0.0 {
+            sum_dn(a.lo, b.lo)
+        } else {
+            f64::NEG_INFINITY
+        };
         a.finish()
     }
 
@@ -711,6 +748,11 @@ impl Tm {
         if cnt > 0 && (s.abs() != 1.0 && s != 0.0) {
             self.rem = self.rem + sym(up(up(sa * U) + cnt as f64 * ETA));
         }
+        self.lo = if s >= 0.0 && self.lo.is_finite() {
+            (Interval::point(self.lo) * s).lo
+        } else {
+            f64::NEG_INFINITY
+        };
         self.finish()
     }
 
@@ -728,6 +770,11 @@ impl Tm {
         if cnt > 0 && s.abs() != 1.0 {
             self.rem = self.rem + sym(up(up(sa * U) + cnt as f64 * ETA));
         }
+        self.lo = if s > 0.0 && self.lo.is_finite() {
+            (Interval::point(self.lo) / s).lo
+        } else {
+            f64::NEG_INFINITY
+        };
         self.finish()
     }
 
@@ -739,6 +786,7 @@ impl Tm {
         if x != 0.0 && s != 0.0 {
             self.rem = self.rem + sym(up(z.abs() * U));
         }
+        self.lo = sum_dn(self.lo, s);
         self.finish()
     }
 
@@ -821,9 +869,16 @@ impl Tm {
         let c = self.c[0];
         let mut h = self.clone();
         h.c[0] = 0.0;
-        let hb = h.bound();
+        h.lo = f64::NEG_INFINITY;
+        let mut hb = h.bound();
         if !(c.is_finite() && hb.lo.is_finite() && hb.hi.is_finite()) {
             return fallback();
+        }
+        // Every value is >= lo, so the deviation from c is >= lo - c (the Lagrange point
+        // lies between c and a value).
+        let floor = sum_dn(self.lo, -c);
+        if floor > hb.lo {
+            hb.lo = floor.min(hb.hi);
         }
         // The Lagrange point c + theta h lies in c + conv(0, H).
         let hz = Interval {
@@ -933,6 +988,7 @@ impl Neg for Tm {
             *v = -*v;
         }
         self.rem = -self.rem;
+        self.lo = f64::NEG_INFINITY;
         self
     }
 }
@@ -1002,10 +1058,19 @@ impl Scalar for Tm {
         self.expand(|s| s.atan(), |i| i.atan())
     }
     fn sqrt(&self) -> Self {
-        self.expand(|s| s.sqrt(), |i| i.sqrt())
+        let mut r = self.expand(|s| s.sqrt(), |i| i.sqrt());
+        // Only for a defined result: an out-of-domain argument stays the entire model.
+        if r.bound().hi.is_finite() {
+            r.lo = r.lo.max(Interval::point(self.lo.max(0.0)).sqrt().lo);
+        }
+        r
     }
     fn exp(&self) -> Self {
-        self.expand(|s| s.exp(), |i| i.exp())
+        let mut r = self.expand(|s| s.exp(), |i| i.exp());
+        if r.bound().hi.is_finite() {
+            r.lo = r.lo.max(0.0);
+        }
+        r
     }
     fn ln(&self) -> Self {
         self.expand(|s| s.ln(), |i| i.ln())
@@ -1026,7 +1091,9 @@ impl Scalar for Tm {
         }
     }
     fn sqr(&self) -> Self {
-        Tm::mul_ref(self, self)
+        let mut r = Tm::mul_ref(self, self);
+        r.lo = r.lo.max(0.0);
+        r
     }
     /// `max(self, 0)`. Undecided: the chord of the triangle relaxation (below).
     fn relu(&self) -> Self {

@@ -415,6 +415,83 @@ fn relu_of_undecided_models_is_the_triangle_chord() {
     }
 }
 
+/// Squares carry the lower bound 0 (`Tm`'s `lo`), through sums and positive scalings,
+/// so `sqrt(x^2 + eps)` keeps its domain where `x` straddles 0 and the monomial-wise
+/// bound of `x^2 + eps` dips below 0 (the glider's `sqrt(omega^2 + 1e-5)`). Checked at
+/// random points against the range of `sqrt(2 x^2 + eps)` over `x`'s enclosure there
+/// (libm, 1e-13 relative slack), for one and several parameters; on `Series<Tm>` the square's
+/// constant term keeps the bound too, so the series' square root stays finite.
+#[test]
+fn squares_keep_their_lower_bound() {
+    let mut rng = Rng(0x5EED_F100);
+    let eps = 1e-5;
+    let mut dipped = 0;
+    for case in 0..2000 {
+        let n = 1 + rng.below(3) as usize;
+        let o = 1 + rng.below(4) as u32;
+        // Centre small against the slopes: the set straddles 0.
+        let coef: Vec<f64> = (0..n).map(|_| rng.range(-0.01, 0.01)).collect();
+        let x = Tm::affine(rng.range(-0.004, 0.004), &coef, o);
+        let x = if rng.below(2) == 0 {
+            x.clone() + x.sqr() * rng.range(-0.5, 0.5)
+        } else {
+            x
+        };
+        let u = x.sqr() * 2.0 + eps;
+        // What the polynomial alone would say.
+        let (c0, lin) = x.linear_part();
+        let naive = c0 * c0 - 2.0 * c0.abs() * lin.iter().map(|v| v.abs()).sum::<f64>();
+        if naive + eps < 0.0 {
+            dipped += 1;
+        }
+        let b = u.bound();
+        assert!(b.lo >= eps * (1.0 - 1e-12), "case {case}: bound {b:?}");
+        let r = u.sqrt();
+        let rb = r.bound();
+        assert!(
+            rb.lo.is_finite() && rb.hi.is_finite() && rb.lo > 0.0,
+            "case {case}: {rb:?}"
+        );
+        let inv = Tm::cst(1.0) / r.clone();
+        assert!(inv.bound().hi.is_finite(), "case {case}: 1/sqrt unbounded");
+        for _ in 0..5 {
+            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+            let xv = x.eval_at(&xi);
+            // The exact argument lies in 2 [min x^2, max x^2] + eps.
+            let lo_sq = if xv.lo <= 0.0 && xv.hi >= 0.0 {
+                0.0
+            } else {
+                xv.lo.abs().min(xv.hi.abs()).powi(2)
+            };
+            let hi_sq = xv.lo.abs().max(xv.hi.abs()).powi(2);
+            let (want_lo, want_hi) = ((2.0 * lo_sq + eps).sqrt(), (2.0 * hi_sq + eps).sqrt());
+            let got = r.eval_at(&xi);
+            // The reference comes from x's outward-rounded enclosure: a hair wide.
+            let tol = 1e-13 * want_hi;
+            assert!(
+                got.lo <= want_lo + tol && want_hi <= got.hi + tol,
+                "case {case}: [{want_lo}, {want_hi}] not in {got:?}"
+            );
+        }
+    }
+    assert!(
+        dipped > 200,
+        "only {dipped} cases where the plain bound dips below 0"
+    );
+    // On series: sqrt(x(t)^2 + eps) with x(t) = x0 + t, x0 a model straddling 0.
+    let x0 = Tm::affine(0.001, &[0.01, 0.004], 3);
+    let xs = Series::<Tm, 6>::var(x0);
+    let s = (xs.sqr() + Series::cst(eps)).sqrt();
+    assert!(s.c[0].bound().lo > 0.0);
+    for k in 0..6 {
+        let b = s.c[k].bound();
+        assert!(
+            b.lo.is_finite() && b.hi.is_finite(),
+            "coefficient {k}: {b:?}"
+        );
+    }
+}
+
 #[test]
 fn products_are_exact_up_to_rounding_when_the_order_suffices() {
     let x = Tm::affine(0.5, &[0.25, 0.0], 4);

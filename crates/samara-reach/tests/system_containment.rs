@@ -277,6 +277,42 @@ fn alsomitra_reduced_sets_contain_2000_flights() {
     );
 }
 
+/// The published setting with the adversarial network (unclipped, as the CORA model
+/// applies it), one box, symbolic remainders at order 2 and the flow's remainders lifted
+/// inside the period: the sets pass omega = 0 (Taylor models carry the lower bound of
+/// squares) and reach past t = 5, where before they were lost at t = 1.87 and then 4.9.
+/// 2,000 flights inside the sets at every instant reached.
+#[test]
+#[ignore = "minutes in release; run with --ignored"]
+fn alsomitra_adversarial_taylor_sets_contain_2000_flights() {
+    let text =
+        std::fs::read_to_string(root().join("examples/archcomp/alsomitra_reduced.sys")).unwrap();
+    let sys = System::parse(&text, "alsomitra_reduced.sys").unwrap();
+    let p = root().join("../shared/reference/adversarial_model_denorm.onnx");
+    let net = samara_nn::onnx::load(&p).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e}; the published networks live in ../shared/reference (see its README)",
+            p.display()
+        )
+    });
+    let settings = SystemReachSettings {
+        order: 2,
+        max_boxes: 1,
+        network_error: Some(NetworkError::Symbolic { extra: 10 }),
+        timeout: Some(150.0),
+        ..SystemReachSettings::default()
+    };
+    let r = reach_system(&sys, &net, &settings).unwrap();
+    let n = check_contains(&sys, &net, &r, 2000, 5);
+    let reached = r.leaves.iter().map(|l| l.instants.len()).min().unwrap_or(0);
+    eprintln!("alsomitra adversarial, Taylor models: {n} points inside, sets to instant {reached}");
+    assert!(reached > 10, "the sets end at instant {reached}");
+    assert!(
+        n >= 2000 * reached,
+        "{n} points checked for {reached} instants"
+    );
+}
+
 /// The ARCH-COMP benchmarks whose controllers the competition ships as ONNX and that
 /// have no fixture here: system file, controller path under the 2023 `benchmarks/`
 /// folder (or, second, the 2024 one), the flights to check, and the competition's
