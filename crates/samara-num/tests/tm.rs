@@ -369,11 +369,24 @@ fn reparameterised_models_keep_every_value() {
     );
 }
 
+/// An affine model `c + g . xi` (`|c| < centre`, `|g_k| < slope`, `n` parameters, order
+/// `o`), half the time plus a random multiple of its square.
+fn rand_quadratic(rng: &mut Rng, n: usize, o: u32, centre: f64, slope: f64) -> Tm {
+    let coef: Vec<f64> = (0..n).map(|_| rng.range(-slope, slope)).collect();
+    let a = Tm::affine(rng.range(-centre, centre), &coef, o);
+    if rng.below(2) == 0 {
+        a.clone() + a.sqr() * rng.range(-0.5, 0.5)
+    } else {
+        a
+    }
+}
+
 /// `relu` of a model whose sign is undecided is the chord of the triangle relaxation,
 /// `lam x + [0, gap]`: at every point the image of the argument's enclosure lies in the
 /// result's (up to 1e-15: the chord touches relu at the enclosure's top, where the
-/// argument's own outward rounding can exceed the true value), and the gap is the relaxation's `u |l| / (u - l)` (1/2 for `xi`
-/// over `[-1, 1]`, where the interval `[0, u]` would keep no dependence).
+/// argument's own outward rounding can exceed the true value), and the gap is the
+/// relaxation's `u |l| / (u - l)` (1/2 for `xi` over `[-1, 1]`, where the interval
+/// `[0, u]` would keep no dependence).
 #[test]
 fn relu_of_undecided_models_is_the_triangle_chord() {
     let mut rng = Rng(0x5EED_0C0D);
@@ -381,13 +394,7 @@ fn relu_of_undecided_models_is_the_triangle_chord() {
     for _ in 0..2000 {
         let n = 1 + rng.below(3) as usize;
         let o = 1 + rng.below(4) as u32;
-        let coef: Vec<f64> = (0..n).map(|_| rng.range(-1.0, 1.0)).collect();
-        let a = Tm::affine(rng.range(-0.8, 0.8), &coef, o);
-        let a = if rng.below(2) == 0 {
-            a.clone() + a.sqr() * rng.range(-0.5, 0.5)
-        } else {
-            a
-        };
+        let a = rand_quadratic(&mut rng, n, o, 0.8, 1.0);
         if a.sign() != Sign::Mixed {
             continue;
         }
@@ -430,13 +437,7 @@ fn squares_keep_their_lower_bound() {
         let n = 1 + rng.below(3) as usize;
         let o = 1 + rng.below(4) as u32;
         // Centre small against the slopes: the set straddles 0.
-        let coef: Vec<f64> = (0..n).map(|_| rng.range(-0.01, 0.01)).collect();
-        let x = Tm::affine(rng.range(-0.004, 0.004), &coef, o);
-        let x = if rng.below(2) == 0 {
-            x.clone() + x.sqr() * rng.range(-0.5, 0.5)
-        } else {
-            x
-        };
+        let x = rand_quadratic(&mut rng, n, o, 0.004, 0.01);
         let u = x.sqr() * 2.0 + eps;
         // What the polynomial alone would say.
         let (c0, lin) = x.linear_part();

@@ -742,6 +742,11 @@ fn fly_box(
     // A set this much wider than the initial box's magnitude is lost: stop the
     // sub-box (its flow would crawl on) so that it is split.
     let scale: Vec<f64> = b.iter().map(|v| 1.0 + v.lo.abs().max(v.hi.abs())).collect();
+    // With symbolic remainders, the flow's own remainders become parameters too.
+    let flow = TmFlowSettings {
+        max_params,
+        ..s.flow.clone()
+    };
     let mut leaf = SystemLeaf {
         init: to_pairs(b),
         instants: Vec::new(),
@@ -810,10 +815,7 @@ fn fly_box(
             y = lift_remainders(y, n, s.order as u32);
         }
         sys.actuate(&y, &mut u);
-        // With symbolic remainders, the flow's own remainders become parameters too.
-        let mut fs = s.flow.clone();
-        fs.max_params = max_params;
-        match tm_period_parts(sys, &x, &u, sys.period, &fs) {
+        match tm_period_parts(sys, &x, &u, sys.period, &flow) {
             Ok((next, parts)) => {
                 let mut ph = parts
                     .first()
@@ -964,8 +966,8 @@ fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<boo
 
 /// Whether the interval remainders of `x` are large enough, against the sets' own
 /// widths (`hull`, the models' bounds), that turning them into parameters pays
-/// ([`precondition`]).
-fn needs_precondition(x: &[Tm], hull: &[Interval]) -> bool {
+/// ([`precondition`], [`reduce`], and inside a period the flow's own lifting).
+pub(crate) fn needs_precondition(x: &[Tm], hull: &[Interval]) -> bool {
     x.iter().zip(hull).any(|(v, b)| {
         let r = v.rem();
         let w = b.hi - b.lo;

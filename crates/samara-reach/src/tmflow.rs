@@ -152,6 +152,8 @@ fn step(
         // lower orders, whose coefficients are the same, with their own remainder
         // h^{p+1} x_{p+1}(B). At the smallest step, the order with the narrowest
         // remainder (relative to the set's widths) is taken.
+        // Widest remainder allowed for a state whose box is `bx`.
+        let tol = |bx: &Interval| s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo));
         let mut best: Option<(f64, usize, Vec<Interval>)> = None;
         for p in (1..=pmax).rev() {
             let hp = pow_up(h, p + 1);
@@ -159,10 +161,7 @@ fn step(
             if !finite(&rem) {
                 continue;
             }
-            let too_wide = rem
-                .iter()
-                .zip(&bz)
-                .any(|(r, bx)| r.hi - r.lo > s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo)));
+            let too_wide = rem.iter().zip(&bz).any(|(r, bx)| r.hi - r.lo > tol(bx));
             if !too_wide {
                 best = Some((0.0, p, rem));
                 break;
@@ -171,7 +170,7 @@ fn step(
                 let size: f64 = rem
                     .iter()
                     .zip(&bz)
-                    .map(|(r, bx)| (r.hi - r.lo) / s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo)))
+                    .map(|(r, bx)| (r.hi - r.lo) / tol(bx))
                     .fold(0.0, f64::max);
                 if best.as_ref().is_none_or(|b| size < b.0) {
                     best = Some((size, p, rem));
@@ -290,15 +289,6 @@ fn sub_boxes(
         .collect()
 }
 
-/// Whether a state's interval remainder passes 5 % of its width.
-fn remainders_matter(x: &[Tm]) -> bool {
-    x.iter().any(|v| {
-        let r = v.rem();
-        let w = v.bound().width();
-        w > 0.0 && r.hi - r.lo > 0.05 * w
-    })
-}
-
 /// Fly the Taylor-model state `x` under the held inputs `u` for `period`: the state at
 /// the period's end and boxes that together enclose every state over `[0, period]`
 /// (per step the boxes of `sub_boxes`, or its a-priori box where no Taylor step
@@ -349,8 +339,11 @@ pub fn tm_period_parts(
                         return Err(TmFlowError::Unbounded { t });
                     }
                     cur = next;
-                    if s.max_params > 0 && remainders_matter(&cur) {
-                        (cur, u) = crate::system::reduce_with(&cur, &u, s.max_params, s.order);
+                    if s.max_params > 0 {
+                        let hull: Vec<Interval> = cur.iter().map(|v| v.bound()).collect();
+                        if crate::system::needs_precondition(&cur, &hull) {
+                            (cur, u) = crate::system::reduce_with(&cur, &u, s.max_params, s.order);
+                        }
                     }
                     boxes.extend(b);
                     pos += units >> j;

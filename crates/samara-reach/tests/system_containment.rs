@@ -243,6 +243,17 @@ fn double_pendulum_less_robust_sets_contain_flights() {
     assert_ne!(r.verdict.name(), "violated", "ARCH-COMP: verified");
 }
 
+/// A published network of the case study, from `../shared/reference`.
+fn reference_net(file: &str) -> samara_nn::Network {
+    let p = root().join("../shared/reference").join(file);
+    samara_nn::onnx::load(&p).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e}; the published networks live in ../shared/reference (see its README)",
+            p.display()
+        )
+    })
+}
+
 /// The published Alsomitra setting through the system path (the shipped
 /// alsomitra_reduced.sys with the simulation's clip): 2,000 flights inside the sets at
 /// every instant they reach. The Taylor-model path does not enclose this setting to the
@@ -259,13 +270,7 @@ fn alsomitra_reduced_sets_contain_2000_flights() {
             "actuate ex = net[0] clip [0.181, 0.193]",
         );
     let sys = System::parse(&text, "alsomitra_reduced.sys").unwrap();
-    let p = root().join("../shared/reference/base_model_denorm.onnx");
-    let net = samara_nn::onnx::load(&p).unwrap_or_else(|e| {
-        panic!(
-            "{}: {e}; the published networks live in ../shared/reference (see its README)",
-            p.display()
-        )
-    });
+    let net = reference_net("base_model_denorm.onnx");
     let r = reach_system(&sys, &net, &SystemReachSettings::default()).unwrap();
     let n = check_contains(&sys, &net, &r, 2000, 3);
     let reached = r.leaves.iter().map(|l| l.instants.len()).min().unwrap_or(0);
@@ -288,13 +293,7 @@ fn alsomitra_adversarial_taylor_sets_contain_2000_flights() {
     let text =
         std::fs::read_to_string(root().join("examples/archcomp/alsomitra_reduced.sys")).unwrap();
     let sys = System::parse(&text, "alsomitra_reduced.sys").unwrap();
-    let p = root().join("../shared/reference/adversarial_model_denorm.onnx");
-    let net = samara_nn::onnx::load(&p).unwrap_or_else(|e| {
-        panic!(
-            "{}: {e}; the published networks live in ../shared/reference (see its README)",
-            p.display()
-        )
-    });
+    let net = reference_net("adversarial_model_denorm.onnx");
     let settings = SystemReachSettings {
         order: 2,
         max_boxes: 1,
