@@ -579,6 +579,69 @@ impl Tm {
         acc + self.rem
     }
 
+    /// Number of monomials of the model's table (constant, then the degree-1 ones
+    /// `xi_0 .. xi_{n-1}`, then higher degrees in graded order): the range of the
+    /// indices [`Tm::coef`], [`Tm::term`] and [`Tm::term_degree`] take.
+    pub fn n_terms(&self) -> usize {
+        self.t.len()
+    }
+
+    /// The coefficient of monomial `i` (see [`Tm::n_terms`]).
+    pub fn coef(&self, i: usize) -> f64 {
+        self.c[i]
+    }
+
+    /// Total degree of monomial `i`.
+    pub fn term_degree(&self, i: usize) -> u32 {
+        self.t.deg[i]
+    }
+
+    /// Whether every exponent of monomial `i` is even (its range over the box is
+    /// `[0, 1]` instead of `[-1, 1]`).
+    pub fn term_even(&self, i: usize) -> bool {
+        self.t.even[i]
+    }
+
+    /// Monomial `i` of this model's table as a model of its own (coefficient 1, no
+    /// remainder): with [`Tm::coef`], a caller can treat a model's higher-order terms as
+    /// extra variables and substitute them back exactly.
+    pub fn term(&self, i: usize) -> Tm {
+        let mut c = vec![0.0; self.t.len()];
+        c[i] = 1.0;
+        let mut m = Tm::raw(self.t, true, c, Interval::point(0.0));
+        if self.t.even[i] {
+            m.lo = 0.0;
+        }
+        m
+    }
+
+    /// `cst + sum a * m_i` over `terms = [(i, a), ..]` on this model's table (`m_i` its
+    /// monomials, each index at most once, `i >= 1`), remainder zero: the coefficients
+    /// are placed as given, so the result is exact.
+    ///
+    /// # Panics
+    /// If an index is 0, out of range or repeated.
+    pub fn from_terms(&self, cst: f64, terms: &[(usize, f64)]) -> Tm {
+        let mut c = vec![0.0; self.t.len()];
+        let mut seen = vec![false; self.t.len()];
+        c[0] = cst;
+        for &(i, a) in terms {
+            assert!(
+                i >= 1 && i < c.len() && !seen[i],
+                "Tm::from_terms: bad or repeated index {i}"
+            );
+            seen[i] = true;
+            c[i] = a;
+        }
+        Tm::raw(self.t, true, c, Interval::point(0.0)).finish()
+    }
+
+    /// Whether `self` and `other` have the same parameters and order (one monomial
+    /// table), so that their coefficients line up index by index.
+    pub fn same_basis(&self, other: &Tm) -> bool {
+        std::ptr::eq(self.t, other.t)
+    }
+
     /// Per parameter `k`, the sum of `|c|` over the monomials that contain `xi_k`: how
     /// much of the model's range depends on it (the weight by which order reduction
     /// chooses the parameters to keep, as Girard's reduction ranks a zonotope's

@@ -592,11 +592,145 @@ fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
         .collect()
 }
 
-/// The network over a set of inputs given as Taylor models: CROWN on the linear part,
-/// the rest as a noise box (any network `samara_bounds::linset` supports); for networks
-/// without piecewise-linear layers also the network evaluated on the Taylor models,
-/// keeping the narrower result per output.
-fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
+/// Most higher-order monomials of the inputs' Taylor models the network step keeps as
+/// variables of their own (the heaviest; the others go into the noise box).
+const MAX_TERM_VARS: usize = 160;
+
+/// The inputs' Taylor models on one monomial table (`None` if they cannot share one).
+fn common_basis(obs: &[Tm], order: u32) -> Option<(Tm, Vec<Tm>)> {
+    let n = obs.iter().map(|v| v.n_vars()).max().unwrap_or(0);
+    let base = Tm::constant(0.0, n, order);
+    let obs: Vec<Tm> = obs.iter().map(|v| v.clone() + base.clone()).collect();
+    obs.iter()
+        .all(|v| v.same_basis(&base))
+        .then_some((base, obs))
+}
+
+/// The network over a set of inputs given as Taylor models, by CROWN over a linear set
+/// whose variables are the parameters *and* the inputs' heaviest higher-order monomials
+/// (each monomial `m` a variable of its own over its range, `[-1, 1]`, or `[0, 1]` for
+/// even ones): CROWN's affine bounds in those variables are then substituted back into
+/// the monomials exactly, so the outputs keep the inputs' polynomial dependence instead
+/// of bounding it into a box (the polynomial abstraction of the network's input set, as
+/// POLAR and CORA's polynomial zonotopes keep it; Huang et al., ATVA 2022; Kochdumper et
+/// al., "Open- and closed-loop neural network verification using polynomial
+/// zonotopes", NFM 2023). The other monomials and the remainders form the noise box.
+/// For networks without piecewise-linear layers the network evaluated on the Taylor
+/// models is also computed, and the narrower result per output kept.
+pub fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
+    let Some((base, obs)) = common_basis(obs, order) else {
+        return network_over_linear(net, obs, order);
+    };
+    let n = base.n_vars();
+    // Monomials of degree >= 2 by weight (sum of |coefficient| over the inputs).
+    let mut weight: Vec<(usize, f64)> = (n + 1..base.n_terms())
+        .filter_map(|m| {
+            let w: f64 = obs.iter().map(|v| v.coef(m).abs()).sum();
+            // Even monomials are shifted to [-1, 1] by halving: only where that is exact.
+            let halves = obs.iter().all(|v| {
+                let h = v.coef(m);
+                (h * 0.5) * 2.0 == h
+            });
+            (w > 0.0 && halves).then_some((m, w))
+        })
+        .collect();
+    if order < 2 || weight.is_empty() {
+        return network_over_linear(net, &obs, order);
+    }
+    weight.sort_by(|a, b| b.1.total_cmp(&a.1));
+    weight.truncate(MAX_TERM_VARS);
+    let mons: Vec<usize> = weight.iter().map(|&(m, _)| m).collect();
+    let mut kept = vec![false; base.n_terms()];
+    for &m in &mons {
+        kept[m] = true;
+    }
+    let mut c = Vec::with_capacity(obs.len());
+    let mut noise = Vec::with_capacity(obs.len());
+    let mut gens: Vec<Vec<f64>> = vec![Vec::with_capacity(obs.len()); n + mons.len()];
+    for o in &obs {
+        // The monomials not kept, plus the remainder: the noise box around its midpoint.
+        let rest: Vec<(usize, f64)> = (n + 1..o.n_terms())
+            .filter(|&m| !kept[m] && o.coef(m) != 0.0)
+            .map(|m| (m, o.coef(m)))
+            .collect();
+        let r = o.from_terms(0.0, &rest).bound() + o.rem();
+        let (mr, r0) = mid_rad(r);
+        // Centre: constant + the noise box's midpoint + half of each kept even monomial
+        // (`h m = h/2 + (h/2) nu` with `nu = 2 m - 1` in [-1, 1]), summed outward.
+        let mut centre = Interval::point(o.coef(0)) + Interval::point(mr);
+        for (k, g) in gens.iter_mut().enumerate() {
+            if k < n {
+                g.push(o.coef(k + 1));
+            } else {
+                let m = mons[k - n];
+                let h = o.coef(m);
+                if o.term_even(m) {
+                    centre += Interval::point(h * 0.5);
+                    g.push(h * 0.5);
+                } else {
+                    g.push(h);
+                }
+            }
+        }
+        let (cm, cr) = mid_rad(centre);
+        c.push(cm);
+        noise.push((r0 + cr).next_up());
+    }
+    let Ok(e) = samara_bounds::linset::bound_over_linear_set(net, &c, &gens, &noise) else {
+        return network_over_linear(net, &obs, order);
+    };
+    let from_terms: Vec<Tm> = (0..net.n_outputs())
+        .map(|j| {
+            let a = &e.coef[j];
+            let mut terms: Vec<(usize, f64)> = (0..n).map(|k| (k + 1, a[k])).collect();
+            // `a nu = 2 a m - a` for an even monomial: the constant moves, outward.
+            let mut cst = Interval::point(e.cst[j]);
+            for (k, &m) in mons.iter().enumerate() {
+                let ak = a[n + k];
+                if base.term_even(m) {
+                    terms.push((m, 2.0 * ak));
+                    cst -= Interval::point(ak);
+                } else {
+                    terms.push((m, ak));
+                }
+            }
+            let (cm, cr) = mid_rad(cst);
+            let dev = (e.dev[j] + cr).next_up();
+            base.from_terms(cm, &terms)
+                .with_rem(Interval { lo: -dev, hi: dev })
+        })
+        .collect();
+    let direct = smooth_direct(net, &obs);
+    from_terms
+        .into_iter()
+        .enumerate()
+        .map(|(j, a)| narrower(a, direct.as_ref().map(|d| d[j].clone())))
+        .collect()
+}
+
+/// The network evaluated on the Taylor models, for networks without piecewise-linear
+/// layers (where the smooth activations' Taylor models can beat CROWN's lines).
+fn smooth_direct(net: &Network, obs: &[Tm]) -> Option<Vec<Tm>> {
+    let smooth = !net
+        .layers
+        .iter()
+        .any(|l| matches!(l, samara_nn::Layer::Act(a) if a.is_piecewise_linear()));
+    smooth.then(|| net.eval::<Tm>(obs))
+}
+
+/// The narrower of two enclosures of one output (by the width of their bounds).
+fn narrower(a: Tm, b: Option<Tm>) -> Tm {
+    match b {
+        Some(b) if b.bound().width() < a.bound().width() => b,
+        _ => a,
+    }
+}
+
+/// The network over Taylor-model inputs by CROWN on their linear parts, everything of
+/// degree >= 2 and the remainders as a noise box (any network `samara_bounds::linset`
+/// supports); for networks without piecewise-linear layers also the network evaluated
+/// on the Taylor models, keeping the narrower result per output.
+fn network_over_linear(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
     // Linear parts over every parameter any input depends on (after a
     // re-parameterisation there are more than the initial set's).
     let (c0s, g) = linear_parts(obs);
@@ -618,15 +752,7 @@ fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
         .map(|k| g.iter().map(|row: &Vec<f64>| row[k]).collect())
         .collect();
     let crown = samara_bounds::linset::bound_over_linear_set(net, &c, &gens, &noise).ok();
-    let smooth = !net
-        .layers
-        .iter()
-        .any(|l| matches!(l, samara_nn::Layer::Act(a) if a.is_piecewise_linear()));
-    let direct: Option<Vec<Tm>> = if smooth {
-        Some(net.eval::<Tm>(obs))
-    } else {
-        None
-    };
+    let direct = smooth_direct(net, obs);
     let n_out = net.n_outputs();
     (0..n_out)
         .map(|j| {
@@ -638,15 +764,7 @@ fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
             });
             let from_direct = direct.as_ref().map(|d| d[j].clone());
             match (from_crown, from_direct) {
-                (Some(a), Some(b)) => {
-                    let (wa, wb) = (a.bound().width(), b.bound().width());
-                    if wb < wa {
-                        b
-                    } else {
-                        a
-                    }
-                }
-                (Some(a), None) => a,
+                (Some(a), b) => narrower(a, b),
                 (None, Some(b)) => b,
                 (None, None) => {
                     // Not supported by CROWN: interval evaluation over the hull.

@@ -243,6 +243,37 @@ fn double_pendulum_less_robust_sets_contain_flights() {
     assert_ne!(r.verdict.name(), "violated", "ARCH-COMP: verified");
 }
 
+/// ARCH-COMP's double pendulum with the less robust controller, the 2024 box (verified
+/// by JuliaReach with 72 hand-placed boxes and TMJets at order 5): proved with symbolic
+/// remainders at order 3, the network step keeping the inputs' higher-order monomials,
+/// and automatic splitting; then 2,000 flights inside the sets at every instant and
+/// every output time of every period.
+#[test]
+#[ignore = "about 6 minutes in release on 2 cores; run with --ignored"]
+fn double_pendulum_less_robust_is_proved_and_contains_2000_flights() {
+    let sys = system("double_pendulum.sys");
+    let net = fixture("controller_double_pendulum_less_robust.onnx");
+    let s = SystemReachSettings {
+        order: 3,
+        max_boxes: 128,
+        network_error: Some(NetworkError::Symbolic { extra: 10 }),
+        timeout: Some(1800.0),
+        ..Default::default()
+    };
+    let t = std::time::Instant::now();
+    let r = reach_system(&sys, &net, &s).unwrap();
+    let n = check_contains(&sys, &net, &r, 2000, 17);
+    eprintln!(
+        "double pendulum (less robust): {} in {:.1} s, {} sub-boxes, {n} points inside",
+        r.verdict.name(),
+        t.elapsed().as_secs_f64(),
+        r.leaves.len()
+    );
+    assert_eq!(r.verdict.name(), "proved", "{:?}", r.verdict);
+    let instants = sys.steps() + 1;
+    assert!(n >= 2000 * instants, "{n} points for {instants} instants");
+}
+
 /// A published network of the case study, from `../shared/reference`.
 fn reference_net(file: &str) -> samara_nn::Network {
     let p = root().join("../shared/reference").join(file);
