@@ -44,7 +44,7 @@ const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
 
 /// Flags of `samara reach`. The defaults are the published CORA setting: reduced
 /// model, start (1, 0, 0, 0, 0, y0) with y0 in [1.4286, 4.2857], period 0.5, horizon 20.
-#[derive(clap::Args, Debug)]
+#[derive(clap::Args, Debug, Clone)]
 pub struct ReachArgs {
     /// The controller network (`.onnx`, 6 raw inputs v_xp, v_yp, omega, theta, x, y;
     /// 1 raw output ex), e.g. base_model_denorm.onnx.
@@ -106,9 +106,11 @@ pub struct ReachArgs {
     #[arg(long, allow_hyphen_values = true)]
     pub order: Option<usize>,
     /// Set representation of the built-in glider setting: `zonotope` (affine sets with
-    /// interval remainders, the Lohner flow) or `taylor` (Taylor models in the initial-set
-    /// parameters: the same setting run as the shipped system file). --system always uses
-    /// Taylor models.
+    /// interval remainders, the Lohner flow), `taylor` (Taylor models in the initial-set
+    /// parameters: the same setting run as the shipped system file) or `auto` (zonotope
+    /// sets, the faster and tighter on every glider setting measured; where they leave
+    /// the goal unknown, Taylor-model sets as well, written to OUT/taylor, with --order,
+    /// --timeout and --network-error). --system always uses Taylor models.
     #[arg(long, default_value = "zonotope")]
     pub sets: String,
     /// Wall-clock budget in seconds for Taylor-model runs (--system, --sets taylor),
@@ -472,19 +474,46 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         return crate::reach_system::run(a, sys);
     }
     match a.sets.as_str() {
-        "zonotope" => check_zonotope_flags(a)?,
-        "taylor" => {
-            let plan = plan(a, false)?;
-            let sys = crate::reach_system::builtin_system(&plan.settings)?;
-            return crate::reach_system::run_system(
-                a,
-                &sys,
-                Path::new("built-in setting"),
-                &plan.net,
-            );
+        "zonotope" => {
+            check_zonotope_flags(a)?;
+            Ok(run_zonotope(a, false)?.0)
         }
-        other => bail!("--sets {other}: give zonotope or taylor"),
+        "taylor" => run_taylor(a),
+        "auto" => {
+            // The Taylor-model flags are checked now, not after the zonotope run.
+            crate::reach_system::taylor_settings(a)?;
+            let (code, unknown) = run_zonotope(a, true)?;
+            if !unknown {
+                return Ok(code);
+            }
+            let mut t = a.clone();
+            t.sets = "taylor".into();
+            t.out = a.out.join("taylor");
+            // The zonotope run started the thread pool already.
+            t.threads = None;
+            eprintln!(
+                "--sets auto: the zonotope sets left the goal unknown (reach.json in {}); now Taylor-model sets, written to {}",
+                a.out.display(),
+                t.out.display()
+            );
+            run_taylor(&t)
+        }
+        other => bail!("--sets {other}: give zonotope, taylor or auto"),
     }
+}
+
+/// The built-in glider setting on Taylor-model sets: the shipped system file of the
+/// model with the flags' initial set, period, horizon, clip and goal.
+fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
+    let plan = plan(a, false)?;
+    let sys = crate::reach_system::builtin_system(&plan.settings)?;
+    crate::reach_system::run_system(a, &sys, Path::new("built-in setting"), &plan.net)
+}
+
+/// The built-in glider setting on zonotope sets; also whether the verdict is `unknown`.
+/// With `quiet_unknown` an `unknown` verdict is reported on stderr only (files written),
+/// leaving stdout to the run that follows (`--sets auto`).
+fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> {
     let plan = plan(a, false)?;
     start_threads(a)?;
     // Output directory: create and probe before the (possibly long) analysis; a failed
@@ -520,7 +549,13 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         plan.settings.goal.as_ref().map(|g| g.ystar),
     )
     .render(&a.out.join("reach.png"), &a.out.join("reach.svg"))?;
-    finish(&o, &plan.settings, &a.out, a.json, out)
+    let unknown = matches!(o.verdict, Verdict::Unknown { .. });
+    if unknown && quiet_unknown {
+        eprintln!("{}", human_line(&plan.settings, &o));
+        out.keep();
+        return Ok((ExitCode::from(1), true));
+    }
+    Ok((finish(&o, &plan.settings, &a.out, a.json, out)?, unknown))
 }
 
 /// Print the verdict (or the JSON summary), keep the output folder, and the exit code.
@@ -742,10 +777,10 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     }
     match a.sets.as_str() {
         "zonotope" => check_zonotope_flags(a)?,
-        "taylor" => {
-            bail!("--shard applies to zonotope sets; --sets taylor runs are not sharded ({why})")
+        "taylor" | "auto" => {
+            bail!("--shard applies to zonotope sets (--sets zonotope); --sets {} runs are not sharded ({why})", a.sets)
         }
-        other => bail!("--sets {other}: give zonotope or taylor"),
+        other => bail!("--sets {other}: give zonotope, taylor or auto"),
     }
     let plan = plan(a, true)?;
     let s = &plan.settings;

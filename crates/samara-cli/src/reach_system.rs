@@ -73,27 +73,7 @@ pub fn run_system(
     net: &samara_nn::Network,
 ) -> Result<ExitCode> {
     crate::simulate::check_fits("--network", &a.network, net, sys, path)?;
-    let mut s = SystemReachSettings::default();
-    if let Some(k) = a.order {
-        if !(1..=8).contains(&k) {
-            bail!("--order {k}: give 1 to 8 (3-5 is usual; higher orders cost more per step)");
-        }
-        s.order = k;
-    }
-    if let Some(t) = a.timeout {
-        if !(t.is_finite() && t > 0.0 && t <= 1e7) {
-            bail!("--timeout {t}: give a number of seconds, positive and at most 1e7");
-        }
-        s.timeout = Some(t);
-    }
-    if let Some(v) = &a.network_error {
-        s.network_error = parse_network_error(v)?;
-        // Symbolic remainders go with order 3 unless --order says otherwise (as in
-        // the automatic choice, samara_reach::system::NETWORK_ERROR_LADDER).
-        if a.order.is_none() && matches!(s.network_error, Some(NetworkError::Symbolic { .. })) {
-            s.order = 3;
-        }
-    }
+    let mut s = taylor_settings(a)?;
     crate::reach::check_budget(a, s.max_boxes)?;
     if let Some(n) = a.max_leaves {
         s.max_boxes = n;
@@ -247,4 +227,31 @@ pub fn builtin_system(s: &samara_reach::ReachSettings) -> Result<samara_system::
     }
     samara_system::System::parse(&src, &format!("{file} (built-in setting)"))
         .map_err(|e| anyhow!("the built-in setting as a system file: {e}"))
+}
+
+/// The Taylor-model settings the flags give (`--order`, `--timeout`, `--network-error`),
+/// checked; `--sets auto` checks them before its zonotope run.
+pub(crate) fn taylor_settings(a: &ReachArgs) -> Result<SystemReachSettings> {
+    let mut s = SystemReachSettings::default();
+    if let Some(k) = a.order {
+        if !(1..=8).contains(&k) {
+            bail!("--order {k}: give 1 to 8 (3-5 is usual; higher orders cost more per step)");
+        }
+        s.order = k;
+    }
+    if let Some(t) = a.timeout {
+        if !(t.is_finite() && t > 0.0 && t <= 1e7) {
+            bail!("--timeout {t}: give a number of seconds, positive and at most 1e7");
+        }
+        s.timeout = Some(t);
+    }
+    if let Some(v) = &a.network_error {
+        s.network_error = parse_network_error(v)?;
+        // Symbolic remainders go with order 3 unless --order says otherwise (as in
+        // the automatic choice, samara_reach::system::NETWORK_ERROR_LADDER).
+        if a.order.is_none() && matches!(s.network_error, Some(NetworkError::Symbolic { .. })) {
+            s.order = 3;
+        }
+    }
+    Ok(s)
 }

@@ -427,3 +427,59 @@ fn reach_flies_the_specs_loop() {
         assert!(!dir.path().join("bad").exists());
     }
 }
+
+/// `--sets auto`: zonotope sets first; Taylor-model sets (in OUT/taylor) only where the
+/// zonotopes leave the goal unknown. The unknown case is built from a first run: a goal
+/// threshold between the sampled flights' largest `x + y` and the zonotope enclosure's
+/// upper end, so no flight violates it and the one-box zonotope set cannot prove it.
+#[test]
+fn sets_auto_adds_taylor_models_only_where_zonotopes_leave_the_goal_unknown() {
+    let net = reference("adversarial_model_denorm.onnx");
+    let dir = tempfile::tempdir().unwrap();
+    let run = |out: &Path, ystar: &str| {
+        samara()
+            .arg("reach")
+            .arg("--network")
+            .arg(&net)
+            .args(["--y0", "2.0:2.05", "--horizon", "0.5", "--max-leaves", "1"])
+            .args(["--goal-ystar", ystar, "--sets", "auto", "--order", "2"])
+            .args(["--timeout", "60", "--threads", "2", "--json", "--out"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let decided = dir.path().join("decided");
+    let o = run(&decided, "100");
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["verdict"], "proved");
+    assert!(
+        !decided.join("taylor").exists(),
+        "Taylor models ran on a decided goal"
+    );
+    let hi = s["final_x_plus_y"][1].as_f64().unwrap();
+    let shi = s["sampled_x_plus_y"][1].as_f64().unwrap();
+    assert!(hi > shi, "enclosure {hi} vs sampled {shi}");
+    let ystar = format!("{:.17}", 0.5 * (hi + shi));
+
+    let undecided = dir.path().join("undecided");
+    let o = run(&undecided, &ystar);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(matches!(o.status.code(), Some(0 | 1)), "{err}");
+    assert!(err.contains("now Taylor-model sets"), "{err}");
+    let z: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(undecided.join("reach.json")).unwrap())
+            .unwrap();
+    assert_eq!(z["verdict"]["verdict"], "unknown", "{z}");
+    assert!(undecided.join("taylor/reach.json").is_file());
+    // stdout holds one JSON document: the Taylor-model run's summary.
+    let t: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let v = t["verdict"]["verdict"].as_str().unwrap();
+    assert!(v == "proved" || v == "unknown", "{t}");
+    assert_eq!(o.status.code(), Some(if v == "proved" { 0 } else { 1 }));
+}

@@ -544,6 +544,7 @@ fn reach_merge_refuses_shards_that_do_not_make_one_run() {
     for extra in [
         vec!["--system".as_ref(), sys.as_os_str()],
         vec!["--sets".as_ref(), "taylor".as_ref()],
+        vec!["--sets".as_ref(), "auto".as_ref()],
     ] {
         let mut e: Vec<&OsStr> = extra;
         e.extend([
