@@ -112,7 +112,9 @@ pub fn run_system(
         eprintln!("wrote {}", a.out.display());
     }
     Ok(match res.verdict {
-        SystemVerdict::Proved | SystemVerdict::NoGoal => ExitCode::SUCCESS,
+        SystemVerdict::Proved => ExitCode::SUCCESS,
+        // Without a goal, success means sets to the horizon.
+        SystemVerdict::NoGoal if lost(&res).is_none() => ExitCode::SUCCESS,
         _ => ExitCode::from(1),
     })
 }
@@ -146,7 +148,13 @@ fn summary(r: &SystemReach) -> serde_json::Value {
         "network_error": r.network_error,
         "seconds": r.seconds,
         "final": r.instants.last(),
+        "lost": lost(r),
     })
+}
+
+/// Why a sub-box's enclosure was lost before the horizon, if one was.
+fn lost(r: &SystemReach) -> Option<String> {
+    r.leaves.iter().find_map(|l| l.failure.clone())
 }
 
 fn human_line(path: &Path, r: &SystemReach) -> String {
@@ -156,7 +164,12 @@ fn human_line(path: &Path, r: &SystemReach) -> String {
             format!("violated: the flight from {initial:?} misses `{goal}`")
         }
         SystemVerdict::Unknown { reason } => format!("unknown: {reason}"),
-        SystemVerdict::NoGoal => "no goal in the file; sets computed".to_string(),
+        SystemVerdict::NoGoal => match lost(r) {
+            None => "no goal in the file; sets computed to the horizon".to_string(),
+            Some(f) => format!(
+                "no goal in the file; sets computed only until the enclosure was lost: {f} (reach.json has the instants reached)"
+            ),
+        },
     };
     let ne = match r.network_error {
         NetworkError::Interval => "interval".to_string(),

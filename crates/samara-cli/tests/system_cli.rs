@@ -188,3 +188,49 @@ fn bad_reach_system_inputs_exit_2_and_leave_nothing() {
         assert!(!out.exists(), "{args:?}: output folder left behind");
     }
 }
+
+/// A run without a goal whose Taylor-model enclosure is lost before the horizon says so
+/// and exits 1 instead of reporting the sets as computed: the glider's six-state set
+/// (issue 14), lost in the second period, through the system path (`--sets taylor`).
+#[test]
+fn sets_lost_without_a_goal_exit_1_and_say_where() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let glider = support::reference("adversarial_model_denorm.onnx");
+    let (code, stdout, stderr) = run(&[
+        "reach",
+        "--network",
+        glider.to_str().unwrap(),
+        "--sets",
+        "taylor",
+        "--max-leaves",
+        "1",
+        "--order",
+        "2",
+        "--network-error",
+        "symbolic:10",
+        "--horizon",
+        "2",
+        "--init",
+        "v_xp=0.99:1.01",
+        "--init",
+        "v_yp=-0.01:0.01",
+        "--init",
+        "omega=-0.01:0.01",
+        "--init",
+        "theta=-0.01:0.01",
+        "--init",
+        "x=-0.05:0.05",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, 1, "{stdout}{stderr}");
+    let v: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["verdict"]["verdict"], "none");
+    assert!(v["lost"].as_str().is_some_and(|s| !s.is_empty()), "{v}");
+    let r: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("reach.json")).unwrap()).unwrap();
+    let reached = r["result"]["instants"].as_array().unwrap().len();
+    assert!((1..5).contains(&reached), "{reached} instants of 5");
+}
