@@ -152,7 +152,7 @@ fn summary(r: &SystemReach) -> serde_json::Value {
     })
 }
 
-/// Why a sub-box's enclosure was lost before the horizon, if one was.
+/// Why a sub-box's sets stop before the horizon (enclosure lost, time budget spent), if one does.
 fn lost(r: &SystemReach) -> Option<String> {
     r.leaves.iter().find_map(|l| l.failure.clone())
 }
@@ -167,7 +167,7 @@ fn human_line(path: &Path, r: &SystemReach) -> String {
         SystemVerdict::NoGoal => match lost(r) {
             None => "no goal in the file; sets computed to the horizon".to_string(),
             Some(f) => format!(
-                "no goal in the file; sets computed only until the enclosure was lost: {f} (reach.json has the instants reached)"
+                "no goal in the file; the sets stop before the horizon: {f} (reach.json has the instants reached)"
             ),
         },
     };
