@@ -333,12 +333,10 @@ pub fn reach_system(
         let leaf = fly_box(sys, net, &init, s, mode, deadline);
         leaves.push(leaf);
         v
-    } else if sys.goals.is_empty() {
-        leaves.push(fly_box(sys, net, &init, s, mode, deadline));
-        SystemVerdict::NoGoal
     } else {
-        // The whole initial set first, in each mode of the ladder until one decides;
-        // else the sub-boxes are flown in the mode that got furthest.
+        // The whole initial set first, in each mode of the ladder until one decides
+        // (without goals: until one keeps its enclosure to the horizon); else the
+        // sub-boxes are flown in the mode that got furthest.
         let mut root: Option<SystemLeaf> = None;
         if s.network_error.is_none() {
             let mut best: Option<(usize, NetworkError, SystemReachSettings, SystemLeaf)> = None;
@@ -349,8 +347,8 @@ pub fn reach_system(
                     rs.flow.order = rs.order as u32;
                 }
                 let l = fly_box(sys, net, &init, &rs, m, deadline);
-                let done =
-                    l.decided.contains(&Some(false)) || l.decided.iter().all(|d| *d == Some(true));
+                let done = l.decided.contains(&Some(false))
+                    || (l.failure.is_none() && l.decided.iter().all(|d| *d == Some(true)));
                 let p = progress(&l, sys);
                 if done {
                     best = Some((usize::MAX, m, rs, l));
@@ -388,7 +386,9 @@ pub fn reach_system(
                     let centre: Vec<f64> = l.init.iter().map(|v| 0.5 * (v[0] + v[1])).collect();
                     refuted = Some((sys.goals[gi].text.clone(), centre));
                 }
-                if l.decided.iter().all(|d| *d == Some(true)) {
+                // (A lost enclosure leaves every goal undecided; without goals it is
+                // what makes a sub-box split.)
+                if l.failure.is_none() && l.decided.iter().all(|d| *d == Some(true)) {
                     leaves.push(l);
                 } else {
                     next.push(l);
@@ -459,6 +459,9 @@ pub fn reach_system(
         }
         match (violation_from_sets, reason) {
             (Some(v), _) => v,
+            // Without goals the sets are the result; a sub-box that stops early says so
+            // in its `failure`.
+            _ if sys.goals.is_empty() => SystemVerdict::NoGoal,
             (None, Some(r)) => SystemVerdict::Unknown { reason: r },
             (None, None) => SystemVerdict::Proved,
         }
