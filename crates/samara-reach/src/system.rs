@@ -190,6 +190,15 @@ pub struct SystemLeaf {
     pub stopped_at: Option<f64>,
 }
 
+impl SystemLeaf {
+    /// Whether this sub-box needs no more work: its sets reach the horizon and prove
+    /// every goal (without goals: they reach the horizon). A lost enclosure leaves every
+    /// goal undecided; without goals it is what makes a sub-box split.
+    fn settled(&self) -> bool {
+        self.failure.is_none() && self.decided.iter().all(|d| *d == Some(true))
+    }
+}
+
 /// Whether a goal that must hold over a window (or at the end) has already failed to
 /// be proved on the sets: flying on cannot prove it.
 fn undecidable(sys: &System, ok: &[bool]) -> bool {
@@ -347,8 +356,7 @@ pub fn reach_system(
                     rs.flow.order = rs.order as u32;
                 }
                 let l = fly_box(sys, net, &init, &rs, m, deadline);
-                let done = l.decided.contains(&Some(false))
-                    || (l.failure.is_none() && l.decided.iter().all(|d| *d == Some(true)));
+                let done = l.decided.contains(&Some(false)) || l.settled();
                 let p = progress(&l, sys);
                 if done {
                     best = Some((usize::MAX, m, rs, l));
@@ -381,14 +389,11 @@ pub fn reach_system(
             let mut next = Vec::new();
             let mut refuted = None;
             for l in flown {
-                if l.decided.contains(&Some(false)) {
-                    let gi = l.decided.iter().position(|d| *d == Some(false)).unwrap();
+                if let Some(gi) = l.decided.iter().position(|d| *d == Some(false)) {
                     let centre: Vec<f64> = l.init.iter().map(|v| 0.5 * (v[0] + v[1])).collect();
                     refuted = Some((sys.goals[gi].text.clone(), centre));
                 }
-                // (A lost enclosure leaves every goal undecided; without goals it is
-                // what makes a sub-box split.)
-                if l.failure.is_none() && l.decided.iter().all(|d| *d == Some(true)) {
+                if l.settled() {
                     leaves.push(l);
                 } else {
                     next.push(l);
@@ -630,10 +635,11 @@ pub fn network_over(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
         .filter_map(|m| {
             let w: f64 = obs.iter().map(|v| v.coef(m).abs()).sum();
             // Even monomials are shifted to [-1, 1] by halving: only where that is exact.
-            let halves = obs.iter().all(|v| {
-                let h = v.coef(m);
-                (h * 0.5) * 2.0 == h
-            });
+            let halves = !base.term_even(m)
+                || obs.iter().all(|v| {
+                    let h = v.coef(m);
+                    (h * 0.5) * 2.0 == h
+                });
             (w > 0.0 && halves).then_some((m, w))
         })
         .collect();
