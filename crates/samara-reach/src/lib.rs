@@ -29,6 +29,7 @@ pub mod netstep;
 pub mod parts;
 pub mod sampling;
 pub mod settings;
+mod standin;
 pub mod system;
 pub mod tmflow;
 pub mod verdict;

@@ -27,8 +27,9 @@
 //! that goals over time windows can be checked between control instants.
 
 use crate::flow::{apriori_by, finite, pow_up};
+use crate::standin;
 use samara_num::{Interval, Scalar, Series, Tm};
-use samara_system::System;
+use samara_system::{Graph, System};
 
 /// Time-Taylor series length: orders up to `K - 2` in time plus the remainder term.
 const K: usize = 10;
@@ -52,6 +53,10 @@ pub struct TmFlowSettings {
     /// ([`crate::system::reduce_with`]), so that the next steps map them through the
     /// flow instead of adding them up as intervals (0: off).
     pub max_params: usize,
+    /// Polynomial stand-ins with a bounded disturbance for terms that a step cannot
+    /// expand (an `abs` across 0, a `sqrt` near 0; [`crate::standin`]), tried before the
+    /// plain Taylor step wherever the a-priori box needs them (default on).
+    pub stand_ins: bool,
 }
 
 impl Default for TmFlowSettings {
@@ -63,6 +68,7 @@ impl Default for TmFlowSettings {
             rem_rel: 1e-7,
             max_halvings: 12,
             max_params: 0,
+            stand_ins: true,
         }
     }
 }
@@ -84,16 +90,16 @@ pub enum TmFlowError {
     },
 }
 
-fn rhs_box(sys: &System, x: &[Interval], u: &[Interval]) -> Vec<Interval> {
-    let mut out = vec![Interval::point(0.0); sys.dim()];
+fn rhs_box(g: &Graph, x: &[Interval], u: &[Interval]) -> Vec<Interval> {
+    let mut out = vec![Interval::point(0.0); g.outputs.len()];
     let mut scratch = Vec::new();
-    sys.rhs_with(&mut scratch, x, u, &mut out);
+    g.eval_with(&mut scratch, x, u, &mut out);
     out
 }
 
 /// Taylor coefficients `0..=upto` in time of the solution from `x0` under the constant
 /// inputs `u`, on series with coefficients in `S`; `None` if a branch was undecided.
-fn taylor<S: Scalar>(sys: &System, x0: &[S], u: &[S], upto: usize) -> Option<Vec<Series<S, K>>> {
+fn taylor<S: Scalar>(g: &Graph, x0: &[S], u: &[S], upto: usize) -> Option<Vec<Series<S, K>>> {
     let d = x0.len();
     let mut x: Vec<Series<S, K>> = x0.iter().map(|v| Series::var(v.clone())).collect();
     let us: Vec<Series<S, K>> = u.iter().map(|v| Series::constant(v.clone())).collect();
@@ -103,7 +109,7 @@ fn taylor<S: Scalar>(sys: &System, x0: &[S], u: &[S], upto: usize) -> Option<Vec
         for xj in x.iter_mut() {
             xj.n = i + 1;
         }
-        sys.rhs_with(&mut scratch, &x, &us, &mut out);
+        g.eval_with(&mut scratch, &x, &us, &mut out);
         for j in 0..d {
             if out[j].bad || out[j].n <= i {
                 return None;
@@ -140,11 +146,124 @@ fn step(
     s: &TmFlowSettings,
     last_chance: bool,
 ) -> Option<(Vec<Tm>, Vec<Part>)> {
+    let g = sys.rhs_graph();
     let bz: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
-    let b = apriori_by(|x| rhs_box(sys, x, bu), &bz, h)?;
+    let b = apriori_by(|x| rhs_box(g, x, bu), &bz, h)?;
+    if s.stand_ins {
+        if let Some(si) = standin::plan(g, &b, bu) {
+            if let Some(r) = stand_in_step(&si, x, u, bu, &bz, &b, h, s, last_chance) {
+                return Some(r);
+            }
+        }
+    }
+    if let Some(r) = taylor_try(g, x, u, bu, &b, &bz, h, s, last_chance) {
+        return Some(r);
+    }
+    if !last_chance {
+        // A shorter step may validate the remainder or decide the undecided branch.
+        return None;
+    }
+    // At the smallest step, where no Taylor step validates (the right-hand side not
+    // analytic over the set, or every remainder overflowing): x(h) in x0 + h f(B, U),
+    // since the integral of f(x(s)) over [0, h] lies in h * f(B, U).
+    let fb = rhs_box(g, &b, bu);
+    if !finite(&fb) {
+        return None;
+    }
+    let next: Vec<Tm> = x
+        .iter()
+        .zip(&fb)
+        .map(|(xi, f)| xi.clone().with_rem(Interval::point(h) * *f))
+        .collect();
+    Some((
+        next,
+        vec![Part {
+            bounds: b,
+            models: None,
+        }],
+    ))
+}
+
+/// A step with polynomial stand-ins for the terms that cannot be expanded over `b`
+/// ([`crate::standin`]): the nominal flow of the right-hand side with the stand-ins and
+/// zero disturbance, as a Taylor step, plus the deviation bound of the true flow from it.
+#[allow(clippy::too_many_arguments)]
+fn stand_in_step(
+    si: &standin::StandIns,
+    x: &[Tm],
+    u: &[Tm],
+    bu: &[Interval],
+    bz: &[Interval],
+    b: &[Interval],
+    h: f64,
+    s: &TmFlowSettings,
+    last_chance: bool,
+) -> Option<(Vec<Tm>, Vec<Part>)> {
+    let zero = Interval::point(0.0);
+    let nv = x.first().map_or(0, |v| v.n_vars());
+    let mut ue = u.to_vec();
+    ue.extend(si.dist.iter().map(|_| Tm::constant(0.0, nv, s.order)));
+    let mut bue = bu.to_vec();
+    bue.extend(si.dist.iter().map(|_| zero));
+    let gy = &si.graph;
+    let by = apriori_by(|x| rhs_box(gy, x, &bue), bz, h)?;
+    let (ynext, yparts) = taylor_try(gy, x, &ue, &bue, &by, bz, h, s, last_chance)?;
+    let dbox: Vec<Interval> = b.iter().zip(&by).map(|(p, q)| p.hull(q)).collect();
+    let wh: Vec<Interval> = si.dist.iter().map(|w| w.hull(&zero)).collect();
+    let (jx, jw) = standin::jacobians(gy, &dbox, bu, &wh);
+    let (e, eh) = standin::deviation(&jx, &jw, &si.dist, h)?;
+    let next: Vec<Tm> = ynext
+        .into_iter()
+        .zip(&eh)
+        .map(|(v, r)| v.with_rem(*r))
+        .collect();
+    let parts = yparts
+        .into_iter()
+        .map(|p| Part {
+            bounds: p
+                .bounds
+                .iter()
+                .zip(&e)
+                .zip(b)
+                .map(|((v, ei), bj)| {
+                    let w = *v + *ei;
+                    let (lo, hi) = (w.lo.max(bj.lo), w.hi.min(bj.hi));
+                    if lo <= hi {
+                        Interval { lo, hi }
+                    } else {
+                        *bj
+                    }
+                })
+                .collect(),
+            models: p.models.map(|ms| {
+                ms.into_iter()
+                    .zip(&e)
+                    .map(|(m, ei)| m.with_rem(*ei))
+                    .collect()
+            }),
+        })
+        .collect();
+    Some((next, parts))
+}
+
+/// The Taylor step proper over the a-priori box `b` of the right-hand side `g`: the time
+/// coefficients as Taylor models, the Lagrange remainder over `b`, the highest time order
+/// whose remainder is narrow enough; `None` if none is.
+#[allow(clippy::too_many_arguments)]
+fn taylor_try(
+    g: &Graph,
+    x: &[Tm],
+    u: &[Tm],
+    bu: &[Interval],
+    b: &[Interval],
+    bz: &[Interval],
+    h: f64,
+    s: &TmFlowSettings,
+    last_chance: bool,
+) -> Option<(Vec<Tm>, Vec<Part>)> {
     let pmax = s.time_order.clamp(1, K - 2);
-    let tb = taylor::<Interval>(sys, &b, bu, pmax + 1);
-    let tx = taylor::<Tm>(sys, x, u, pmax);
+    let tb = taylor::<Interval>(g, b, bu, pmax + 1);
+    let tx = taylor::<Tm>(g, x, u, pmax);
     if let (Some(tb), Some(tx)) = (&tb, &tx) {
         // The highest time order first; where its remainder over B overflows or is too
         // wide (the interval recurrences grow fast on stiff terms: the k-th time
@@ -161,7 +280,7 @@ fn step(
             if !finite(&rem) {
                 continue;
             }
-            let too_wide = rem.iter().zip(&bz).any(|(r, bx)| r.hi - r.lo > tol(bx));
+            let too_wide = rem.iter().zip(bz).any(|(r, bx)| r.hi - r.lo > tol(bx));
             if !too_wide {
                 best = Some((0.0, p, rem));
                 break;
@@ -169,7 +288,7 @@ fn step(
             if last_chance {
                 let size: f64 = rem
                     .iter()
-                    .zip(&bz)
+                    .zip(bz)
                     .map(|(r, bx)| (r.hi - r.lo) / tol(bx))
                     .fold(0.0, f64::max);
                 if best.as_ref().is_none_or(|b| size < b.0) {
@@ -189,33 +308,11 @@ fn step(
                     acc.with_rem(*r)
                 })
                 .collect();
-            let boxes = sub_boxes(tx, tb, p, h, &b);
+            let boxes = sub_boxes(tx, tb, p, h, b);
             return Some((next, boxes));
         }
     }
-    if !last_chance {
-        // A shorter step may validate the remainder or decide the undecided branch.
-        return None;
-    }
-    // At the smallest step, where no Taylor step validates (the right-hand side not
-    // analytic over the set, or every remainder overflowing): x(h) in x0 + h f(B, U),
-    // since the integral of f(x(s)) over [0, h] lies in h * f(B, U).
-    let fb = rhs_box(sys, &b, bu);
-    if !finite(&fb) {
-        return None;
-    }
-    let next: Vec<Tm> = x
-        .iter()
-        .zip(&fb)
-        .map(|(xi, f)| xi.clone().with_rem(Interval::point(h) * *f))
-        .collect();
-    Some((
-        next,
-        vec![Part {
-            bounds: b,
-            models: None,
-        }],
-    ))
+    None
 }
 
 /// Parts of a step that [`sub_boxes`] encloses separately.
@@ -355,7 +452,7 @@ pub fn tm_period_parts(
                 None => {
                     return Err(TmFlowError::NoEnclosure {
                         t: pos as f64 / units as f64 * period,
-                    })
+                    });
                 }
             }
         }

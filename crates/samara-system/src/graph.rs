@@ -317,6 +317,66 @@ impl Graph {
     }
 }
 
+/// A stand-in for one instruction: the polynomial `sum_k coef[k] (z - centre)^k` of its
+/// operand `z`, plus an input that carries the difference (see [`Graph::with_stand_ins`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct StandIn {
+    /// The instruction replaced (a one-argument [`Op::Un`]).
+    pub node: usize,
+    /// Expansion point of the polynomial.
+    pub centre: f64,
+    /// Coefficients, constant first.
+    pub coef: Vec<f64>,
+    /// The input index that carries `f(z) - p(z)`.
+    pub input: usize,
+}
+
+impl Graph {
+    /// The graph with each stand-in's instruction `f(z)` replaced by `p(z) + input`: with
+    /// the input set to `f(z) - p(z)` it computes the same function, and with the input
+    /// held in an interval it encloses it. This is how a non-analytic or stiff term (an
+    /// `abs` across 0, a `sqrt` near 0) is flown as a polynomial plus a bounded
+    /// disturbance (`samara_reach::tmflow`). Stand-ins on instructions that are not
+    /// one-argument operations are ignored.
+    pub fn with_stand_ins(&self, subs: &[StandIn]) -> Graph {
+        let mut ops: Vec<Op> = Vec::with_capacity(self.ops.len() + 8 * subs.len());
+        let mut map = vec![0usize; self.ops.len()];
+        for (i, op) in self.ops.iter().enumerate() {
+            let sub = subs.iter().find(|s| s.node == i);
+            match (sub, *op) {
+                (Some(s), Op::Un(_, a)) if !s.coef.is_empty() => {
+                    let z = map[a];
+                    let d = if s.centre == 0.0 {
+                        z
+                    } else {
+                        ops.push(Op::SubC(z, s.centre));
+                        ops.len() - 1
+                    };
+                    let n = s.coef.len() - 1;
+                    ops.push(Op::Const(s.coef[n]));
+                    let mut acc = ops.len() - 1;
+                    for k in (0..n).rev() {
+                        ops.push(Op::Bin(Bin2::Mul, acc, d));
+                        ops.push(Op::AddC(ops.len() - 1, s.coef[k]));
+                        acc = ops.len() - 1;
+                    }
+                    ops.push(Op::Input(s.input));
+                    ops.push(Op::Bin(Bin2::Add, acc, ops.len() - 1));
+                    map[i] = ops.len() - 1;
+                }
+                _ => {
+                    ops.push(op.remap(|k| map[k]));
+                    map[i] = ops.len() - 1;
+                }
+            }
+        }
+        Graph {
+            ops,
+            outputs: self.outputs.iter().map(|&o| map[o]).collect(),
+        }
+    }
+}
+
 /// Hash-consing graph builder with constant folding.
 #[derive(Default)]
 pub(crate) struct Builder {

@@ -23,7 +23,7 @@ mod parse;
 pub mod sim;
 
 pub use error::{Pos, SystemError};
-pub use graph::{Affine, Bin2, Cond, Graph, Op, Un};
+pub use graph::{Affine, Bin2, Cond, Graph, Op, StandIn, Un};
 pub use lex::MAX_SOURCE_BYTES;
 pub use parse::MAX_NESTING;
 
