@@ -193,7 +193,8 @@ fn bad_reach_system_inputs_exit_2_and_leave_nothing() {
 /// the lost sub-box like a run with goals (within `--max-leaves`), and when the halves
 /// are lost too it says so and exits 1 instead of reporting the sets as computed: the
 /// glider's six-state set (issue 14), lost in the second period, through the system
-/// path (`--sets taylor`). With a budget of 4: the whole set, then its two halves.
+/// path (`--sets taylor`). With a budget of 4 the lost set is split until the budget is
+/// spent (the whole set or its halves, one per worker thread, then their halves).
 #[test]
 fn sets_lost_without_a_goal_exit_1_and_say_where() {
     let dir = tempfile::tempdir().unwrap();
@@ -231,7 +232,8 @@ fn sets_lost_without_a_goal_exit_1_and_say_where() {
     let v: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
     assert_eq!(v["verdict"]["verdict"], "none");
     assert!(v["lost"].as_str().is_some_and(|s| !s.is_empty()), "{v}");
-    assert_eq!(v["boxes"], 2, "the lost set was not split: {v}");
+    let boxes = v["boxes"].as_u64().unwrap_or(0);
+    assert!((2..=4).contains(&boxes), "the lost set was not split: {v}");
     let r: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("reach.json")).unwrap()).unwrap();
     let reached = r["result"]["instants"].as_array().unwrap().len();

@@ -489,14 +489,58 @@ impl Tm {
 
     /// Range bound of the polynomial terms with index `>= start` (without the constant
     /// term, which is added exactly by the caller).
+    ///
+    /// The magnitudes are summed in round-to-nearest with each addition's exact error
+    /// kept aside by TwoSum (three independent sums, no per-term branch or directed
+    /// rounding: this is the hot loop of every product with a remainder). The exact sum is
+    /// the float sum plus the errors; their magnitudes, summed in float, are raised by
+    /// the a-priori bound of recursive summation of `n` nonnegative terms (the float sum
+    /// `e~` of exact sum `e` has `e <= e~ / (1 - gamma_n) <= e~ (1 + 4 (n + 2) eps)`;
+    /// Higham, "Accuracy and Stability of Numerical Algorithms", 2nd ed., section 4.2).
+    /// Exact sums stay exact (every error is 0). A NaN coefficient gives the entire line.
     fn poly_range_from(&self, start: usize, c0: f64) -> Interval {
-        let (mut sn, mut sp) = (0.0, 0.0);
-        for i in start.max(1)..self.t.len() {
-            let v = self.c[i];
-            if v != 0.0 {
-                acc_range(v, self.t.even[i], &mut sn, &mut sp);
+        #[inline(always)]
+        fn acc(s: &mut f64, err: &mut f64, a: f64) {
+            let t = *s + a;
+            let bb = t - *s;
+            *err += ((*s - (t - bb)) + (a - bb)).abs();
+            *s = t;
+        }
+        let (mut odd, mut pos, mut neg) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut eo, mut ep, mut en) = (0.0f64, 0.0f64, 0.0f64);
+        let from = start.max(1).min(self.t.len());
+        for (&v, &even) in self.c[from..].iter().zip(&self.t.even[from..]) {
+            let a = v.abs();
+            if !even {
+                acc(&mut odd, &mut eo, a);
+            } else if v > 0.0 {
+                acc(&mut pos, &mut ep, a);
+            } else {
+                // NaN lands here too and makes the range entire below.
+                acc(&mut neg, &mut en, a);
             }
         }
+        if odd.is_nan() || pos.is_nan() || neg.is_nan() {
+            return Interval {
+                lo: f64::NEG_INFINITY,
+                hi: f64::INFINITY,
+            };
+        }
+        let n = self.c.len() - from;
+        let raise = 1.0 + 4.0 * (n as f64 + 2.0) * f64::EPSILON;
+        // Upper bound of a sum from its float value and its errors' magnitudes.
+        let lift = |s: f64, err: f64| {
+            if !s.is_finite() || err == 0.0 {
+                s
+            } else if err.is_nan() {
+                f64::INFINITY
+            } else {
+                sum_up(s, up(err * raise))
+            }
+        };
+        let (odd, pos, neg) = (lift(odd, eo), lift(pos, ep), lift(neg, en));
+        let sp = sum_up(odd, pos);
+        let sn = sum_up(odd, neg);
         if sn == 0.0 && sp == 0.0 {
             return Interval::point(c0);
         }

@@ -920,3 +920,34 @@ fn models_rebuilt_from_their_terms_keep_every_value() {
     let b = s.term(j).bound();
     assert!(b.lo >= 0.0 && b.hi >= 1.0, "{b:?}");
 }
+
+/// The range bound sums coefficient magnitudes in round-to-nearest and adds the
+/// additions' errors back (TwoSum, raised by the a-priori summation bound): 1 plus a
+/// thousand terms of 1e-16, each below half an ulp of 1 so that every float addition
+/// drops it, must still reach 1 + 1000e-16 (a plain float sum stays at exactly 1), and
+/// exact sums stay exact.
+#[test]
+fn range_bound_keeps_the_additions_rounding_errors() {
+    let x = 1e-16;
+    let mut coef = vec![1.0];
+    coef.extend(std::iter::repeat_n(x, 1000));
+    let b = Tm::affine(0.0, &coef, 1).bound();
+    assert!(
+        b.hi - 1.0 >= 1000.0 * x * (1.0 - 1e-12),
+        "upper end {} misses the dropped terms",
+        b.hi
+    );
+    assert!(
+        b.lo - -1.0 <= -1000.0 * x * (1.0 - 1e-12),
+        "lower end {}",
+        b.lo
+    );
+    // Not loose either: within a few ulps of 1 of the exact 1 + 1e-13.
+    assert!(
+        b.hi - 1.0 <= 1000.0 * x + 4.0 * f64::EPSILON,
+        "upper end {}",
+        b.hi
+    );
+    let e = Tm::affine(0.5, &[0.25, -0.125, 2.0], 1).bound();
+    assert_eq!(e, Interval::new(0.5 - 2.375, 0.5 + 2.375));
+}

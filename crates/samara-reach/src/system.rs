@@ -375,92 +375,66 @@ pub fn reach_system(
                 root = Some(l);
             }
         }
-        let mut frontier = vec![init.clone()];
+        // Without a root flight (a fixed network-error mode), the whole set is cut into
+        // as many sub-boxes as there are worker threads at once, so that no core idles
+        // while one flies the whole set.
+        let frontier = match root.take() {
+            Some(l) => Frontier::Flown(l),
+            None => {
+                let k = rayon::current_num_threads().clamp(1, s.max_boxes);
+                let mut boxes = vec![init.clone()];
+                while boxes.len() < k {
+                    let b = boxes.remove(0);
+                    let (a, c) = bisect(&b, &init);
+                    boxes.push(a);
+                    boxes.push(c);
+                }
+                Frontier::Boxes(boxes)
+            }
+        };
+        let r = refine(sys, net, &init, &run_s, mode, deadline, frontier);
+        leaves = r.leaves;
         let mut reason = None;
         let mut violation_from_sets = None;
-        loop {
-            let flown: Vec<SystemLeaf> = match root.take() {
-                Some(l) => vec![l],
-                None => frontier
-                    .par_iter()
-                    .map(|b| fly_box(sys, net, b, &run_s, mode, deadline))
-                    .collect(),
-            };
-            let mut next = Vec::new();
-            let mut refuted = None;
-            for l in flown {
-                if let Some(gi) = l.decided.iter().position(|d| *d == Some(false)) {
-                    let centre: Vec<f64> = l.init.iter().map(|v| 0.5 * (v[0] + v[1])).collect();
-                    refuted = Some((sys.goals[gi].text.clone(), centre));
+        if let Some((g, centre)) = r.refuted {
+            // The sets show a sub-box missing the goal entirely at some instant:
+            // every flight from it misses it; its centre's flight is the witness.
+            match fly(sys, &eval, &centre, 10) {
+                Ok(f) if goals_hold(sys, &f).iter().any(|h| !h) => {
+                    violation_from_sets = Some(SystemVerdict::Violated {
+                        initial: centre,
+                        goal: g,
+                    });
                 }
-                if l.settled() {
-                    leaves.push(l);
-                } else {
-                    next.push(l);
+                _ => {
+                    reason = Some(format!(
+                        "the enclosure of a sub-box lies outside the goal `{g}`, but no simulated flight from the starts tried missed it"
+                    ));
                 }
             }
-            if let Some((g, centre)) = refuted {
-                // The sets show a sub-box missing the goal entirely at some instant:
-                // every flight from it misses it; its centre's flight is the witness.
-                if let Ok(f) = fly(sys, &eval, &centre, 10) {
-                    if goals_hold(sys, &f).iter().any(|h| !h) {
-                        violation_from_sets = Some(SystemVerdict::Violated {
-                            initial: centre,
-                            goal: g,
-                        });
-                        leaves.extend(next);
-                        break;
-                    }
-                }
-                reason = Some(format!(
-                    "the enclosure of a sub-box lies outside the goal `{g}`, but no simulated flight from the starts tried missed it"
-                ));
-                leaves.extend(next);
-                break;
-            }
-            if next.is_empty() {
-                break;
-            }
-            let budget_left = s.max_boxes.saturating_sub(leaves.len() + 2 * next.len());
-            let timed_out = past(deadline);
-            if budget_left == 0 || timed_out {
-                let lost = next.iter().filter(|l| l.failure.is_some()).count();
-                reason = Some(if timed_out {
-                    format!(
-                        "timeout after {:.1} s with {} sub-boxes undecided",
-                        t0.elapsed().as_secs_f64(),
-                        next.len()
-                    )
-                } else if lost > 0 {
-                    format!(
-                        "{lost} of {} sub-boxes lost their enclosure ({}) within the budget of {} sub-boxes (--max-boxes)",
-                        leaves.len() + next.len(),
-                        next.iter().find_map(|l| l.failure.clone()).unwrap_or_default(),
-                        s.max_boxes
-                    )
-                } else {
-                    format!(
-                        "{} of {} sub-boxes leave a goal undecided within the budget of {} sub-boxes (--max-boxes)",
-                        next.len(),
-                        leaves.len() + next.len(),
-                        s.max_boxes
-                    )
-                });
-                leaves.extend(next);
-                break;
-            }
-            frontier = next
-                .iter()
-                .flat_map(|l| {
-                    let b: Vec<Interval> = l
-                        .init
-                        .iter()
-                        .map(|v| Interval { lo: v[0], hi: v[1] })
-                        .collect();
-                    let (a, c) = bisect(&b, &init);
-                    [a, c]
-                })
-                .collect();
+        } else if r.unsettled > 0 {
+            let lost = leaves.iter().filter(|l| l.failure.is_some()).count();
+            reason = Some(if r.timed_out {
+                format!(
+                    "timeout after {:.1} s with {} sub-boxes undecided",
+                    t0.elapsed().as_secs_f64(),
+                    r.unsettled
+                )
+            } else if lost > 0 {
+                format!(
+                    "{lost} of {} sub-boxes lost their enclosure ({}) within the budget of {} sub-boxes (--max-boxes)",
+                    leaves.len(),
+                    leaves.iter().find_map(|l| l.failure.clone()).unwrap_or_default(),
+                    s.max_boxes
+                )
+            } else {
+                format!(
+                    "{} of {} sub-boxes leave a goal undecided within the budget of {} sub-boxes (--max-boxes)",
+                    r.unsettled,
+                    leaves.len(),
+                    s.max_boxes
+                )
+            });
         }
         match (violation_from_sets, reason) {
             (Some(v), _) => v,
@@ -507,6 +481,168 @@ pub fn reach_system(
         leaves,
         flights: ok_flights,
     })
+}
+
+/// Where the refinement starts: a flight of the whole set already made (the ladder's
+/// best), or boxes still to fly.
+enum Frontier {
+    Flown(SystemLeaf),
+    Boxes(Vec<Vec<Interval>>),
+}
+
+/// What [`refine`] ends with: every sub-box flown (sorted by their initial boxes), how
+/// many of them are not settled, whether the deadline stopped the splitting, and a goal
+/// some sub-box's sets lie entirely outside of (its text and the sub-box's centre).
+struct Refined {
+    leaves: Vec<SystemLeaf>,
+    unsettled: usize,
+    timed_out: bool,
+    refuted: Option<(String, Vec<f64>)>,
+}
+
+/// The shared state of [`refine`].
+struct RefineState {
+    leaves: Vec<SystemLeaf>,
+    unsettled: usize,
+    timed_out: bool,
+    refuted: Option<(String, Vec<f64>)>,
+    /// Sub-boxes made so far (flown or waiting), against the budget.
+    boxes: usize,
+}
+
+/// Fly the frontier's boxes and split every sub-box that is neither settled (reaches
+/// the horizon with every goal proved) nor refuted, as long as the budget and the
+/// deadline allow. Asynchronous: a sub-box's halves are flown as soon as it ends, on
+/// whichever worker is free, not after the whole round (one slow sub-box no longer holds
+/// the others' halves back). A goal refuted by some sub-box's sets stops the splitting;
+/// boxes not started by then are not flown.
+fn refine(
+    sys: &System,
+    net: &Network,
+    init: &[Interval],
+    s: &SystemReachSettings,
+    mode: NetworkError,
+    deadline: Option<Instant>,
+    frontier: Frontier,
+) -> Refined {
+    use std::sync::atomic::{AtomicBool, Ordering};
+    use std::sync::Mutex;
+    let stop = AtomicBool::new(false);
+    let state = Mutex::new(RefineState {
+        leaves: Vec::new(),
+        unsettled: 0,
+        timed_out: false,
+        refuted: None,
+        boxes: match &frontier {
+            Frontier::Flown(_) => 1,
+            Frontier::Boxes(b) => b.len(),
+        },
+    });
+    /// What every task of the scope shares.
+    #[derive(Clone, Copy)]
+    struct Ctx<'s> {
+        sys: &'s System,
+        net: &'s Network,
+        init: &'s [Interval],
+        s: &'s SystemReachSettings,
+        mode: NetworkError,
+        deadline: Option<Instant>,
+        stop: &'s AtomicBool,
+        state: &'s Mutex<RefineState>,
+    }
+    // A flown sub-box: keep it, or split it and fly the halves.
+    fn handle<'s>(l: SystemLeaf, scope: &rayon::Scope<'s>, ctx: &'s Ctx<'s>) {
+        let Ctx {
+            sys,
+            init,
+            s,
+            deadline,
+            stop,
+            state,
+            ..
+        } = *ctx;
+        let mut st = state.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(gi) = l.decided.iter().position(|d| *d == Some(false)) {
+            if st.refuted.is_none() {
+                let centre: Vec<f64> = l.init.iter().map(|v| 0.5 * (v[0] + v[1])).collect();
+                st.refuted = Some((sys.goals[gi].text.clone(), centre));
+            }
+            stop.store(true, Ordering::SeqCst);
+        }
+        if l.settled() {
+            st.leaves.push(l);
+            return;
+        }
+        let timed_out = past(deadline);
+        if stop.load(Ordering::SeqCst) || timed_out || st.boxes + 1 > s.max_boxes {
+            st.timed_out |= timed_out;
+            st.unsettled += 1;
+            st.leaves.push(l);
+            return;
+        }
+        st.boxes += 1;
+        drop(st);
+        let b: Vec<Interval> = l
+            .init
+            .iter()
+            .map(|v| Interval { lo: v[0], hi: v[1] })
+            .collect();
+        let (a, c) = bisect(&b, init);
+        for half in [a, c] {
+            scope.spawn(move |sc| fly_and_handle(half, sc, ctx));
+        }
+    }
+    fn fly_and_handle<'s>(b: Vec<Interval>, scope: &rayon::Scope<'s>, ctx: &'s Ctx<'s>) {
+        let Ctx {
+            sys,
+            net,
+            s,
+            mode,
+            deadline,
+            stop,
+            ..
+        } = *ctx;
+        if stop.load(Ordering::SeqCst) {
+            return;
+        }
+        let l = fly_box(sys, net, &b, s, mode, deadline);
+        handle(l, scope, ctx);
+    }
+    let ctx = Ctx {
+        sys,
+        net,
+        init,
+        s,
+        mode,
+        deadline,
+        stop: &stop,
+        state: &state,
+    };
+    let ctx = &ctx;
+    rayon::scope(|sc| match frontier {
+        Frontier::Flown(l) => handle(l, sc, ctx),
+        Frontier::Boxes(boxes) => {
+            for b in boxes {
+                sc.spawn(move |sc| fly_and_handle(b, sc, ctx));
+            }
+        }
+    });
+    let mut st = state.into_inner().unwrap_or_else(|e| e.into_inner());
+    st.leaves.sort_by(|p, q| {
+        p.init
+            .iter()
+            .flatten()
+            .zip(q.init.iter().flatten())
+            .map(|(a, b)| a.total_cmp(b))
+            .find(|o| o.is_ne())
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    Refined {
+        leaves: st.leaves,
+        unsettled: st.unsettled,
+        timed_out: st.timed_out,
+        refuted: st.refuted,
+    }
 }
 
 /// How far a sub-box's flight got, in control instants: where its goals became

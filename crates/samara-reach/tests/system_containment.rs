@@ -300,7 +300,7 @@ fn proved_with_2000_flights_inside(
 /// zonotope path and the Taylor models without stand-ins lose it near t = 13-19; then
 /// 2,000 flights inside the sets at every instant.
 #[test]
-#[ignore = "about 2-4 minutes in release on 2 cores; run with --ignored"]
+#[ignore = "about a minute in release on 2 cores; run with --ignored"]
 fn alsomitra_full_adversarial_is_proved_and_contains_2000_flights() {
     let text =
         std::fs::read_to_string(root().join("examples/archcomp/alsomitra_full.sys")).unwrap();
@@ -308,7 +308,7 @@ fn alsomitra_full_adversarial_is_proved_and_contains_2000_flights() {
     let net = reference_net("adversarial_model_denorm.onnx");
     let s = SystemReachSettings {
         order: 2,
-        network_error: Some(NetworkError::Symbolic { extra: 10 }),
+        network_error: Some(NetworkError::Symbolic { extra: 7 }),
         timeout: Some(1200.0),
         ..Default::default()
     };
