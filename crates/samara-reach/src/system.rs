@@ -593,19 +593,10 @@ fn refine(
         }
     }
     fn fly_and_handle<'s>(b: Vec<Interval>, scope: &rayon::Scope<'s>, ctx: &'s Ctx<'s>) {
-        let Ctx {
-            sys,
-            net,
-            s,
-            mode,
-            deadline,
-            stop,
-            ..
-        } = *ctx;
-        if stop.load(Ordering::SeqCst) {
+        if ctx.stop.load(Ordering::SeqCst) {
             return;
         }
-        let l = fly_box(sys, net, &b, s, mode, deadline);
+        let l = fly_box(ctx.sys, ctx.net, &b, ctx.s, ctx.mode, ctx.deadline);
         handle(l, scope, ctx);
     }
     let ctx = Ctx {
