@@ -11,7 +11,9 @@
 //! the true solution `x' = F(x, w(t))` differs from it by `e = x - y`, which solves the
 //! linear equation `e' = A(t) e + b(t) w(t)` with `A(t)` and `b(t)` the means of the
 //! Jacobians along the segment from `(y, 0)` to `(x, w)`, hence in the interval Jacobians
-//! `Jx`, `Jw` over the hull of both a-priori boxes. `e(0) = 0`, so `e` stays in any box
+//! `Jx`, `Jw` over the hull of both a-priori boxes (the mean-value theorem, or Lebourg's
+//! for a Lipschitz kink; the step is refused where a branch or kink is undecided over
+//! that hull, since a jump escapes every Jacobian). `e(0) = 0`, so `e` stays in any box
 //! `E` with `[0, h] (Jx E + Jw W) ⊆ E` (the Picard iterates of the linear equation stay in
 //! `E`), and `e(h) ∈ h (Jx E + Jw W)`. This is the "smooth enclosure with a bounded
 //! remainder" of a non-smooth right-hand side (cf. the time-varying uncertainties of

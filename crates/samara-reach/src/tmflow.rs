@@ -210,6 +210,14 @@ fn stand_in_step(
     let (ynext, yparts) = taylor_try(gy, x, &ue, &bue, &by, bz, h, s, last_chance)?;
     let dbox: Vec<Interval> = b.iter().zip(&by).map(|(p, q)| p.hull(q)).collect();
     let wh: Vec<Interval> = si.dist.iter().map(|w| w.hull(&zero)).collect();
+    // The mean-value bound needs the right-hand side with the stand-ins to be Lipschitz
+    // over the hull: a branch (`if`, `sign`) undecided there could jump, which no
+    // Jacobian sees. The interval series over the hull flags undecided branches (and
+    // kinks: an `abs` that crosses 0 over the hull but not over B); then no stand-in
+    // step.
+    let mut bw = bu.to_vec();
+    bw.extend(wh.iter().copied());
+    taylor::<Interval>(gy, &dbox, &bw, 1)?;
     let (jx, jw) = standin::jacobians(gy, &dbox, bu, &wh);
     let (e, eh) = standin::deviation(&jx, &jw, &si.dist, h)?;
     let next: Vec<Tm> = ynext
