@@ -37,6 +37,49 @@ fn close(v: f64, lo: f64, hi: f64) -> bool {
     v >= lo - tol && v <= hi + tol
 }
 
+/// The sub-boxes of `r` tile the initial set, within the budget `max_boxes`: each lies
+/// inside it, no two overlap (in the parameters of nonzero width, every pair is
+/// separated along some axis), and their volumes add up to the whole (relative to the
+/// initial widths; bisection halves exactly). A proof over sub-boxes is a proof of the
+/// set only if they cover it, which the asynchronous splitting must keep.
+fn assert_tiles(sys: &System, r: &SystemReach, max_boxes: usize) {
+    let dims: Vec<usize> = (0..sys.init.len())
+        .filter(|&i| sys.init[i].1 > sys.init[i].0)
+        .collect();
+    assert!(
+        !r.leaves.is_empty() && r.leaves.len() <= max_boxes,
+        "{} sub-boxes",
+        r.leaves.len()
+    );
+    let mut volume = 0.0;
+    for (k, a) in r.leaves.iter().enumerate() {
+        let mut v = 1.0;
+        for (i, &(lo, hi)) in sys.init.iter().enumerate() {
+            assert!(
+                lo <= a.init[i][0] && a.init[i][1] <= hi,
+                "sub-box {k} leaves the set"
+            );
+            if hi > lo {
+                v *= (a.init[i][1] - a.init[i][0]) / (hi - lo);
+            }
+        }
+        volume += v;
+        for b in &r.leaves[k + 1..] {
+            assert!(
+                dims.iter()
+                    .any(|&i| a.init[i][1] <= b.init[i][0] || b.init[i][1] <= a.init[i][0]),
+                "sub-boxes overlap: {:?} and {:?}",
+                a.init,
+                b.init
+            );
+        }
+    }
+    assert!(
+        (volume - 1.0).abs() < 1e-12,
+        "the sub-boxes cover {volume} of the set"
+    );
+}
+
 /// `n` random flights inside the sets of `r`; returns the number of points checked.
 fn check_contains(
     sys: &System,
@@ -142,6 +185,8 @@ fn acc_sets_contain_flights_and_prove_the_safe_distance() {
     };
     let r0 = reach_system(&sys, &net, &plain).unwrap();
     assert_ne!(r0.verdict, SystemVerdict::Proved);
+    // Split until the budget is spent, and the sub-boxes still tile the set.
+    assert_tiles(&sys, &r0, 4);
 }
 
 /// Attitude control (ARCH-COMP, verified): flights inside the sets, goal proved.
@@ -168,6 +213,7 @@ fn nav_robust_sets_contain_flights_and_avoid_the_obstacle() {
     let n = check_contains(&sys, &net, &r, 300, 31);
     assert!(n > 300 * sys.steps());
     assert_eq!(r.verdict, SystemVerdict::Proved, "{:?}", r.verdict);
+    assert_tiles(&sys, &r, SystemReachSettings::default().max_boxes);
 }
 
 /// Unicycle (ARCH-COMP: verified; POLAR 10 s in 2022): with the network's error an
@@ -244,9 +290,11 @@ fn double_pendulum_less_robust_sets_contain_flights() {
         ..Default::default()
     };
     let r = reach_system(&sys, &net, &s).unwrap();
-    // Whatever the verdict, every instant the sets reached contains the flights.
+    // Whatever the verdict, every instant the sets reached contains the flights, and
+    // the sub-boxes tile the set within the budget.
     let n = check_contains(&sys, &net, &r, 200, 11);
     assert!(n > 0);
+    assert_tiles(&sys, &r, 16);
     assert_ne!(r.verdict.name(), "violated", "ARCH-COMP: verified");
 }
 
