@@ -513,10 +513,11 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     // times out.
     let tuned;
     let a = if a.order.is_none() && a.network_error.is_none() {
-        let mut t = a.clone();
-        t.order = Some(2);
-        t.network_error = Some("symbolic:7".into());
-        tuned = t;
+        tuned = ReachArgs {
+            order: Some(2),
+            network_error: Some("symbolic:7".into()),
+            ..a.clone()
+        };
         &tuned
     } else {
         a

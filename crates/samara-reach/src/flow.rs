@@ -167,6 +167,25 @@ pub(crate) fn subset(a: &[Interval], b: &[Interval]) -> bool {
     a.iter().zip(b).all(|(x, y)| y.lo <= x.lo && x.hi <= y.hi)
 }
 
+/// The intersection of two enclosures of the same set; where rounding makes it look
+/// empty or one side is not finite, the finite one (`b` if both are). Both enclose the
+/// same values, so they meet; an empty intersection can only be rounding or NaN noise.
+pub(crate) fn meet(a: Interval, b: Interval) -> Interval {
+    let fin = |x: Interval| x.lo.is_finite() && x.hi.is_finite();
+    if !fin(a) {
+        return b;
+    }
+    if !fin(b) {
+        return a;
+    }
+    let (lo, hi) = (a.lo.max(b.lo), a.hi.min(b.hi));
+    if lo <= hi {
+        Interval { lo, hi }
+    } else {
+        b
+    }
+}
+
 pub(crate) fn finite(v: &[Interval]) -> bool {
     v.iter().all(|x| x.lo.is_finite() && x.hi.is_finite())
 }

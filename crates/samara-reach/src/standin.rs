@@ -20,6 +20,7 @@
 //! Chen, Abraham & Sankaranarayanan, "Flow*", CAV 2013, and the mean-value error
 //! propagation of Lohner's method).
 
+use crate::flow::meet;
 use samara_num::{IDual, Interval, Scalar};
 use samara_system::{Graph, Op, StandIn, Un};
 
@@ -64,24 +65,6 @@ fn needs(f: Un, z: Interval) -> bool {
         Un::Abs => z.lo < 0.0 && z.hi > 0.0,
         Un::Sqrt => z.lo >= 0.0 && z.hi > 2.0 * z.lo,
         _ => false,
-    }
-}
-
-/// The intersection of two enclosures of the same set; where rounding makes it look
-/// empty or one side is not finite, the finite one (`b` if both are).
-fn meet(a: Interval, b: Interval) -> Interval {
-    let fin = |x: Interval| x.lo.is_finite() && x.hi.is_finite();
-    if !fin(a) {
-        return b;
-    }
-    if !fin(b) {
-        return a;
-    }
-    let (lo, hi) = (a.lo.max(b.lo), a.hi.min(b.hi));
-    if lo <= hi {
-        Interval { lo, hi }
-    } else {
-        b
     }
 }
 

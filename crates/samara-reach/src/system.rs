@@ -490,17 +490,10 @@ enum Frontier {
     Boxes(Vec<Vec<Interval>>),
 }
 
-/// What [`refine`] ends with: every sub-box flown (sorted by their initial boxes), how
-/// many of them are not settled, whether the deadline stopped the splitting, and a goal
-/// some sub-box's sets lie entirely outside of (its text and the sub-box's centre).
-struct Refined {
-    leaves: Vec<SystemLeaf>,
-    unsettled: usize,
-    timed_out: bool,
-    refuted: Option<(String, Vec<f64>)>,
-}
-
-/// The shared state of [`refine`].
+/// The state [`refine`] shares between its tasks and ends with: every sub-box flown
+/// (sorted by their initial boxes at the end), how many of them are not settled,
+/// whether the deadline stopped the splitting, and a goal some sub-box's sets lie
+/// entirely outside of (its text and the sub-box's centre).
 struct RefineState {
     leaves: Vec<SystemLeaf>,
     unsettled: usize,
@@ -524,7 +517,7 @@ fn refine(
     mode: NetworkError,
     deadline: Option<Instant>,
     frontier: Frontier,
-) -> Refined {
+) -> RefineState {
     use std::sync::atomic::{AtomicBool, Ordering};
     use std::sync::Mutex;
     let stop = AtomicBool::new(false);
@@ -629,12 +622,7 @@ fn refine(
             .find(|o| o.is_ne())
             .unwrap_or(std::cmp::Ordering::Equal)
     });
-    Refined {
-        leaves: st.leaves,
-        unsettled: st.unsettled,
-        timed_out: st.timed_out,
-        refuted: st.refuted,
-    }
+    st
 }
 
 /// How far a sub-box's flight got, in control instants: where its goals became
@@ -704,14 +692,7 @@ fn bisect_sensitive(
         }
     }
     match best {
-        Some((e, j)) if e > 0.0 => {
-            let m = 0.5 * (b[j].lo + b[j].hi);
-            let mut lo = b.to_vec();
-            let mut hi = b.to_vec();
-            lo[j].hi = m;
-            hi[j].lo = m;
-            (lo, hi)
-        }
+        Some((e, j)) if e > 0.0 => cut_at(b, j),
         _ => bisect(b, init),
     }
 }
@@ -729,6 +710,11 @@ fn bisect(b: &[Interval], init: &[Interval]) -> (Vec<Interval>, Vec<Interval>) {
     let j = (0..b.len())
         .max_by(|&p, &q| rel(p).total_cmp(&rel(q)))
         .unwrap_or(0);
+    cut_at(b, j)
+}
+
+/// `b` cut in two at the midpoint of parameter `j`.
+fn cut_at(b: &[Interval], j: usize) -> (Vec<Interval>, Vec<Interval>) {
     let m = 0.5 * (b[j].lo + b[j].hi);
     let mut lo = b.to_vec();
     let mut hi = b.to_vec();

@@ -26,7 +26,7 @@
 //! loses the dependence of that step's increment). Every step's box `B` is returned so
 //! that goals over time windows can be checked between control instants.
 
-use crate::flow::{apriori_by, finite, pow_up};
+use crate::flow::{apriori_by, finite, meet, pow_up};
 use crate::standin;
 use samara_num::{Interval, Scalar, Series, Tm};
 use samara_system::{Graph, System};
@@ -233,15 +233,7 @@ fn stand_in_step(
                 .iter()
                 .zip(&e)
                 .zip(b)
-                .map(|((v, ei), bj)| {
-                    let w = *v + *ei;
-                    let (lo, hi) = (w.lo.max(bj.lo), w.hi.min(bj.hi));
-                    if lo <= hi {
-                        Interval { lo, hi }
-                    } else {
-                        *bj
-                    }
-                })
+                .map(|((v, ei), bj)| meet(*v + *ei, *bj))
                 .collect(),
             models: p.models.map(|ms| {
                 ms.into_iter()
@@ -374,16 +366,7 @@ fn sub_boxes(
                         d = d * t + c.c[i].bound() * i as f64;
                     }
                     let m = at.with_rem(Interval { lo: 0.0, hi: dt } * d + cb.c[p + 1] * tail);
-                    let v = m.bound();
-                    let (lo, hi) = (v.lo.max(bj.lo), v.hi.min(bj.hi));
-                    let bx = if lo <= hi {
-                        Interval { lo, hi }
-                    } else {
-                        // Both enclose the solution, so they meet; an empty intersection
-                        // can only be NaN noise: keep the a-priori box.
-                        *bj
-                    };
-                    (bx, m)
+                    (meet(m.bound(), *bj), m)
                 })
                 .unzip();
             Part {

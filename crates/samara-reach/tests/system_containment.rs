@@ -350,9 +350,7 @@ fn proved_with_2000_flights_inside(
 #[test]
 #[ignore = "about a minute in release on 2 cores; run with --ignored"]
 fn alsomitra_full_adversarial_is_proved_and_contains_2000_flights() {
-    let text =
-        std::fs::read_to_string(root().join("examples/archcomp/alsomitra_full.sys")).unwrap();
-    let sys = System::parse(&text, "alsomitra_full.sys").unwrap();
+    let sys = system("alsomitra_full.sys");
     let net = reference_net("adversarial_model_denorm.onnx");
     let s = SystemReachSettings {
         order: 2,
@@ -410,9 +408,7 @@ fn alsomitra_reduced_sets_contain_2000_flights() {
 #[test]
 #[ignore = "minutes in release; run with --ignored"]
 fn alsomitra_adversarial_taylor_sets_contain_2000_flights() {
-    let text =
-        std::fs::read_to_string(root().join("examples/archcomp/alsomitra_reduced.sys")).unwrap();
-    let sys = System::parse(&text, "alsomitra_reduced.sys").unwrap();
+    let sys = system("alsomitra_reduced.sys");
     let net = reference_net("adversarial_model_denorm.onnx");
     let settings = SystemReachSettings {
         order: 2,
