@@ -144,10 +144,13 @@ fn summary(r: &SystemReach) -> serde_json::Value {
         "system": r.system,
         "verdict": &r.verdict,
         "boxes": r.boxes,
+        "covered": r.covered,
         "order": r.order,
         "network_error": r.network_error,
         "seconds": r.seconds,
-        "final": r.instants.last(),
+        // The hull at the horizon only when every sub-box has sets there: else the
+        // last row of `instants` is an earlier instant.
+        "final": if r.covered == 1.0 { r.instants.last() } else { None },
         "lost": lost(r),
     })
 }
@@ -175,13 +178,35 @@ fn human_line(path: &Path, r: &SystemReach) -> String {
         NetworkError::Interval => "interval".to_string(),
         NetworkError::Symbolic { extra } => format!("symbolic:{extra}"),
     };
+    // A count of enclosed sub-boxes says little when they are the small ones: the
+    // share of the initial set they cover does.
+    let cover = if r.covered < 1.0 && !matches!(r.verdict, SystemVerdict::Violated { .. }) {
+        format!(
+            "; sets to the horizon for {} of the initial set",
+            percent(r.covered)
+        )
+    } else {
+        String::new()
+    };
     format!(
-        "{}: {what} ({} sub-boxes, Taylor models of order {}, network error {ne}, {:.2} s)",
+        "{}: {what} ({} sub-boxes, Taylor models of order {}, network error {ne}, {:.2} s{cover})",
         path.display(),
         r.boxes,
         r.order,
         r.seconds
     )
+}
+
+/// A fraction as a percentage that never rounds a part to 0 % or 100 %.
+fn percent(f: f64) -> String {
+    let p = 100.0 * f;
+    if p > 0.0 && p < 0.01 {
+        format!("{p:.1e} %")
+    } else if p > 99.99 && p < 100.0 {
+        "99.99+ %".to_string()
+    } else {
+        format!("{p:.2} %")
+    }
 }
 
 /// The built-in glider setting (`--model`, `--y0`, `--init`, `--period`, `--horizon`,

@@ -221,6 +221,12 @@ pub struct SystemReach {
     pub periods: Vec<Vec<[f64; 2]>>,
     /// Sub-boxes of the final partition.
     pub boxes: usize,
+    /// Fraction of the initial set, by volume over its parameters of nonzero width,
+    /// whose sub-boxes have sets to the horizon. Below 1 (a lost enclosure, a spent
+    /// budget, a goal refuted first) the hulls `instants` and `periods` end where the
+    /// shortest sub-box ends, and a count of enclosed sub-boxes says little: they are
+    /// the small ones. Exactly 1 when every sub-box reaches the horizon.
+    pub covered: f64,
     /// Taylor-model order used.
     pub order: usize,
     /// How the network step's error entered the sets (chosen by the run unless set).
@@ -468,6 +474,7 @@ pub fn reach_system(
             .collect()
     };
     let instants = hull(&|l: &SystemLeaf| &l.instants);
+    let covered = coverage(&init, &leaves, sys.steps());
     let periods = hull(&|l: &SystemLeaf| &l.periods);
     Ok(SystemReach {
         system: sys.name.clone(),
@@ -475,12 +482,37 @@ pub fn reach_system(
         instants,
         periods,
         boxes: leaves.len(),
+        covered,
         order: run_s.order,
         network_error: mode,
         seconds: t0.elapsed().as_secs_f64(),
         leaves,
         flights: ok_flights,
     })
+}
+
+/// The fraction of `init` (by volume over its parameters of nonzero width) whose
+/// leaves have sets at all `steps + 1` control instants.
+/// Exactly 1 when every leaf does (then `instants` runs to the horizon).
+fn coverage(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -> f64 {
+    let whole =
+        |l: &&SystemLeaf| l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > steps;
+    if leaves.iter().all(|l| whole(&l)) {
+        return 1.0;
+    }
+    leaves
+        .iter()
+        .filter(whole)
+        .map(|l| {
+            l.init
+                .iter()
+                .zip(init)
+                .filter(|(_, b)| b.hi > b.lo)
+                .map(|(v, b)| (v[1] - v[0]) / (b.hi - b.lo))
+                .product::<f64>()
+        })
+        .fold(0.0, |a, v| a + v)
+        .min(1.0)
 }
 
 /// Where the refinement starts: a flight of the whole set already made (the ladder's
@@ -588,6 +620,19 @@ fn refine(
     }
     fn fly_and_handle<'s>(b: Vec<Interval>, scope: &rayon::Scope<'s>, ctx: &'s Ctx<'s>) {
         if ctx.stop.load(Ordering::SeqCst) {
+            // Kept as a leaf without sets, so that the leaves still tile the initial
+            // set and the hulls over them (which end where the shortest leaf ends) claim
+            // nothing for the part of the set never flown.
+            let mut st = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
+            st.unsettled += 1;
+            st.leaves.push(SystemLeaf {
+                init: to_pairs(&b),
+                instants: Vec::new(),
+                periods: Vec::new(),
+                failure: Some("not flown: a goal was refuted on another sub-box first".into()),
+                decided: vec![None; ctx.sys.goals.len()],
+                stopped_at: None,
+            });
             return;
         }
         let l = fly_box(ctx.sys, ctx.net, &b, ctx.s, ctx.mode, ctx.deadline);

@@ -78,6 +78,63 @@ fn assert_tiles(sys: &System, r: &SystemReach, max_boxes: usize) {
         (volume - 1.0).abs() < 1e-12,
         "the sub-boxes cover {volume} of the set"
     );
+    assert_coverage(sys, r);
+}
+
+/// `r.covered` against a Monte Carlo estimate: the share of 20,000 random starts that
+/// fall in a sub-box with sets at every control instant, within 5 standard deviations
+/// (plus 1e-3); exactly 1 when every sub-box has them, and then `instants` runs to the
+/// horizon. And the hull rows contain every sub-box's own rows.
+fn assert_coverage(sys: &System, r: &SystemReach) {
+    let whole = |l: &samara_reach::system::SystemLeaf| {
+        l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() == sys.steps() + 1
+    };
+    if r.leaves.iter().all(whole) {
+        assert_eq!(r.covered, 1.0);
+        assert_eq!(r.instants.len(), sys.steps() + 1);
+    } else {
+        assert!(
+            r.covered < 1.0,
+            "covered {} with a sub-box short",
+            r.covered
+        );
+        assert!(r.instants.len() <= sys.steps());
+    }
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+    let n = 20_000;
+    let inside = (0..n)
+        .filter(|_| {
+            let x0: Vec<f64> = sys
+                .init
+                .iter()
+                .map(|&(l, h)| if l < h { rng.gen_range(l..h) } else { l })
+                .collect();
+            r.leaves.iter().any(|l| {
+                whole(l)
+                    && l.init
+                        .iter()
+                        .zip(&x0)
+                        .all(|(b, v)| b[0] <= *v && *v <= b[1])
+            })
+        })
+        .count();
+    let p = inside as f64 / n as f64;
+    let sd = (r.covered * (1.0 - r.covered) / n as f64).sqrt();
+    assert!(
+        (p - r.covered).abs() <= 5.0 * sd + 1e-3,
+        "covered {} but {p} of random starts fall in enclosed sub-boxes",
+        r.covered
+    );
+    for l in &r.leaves {
+        for (k, row) in r.instants.iter().enumerate() {
+            for (h, v) in row.iter().zip(&l.instants[k]) {
+                assert!(
+                    h[0] <= v[0] && v[1] <= h[1],
+                    "hull row {k} misses a sub-box"
+                );
+            }
+        }
+    }
 }
 
 /// `n` random flights inside the sets of `r`; returns the number of points checked.
@@ -279,6 +336,28 @@ fn double_pendulum_more_robust_is_falsified_by_a_real_flight() {
         }
         v => panic!("expected violated (ARCH-COMP: falsified), got {v:?}"),
     }
+}
+
+/// A run stopped by its time budget: the share of the set enclosed to the horizon is
+/// reported (below 1, against a Monte Carlo count of the starts in enclosed sub-boxes),
+/// the hulls end where the shortest sub-box ends, and every instant they list still
+/// contains the flights.
+#[test]
+fn budget_limited_run_reports_the_share_enclosed() {
+    let sys = system("double_pendulum.sys");
+    let net = fixture("controller_double_pendulum_less_robust.onnx");
+    let s = SystemReachSettings {
+        timeout: Some(4.0),
+        ..Default::default()
+    };
+    let r = reach_system(&sys, &net, &s).unwrap();
+    assert!(
+        r.covered < 1.0,
+        "the proof takes over a minute: 4 s cannot cover the set"
+    );
+    assert_eq!(r.verdict.name(), "unknown", "{:?}", r.verdict);
+    assert_tiles(&sys, &r, s.max_boxes);
+    assert!(check_contains(&sys, &net, &r, 100, 12) >= 100);
 }
 
 #[test]
