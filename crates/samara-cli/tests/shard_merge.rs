@@ -461,7 +461,7 @@ fn reach_two_shards_merge_to_the_unsharded_result() {
     assert_eq!(r["subproblems"], 12);
     // Proved, nothing split.
     let (r, _) = sharded_equals_unsharded(
-        &["--y0", "2.0:2.1", "--horizon", "0.5", "--goal-ystar", "100"],
+        &["--y0", "2.0:2.2", "--horizon", "0.5", "--goal-ystar", "100"],
         2,
         &[0, 1],
         &dir.path().join("b"),

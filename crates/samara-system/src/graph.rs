@@ -112,7 +112,7 @@ impl Op {
         }
     }
 
-    fn operands(&self) -> ([usize; 3], usize) {
+    pub(crate) fn operands(&self) -> ([usize; 3], usize) {
         match *self {
             Op::Const(_) | Op::State(_) | Op::Input(_) => ([0; 3], 0),
             Op::Un(_, a)
@@ -146,7 +146,7 @@ impl Op {
     }
 }
 
-fn un<S: Scalar>(f: Un, x: &S) -> S {
+pub(crate) fn un<S: Scalar>(f: Un, x: &S) -> S {
     match f {
         Un::Neg => -x.clone(),
         Un::Sqr => x.sqr(),
@@ -163,7 +163,7 @@ fn un<S: Scalar>(f: Un, x: &S) -> S {
     }
 }
 
-fn bin<S: Scalar>(f: Bin2, a: &S, b: &S) -> S {
+pub(crate) fn bin<S: Scalar>(f: Bin2, a: &S, b: &S) -> S {
     match f {
         Bin2::Add => a.clone() + b.clone(),
         Bin2::Sub => a.clone() - b.clone(),
@@ -174,7 +174,7 @@ fn bin<S: Scalar>(f: Bin2, a: &S, b: &S) -> S {
     }
 }
 
-fn select<S: Scalar>(k: Cond, c: &S, a: &S, b: &S) -> S {
+pub(crate) fn select<S: Scalar>(k: Cond, c: &S, a: &S, b: &S) -> S {
     let s = c.sign();
     let decided = match (k, s) {
         (Cond::Neg, Sign::Negative) => Some(true),

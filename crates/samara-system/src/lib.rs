@@ -21,6 +21,7 @@ mod graph;
 mod lex;
 mod parse;
 pub mod sim;
+pub mod taylor;
 
 pub use error::{Pos, SystemError};
 pub use graph::{Affine, Bin2, Cond, Graph, Op, StandIn, Un};

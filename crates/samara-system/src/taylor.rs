@@ -1,0 +1,572 @@
+//! Taylor coefficients in time over a [`Graph`] by incremental Taylor-mode AD, and
+//! [`record`]: any generic [`Scalar`] function (the built-in glider's `Plant::rhs`)
+//! recorded into a graph, so that it gets the same.
+//!
+//! The solution of `x' = g(x, u)` (`u` held) has coefficients `x_{k+1} = g_k / (k + 1)`,
+//! where `g_k` is the `k`-th coefficient of `g` along the solution. Running `g` on
+//! truncated series ([`Series`]) once per order recomputes every lower coefficient of
+//! every intermediate each time: `O(K^3)` products per instruction for `K` orders. Here
+//! every instruction keeps its coefficients, and order `k` computes only coefficient `k`
+//! of each, from the lower ones, by the classical recurrences (Moore, *Interval
+//! Analysis*, 1966; Griewank & Walther, *Evaluating Derivatives*, 2nd ed., ch. 13):
+//! `O(K^2)`. The recurrences and their evaluation order are those of [`Series`], so the
+//! coefficients are the same numbers (in interval arithmetic: the same enclosures), and
+//! branches are decided the same way, on the constant coefficient, strictly; an
+//! undecided one marks the result `bad` as there. Instructions without a recurrence here
+//! (`tan`, `min`, `max`, `sgn`, `powi`) are accepted on constants (the held inputs and
+//! what depends only on them); elsewhere they give `None`, and callers run the series.
+
+use crate::graph::{Bin2, Cond, Graph, Op, Un};
+use samara_num::{Scalar, Series, Sign};
+use std::cell::RefCell;
+use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
+
+fn strict(s: Sign) -> Sign {
+    match s {
+        Sign::Positive | Sign::Negative => s,
+        _ => Sign::Mixed,
+    }
+}
+
+/// `sum_{j=1}^{i} (j / i) a_j b_{i-j}` in [`Series`]' order.
+fn dconv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
+    let mut acc = a[1].clone() * b[i - 1].clone() * (1.0 / i as f64);
+    for j in 2..=i {
+        acc += a[j].clone() * b[i - j].clone() * (j as f64 / i as f64);
+    }
+    acc
+}
+
+/// Coefficient `i` of the product of `a` and `b` (both not constant).
+fn conv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
+    let mut acc = a[0].clone() * b[i].clone();
+    for j in 1..=i {
+        acc += a[j].clone() * b[i - j].clone();
+    }
+    acc
+}
+
+/// The Taylor series in time, coefficients `0..=upto`, of the solution of
+/// `x' = g(x, u)` from `x0` under the held inputs `u`, as [`Series`] with `n = upto + 1`
+/// (`bad` where a branch was undecided); `None` if `g` has an instruction without a
+/// recurrence here, or `upto + 1 > K`.
+pub fn solution_series<S: Scalar, const K: usize>(
+    g: &Graph,
+    x0: &[S],
+    u: &[S],
+    upto: usize,
+) -> Option<Vec<Series<S, K>>> {
+    let m = upto + 1;
+    if m > K || g.outputs.len() != x0.len() {
+        return None;
+    }
+    let nops = g.ops.len();
+    let zero = S::cst(0.0);
+    // Coefficients per instruction.
+    // Row `k` of each: `[k * m, (k + 1) * m)`.
+    let mut c: Vec<S> = vec![zero.clone(); nops * m];
+    // Companion series only for the instructions that need them: `slot[k]` is the row
+    // of instruction `k` in `aux` (sin, cos, tanh, atan) and `aux2` (atan).
+    let mut slot = vec![usize::MAX; nops];
+    let mut slots = 0;
+    for (k, op) in g.ops.iter().enumerate() {
+        if matches!(op, Op::Un(Un::Sin | Un::Cos | Un::Tanh | Un::Atan, _)) {
+            slot[k] = slots;
+            slots += 1;
+        }
+    }
+    let mut aux: Vec<S> = vec![zero.clone(); slots * m];
+    let mut aux2: Vec<S> = vec![zero.clone(); slots * m];
+    let mut konst = vec![false; nops];
+    let mut bad = vec![false; nops];
+    // Decided branches, per instruction: for `abs` -1 / 1, for `select` 0 (else) / 1.
+    let mut pick: Vec<i8> = vec![0; nops];
+    let mut x: Vec<Vec<S>> = x0
+        .iter()
+        .map(|v| {
+            let mut r = vec![zero.clone(); m];
+            r[0] = v.clone();
+            r
+        })
+        .collect();
+    // Instructions without a recurrence here (tan, sgn, min, max, powi) are taken
+    // only on constants, by their own arithmetic on the constant coefficient (as a
+    // series of constants computes them).
+    let mut generic = vec![false; nops];
+    for (k, op) in g.ops.iter().enumerate() {
+        match *op {
+            Op::Const(_) | Op::Input(_) => konst[k] = true,
+            Op::State(_) => {}
+            Op::Un(f, a) => {
+                generic[k] = matches!(f, Un::Tan | Un::Sgn);
+                konst[k] = konst[a];
+            }
+            Op::Bin(f, a, b) => {
+                generic[k] = matches!(f, Bin2::Min | Bin2::Max);
+                konst[k] = konst[a] && konst[b];
+            }
+            Op::AddC(a, _)
+            | Op::SubC(a, _)
+            | Op::CSub(_, a)
+            | Op::MulC(a, _)
+            | Op::DivC(a, _)
+            | Op::CDiv(_, a) => {
+                konst[k] = konst[a];
+            }
+            Op::Powi(a, _) => {
+                generic[k] = true;
+                konst[k] = konst[a];
+            }
+            Op::Select(_, _, a, b) => {
+                konst[k] = konst[a] && konst[b];
+            }
+        }
+        if generic[k] && !konst[k] {
+            return None;
+        }
+    }
+    for i in 0..upto {
+        for k in 0..nops {
+            // Constants have only their constant coefficient.
+            if konst[k] && i > 0 {
+                continue;
+            }
+            if generic[k] {
+                let r = |a: usize| &c[a * m];
+                c[k * m] = match g.ops[k] {
+                    Op::Un(f, a) => crate::graph::un(f, r(a)),
+                    Op::Bin(f, a, b) => crate::graph::bin(f, r(a), r(b)),
+                    Op::Powi(a, n) => r(a).powi(n),
+                    _ => unreachable!("only these are generic"),
+                };
+                let (ops, n) = g.ops[k].operands();
+                bad[k] = ops[..n].iter().any(|&a| bad[a]);
+                continue;
+            }
+            let v = {
+                let r = |a: usize| &c[a * m..(a + 1) * m];
+                match g.ops[k] {
+                    Op::Const(v) => S::cst(v),
+                    Op::State(s) => x[s][i].clone(),
+                    Op::Input(s) => u[s].clone(),
+                    Op::AddC(a, v) => {
+                        if i == 0 {
+                            r(a)[0].clone() + v
+                        } else {
+                            r(a)[i].clone()
+                        }
+                    }
+                    Op::SubC(a, v) => {
+                        if i == 0 {
+                            r(a)[0].clone() - v
+                        } else {
+                            r(a)[i].clone()
+                        }
+                    }
+                    Op::CSub(v, a) => {
+                        if i == 0 {
+                            -r(a)[0].clone() + v
+                        } else {
+                            -r(a)[i].clone()
+                        }
+                    }
+                    Op::MulC(a, v) => r(a)[i].clone() * v,
+                    Op::DivC(a, v) => r(a)[i].clone() / v,
+                    // `S::cst(v) / a`: a constant numerator.
+                    Op::CDiv(v, a) => {
+                        if konst[a] {
+                            S::cst(v) / r(a)[0].clone()
+                        } else {
+                            let num = if i == 0 { S::cst(v) } else { zero.clone() };
+                            let mut acc = num;
+                            for j in 1..=i {
+                                acc -= r(a)[j].clone() * c[k * m + i - j].clone();
+                            }
+                            acc / r(a)[0].clone()
+                        }
+                    }
+                    Op::Bin(f, a, b) => match f {
+                        Bin2::Add => r(a)[i].clone() + r(b)[i].clone(),
+                        Bin2::Sub => r(a)[i].clone() - r(b)[i].clone(),
+                        Bin2::Mul => {
+                            if konst[a] {
+                                r(b)[i].clone() * r(a)[0].clone()
+                            } else if konst[b] {
+                                r(a)[i].clone() * r(b)[0].clone()
+                            } else {
+                                conv(r(a), r(b), i)
+                            }
+                        }
+                        Bin2::Div => {
+                            if konst[b] {
+                                r(a)[i].clone() / r(b)[0].clone()
+                            } else {
+                                let mut acc = r(a)[i].clone();
+                                for j in 1..=i {
+                                    acc -= r(b)[j].clone() * c[k * m + i - j].clone();
+                                }
+                                acc / r(b)[0].clone()
+                            }
+                        }
+                        Bin2::Min | Bin2::Max => unreachable!("generic"),
+                    },
+                    Op::Un(f, a) => match f {
+                        Un::Neg => -r(a)[i].clone(),
+                        Un::Sqr => {
+                            if i == 0 {
+                                r(a)[0].sqr()
+                            } else {
+                                conv(r(a), r(a), i)
+                            }
+                        }
+                        Un::Sqrt => {
+                            if i == 0 {
+                                r(a)[0].sqrt()
+                            } else {
+                                let mut acc = r(a)[i].clone();
+                                for j in 1..i {
+                                    acc -= c[k * m + j].clone() * c[k * m + i - j].clone();
+                                }
+                                acc / (c[k * m].clone() * 2.0)
+                            }
+                        }
+                        Un::Exp => {
+                            if i == 0 {
+                                r(a)[0].exp()
+                            } else {
+                                dconv(r(a), &c[k * m..(k + 1) * m], i)
+                            }
+                        }
+                        Un::Ln => {
+                            if i == 0 {
+                                r(a)[0].ln()
+                            } else {
+                                let mut acc = r(a)[i].clone();
+                                for j in 1..i {
+                                    acc -= c[k * m + j].clone()
+                                        * r(a)[i - j].clone()
+                                        * (j as f64 / i as f64);
+                                }
+                                acc / r(a)[0].clone()
+                            }
+                        }
+                        Un::Sin | Un::Cos => {
+                            // Row `k` of `c` is this function, its `aux` row the companion.
+                            let sin = f == Un::Sin;
+                            if i == 0 {
+                                let (s0, c0) = r(a)[0].sin_cos();
+                                let (own, other) = if sin { (s0, c0) } else { (c0, s0) };
+                                aux[slot[k] * m] = other;
+                                own
+                            } else {
+                                let (own, other) = if sin {
+                                    let s = dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
+                                    let co = -dconv(r(a), &c[k * m..(k + 1) * m], i);
+                                    (s, co)
+                                } else {
+                                    let s = dconv(r(a), &c[k * m..(k + 1) * m], i);
+                                    let co = -dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
+                                    (co, s)
+                                };
+                                aux[slot[k] * m + i] = other;
+                                own
+                            }
+                        }
+                        Un::Atan => {
+                            // q = a^2 + 1 (aux), d_{i-1} = (i a_i - sum q_j d_{i-1-j}) / q_0
+                            // (aux2), u_i = d_{i-1} / i.
+                            if i == 0 {
+                                aux[slot[k] * m] = r(a)[0].sqr() + 1.0;
+                                r(a)[0].atan()
+                            } else {
+                                aux[slot[k] * m + i] = conv(r(a), r(a), i);
+                                let q = i - 1;
+                                let mut acc = r(a)[q + 1].clone() * (q as f64 + 1.0);
+                                for j in 1..=q {
+                                    acc -= aux[slot[k] * m + j].clone()
+                                        * aux2[slot[k] * m + q - j].clone();
+                                }
+                                let d = acc / aux[slot[k] * m].clone();
+                                aux2[slot[k] * m + q] = d.clone();
+                                d / i as f64
+                            }
+                        }
+                        Un::Abs => {
+                            if i == 0 {
+                                pick[k] = match strict(r(a)[0].sign()) {
+                                    Sign::Positive => 1,
+                                    Sign::Negative => -1,
+                                    _ => 0,
+                                };
+                            }
+                            match pick[k] {
+                                1 => r(a)[i].clone(),
+                                -1 => -r(a)[i].clone(),
+                                _ => r(a)[i].abs(),
+                            }
+                        }
+                        Un::Tanh => {
+                            // w = 1 - t^2 (aux): t_i = dconv(a, w, i), w_i = -(t^2)_i.
+                            if i == 0 {
+                                let t0 = r(a)[0].tanh();
+                                aux[slot[k] * m] = -t0.sqr() + 1.0;
+                                t0
+                            } else {
+                                let t = dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
+                                let mut acc = c[k * m].clone() * t.clone();
+                                for j in 1..i {
+                                    acc += c[k * m + j].clone() * c[k * m + i - j].clone();
+                                }
+                                acc += t.clone() * c[k * m].clone();
+                                aux[slot[k] * m + i] = -acc;
+                                t
+                            }
+                        }
+                        Un::Tan | Un::Sgn => unreachable!("generic"),
+                    },
+                    Op::Powi(..) => unreachable!("generic"),
+                    Op::Select(cond, q, a, b) => {
+                        if i == 0 {
+                            let s = strict(r(q)[0].sign());
+                            pick[k] = match (cond, s) {
+                                (Cond::Neg | Cond::NonPos, Sign::Negative) => 1,
+                                (Cond::Neg | Cond::NonPos, Sign::Positive) => -1,
+                                _ => 0,
+                            };
+                        }
+                        match pick[k] {
+                            1 => r(a)[i].clone(),
+                            -1 => r(b)[i].clone(),
+                            _ => r(a)[i].hull(&r(b)[i]),
+                        }
+                    }
+                }
+            };
+            c[k * m + i] = v;
+            if i == 0 {
+                // Unusable if an operand is, or the branch was undecided; a decided
+                // select takes its branch's flag, as a series would.
+                bad[k] = match g.ops[k] {
+                    Op::Select(_, _, a, b) => match pick[k] {
+                        1 => bad[a],
+                        -1 => bad[b],
+                        _ => true,
+                    },
+                    Op::Un(Un::Abs, a) => bad[a] || pick[k] == 0,
+                    op => {
+                        let (ops, n) = op.operands();
+                        ops[..n].iter().any(|&a| bad[a])
+                    }
+                };
+            }
+        }
+        for (j, &o) in g.outputs.iter().enumerate() {
+            x[j][i + 1] = c[o * m + i].clone() / (i as f64 + 1.0);
+        }
+    }
+    // A state whose series is bad makes every later coefficient of everything reading
+    // it unusable: as with series, one bad output spoils them all.
+    let all_bad = g.outputs.iter().any(|&o| bad[o]);
+    Some(
+        x.into_iter()
+            .zip(&g.outputs)
+            .map(|(co, _)| {
+                let mut s = Series::var(co[0].clone());
+                for (t, v) in co.into_iter().enumerate() {
+                    s.c[t] = v;
+                }
+                s.n = m;
+                s.bad = all_bad;
+                s
+            })
+            .collect(),
+    )
+}
+
+thread_local! {
+    /// The instructions recorded so far on this thread (`None`: not recording), and
+    /// whether an operation without an instruction (a hull) was met.
+    static TAPE: RefCell<Option<(Vec<Op>, bool)>> = const { RefCell::new(None) };
+}
+
+fn push(op: Op) -> usize {
+    TAPE.with(|t| {
+        let mut t = t.borrow_mut();
+        let (ops, _) = t
+            .as_mut()
+            .expect("Rec used outside samara_system::taylor::record");
+        ops.push(op);
+        ops.len() - 1
+    })
+}
+
+/// A value being recorded: its instruction and its value in `S` (which decides the
+/// branches the recorded function takes, as [`Series`] would decide them on its
+/// constant coefficient).
+#[derive(Clone, Debug)]
+pub struct Rec<S: Scalar> {
+    id: usize,
+    val: S,
+}
+
+impl<S: Scalar> Rec<S> {
+    fn un(&self, f: Un, val: S) -> Self {
+        Rec {
+            id: push(Op::Un(f, self.id)),
+            val,
+        }
+    }
+    fn bin(&self, f: Bin2, o: &Self, val: S) -> Self {
+        Rec {
+            id: push(Op::Bin(f, self.id, o.id)),
+            val,
+        }
+    }
+}
+
+macro_rules! rec_ops {
+    ($tr:ident, $m:ident, $f:expr, $trc:ident, $opc:ident) => {
+        impl<S: Scalar> $tr for Rec<S> {
+            type Output = Self;
+            fn $m(self, o: Self) -> Self {
+                let v = self.val.clone().$m(o.val.clone());
+                self.bin($f, &o, v)
+            }
+        }
+        impl<S: Scalar> $tr<f64> for Rec<S> {
+            type Output = Self;
+            fn $m(self, o: f64) -> Self {
+                Rec {
+                    id: push(Op::$opc(self.id, o)),
+                    val: self.val.$m(o),
+                }
+            }
+        }
+    };
+}
+rec_ops!(Add, add, Bin2::Add, AddC, AddC);
+rec_ops!(Sub, sub, Bin2::Sub, SubC, SubC);
+rec_ops!(Mul, mul, Bin2::Mul, MulC, MulC);
+rec_ops!(Div, div, Bin2::Div, DivC, DivC);
+
+impl<S: Scalar> Neg for Rec<S> {
+    type Output = Self;
+    fn neg(self) -> Self {
+        let v = -self.val.clone();
+        self.un(Un::Neg, v)
+    }
+}
+impl<S: Scalar> AddAssign for Rec<S> {
+    fn add_assign(&mut self, o: Self) {
+        *self = self.clone() + o;
+    }
+}
+impl<S: Scalar> SubAssign for Rec<S> {
+    fn sub_assign(&mut self, o: Self) {
+        *self = self.clone() - o;
+    }
+}
+impl<S: Scalar> MulAssign for Rec<S> {
+    fn mul_assign(&mut self, o: Self) {
+        *self = self.clone() * o;
+    }
+}
+
+impl<S: Scalar> Scalar for Rec<S> {
+    fn cst(c: f64) -> Self {
+        Rec {
+            id: push(Op::Const(c)),
+            val: S::cst(c),
+        }
+    }
+    fn value(&self) -> f64 {
+        self.val.value()
+    }
+    fn sin(&self) -> Self {
+        self.un(Un::Sin, self.val.sin())
+    }
+    fn cos(&self) -> Self {
+        self.un(Un::Cos, self.val.cos())
+    }
+    fn tanh(&self) -> Self {
+        self.un(Un::Tanh, self.val.tanh())
+    }
+    fn atan(&self) -> Self {
+        self.un(Un::Atan, self.val.atan())
+    }
+    fn sqrt(&self) -> Self {
+        self.un(Un::Sqrt, self.val.sqrt())
+    }
+    fn exp(&self) -> Self {
+        self.un(Un::Exp, self.val.exp())
+    }
+    fn abs(&self) -> Self {
+        self.un(Un::Abs, self.val.abs())
+    }
+    fn ln(&self) -> Self {
+        self.un(Un::Ln, self.val.ln())
+    }
+    fn sqr(&self) -> Self {
+        self.un(Un::Sqr, self.val.sqr())
+    }
+    /// As [`Series`]: only a strict sign of the constant coefficient decides.
+    fn sign(&self) -> Sign {
+        strict(self.val.sign())
+    }
+    /// A hull has no instruction: the recording is refused (a series would be `bad`).
+    fn hull(&self, o: &Self) -> Self {
+        TAPE.with(|t| {
+            if let Some((_, refused)) = t.borrow_mut().as_mut() {
+                *refused = true;
+            }
+        });
+        Rec {
+            id: self.id,
+            val: self.val.hull(&o.val),
+        }
+    }
+}
+
+/// Record `f(state, input, out)` (a generic right-hand side, e.g. the glider's
+/// `Plant::rhs`) at the values `x`, `u` as a graph with states `x` and inputs `u`; the
+/// branches it takes are those `S`'s values decide (strictly, as on series). `None` if
+/// `f` took a hull (an undecided branch), which has no instruction.
+pub fn record<S: Scalar>(
+    x: &[S],
+    u: &[S],
+    n_out: usize,
+    f: impl FnOnce(&[Rec<S>], &[Rec<S>], &mut [Rec<S>]),
+) -> Option<Graph> {
+    TAPE.with(|t| *t.borrow_mut() = Some((Vec::new(), false)));
+    let xs: Vec<Rec<S>> = x
+        .iter()
+        .enumerate()
+        .map(|(i, v)| Rec {
+            id: push(Op::State(i)),
+            val: v.clone(),
+        })
+        .collect();
+    let us: Vec<Rec<S>> = u
+        .iter()
+        .enumerate()
+        .map(|(i, v)| Rec {
+            id: push(Op::Input(i)),
+            val: v.clone(),
+        })
+        .collect();
+    let mut out: Vec<Rec<S>> = (0..n_out)
+        .map(|_| Rec {
+            id: push(Op::Const(0.0)),
+            val: S::cst(0.0),
+        })
+        .collect();
+    f(&xs, &us, &mut out);
+    let (ops, refused) = TAPE.with(|t| t.borrow_mut().take()).expect("recording");
+    if refused {
+        return None;
+    }
+    Some(Graph {
+        ops,
+        outputs: out.iter().map(|r| r.id).collect(),
+    })
+}
