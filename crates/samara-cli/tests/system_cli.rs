@@ -198,36 +198,42 @@ fn bad_reach_system_inputs_exit_2_and_leave_nothing() {
 #[test]
 fn sets_lost_without_a_goal_exit_1_and_say_where() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("o");
     let glider = support::reference("adversarial_model_denorm.onnx");
-    let (code, stdout, stderr) = run(&[
-        "reach",
-        "--network",
-        glider.to_str().unwrap(),
-        "--sets",
-        "taylor",
-        "--max-leaves",
-        "4",
-        "--order",
-        "2",
-        "--network-error",
-        "symbolic:10",
-        "--horizon",
-        "2",
-        "--init",
-        "v_xp=0.99:1.01",
-        "--init",
-        "v_yp=-0.01:0.01",
-        "--init",
-        "omega=-0.01:0.01",
-        "--init",
-        "theta=-0.01:0.01",
-        "--init",
-        "x=-0.05:0.05",
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-    ]);
+    let six_state = |out: &Path| -> Vec<String> {
+        let mut args: Vec<String> = [
+            "reach",
+            "--network",
+            glider.to_str().unwrap(),
+            "--sets",
+            "taylor",
+            "--max-leaves",
+            "4",
+            "--order",
+            "2",
+            "--network-error",
+            "symbolic:10",
+            "--horizon",
+            "2",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        for i in [
+            "v_xp=0.99:1.01",
+            "v_yp=-0.01:0.01",
+            "omega=-0.01:0.01",
+            "theta=-0.01:0.01",
+            "x=-0.05:0.05",
+        ] {
+            args.extend(["--init".to_string(), i.to_string()]);
+        }
+        args.extend(["--out".to_string(), out.to_str().unwrap().to_string()]);
+        args
+    };
+    let out = dir.path().join("o");
+    let mut args = six_state(&out);
+    args.push("--json".into());
+    let (code, stdout, stderr) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
     assert_eq!(code, 1, "{stdout}{stderr}");
     let v: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
     assert_eq!(v["verdict"]["verdict"], "none");
@@ -238,4 +244,17 @@ fn sets_lost_without_a_goal_exit_1_and_say_where() {
         serde_json::from_str(&std::fs::read_to_string(out.join("reach.json")).unwrap()).unwrap();
     let reached = r["result"]["instants"].as_array().unwrap().len();
     assert!((1..5).contains(&reached), "{reached} instants of 5");
+    // The share of the set enclosed to the horizon, not a count of sub-boxes; no hull
+    // at the horizon when part of the set has none.
+    let covered = v["covered"].as_f64().unwrap();
+    assert!((0.0..1.0).contains(&covered), "{v}");
+    assert_eq!(r["result"]["covered"].as_f64(), Some(covered));
+    assert!(v["final"].is_null(), "{v}");
+    let args = six_state(&dir.path().join("h"));
+    let (code, stdout, stderr) = run(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    assert_eq!(code, 1, "{stdout}{stderr}");
+    assert!(
+        stdout.contains("% of the initial set"),
+        "the line states the share enclosed: {stdout}"
+    );
 }
