@@ -48,8 +48,8 @@ fn conv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
 
 /// The Taylor series in time, coefficients `0..=upto`, of the solution of
 /// `x' = g(x, u)` from `x0` under the held inputs `u`, as [`Series`] with `n = upto + 1`
-/// (`bad` where a branch was undecided); `None` if `g` has an instruction without a
-/// recurrence here, or `upto + 1 > K`.
+/// (`bad` where a branch was undecided); `None` if an instruction without a recurrence
+/// here reads the states, or `upto + 1 > K`.
 pub fn solution_series<S: Scalar, const K: usize>(
     g: &Graph,
     x0: &[S],
@@ -62,8 +62,7 @@ pub fn solution_series<S: Scalar, const K: usize>(
     }
     let nops = g.ops.len();
     let zero = S::cst(0.0);
-    // Coefficients per instruction.
-    // Row `k` of each: `[k * m, (k + 1) * m)`.
+    // Coefficients per instruction: row `k` is `c[k * m..(k + 1) * m]`.
     let mut c: Vec<S> = vec![zero.clone(); nops * m];
     // Companion series only for the instructions that need them: `slot[k]` is the row
     // of instruction `k` in `aux` (sin, cos, tanh, atan) and `aux2` (atan).
@@ -79,7 +78,8 @@ pub fn solution_series<S: Scalar, const K: usize>(
     let mut aux2: Vec<S> = vec![zero.clone(); slots * m];
     let mut konst = vec![false; nops];
     let mut bad = vec![false; nops];
-    // Decided branches, per instruction: for `abs` -1 / 1, for `select` 0 (else) / 1.
+    // Decided branches, per instruction (0: undecided): for `abs` the sign -1 / 1, for
+    // `select` 1 the first branch, -1 the second.
     let mut pick: Vec<i8> = vec![0; nops];
     let mut x: Vec<Vec<S>> = x0
         .iter()
