@@ -22,5 +22,5 @@ pub use dual::Dual;
 pub use idual::IDual;
 pub use interval::Interval;
 pub use scalar::{Scalar, Sign};
-pub use series::Series;
+pub use series::{conv, dconv, Series};
 pub use tm::Tm;

@@ -18,6 +18,19 @@ pub enum Sign {
     Mixed,
 }
 
+impl Sign {
+    /// Decided only when every value is strictly positive or strictly negative, else
+    /// [`Sign::Mixed`]: the test on which truncated series (and the incremental Taylor
+    /// expansion that must agree with them) take a branch, since a branch at a zero
+    /// of its condition need not be analytic there.
+    pub fn strict(self) -> Sign {
+        match self {
+            Sign::Positive | Sign::Negative => self,
+            _ => Sign::Mixed,
+        }
+    }
+}
+
 /// A number type the plant and network equations can run on.
 ///
 /// Required: field arithmetic (by value, with `f64` on the right), the elementary

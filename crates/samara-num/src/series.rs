@@ -87,16 +87,30 @@ impl<S: Scalar, const K: usize> Series<S, K> {
         }
         self
     }
+}
 
-    /// `sum_{j=1}^{i} (j / i) a_j b_{i-j}`, the convolution of the recurrences.
-    #[inline]
-    fn dconv(a: &[S; K], b: &[S; K], i: usize) -> S {
-        let mut acc = a[1].clone() * b[i - 1].clone() * (1.0 / i as f64);
-        for j in 2..=i {
-            acc += a[j].clone() * b[i - j].clone() * (j as f64 / i as f64);
-        }
-        acc
+/// `sum_{j=1}^{i} (j / i) a_j b_{i-j}`, the convolution of the recurrences of
+/// `exp`, `sin`/`cos` and `tanh` (coefficient `i >= 1`). Shared with the incremental
+/// expansion (`samara_system::taylor`) so that both sum in the same order.
+#[inline]
+pub fn dconv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
+    let mut acc = a[1].clone() * b[i - 1].clone() * (1.0 / i as f64);
+    for j in 2..=i {
+        acc += a[j].clone() * b[i - j].clone() * (j as f64 / i as f64);
     }
+    acc
+}
+
+/// Coefficient `i` of the product of the series `a` and `b`,
+/// `a_0 b_i + sum_{j=1}^{i} a_j b_{i-j}`, in the order shared with the incremental
+/// expansion.
+#[inline]
+pub fn conv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
+    let mut acc = a[0].clone() * b[i].clone();
+    for j in 1..=i {
+        acc += a[j].clone() * b[i - j].clone();
+    }
+    acc
 }
 
 impl<S: Scalar, const K: usize> Add for Series<S, K> {
@@ -130,11 +144,7 @@ impl<S: Scalar, const K: usize> Mul for Series<S, K> {
             return r;
         }
         for i in 0..n {
-            let mut acc = self.c[0].clone() * o.c[i].clone();
-            for j in 1..=i {
-                acc += self.c[j].clone() * o.c[i - j].clone();
-            }
-            r.c[i] = acc;
+            r.c[i] = conv(&self.c, &o.c, i);
         }
         r
     }
@@ -210,13 +220,6 @@ impl<S: Scalar, const K: usize> MulAssign for Series<S, K> {
     }
 }
 
-fn strict(s: Sign) -> Sign {
-    match s {
-        Sign::Positive | Sign::Negative => s,
-        _ => Sign::Mixed,
-    }
-}
-
 impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
     fn cst(c: f64) -> Self {
         Series::constant(S::cst(c))
@@ -244,8 +247,8 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         s.c[0] = s0;
         c.c[0] = c0;
         for i in 1..self.n {
-            s.c[i] = Self::dconv(&self.c, &c.c, i);
-            c.c[i] = -Self::dconv(&self.c, &s.c, i);
+            s.c[i] = dconv(&self.c, &c.c, i);
+            c.c[i] = -dconv(&self.c, &s.c, i);
         }
         (s, c)
     }
@@ -260,12 +263,8 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         t.c[0] = self.c[0].tanh();
         w.c[0] = -t.c[0].sqr() + 1.0;
         for i in 1..self.n {
-            t.c[i] = Self::dconv(&self.c, &w.c, i);
-            let mut acc = t.c[0].clone() * t.c[i].clone();
-            for j in 1..=i {
-                acc += t.c[j].clone() * t.c[i - j].clone();
-            }
-            w.c[i] = -acc;
+            t.c[i] = dconv(&self.c, &w.c, i);
+            w.c[i] = -conv(&t.c, &t.c, i);
         }
         t
     }
@@ -326,7 +325,7 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         let mut e = Self::zero_like(self.n, self.bad);
         e.c[0] = self.c[0].exp();
         for i in 1..self.n {
-            e.c[i] = Self::dconv(&self.c, &e.c, i);
+            e.c[i] = dconv(&self.c, &e.c, i);
         }
         e
     }
@@ -349,7 +348,7 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         u
     }
     fn abs(&self) -> Self {
-        match strict(self.c[0].sign()) {
+        match self.c[0].sign().strict() {
             Sign::Positive => self.clone(),
             Sign::Negative => -self.clone(),
             _ => Series {
@@ -359,7 +358,7 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         }
     }
     fn sign(&self) -> Sign {
-        strict(self.c[0].sign())
+        self.c[0].sign().strict()
     }
     fn hull(&self, o: &Self) -> Self {
         let mut r = self.clone().zip(o.clone(), |a, b| a.hull(&b));

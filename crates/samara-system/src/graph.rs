@@ -174,7 +174,7 @@ pub(crate) fn bin<S: Scalar>(f: Bin2, a: &S, b: &S) -> S {
     }
 }
 
-pub(crate) fn select<S: Scalar>(k: Cond, c: &S, a: &S, b: &S) -> S {
+fn select<S: Scalar>(k: Cond, c: &S, a: &S, b: &S) -> S {
     let s = c.sign();
     let decided = match (k, s) {
         (Cond::Neg, Sign::Negative) => Some(true),

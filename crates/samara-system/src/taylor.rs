@@ -17,34 +17,9 @@
 //! what depends only on them); elsewhere they give `None`, and callers run the series.
 
 use crate::graph::{Bin2, Cond, Graph, Op, Un};
-use samara_num::{Scalar, Series, Sign};
+use samara_num::{conv, dconv, Scalar, Series, Sign};
 use std::cell::RefCell;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
-
-fn strict(s: Sign) -> Sign {
-    match s {
-        Sign::Positive | Sign::Negative => s,
-        _ => Sign::Mixed,
-    }
-}
-
-/// `sum_{j=1}^{i} (j / i) a_j b_{i-j}` in [`Series`]' order.
-fn dconv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
-    let mut acc = a[1].clone() * b[i - 1].clone() * (1.0 / i as f64);
-    for j in 2..=i {
-        acc += a[j].clone() * b[i - j].clone() * (j as f64 / i as f64);
-    }
-    acc
-}
-
-/// Coefficient `i` of the product of `a` and `b` (both not constant).
-fn conv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
-    let mut acc = a[0].clone() * b[i].clone();
-    for j in 1..=i {
-        acc += a[j].clone() * b[i - j].clone();
-    }
-    acc
-}
 
 /// The Taylor series in time, coefficients `0..=upto`, of the solution of
 /// `x' = g(x, u)` from `x0` under the held inputs `u`, as [`Series`] with `n = upto + 1`
@@ -92,18 +67,20 @@ pub fn solution_series<S: Scalar, const K: usize>(
     // Instructions without a recurrence here (tan, sgn, min, max, powi) are taken
     // only on constants, by their own arithmetic on the constant coefficient (as a
     // series of constants computes them).
-    let mut generic = vec![false; nops];
     for (k, op) in g.ops.iter().enumerate() {
-        match *op {
-            Op::Const(_) | Op::Input(_) => konst[k] = true,
-            Op::State(_) => {}
+        let generic = match *op {
+            Op::Const(_) | Op::Input(_) => {
+                konst[k] = true;
+                false
+            }
+            Op::State(_) => false,
             Op::Un(f, a) => {
-                generic[k] = matches!(f, Un::Tan | Un::Sgn);
                 konst[k] = konst[a];
+                matches!(f, Un::Tan | Un::Sgn)
             }
             Op::Bin(f, a, b) => {
-                generic[k] = matches!(f, Bin2::Min | Bin2::Max);
                 konst[k] = konst[a] && konst[b];
+                matches!(f, Bin2::Min | Bin2::Max)
             }
             Op::AddC(a, _)
             | Op::SubC(a, _)
@@ -112,16 +89,18 @@ pub fn solution_series<S: Scalar, const K: usize>(
             | Op::DivC(a, _)
             | Op::CDiv(_, a) => {
                 konst[k] = konst[a];
+                false
             }
             Op::Powi(a, _) => {
-                generic[k] = true;
                 konst[k] = konst[a];
+                true
             }
             Op::Select(_, _, a, b) => {
                 konst[k] = konst[a] && konst[b];
+                false
             }
-        }
-        if generic[k] && !konst[k] {
+        };
+        if generic && !konst[k] {
             return None;
         }
     }
@@ -129,18 +108,6 @@ pub fn solution_series<S: Scalar, const K: usize>(
         for k in 0..nops {
             // Constants have only their constant coefficient.
             if konst[k] && i > 0 {
-                continue;
-            }
-            if generic[k] {
-                let r = |a: usize| &c[a * m];
-                c[k * m] = match g.ops[k] {
-                    Op::Un(f, a) => crate::graph::un(f, r(a)),
-                    Op::Bin(f, a, b) => crate::graph::bin(f, r(a), r(b)),
-                    Op::Powi(a, n) => r(a).powi(n),
-                    _ => unreachable!("only these are generic"),
-                };
-                let (ops, n) = g.ops[k].operands();
-                bad[k] = ops[..n].iter().any(|&a| bad[a]);
                 continue;
             }
             let v = {
@@ -208,7 +175,8 @@ pub fn solution_series<S: Scalar, const K: usize>(
                                 acc / r(b)[0].clone()
                             }
                         }
-                        Bin2::Min | Bin2::Max => unreachable!("generic"),
+                        // Constants only (refused above otherwise): i = 0.
+                        Bin2::Min | Bin2::Max => crate::graph::bin(f, &r(a)[0], &r(b)[0]),
                     },
                     Op::Un(f, a) => match f {
                         Un::Neg => -r(a)[i].clone(),
@@ -293,7 +261,7 @@ pub fn solution_series<S: Scalar, const K: usize>(
                         }
                         Un::Abs => {
                             if i == 0 {
-                                pick[k] = match strict(r(a)[0].sign()) {
+                                pick[k] = match r(a)[0].sign().strict() {
                                     Sign::Positive => 1,
                                     Sign::Negative => -1,
                                     _ => 0,
@@ -306,28 +274,27 @@ pub fn solution_series<S: Scalar, const K: usize>(
                             }
                         }
                         Un::Tanh => {
-                            // w = 1 - t^2 (aux): t_i = dconv(a, w, i), w_i = -(t^2)_i.
+                            // w = 1 - t^2 (aux): t_i = dconv(a, w, i) needs w up to
+                            // i - 1, and w_{i-1} = -(t^2)_{i-1} the t stored so far.
                             if i == 0 {
                                 let t0 = r(a)[0].tanh();
                                 aux[slot[k] * m] = -t0.sqr() + 1.0;
                                 t0
                             } else {
-                                let t = dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
-                                let mut acc = c[k * m].clone() * t.clone();
-                                for j in 1..i {
-                                    acc += c[k * m + j].clone() * c[k * m + i - j].clone();
+                                if i > 1 {
+                                    aux[slot[k] * m + i - 1] = -conv(r(k), r(k), i - 1);
                                 }
-                                acc += t.clone() * c[k * m].clone();
-                                aux[slot[k] * m + i] = -acc;
-                                t
+                                dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i)
                             }
                         }
-                        Un::Tan | Un::Sgn => unreachable!("generic"),
+                        // Constants only (refused above otherwise): i = 0.
+                        Un::Tan | Un::Sgn => crate::graph::un(f, &r(a)[0]),
                     },
-                    Op::Powi(..) => unreachable!("generic"),
+                    // Constants only (refused above otherwise): i = 0.
+                    Op::Powi(a, n) => r(a)[0].powi(n),
                     Op::Select(cond, q, a, b) => {
                         if i == 0 {
-                            let s = strict(r(q)[0].sign());
+                            let s = r(q)[0].sign().strict();
                             pick[k] = match (cond, s) {
                                 (Cond::Neg | Cond::NonPos, Sign::Negative) => 1,
                                 (Cond::Neg | Cond::NonPos, Sign::Positive) => -1,
@@ -369,8 +336,7 @@ pub fn solution_series<S: Scalar, const K: usize>(
     let all_bad = g.outputs.iter().any(|&o| bad[o]);
     Some(
         x.into_iter()
-            .zip(&g.outputs)
-            .map(|(co, _)| {
+            .map(|co| {
                 let mut s = Series::var(co[0].clone());
                 for (t, v) in co.into_iter().enumerate() {
                     s.c[t] = v;
@@ -511,7 +477,7 @@ impl<S: Scalar> Scalar for Rec<S> {
     }
     /// As [`Series`]: only a strict sign of the constant coefficient decides.
     fn sign(&self) -> Sign {
-        strict(self.val.sign())
+        self.val.sign().strict()
     }
     /// A hull has no instruction: the recording is refused (a series would be `bad`).
     fn hull(&self, o: &Self) -> Self {
