@@ -21,6 +21,7 @@
 use crate::zonotope::{gamma, Zonotope};
 use samara_num::{IDual, Interval, Scalar, Series};
 use samara_plant::Plant;
+use samara_system::Graph;
 
 /// Taylor order of the validated steps.
 pub const ORDER: usize = 7;
@@ -138,28 +139,39 @@ fn rhs_interval(plant: &Plant, x: &[Interval]) -> Vec<Interval> {
     out
 }
 
-/// Taylor coefficients `0..=upto` of the solution from `x0` (last entry: ex, constant).
+/// The plant's right-hand side recorded as a graph at the box `b` (last entry: ex),
+/// with the branches `b` decides ([`samara_system::taylor::record`]); `None` where one
+/// is undecided over `b`. Branches are decided on strict signs, which hold on every
+/// subset of `b`, so one recording over a step's a-priori box serves every expansion of
+/// the step (over the set's box, at its centre, with duals over the box): the graph a
+/// recording at any of those would give.
+fn record_rhs(plant: &Plant, b: &[Interval]) -> Option<Graph> {
+    let n = b.len() - 1;
+    samara_system::taylor::record(&b[..n], &b[n..], n, |x, u, out| {
+        let mut full = x.to_vec();
+        full.push(u[0].clone());
+        rhs6(plant, &full, out);
+    })
+}
+
+/// Taylor coefficients `0..=upto` of the solution from `x0` (last entry: ex, constant),
+/// inside the box `g` was recorded at ([`record_rhs`]).
 fn taylor<S: Scalar + Copy, const K: usize>(
     plant: &Plant,
+    g: Option<&Graph>,
     x0: &[S],
     upto: usize,
 ) -> Vec<Series<S, K>> {
     let d = x0.len();
     let n = d - 1;
-    // Recorded once and expanded incrementally (O(K^2) where re-running the plant on
+    // Expanded incrementally on the recording (O(K^2) where re-running the plant on
     // series per order is O(K^3); the same recurrences, so the same enclosures); the
-    // series below where the recording is refused (an undecided branch: then `bad`).
-    if let Some(g) = samara_system::taylor::record(&x0[..n], &x0[n..], n, |x, u, out| {
-        let mut full = x.to_vec();
-        full.push(u[0].clone());
-        rhs6(plant, &full, out);
-    }) {
-        if let Some(mut s) =
-            samara_system::taylor::solution_series::<S, K>(&g, &x0[..n], &x0[n..], upto)
-        {
-            s.push(Series::constant(x0[n]));
-            return s;
-        }
+    // series below where there is no recording (an undecided branch: then `bad`).
+    if let Some(mut s) =
+        g.and_then(|g| samara_system::taylor::solution_series::<S, K>(g, &x0[..n], &x0[n..], upto))
+    {
+        s.push(Series::constant(x0[n]));
+        return s;
     }
     let mut x: Vec<Series<S, K>> = x0.iter().map(|v| Series::var(*v)).collect();
     x[n] = Series::constant(x0[n]);
@@ -270,7 +282,8 @@ fn taylor_step(
     let bz = z.bbox();
     let b = apriori(plant, &bz, h)?;
     // Remainder h^{p+1} x_{p+1}(B).
-    let tb = taylor::<Interval, KK>(plant, &b, ORDER + 1);
+    let rec = record_rhs(plant, &b);
+    let tb = taylor::<Interval, KK>(plant, rec.as_ref(), &b, ORDER + 1);
     if tb[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -298,7 +311,7 @@ fn taylor_step(
     }
     // T(c).
     let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
-    let tc = taylor::<Interval, KK>(plant, &cpt, ORDER);
+    let tc = taylor::<Interval, KK>(plant, rec.as_ref(), &cpt, ORDER);
     if tc[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -312,7 +325,7 @@ fn taylor_step(
     };
     // Orders above JAC_ORDER enter by intervals over box(Z):
     // h^i (x_i(s) - x_i(c)) ∈ h^i (x_i(box Z) - x_i(c)).
-    let tz = taylor::<Interval, KK>(plant, &bz, ORDER);
+    let tz = taylor::<Interval, KK>(plant, rec.as_ref(), &bz, ORDER);
     if tz[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -330,7 +343,8 @@ fn taylor_step(
         })
         .collect();
     // DT(box Z).
-    let tj = taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, &dual_seeds(&bz), JAC_ORDER);
+    let tj =
+        taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, rec.as_ref(), &dual_seeds(&bz), JAC_ORDER);
     if tj[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
