@@ -141,6 +141,14 @@ def main():
                 if isinstance(verdict, dict):
                     verdict = verdict.get("verdict")
                     s.setdefault("subproblems", s.get("boxes"))
+                    # ... and x + y at the horizon as their first measure.
+                    m = (s.get("measures") or [{}])[0]
+                    enc, smp = m.get("enclosure"), m.get("sampled")
+                    if enc:
+                        s.setdefault("final_width", enc[1] - enc[0])
+                    if smp:
+                        s.setdefault("sampled_width", smp[1] - smp[0])
+                    s.setdefault("width_ratio", m.get("ratio"))
                 # CORA's time is for the full published horizon only.
                 speedup = CORA_SECONDS / rec["wall"] if a.horizon == 20.0 else None
             else:

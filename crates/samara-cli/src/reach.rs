@@ -524,7 +524,19 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     };
     let plan = plan(a, false)?;
     let sys = crate::reach_system::builtin_system(&plan.settings)?;
-    crate::reach_system::run_system(a, &sys, Path::new("built-in setting"), &plan.net)
+    // The published setting's measure, x + y (its width against the flights').
+    let mut coef = vec![0.0; sys.dim()];
+    for (i, n) in sys.states.iter().enumerate() {
+        if n == "x" || n == "y" {
+            coef[i] = 1.0;
+        }
+    }
+    let xy = samara_reach::system::Measure {
+        name: "x + y".into(),
+        coef,
+        offset: 0.0,
+    };
+    crate::reach_system::run_system(a, &sys, Path::new("built-in setting"), &plan.net, vec![xy])
 }
 
 /// The built-in glider setting on zonotope sets; also whether the verdict is `unknown`.

@@ -7,7 +7,7 @@
 use crate::reach::ReachArgs;
 use anyhow::{anyhow, bail, Context, Result};
 use samara_reach::system::{
-    reach_system, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
+    reach_system, Measure, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
 };
 use samara_report::write_atomic;
 use std::path::Path;
@@ -61,7 +61,8 @@ pub fn run(a: &ReachArgs, path: &Path) -> Result<ExitCode> {
     }
     let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
     let net = load_controller(&a.network)?;
-    run_system(a, &sys, path, &net)
+    let measures = samara_reach::system::end_band_measures(&sys);
+    run_system(a, &sys, path, &net, measures)
 }
 
 /// Reachability of a checked system under a loaded controller; `path` names the
@@ -71,9 +72,11 @@ pub fn run_system(
     sys: &samara_system::System,
     path: &Path,
     net: &samara_nn::Network,
+    measures: Vec<Measure>,
 ) -> Result<ExitCode> {
     crate::simulate::check_fits("--network", &a.network, net, sys, path)?;
     let mut s = taylor_settings(a)?;
+    s.measures = measures;
     crate::reach::check_budget(a, s.max_boxes)?;
     if let Some(n) = a.max_leaves {
         s.max_boxes = n;
@@ -152,6 +155,7 @@ fn summary(r: &SystemReach) -> serde_json::Value {
         // last row of `instants` is an earlier instant.
         "final": if r.covered == 1.0 { r.instants.last() } else { None },
         "lost": lost(r),
+        "measures": &r.measures,
     })
 }
 
@@ -188,13 +192,33 @@ fn human_line(path: &Path, r: &SystemReach) -> String {
     } else {
         String::new()
     };
-    format!(
+    let mut line = format!(
         "{}: {what} ({} sub-boxes, Taylor models of order {}, network error {ne}, {:.2} s{cover})",
         path.display(),
         r.boxes,
         r.order,
         r.seconds
-    )
+    );
+    for m in &r.measures {
+        line.push_str(&measure_text(m));
+    }
+    line
+}
+
+/// `; NAME at the horizon in [a, b] (width w); flights [c, d] (width v); ratio q`.
+fn measure_text(m: &samara_reach::system::MeasureRange) -> String {
+    let range = |v: [f64; 2]| format!("[{:.6}, {:.6}] (width {:.6})", v[0], v[1], v[1] - v[0]);
+    let sets = m.enclosure.map_or_else(
+        || "not enclosed by every sub-box".to_string(),
+        |e| format!("in {}", range(e)),
+    );
+    let flights = m
+        .sampled
+        .map_or_else(String::new, |v| format!("; flights {}", range(v)));
+    let ratio = m
+        .ratio
+        .map_or_else(String::new, |q| format!("; ratio {q:.3}"));
+    format!("; {} at the horizon {sets}{flights}{ratio}", m.name)
 }
 
 /// A fraction as a percentage that never rounds a part to 0 % or 100 %.

@@ -482,4 +482,20 @@ fn sets_auto_adds_taylor_models_only_where_zonotopes_leave_the_goal_unknown() {
     let v = t["verdict"]["verdict"].as_str().unwrap();
     assert!(v == "proved" || v == "unknown", "{t}");
     assert_eq!(o.status.code(), Some(if v == "proved" { 0 } else { 1 }));
+    // The Taylor run measures x + y at the horizon: its enclosure holds its own flights
+    // and the zonotope run's (other starts, the built-in simulator).
+    let m = &t["measures"][0];
+    assert_eq!(m["name"], "x + y", "{t}");
+    if t["covered"] == 1.0 {
+        let e = [
+            m["enclosure"][0].as_f64().unwrap(),
+            m["enclosure"][1].as_f64().unwrap(),
+        ];
+        for r in [&m["sampled"], &s["sampled_x_plus_y"]] {
+            let (lo, hi) = (r[0].as_f64().unwrap(), r[1].as_f64().unwrap());
+            assert!(e[0] <= lo && hi <= e[1], "{r} outside {e:?}");
+        }
+        let q = m["ratio"].as_f64().unwrap();
+        assert!(q >= 1.0, "{m}");
+    }
 }

@@ -59,6 +59,91 @@ pub struct SystemReachSettings {
     /// How the network step's error enters the set (`None`: chosen per run, see
     /// [`NetworkError`]; default).
     pub network_error: Option<NetworkError>,
+    /// Affine functions of the state whose range at the horizon the run reports, on
+    /// the sets and on the flights (default none).
+    pub measures: Vec<Measure>,
+}
+
+/// An affine function of the state, `offset + coef . x`, whose range at the horizon a
+/// run reports twice: enclosed by the sets and spread by the simulated flights. Their
+/// ratio is the overestimation that the width criteria of a benchmark measure (the
+/// glider's `x + y`: issue 14's "x + y width at t = 20 at most 2x the spread").
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Measure {
+    /// What it is called in reports (`x + y`, a goal's text).
+    pub name: String,
+    /// Coefficients, one per state.
+    pub coef: Vec<f64>,
+    /// Constant term.
+    pub offset: f64,
+}
+
+impl Measure {
+    /// Its value at one state (f64, for flights).
+    pub fn at(&self, x: &[f64]) -> f64 {
+        self.offset + self.coef.iter().zip(x).map(|(a, v)| a * v).sum::<f64>()
+    }
+
+    /// A sound enclosure over a set: on the Taylor models (the states' dependence
+    /// kept), met with the interval sum over the hull (both enclose it).
+    fn over(&self, x: &[Tm], hull: &[Interval]) -> Interval {
+        let mut by_hull = Interval::point(self.offset);
+        for (a, h) in self.coef.iter().zip(hull) {
+            if *a != 0.0 {
+                by_hull += Interval::point(*a) * *h;
+            }
+        }
+        if x.is_empty() {
+            return by_hull;
+        }
+        let mut v = Tm::cst(self.offset);
+        for (a, xi) in self.coef.iter().zip(x) {
+            if *a != 0.0 {
+                v += xi.clone() * *a;
+            }
+        }
+        let b = v.bound();
+        Interval {
+            lo: b.lo.max(by_hull.lo),
+            hi: b.hi.min(by_hull.hi),
+        }
+    }
+}
+
+/// The measures a system file's goals give: the expression of every affine band
+/// checked at the end (named by the goal's text).
+pub fn end_band_measures(sys: &System) -> Vec<Measure> {
+    sys.goals
+        .iter()
+        .filter_map(|g| match (&g.kind, &g.when) {
+            (
+                GoalKind::Band {
+                    linear: Some((a, b)),
+                    ..
+                },
+                When::End,
+            ) => Some(Measure {
+                name: g.text.clone(),
+                coef: a.clone(),
+                offset: *b,
+            }),
+            _ => None,
+        })
+        .collect()
+}
+
+/// A measure's range at the horizon: the sets' enclosure (hull over the sub-boxes;
+/// `None` unless every sub-box has sets there) and the flights' spread.
+#[derive(Clone, Debug, Serialize)]
+pub struct MeasureRange {
+    /// The measure's name.
+    pub name: String,
+    /// Enclosure by the sets.
+    pub enclosure: Option<[f64; 2]>,
+    /// Range over the simulated flights.
+    pub sampled: Option<[f64; 2]>,
+    /// Enclosure width over sampled width (where both exist and the latter is > 0).
+    pub ratio: Option<f64>,
 }
 
 /// How the error of the network step (CROWN's gap, the remainder of the controller's
@@ -107,6 +192,7 @@ impl Default for SystemReachSettings {
             timeout: None,
             precondition: true,
             network_error: None,
+            measures: Vec::new(),
         }
     }
 }
@@ -188,6 +274,9 @@ pub struct SystemLeaf {
     /// time (or at the end) was already not proved on them: this sub-box can no longer
     /// prove it, so it is split rather than flown on (its rows end there).
     pub stopped_at: Option<f64>,
+    /// The run's measures at the horizon on this sub-box's sets (empty unless they
+    /// reach it).
+    pub end_measures: Vec<[f64; 2]>,
 }
 
 impl SystemLeaf {
@@ -235,6 +324,8 @@ pub struct SystemReach {
     pub seconds: f64,
     /// The sub-boxes.
     pub leaves: Vec<SystemLeaf>,
+    /// The settings' measures at the horizon: sets against flights.
+    pub measures: Vec<MeasureRange>,
     /// Simulated flights (falsification; also what containment tests check).
     #[serde(skip)]
     pub flights: Vec<(Vec<f64>, SystemFlight)>,
@@ -476,6 +567,7 @@ pub fn reach_system(
     let instants = hull(&|l: &SystemLeaf| &l.instants);
     let covered = coverage(&init, &leaves, sys.steps());
     let periods = hull(&|l: &SystemLeaf| &l.periods);
+    let measures = measure_ranges(&s.measures, &leaves, &ok_flights, covered);
     Ok(SystemReach {
         system: sys.name.clone(),
         verdict,
@@ -487,8 +579,52 @@ pub fn reach_system(
         network_error: mode,
         seconds: t0.elapsed().as_secs_f64(),
         leaves,
+        measures,
         flights: ok_flights,
     })
+}
+
+/// Each measure over the sets at the horizon (hull over the sub-boxes, when every
+/// sub-box has sets there) and over the flights' final states.
+fn measure_ranges(
+    measures: &[Measure],
+    leaves: &[SystemLeaf],
+    flights: &[(Vec<f64>, SystemFlight)],
+    covered: f64,
+) -> Vec<MeasureRange> {
+    let span = |it: &mut dyn Iterator<Item = [f64; 2]>| {
+        it.fold(None, |a: Option<[f64; 2]>, v| {
+            Some(a.map_or(v, |a| [a[0].min(v[0]), a[1].max(v[1])]))
+        })
+    };
+    measures
+        .iter()
+        .enumerate()
+        .map(|(j, m)| {
+            let all = covered == 1.0 && leaves.iter().all(|l| l.end_measures.len() > j);
+            let enclosure = if all {
+                span(&mut leaves.iter().map(|l| l.end_measures[j]))
+            } else {
+                None
+            };
+            let sampled = span(&mut flights.iter().filter_map(|(_, f)| {
+                f.states.last().map(|x| {
+                    let v = m.at(x);
+                    [v, v]
+                })
+            }));
+            let ratio = match (enclosure, sampled) {
+                (Some(e), Some(s)) if s[1] > s[0] => Some((e[1] - e[0]) / (s[1] - s[0])),
+                _ => None,
+            };
+            MeasureRange {
+                name: m.name.clone(),
+                enclosure,
+                sampled,
+                ratio,
+            }
+        })
+        .collect()
 }
 
 /// The fraction of `init` (by volume over its parameters of nonzero width) whose
@@ -632,6 +768,7 @@ fn refine(
                 failure: Some("not flown: a goal was refuted on another sub-box first".into()),
                 decided: vec![None; ctx.sys.goals.len()],
                 stopped_at: None,
+                end_measures: Vec::new(),
             });
             return;
         }
@@ -1109,6 +1246,7 @@ fn fly_box(
         failure: None,
         decided: vec![None; sys.goals.len()],
         stopped_at: None,
+        end_measures: Vec::new(),
     };
     // Per goal: proved so far over the instants and periods seen (Always, End), or
     // met at some instant (Eventually).
@@ -1125,6 +1263,14 @@ fn fly_box(
         leaf.instants.push(to_pairs(&hull));
         check_goals(sys, &x, &hull, t, t, &mut ok, &mut met, &mut refuted);
         if k == steps {
+            leaf.end_measures = s
+                .measures
+                .iter()
+                .map(|m| {
+                    let r = m.over(&x, &hull);
+                    [r.lo, r.hi]
+                })
+                .collect();
             break;
         }
         if hull

@@ -622,3 +622,88 @@ fn field_benchmarks_sets_contain_flights() {
     }
     assert!(ran > 0, "no controller found under {dirs:?}");
 }
+
+/// The measures a run reports at the horizon (issue 14's width criterion on Taylor-model
+/// sets): on ACC, `x_lead - x_ego` and `v_ego` enclosed by the sets contain the final
+/// value of 300 flights from fresh random starts (DOP853, independent of the sets), the
+/// run's own flights' range lies inside the enclosure, the ratio is the two widths'
+/// quotient, and the Taylor models' enclosure of the difference is no wider than the
+/// interval sum over the final hull (which drops the states' correlation).
+#[test]
+fn measures_at_the_horizon_contain_the_flights_and_keep_the_dependence() {
+    use samara_reach::system::{end_band_measures, Measure};
+    let sys = system("acc.sys");
+    let net = fixture("controller_acc_5_20.onnx");
+    let mut gap = vec![0.0; sys.dim()];
+    gap[0] = 1.0;
+    gap[3] = -1.0;
+    let mut speed = vec![0.0; sys.dim()];
+    speed[4] = 1.0;
+    let s = SystemReachSettings {
+        measures: vec![
+            Measure {
+                name: "x_lead - x_ego".into(),
+                coef: gap,
+                offset: 0.0,
+            },
+            Measure {
+                name: "v_ego + 1".into(),
+                coef: speed,
+                offset: 1.0,
+            },
+        ],
+        ..Default::default()
+    };
+    let r = reach_system(&sys, &net, &s).unwrap();
+    assert_eq!(r.covered, 1.0);
+    assert_eq!(r.measures.len(), 2);
+    let last = r.instants.last().unwrap();
+    let hull_sum = [last[0][0] - last[3][1], last[0][1] - last[3][0]];
+    let e = r.measures[0]
+        .enclosure
+        .expect("every sub-box reaches the horizon");
+    assert!(
+        e[1] - e[0] <= hull_sum[1] - hull_sum[0] + 1e-12,
+        "{e:?} against the hull's {hull_sum:?}"
+    );
+    let eval = |x: &[f64]| net.eval_f64(x);
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
+    for (j, m) in s.measures.iter().enumerate() {
+        let e = r.measures[j].enclosure.unwrap();
+        let f = r.measures[j].sampled.unwrap();
+        assert!(
+            e[0] <= f[0] && f[1] <= e[1],
+            "{}: {f:?} not in {e:?}",
+            m.name
+        );
+        let q = (e[1] - e[0]) / (f[1] - f[0]);
+        assert_eq!(r.measures[j].ratio, Some(q));
+        assert!(q >= 1.0);
+        for _ in 0..150 {
+            let x0: Vec<f64> = sys
+                .init
+                .iter()
+                .map(|&(l, h)| if l < h { rng.gen_range(l..=h) } else { l })
+                .collect();
+            let fl = fly(&sys, &eval, &x0, 1).unwrap();
+            let x = fl.states.last().unwrap();
+            let v = m.at(x);
+            assert!(
+                close(v, e[0], e[1]),
+                "{}: {v} from {x0:?} outside {e:?}",
+                m.name
+            );
+        }
+    }
+    // A file's affine bands checked at the end are its measures; others are not.
+    let src = "system s\nstate a, b\ninput u\na' = u\nb' = -b\nperiod 0.5\nhorizon 1\n\
+               observe a\nactuate u = net[0]\ninit a in [0, 1]\ninit b = 1\n\
+               goal band a - 2 * b <= 3 at end\ngoal band a * b <= 3 at end\n\
+               goal band a <= 3 always [0, 1]\n";
+    let small = System::parse(src, "s.sys").unwrap();
+    let ms = end_band_measures(&small);
+    assert_eq!(ms.len(), 1, "{ms:?}");
+    assert_eq!(ms[0].coef, vec![1.0, -2.0]);
+    assert_eq!(ms[0].offset, 0.0);
+    assert_eq!(ms[0].at(&[1.0, 0.5]), 0.0);
+}
