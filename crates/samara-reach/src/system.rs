@@ -103,9 +103,28 @@ impl Measure {
             }
         }
         let b = v.bound();
-        Interval {
-            lo: b.lo.max(by_hull.lo),
-            hi: b.hi.min(by_hull.hi),
+        let nan = |i: &Interval| i.lo.is_nan() || i.hi.is_nan();
+        // A NaN end claims nothing: then the other enclosure alone, or the whole line
+        // (`f64::max` would silently drop a NaN and keep the other end).
+        match (nan(&b), nan(&by_hull)) {
+            (true, true) => Interval {
+                lo: f64::NEG_INFINITY,
+                hi: f64::INFINITY,
+            },
+            (true, false) => by_hull,
+            (false, true) => b,
+            (false, false) => {
+                let m = Interval {
+                    lo: b.lo.max(by_hull.lo),
+                    hi: b.hi.min(by_hull.hi),
+                };
+                // Both hold the same values, so they meet; rounding aside, keep one.
+                if m.lo <= m.hi {
+                    m
+                } else {
+                    by_hull
+                }
+            }
         }
     }
 }
@@ -1742,6 +1761,25 @@ fn reparameterise(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A measure keeps the states' dependence (x - x is 0 on the Taylor models, [-2, 2]
+    /// on the hull), and a model with a NaN (the whole line) leaves the hull's bound.
+    #[test]
+    fn measures_keep_dependence_and_survive_nan_models() {
+        let m = Measure {
+            name: "a - b".into(),
+            coef: vec![1.0, -1.0],
+            offset: 0.5,
+        };
+        let x = vec![Tm::var(0, 1, 2), Tm::var(0, 1, 2)];
+        let hull = vec![Interval::new(-1.0, 1.0); 2];
+        let r = m.over(&x, &hull);
+        assert!(r.lo <= 0.5 && 0.5 <= r.hi && r.hi - r.lo < 1e-12, "{r:?}");
+        assert_eq!(m.at(&[3.0, 1.0]), 2.5);
+        let nan = vec![Tm::cst(f64::NAN), Tm::cst(0.0)];
+        let r = m.over(&nan, &hull);
+        assert!(r.lo <= -1.5 && r.hi >= 2.5, "{r:?}");
+    }
 
     /// A lifted output (its remainder turned into a fresh parameter) still holds
     /// every value of the original model: at random parameter points, the original's
