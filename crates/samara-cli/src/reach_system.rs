@@ -307,6 +307,12 @@ pub(crate) fn taylor_settings(a: &ReachArgs) -> Result<SystemReachSettings> {
         }
         s.timeout = Some(t);
     }
+    if let Some(v) = a.lift_at {
+        if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+            bail!("--lift-at {v}: give a share of the width in (0, 1], such as 0.05 or 0.001");
+        }
+        s.flow.lift_at = v;
+    }
     if let Some(v) = &a.network_error {
         s.network_error = parse_network_error(v)?;
         // Symbolic remainders go with order 3 unless --order says otherwise (as in

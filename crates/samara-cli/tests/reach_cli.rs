@@ -499,3 +499,64 @@ fn sets_auto_adds_taylor_models_only_where_zonotopes_leave_the_goal_unknown() {
         assert!(q >= 1.0, "{m}");
     }
 }
+
+/// `--lift-at`: a share in (0, 1] for Taylor-model runs; outside it, or on zonotope
+/// sets, a message naming the flag and exit 2, before anything is written. A valid
+/// share runs (ACC, the competition's controller: proved).
+#[test]
+fn lift_at_is_checked_and_applies_to_taylor_models_only() {
+    let dir = tempfile::tempdir().unwrap();
+    let net = reference("adversarial_model_denorm.onnx");
+    for (args, needle) in [
+        (
+            vec!["--sets", "taylor", "--lift-at", "0"],
+            "--lift-at 0: give a share",
+        ),
+        (
+            vec!["--sets", "taylor", "--lift-at", "1.5"],
+            "--lift-at 1.5: give a share",
+        ),
+        (
+            vec!["--sets", "taylor", "--lift-at", "-inf"],
+            "give a share",
+        ),
+        (
+            vec!["--lift-at", "0.01"],
+            "--lift-at applies to Taylor-model sets",
+        ),
+    ] {
+        let out = dir.path().join("never");
+        let o = samara()
+            .arg("reach")
+            .arg("--network")
+            .arg(&net)
+            .args(&args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    }
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let o = samara()
+        .arg("reach")
+        .arg("--system")
+        .arg(root.join("examples/archcomp/acc.sys"))
+        .arg("--network")
+        .arg(root.join("crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx"))
+        .args(["--lift-at", "0.001", "--json", "--out"])
+        .arg(dir.path().join("acc"))
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["verdict"]["verdict"], "proved", "{s}");
+}

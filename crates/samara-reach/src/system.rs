@@ -1488,10 +1488,15 @@ fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<boo
 /// widths (`hull`, the models' bounds), that turning them into parameters pays
 /// ([`precondition`], [`reduce`], and inside a period the flow's own lifting).
 pub(crate) fn needs_precondition(x: &[Tm], hull: &[Interval]) -> bool {
+    remainders_past(x, hull, 0.05)
+}
+
+/// Whether some state's interval remainder is wider than `share` of its width.
+pub(crate) fn remainders_past(x: &[Tm], hull: &[Interval], share: f64) -> bool {
     x.iter().zip(hull).any(|(v, b)| {
         let r = v.rem();
         let w = b.hi - b.lo;
-        w > 0.0 && (r.hi - r.lo) > 0.05 * w
+        w > 0.0 && (r.hi - r.lo) > share * w
     })
 }
 
