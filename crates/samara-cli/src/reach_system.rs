@@ -208,9 +208,12 @@ fn human_line(path: &Path, r: &SystemReach) -> String {
 /// `; NAME at the horizon in [a, b] (width w); flights [c, d] (width v); ratio q`.
 fn measure_text(m: &samara_reach::system::MeasureRange) -> String {
     let range = |v: [f64; 2]| format!("[{:.6}, {:.6}] (width {:.6})", v[0], v[1], v[1] - v[0]);
+    // The enclosure printed outward (6 decimals), so that the line never shows it
+    // narrower than it is.
+    let outward = |e: [f64; 2]| [(e[0] * 1e6).floor() / 1e6, (e[1] * 1e6).ceil() / 1e6];
     let sets = m.enclosure.map_or_else(
         || "not enclosed by every sub-box".to_string(),
-        |e| format!("in {}", range(e)),
+        |e| format!("in {}", range(outward(e))),
     );
     let flights = m
         .sampled
