@@ -96,37 +96,22 @@ impl Measure {
         if x.is_empty() {
             return by_hull;
         }
-        let mut v = Tm::cst(self.offset);
-        for (a, xi) in self.coef.iter().zip(x) {
-            if *a != 0.0 {
-                v += xi.clone() * *a;
-            }
-        }
-        let b = v.bound();
-        let nan = |i: &Interval| i.lo.is_nan() || i.hi.is_nan();
-        // A NaN end claims nothing: then the other enclosure alone, or the whole line
-        // (`f64::max` would silently drop a NaN and keep the other end).
-        match (nan(&b), nan(&by_hull)) {
-            (true, true) => Interval {
-                lo: f64::NEG_INFINITY,
-                hi: f64::INFINITY,
-            },
-            (true, false) => by_hull,
-            (false, true) => b,
-            (false, false) => {
-                let m = Interval {
-                    lo: b.lo.max(by_hull.lo),
-                    hi: b.hi.min(by_hull.hi),
-                };
-                // Both hold the same values, so they meet; rounding aside, keep one.
-                if m.lo <= m.hi {
-                    m
-                } else {
-                    by_hull
-                }
-            }
+        // Both hold every value; `meet` keeps the hull's where the other is not finite
+        // (a model with a NaN is the whole line) or, by rounding, misses it.
+        crate::flow::meet(affine_on(&self.coef, self.offset, x).bound(), by_hull)
+    }
+}
+
+/// `b + a . x` on Taylor models (the terms with `a_i = 0` skipped): an affine function
+/// of the states with their dependence kept, for affine bands and measures.
+fn affine_on(a: &[f64], b: f64, x: &[Tm]) -> Tm {
+    let mut v = Tm::cst(b);
+    for (ai, xi) in a.iter().zip(x) {
+        if *ai != 0.0 {
+            v += xi.clone() * *ai;
         }
     }
+    v
 }
 
 /// The measures a system file's goals give: the expression of every affine band
@@ -1473,13 +1458,7 @@ fn decide_on(g: &samara_system::Goal, x: &[Tm], hull: &[Interval]) -> Option<boo
         false,
     ) = (&g.kind, x.is_empty())
     {
-        let mut v = Tm::cst(*b);
-        for (ai, xi) in a.iter().zip(x) {
-            if *ai != 0.0 {
-                v += xi.clone() * *ai;
-            }
-        }
-        return band_decision(v.bound(), *lo, *hi);
+        return band_decision(affine_on(a, *b, x).bound(), *lo, *hi);
     }
     g.decide(hull)
 }

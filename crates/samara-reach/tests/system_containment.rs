@@ -138,6 +138,14 @@ fn assert_coverage(sys: &System, r: &SystemReach) {
 }
 
 /// `n` random flights inside the sets of `r`; returns the number of points checked.
+/// A start drawn uniformly from the system's initial box (point intervals kept).
+fn random_start(sys: &System, rng: &mut impl Rng) -> Vec<f64> {
+    sys.init
+        .iter()
+        .map(|&(l, h)| if l < h { rng.gen_range(l..=h) } else { l })
+        .collect()
+}
+
 fn check_contains(
     sys: &System,
     net: &samara_nn::Network,
@@ -150,11 +158,7 @@ fn check_contains(
     let per = 10;
     let mut checked = 0;
     for _ in 0..n {
-        let x0: Vec<f64> = sys
-            .init
-            .iter()
-            .map(|&(l, h)| if l < h { rng.gen_range(l..=h) } else { l })
-            .collect();
+        let x0 = random_start(sys, &mut rng);
         let leaf = r
             .leaves
             .iter()
@@ -499,11 +503,7 @@ fn alsomitra_six_state_twentieth_contains_2000_flights_within_2x() {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(31);
     let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
     for _ in 0..2000 {
-        let x0: Vec<f64> = sys
-            .init
-            .iter()
-            .map(|&(l, h)| if l < h { rng.gen_range(l..=h) } else { l })
-            .collect();
+        let x0 = random_start(&sys, &mut rng);
         let f = fly(&sys, &eval, &x0, 1).unwrap();
         let x = f.states.last().unwrap();
         let v = x[4] + x[5];
@@ -760,11 +760,7 @@ fn measures_at_the_horizon_contain_the_flights_and_keep_the_dependence() {
         assert_eq!(r.measures[j].ratio, Some(q));
         assert!(q >= 1.0);
         for _ in 0..150 {
-            let x0: Vec<f64> = sys
-                .init
-                .iter()
-                .map(|&(l, h)| if l < h { rng.gen_range(l..=h) } else { l })
-                .collect();
+            let x0 = random_start(&sys, &mut rng);
             let fl = fly(&sys, &eval, &x0, 1).unwrap();
             let x = fl.states.last().unwrap();
             let v = m.at(x);
