@@ -14,6 +14,8 @@
 #   ORDER    passed as --order K when set;  MAX_LEAVES  passed as --max-leaves N when set
 #            (either one replaces the per-benchmark options of the table below)
 #   ONLY     run only the benchmarks whose name contains this string
+#   EXTRA    more `samara reach` options for every run, after the others (e.g.
+#            EXTRA='--lifted-weight 2' for mixed-degree Taylor models)
 # Exit code: 0 when every run ended (whatever the verdicts), 2 on a usage error.
 set -u
 
@@ -149,6 +151,8 @@ while IFS='|' read -r name sys nets expected pbench pinst opts; do
     [ -n "${opts:-}" ] && [ -z "${ORDER:-}${MAX_LEAVES:-}" ] && extra+=($opts)
     [ -n "${ORDER:-}" ] && extra+=(--order "$ORDER")
     [ -n "${MAX_LEAVES:-}" ] && extra+=(--max-leaves "$MAX_LEAVES")
+    # shellcheck disable=SC2206  # EXTRA is a word list
+    [ -n "${EXTRA:-}" ] && extra+=($EXTRA)
     start=$(date +%s.%N)
     timeout "$timeout_s" "$samara" reach --system "$sysdir/$sys" --network "$net" \
         --out "$dir" --json "${extra[@]}" </dev/null >"$out/$name.json" 2>"$out/$name.err"

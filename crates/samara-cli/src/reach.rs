@@ -134,6 +134,12 @@ pub struct ReachArgs {
     /// sets (docs/reach.md).
     #[arg(long, allow_hyphen_values = true)]
     pub lift_at: Option<f64>,
+    /// With symbolic remainders, how much each lifted parameter weighs toward --order:
+    /// 1 (default) as much as an initial parameter; the order itself: lifted
+    /// parameters enter linearly only (mixed-degree Taylor models, far fewer terms,
+    /// so more of them can be kept; docs/reach.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub lifted_weight: Option<i64>,
     /// A spec file whose closed loop to fly (`loop`, `start`, `goal` statements; e.g.
     /// models/alsomitra/alsomitra.spec, loop `published`): model, initial set, period,
     /// horizon, clip and goal come from it, so the flags that set them are refused
@@ -473,6 +479,9 @@ fn check_zonotope_flags(a: &ReachArgs) -> Result<()> {
     }
     if a.lift_at.is_some() {
         bail!("--lift-at applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no lifted remainders");
+    }
+    if a.lifted_weight.is_some() {
+        bail!("--lifted-weight applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no lifted parameters");
     }
     Ok(())
 }

@@ -125,7 +125,7 @@ pub fn run_system(
 /// `--network-error`: `interval`, `symbolic`, `symbolic:N` or `auto`.
 fn parse_network_error(v: &str) -> Result<Option<NetworkError>> {
     let bad = || {
-        anyhow!("--network-error {v:?}: give `interval`, `symbolic`, `symbolic:N` (N = 1 to 64 extra parameters) or `auto`")
+        anyhow!("--network-error {v:?}: give `interval`, `symbolic`, `symbolic:N` (N = 1 to 256 extra parameters; past the term budget of the order, N is lowered) or `auto`")
     };
     Ok(match v {
         "auto" => None,
@@ -135,7 +135,7 @@ fn parse_network_error(v: &str) -> Result<Option<NetworkError>> {
             let n: usize = v
                 .strip_prefix("symbolic:")
                 .and_then(|n| n.parse().ok())
-                .filter(|n| (1..=64).contains(n))
+                .filter(|n| (1..=256).contains(n))
                 .ok_or_else(bad)?;
             Some(NetworkError::Symbolic { extra: n })
         }
@@ -323,6 +323,15 @@ pub(crate) fn taylor_settings(a: &ReachArgs) -> Result<SystemReachSettings> {
         if a.order.is_none() && matches!(s.network_error, Some(NetworkError::Symbolic { .. })) {
             s.order = 3;
         }
+    }
+    if let Some(v) = a.lifted_weight {
+        if !(1..=s.order as i64).contains(&v) {
+            bail!(
+                "--lifted-weight {v}: give 1 to the order ({}): 1 weighs lifted parameters as initial ones, the order makes them linear",
+                s.order
+            );
+        }
+        s.flow.lifted_weight = v as u32;
     }
     Ok(s)
 }

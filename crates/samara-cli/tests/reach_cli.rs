@@ -500,14 +500,64 @@ fn sets_auto_adds_taylor_models_only_where_zonotopes_leave_the_goal_unknown() {
     }
 }
 
+/// Each `(args, needle)` run of `samara reach` on the published adversarial network
+/// exits 2 with `needle` in its message and writes nothing.
+fn refused_before_writing(cases: &[(Vec<&str>, &str)]) {
+    let dir = tempfile::tempdir().unwrap();
+    let net = reference("adversarial_model_denorm.onnx");
+    for (args, needle) in cases {
+        let out = dir.path().join("never");
+        let o = samara()
+            .arg("reach")
+            .arg("--network")
+            .arg(&net)
+            .args(args)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(needle), "{args:?}: {err}");
+        assert!(!out.exists(), "{args:?} wrote {}", out.display());
+    }
+}
+
+/// `samara reach --system examples/archcomp/SYS --network (the competition's
+/// controller NET) ARGS --json`: exits 0 with the verdict `proved`.
+fn system_run_is_proved(sys: &str, net: &str, args: &[&str]) {
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let o = samara()
+        .arg("reach")
+        .arg("--system")
+        .arg(root.join("examples/archcomp").join(sys))
+        .arg("--network")
+        .arg(
+            root.join("crates/samara-reach/tests/data/archcomp")
+                .join(net),
+        )
+        .args(args)
+        .args(["--json", "--out"])
+        .arg(dir.path().join("run"))
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(s["verdict"]["verdict"], "proved", "{s}");
+}
+
 /// `--lift-at`: a share in (0, 1] for Taylor-model runs; outside it, or on zonotope
 /// sets, a message naming the flag and exit 2, before anything is written. A valid
 /// share runs (ACC, the competition's controller: proved).
 #[test]
 fn lift_at_is_checked_and_applies_to_taylor_models_only() {
-    let dir = tempfile::tempdir().unwrap();
-    let net = reference("adversarial_model_denorm.onnx");
-    for (args, needle) in [
+    refused_before_writing(&[
         (
             vec!["--sets", "taylor", "--lift-at", "0"],
             "--lift-at 0: give a share",
@@ -524,39 +574,44 @@ fn lift_at_is_checked_and_applies_to_taylor_models_only() {
             vec!["--lift-at", "0.01"],
             "--lift-at applies to Taylor-model sets",
         ),
-    ] {
-        let out = dir.path().join("never");
-        let o = samara()
-            .arg("reach")
-            .arg("--network")
-            .arg(&net)
-            .args(&args)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
-        let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-        assert!(err.contains(needle), "{args:?}: {err}");
-        assert!(!out.exists(), "{args:?} wrote {}", out.display());
-    }
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let o = samara()
-        .arg("reach")
-        .arg("--system")
-        .arg(root.join("examples/archcomp/acc.sys"))
-        .arg("--network")
-        .arg(root.join("crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx"))
-        .args(["--lift-at", "0.001", "--json", "--out"])
-        .arg(dir.path().join("acc"))
-        .output()
-        .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
+    ]);
+    system_run_is_proved(
+        "acc.sys",
+        "controller_acc_5_20.onnx",
+        &["--lift-at", "0.001"],
     );
-    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-    assert_eq!(s["verdict"]["verdict"], "proved", "{s}");
+}
+
+/// `--lifted-weight`: 1 to the order for Taylor-model runs; outside it, or on zonotope
+/// sets, a message naming the flag and exit 2, before anything is written. A valid
+/// weight runs on mixed-degree models (the unicycle, the competition's controller:
+/// proved with 40 linear lifted parameters).
+#[test]
+fn lifted_weight_is_checked_and_applies_to_taylor_models_only() {
+    refused_before_writing(&[
+        (
+            vec!["--sets", "taylor", "--order", "3", "--lifted-weight", "0"],
+            "--lifted-weight 0: give 1 to the order (3)",
+        ),
+        (
+            vec!["--sets", "taylor", "--order", "2", "--lifted-weight", "3"],
+            "--lifted-weight 3: give 1 to the order (2)",
+        ),
+        (
+            vec!["--lifted-weight", "2"],
+            "--lifted-weight applies to Taylor-model sets",
+        ),
+    ]);
+    system_run_is_proved(
+        "unicycle.sys",
+        "controller_unicycle_b.onnx",
+        &[
+            "--order",
+            "3",
+            "--network-error",
+            "symbolic:40",
+            "--lifted-weight",
+            "3",
+        ],
+    );
 }

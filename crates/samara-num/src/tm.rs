@@ -154,13 +154,30 @@ fn rad(i: &Interval) -> f64 {
     up(i.hi - m).max(up(m - i.lo))
 }
 
-/// Monomial and multiplication tables for one `(n, order)`.
+/// Monomial and multiplication tables for one `(n, order, full, lw)`.
+///
+/// Parameters `0..full` weigh 1 toward the order and parameters `full..n` weigh `lw`
+/// (a *mixed-degree* table: a monomial is kept when `sum_k w_k e_k <= order`). With
+/// `lw = 1` every parameter weighs 1 and the table is the classic one of total degree
+/// `<= order`. Truncation by a weighted degree is as sound as by the total degree:
+/// weighted degrees add under products, so a product's dropped terms are exactly the
+/// pairs whose weights sum past the order, and they are bounded into the remainder.
+/// With `lw = order`, the parameters past `full` enter linearly only, as the
+/// symbolic remainders of Flow* (Chen & Sankaranarayanan, "Decomposed reachability
+/// analysis for nonlinear systems", RTSS 2016) and the generators of a zonotope do.
 struct Table {
     n: usize,
     order: u32,
+    /// Parameters `0..full` have weight 1, the others `lw` (`full = n`, `lw = 1`: classic).
+    full: usize,
+    /// Weight of the parameters `full..n`.
+    lw: u32,
     /// Total degree of each monomial (graded order: degree-`d` monomials precede
     /// degree-`d+1` ones; the degree-1 monomials are `xi_0, ..., xi_{n-1}`).
     deg: Vec<u32>,
+    /// Weighted degree of each monomial (the total degree on classic tables): what the
+    /// truncation of products compares with the order.
+    wdeg: Vec<u32>,
     /// Whether every exponent of the monomial is even (its range over the box is `[0, 1]`).
     even: Vec<bool>,
     /// Exponents, `n` per monomial.
@@ -169,8 +186,12 @@ struct Table {
     pre: Vec<usize>,
     /// Start of row `i` in `mul`.
     row: Vec<usize>,
-    /// `mul[row[i] + j]`: index of `m_i m_j` for `j < pre[order - deg_i]`.
+    /// `mul[row[i] + j]`: index of `m_i m_j` for `j < pre[order - deg_i]` (classic
+    /// tables), or for the `j = part[row[i] + ..]` with `wdeg_i + wdeg_j <= order`
+    /// (mixed tables, whose monomials of one weighted degree are not contiguous).
     mul: Vec<u32>,
+    /// The partner `j` of every `mul` entry on mixed tables (empty on classic ones).
+    part: Vec<u32>,
     /// `gamma_m` for the largest number `m` of pairs mapping to one monomial (rounded up).
     gamma: f64,
     /// Exponent vector to index.
@@ -198,17 +219,32 @@ fn gen_monomials(n: usize, d: u32, cur: &mut Vec<u8>, out: &mut Vec<Vec<u8>>) {
 }
 
 impl Table {
-    fn build(n: usize, order: u32) -> Table {
+    fn build(n: usize, order: u32, full: usize, lw: u32) -> Table {
         assert!(order <= MAX_ORDER, "Tm order {order} exceeds {MAX_ORDER}");
+        let weight = |k: usize| if k < full { 1 } else { lw };
         let mut mons: Vec<Vec<u8>> = Vec::new();
         let mut pre = Vec::with_capacity(order as usize + 1);
         let mut deg = Vec::new();
+        let mut wdeg = Vec::new();
+        let mut all = Vec::new();
         for d in 0..=order {
-            let before = mons.len();
-            gen_monomials(n, d, &mut Vec::with_capacity(n), &mut mons);
-            deg.extend(std::iter::repeat_n(d, mons.len() - before));
+            all.clear();
+            gen_monomials(n, d, &mut Vec::with_capacity(n), &mut all);
+            for e in all.drain(..) {
+                let w: u32 = e
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &x)| weight(k) * x as u32)
+                    .sum();
+                if w <= order {
+                    mons.push(e);
+                    deg.push(d);
+                    wdeg.push(w);
+                }
+            }
             pre.push(mons.len());
         }
+        let mixed = full < n && lw > 1;
         let len = mons.len();
         assert!(len < u32::MAX as usize, "Tm table too large");
         let index: HashMap<Vec<u8>, u32> = mons
@@ -219,17 +255,27 @@ impl Table {
         let even = mons.iter().map(|e| e.iter().all(|&k| k % 2 == 0)).collect();
         let mut row = Vec::with_capacity(len + 1);
         let mut mul = Vec::new();
+        let mut part = Vec::new();
         let mut count = vec![0usize; len];
         let mut key = vec![0u8; n];
         for i in 0..len {
             row.push(mul.len());
-            for j in 0..pre[(order - deg[i]) as usize] {
+            let wi = wdeg[i];
+            let partners: Vec<usize> = if mixed {
+                (0..len).filter(|&j| wi + wdeg[j] <= order).collect()
+            } else {
+                (0..pre[(order - deg[i]) as usize]).collect()
+            };
+            for j in partners {
                 for k in 0..n {
                     key[k] = mons[i][k] + mons[j][k];
                 }
                 let idx = index[&key];
                 count[idx as usize] += 1;
                 mul.push(idx);
+                if mixed {
+                    part.push(j as u32);
+                }
             }
         }
         row.push(mul.len());
@@ -239,15 +285,25 @@ impl Table {
         Table {
             n,
             order,
+            full,
+            lw,
             deg,
+            wdeg,
             even,
             exps,
             pre,
             row,
             mul,
+            part,
             gamma,
             index,
         }
+    }
+
+    /// Whether parameters past `full` weigh more than 1 (the table may still hold no
+    /// such parameter yet: `full = n`).
+    fn is_mixed(&self) -> bool {
+        self.lw > 1
     }
 
     #[inline(always)]
@@ -260,23 +316,36 @@ impl Table {
     }
 }
 
-/// The table for `(n, order)`, built once per process and leaked (one per pair in use);
-/// a per-thread cache keeps lookups free of lock traffic.
+/// The table for `(n, order)` with every parameter of weight 1 (classic).
 fn table(n: usize, order: u32) -> &'static Table {
+    table_mixed(n, order, n, 1)
+}
+
+/// The table for `(n, order, full, lw)` (see [`Table`]), built once per process and
+/// leaked (one per key in use); a per-thread cache keeps lookups free of lock traffic.
+/// Keys are normalised: `lw = 1` means classic (`full = n`), `lw` is at most `order`.
+fn table_mixed(n: usize, order: u32, full: usize, lw: u32) -> &'static Table {
+    let lw = lw.min(order).max(1);
+    let full = if lw == 1 { n } else { full };
     thread_local! {
         static CACHE: RefCell<Vec<&'static Table>> = const { RefCell::new(Vec::new()) };
     }
-    static REG: OnceLock<Mutex<HashMap<(usize, u32), &'static Table>>> = OnceLock::new();
+    type Key = (usize, u32, usize, u32);
+    static REG: OnceLock<Mutex<HashMap<Key, &'static Table>>> = OnceLock::new();
     CACHE.with(|cache| {
-        if let Some(t) = cache.borrow().iter().find(|t| t.n == n && t.order == order) {
+        if let Some(t) = cache
+            .borrow()
+            .iter()
+            .find(|t| t.n == n && t.order == order && t.full == full && t.lw == lw)
+        {
             return *t;
         }
         let t: &'static Table = REG
             .get_or_init(Default::default)
             .lock()
             .unwrap_or_else(|e| e.into_inner())
-            .entry((n, order))
-            .or_insert_with(|| Box::leak(Box::new(Table::build(n, order))));
+            .entry((n, order, full, lw))
+            .or_insert_with(|| Box::leak(Box::new(Table::build(n, order, full, lw))));
         cache.borrow_mut().push(t);
         t
     })
@@ -331,10 +400,22 @@ fn common(a: &Tm, b: &Tm) -> (&'static Table, bool) {
         (false, true) => (b.t.order, true),
         (false, false) => (a.t.order.min(b.t.order), false),
     };
-    if a.t.n == n && a.t.order == order {
+    // A mixed table's weights win over a classic one's (whose parameters past the
+    // mixed table's `full` are truncated as the mixed weights say, soundly).
+    let eff = |t: &Table| if t.is_mixed() { t.full } else { usize::MAX };
+    let full = eff(a.t).min(eff(b.t));
+    let lw = a.t.lw.max(b.t.lw);
+    let fits = |t: &Table| {
+        t.n == n
+            && t.order == order
+            && (!t.is_mixed() && lw == 1 || t.is_mixed() && t.full == full && t.lw == lw)
+    };
+    if fits(a.t) {
         (a.t, fixed)
-    } else if b.t.n == n && b.t.order == order {
+    } else if fits(b.t) {
         (b.t, fixed)
+    } else if lw > 1 {
+        (table_mixed(n, order, full, lw), fixed)
     } else {
         (table(n, order), fixed)
     }
@@ -445,6 +526,40 @@ impl Tm {
             rem = sym(s);
         }
         Tm::raw(t, true, c, rem).finish()
+    }
+
+    /// The same model on a *mixed-degree* table: its `n` parameters keep weight 1, and
+    /// every parameter added later (by an operation with a model in more parameters, or
+    /// [`Tm::param`]) weighs `lw` toward the order, so that with `lw = order` it enters
+    /// the polynomials linearly only. Symbolic remainders (the parameters a flow lifts
+    /// its interval remainders to) then cost a coefficient each instead of a share of
+    /// every monomial of the order: at order 3 with 6 weight-1 and 20 lifted parameters
+    /// the table has 104 monomials instead of 3,654. `lw = 1` gives the classic table.
+    pub fn with_lifted_weight(self, lw: u32) -> Tm {
+        let t = table_mixed(self.t.n, self.t.order, self.t.n, lw);
+        let fixed = self.fixed;
+        self.into_table(t, fixed)
+    }
+
+    /// The number of weight-1 parameters of a mixed-degree model (see
+    /// [`Tm::with_lifted_weight`]); `None` for a classic one.
+    pub fn full_params(&self) -> Option<usize> {
+        self.t.is_mixed().then_some(self.t.full)
+    }
+
+    /// The parameter `xi_k` (`k < n`) as a model in `n` parameters with this model's
+    /// order and weights (a mixed-degree model's new parameters weigh as it says).
+    pub fn param(&self, k: usize, n: usize) -> Tm {
+        assert!(k < n, "Tm::param: parameter {k} out of {n}");
+        let t = table_mixed(n, self.t.order, self.t.full, self.t.lw);
+        let mut c = vec![0.0; t.len()];
+        let mut rem = Interval::point(0.0);
+        if t.order >= 1 {
+            c[1 + k] = 1.0;
+        } else {
+            rem = sym(1.0);
+        }
+        Tm::raw(t, true, c, rem)
     }
 
     /// A model without parameters whose value is any point of `i` (like [`Scalar::cst`],
@@ -727,7 +842,7 @@ impl Tm {
             assert!(!seen[*j], "Tm::reparam: two parameters map to {j}");
             seen[*j] = true;
         }
-        let t = table(n, self.t.order);
+        let t = table_mixed(n, self.t.order, self.t.full, self.t.lw);
         let mut c = vec![0.0; t.len()];
         c[0] = self.c[0];
         let (mut sn, mut sp) = (0.0, 0.0);
@@ -747,13 +862,13 @@ impl Tm {
                     }
                 }
             }
-            if dropped {
-                acc_range(v, self.t.even[i], &mut sn, &mut sp);
-            } else {
-                let idx = t.index[&key] as usize;
+            // A kept monomial past the new table's weighted order (a parameter moved
+            // to a heavier place) is bounded like a dropped one.
+            match (dropped, t.index.get(&key)) {
                 // Two old monomials never meet in one new one (the map is injective on
                 // kept parameters), so this is a copy, not a sum.
-                c[idx] = v;
+                (false, Some(&idx)) => c[idx as usize] = v,
+                _ => acc_range(v, self.t.even[i], &mut sn, &mut sp),
             }
         }
         let rem = Interval {
@@ -785,11 +900,11 @@ impl Tm {
             if v == 0.0 {
                 continue;
             }
-            if self.t.deg[i] <= t.order {
-                key[..self.t.n].copy_from_slice(self.t.exps(i));
-                c[t.index[&key] as usize] = v;
-            } else {
-                acc_range(v, self.t.even[i], &mut sn, &mut sp);
+            key[..self.t.n].copy_from_slice(self.t.exps(i));
+            // Terms past the new (weighted) order are not in `t`.
+            match t.index.get(&key) {
+                Some(&k) => c[k as usize] = v,
+                None => acc_range(v, self.t.even[i], &mut sn, &mut sp),
             }
         }
         let mut rem = self.rem;
@@ -916,7 +1031,7 @@ impl Tm {
         for j in 0..len {
             let v = b.c[j];
             if v != 0.0 {
-                let d = t.deg[j] as usize;
+                let d = t.wdeg[j] as usize;
                 le[d] = up(le[d] + v.abs());
             }
         }
@@ -934,12 +1049,21 @@ impl Tm {
             if ai == 0.0 {
                 continue;
             }
-            let keep = ord - t.deg[i] as usize;
-            let m = t.pre[keep];
-            let row = &t.mul[t.row[i]..t.row[i] + m];
-            for (&bj, &k) in b.c[..m].iter().zip(row) {
-                r[k as usize] += ai * bj;
-            }
+            let keep = ord - t.wdeg[i] as usize;
+            let m = if t.part.is_empty() {
+                let m = t.pre[keep];
+                let row = &t.mul[t.row[i]..t.row[i] + m];
+                for (&bj, &k) in b.c[..m].iter().zip(row) {
+                    r[k as usize] += ai * bj;
+                }
+                m
+            } else {
+                let (s, e) = (t.row[i], t.row[i + 1]);
+                for (&j, &k) in t.part[s..e].iter().zip(&t.mul[s..e]) {
+                    r[k as usize] += ai * b.c[j as usize];
+                }
+                e - s
+            };
             let aa = ai.abs();
             kept = up(kept + up(aa * le[keep]));
             if keep < ord {

@@ -80,6 +80,10 @@ enum Expr {
     FromInterval(Interval, f64),
     /// `Tm::var(k, n, order)`.
     Var(usize, usize, u32),
+    /// `e.with_lifted_weight(w)`: the same function on a mixed-degree table.
+    Lifted(Box<Expr>, u32),
+    /// `e.param(k, n)`: the function `xi_k` on `e`'s kind of table.
+    Param(Box<Expr>, usize, usize),
     /// `e.with_rem(r)`; the function is `e + delta`, `delta in r`.
     WithRem(Box<Expr>, Interval, f64),
     Add(Box<Expr>, Box<Expr>),
@@ -103,6 +107,8 @@ impl Expr {
             Expr::Cst(c) => Tm::cst(*c),
             Expr::FromInterval(i, _) => Tm::from_interval(*i),
             Expr::Var(k, n, o) => Tm::var(*k, *n, *o),
+            Expr::Lifted(e, w) => e.tm().with_lifted_weight(*w),
+            Expr::Param(e, k, n) => e.tm().param(*k, *n),
             Expr::WithRem(e, r, _) => e.tm().with_rem(*r),
             Expr::Add(a, b) => a.tm() + b.tm(),
             Expr::Sub(a, b) => a.tm() - b.tm(),
@@ -130,6 +136,8 @@ impl Expr {
             Expr::Cst(c) => q(*c),
             Expr::FromInterval(_, d) => q(*d),
             Expr::Var(k, _, _) => xi[*k].clone(),
+            Expr::Lifted(e, _) => e.exact(xi),
+            Expr::Param(_, k, _) => xi[*k].clone(),
             Expr::WithRem(e, _, d) => e.exact(xi) + q(*d),
             Expr::Add(a, b) => a.exact(xi) + b.exact(xi),
             Expr::Sub(a, b) => a.exact(xi) - b.exact(xi),
@@ -252,6 +260,30 @@ fn rand_expr(rng: &mut Rng, n: usize, order: u32, depth: u32) -> Expr {
     }
 }
 
+/// The exact value of `e` at 6 random points lies in both `t.eval_at` and `t.bound()`
+/// (never NaN); returns whether the bound is finite.
+fn encloses_at_points(e: &Expr, t: &Tm, rng: &mut Rng, n: usize, case: usize) -> bool {
+    let b = t.bound();
+    assert!(!b.lo.is_nan() && !b.hi.is_nan(), "NaN bound: {e:?}");
+    for _ in 0..6 {
+        let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+        let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+        let v = e.exact(&xq);
+        let at = t.eval_at(&xi);
+        assert!(
+            contains_exact(&at, &v),
+            "case {case}: exact {} not in eval_at {at:?}\n{e:?}\n{t:?}",
+            v.to_f64().unwrap_or(f64::NAN)
+        );
+        assert!(
+            contains_exact(&b, &v),
+            "case {case}: exact {} not in bound {b:?}\n{e:?}\n{t:?}",
+            v.to_f64().unwrap_or(f64::NAN)
+        );
+    }
+    b.lo.is_finite() && b.hi.is_finite()
+}
+
 #[test]
 fn arithmetic_encloses_exact_rational_values() {
     let mut rng = Rng(0x5EED_0001);
@@ -264,28 +296,8 @@ fn arithmetic_encloses_exact_rational_values() {
         let e = rand_expr(&mut rng, n, order, depth);
         let t = e.tm();
         assert!(t.n_vars() <= n);
-        let b = t.bound();
-        assert!(!b.lo.is_nan() && !b.hi.is_nan(), "NaN bound: {e:?}");
-        if b.lo.is_finite() && b.hi.is_finite() {
-            finite_results += 1;
-        }
-        for _ in 0..6 {
-            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-            let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
-            let v = e.exact(&xq);
-            let at = t.eval_at(&xi);
-            assert!(
-                contains_exact(&at, &v),
-                "case {case}: exact {} not in eval_at {at:?}\n{e:?}\n{t:?}",
-                v.to_f64().unwrap_or(f64::NAN)
-            );
-            assert!(
-                contains_exact(&b, &v),
-                "case {case}: exact {} not in bound {b:?}\n{e:?}\n{t:?}",
-                v.to_f64().unwrap_or(f64::NAN)
-            );
-            checked += 1;
-        }
+        finite_results += usize::from(encloses_at_points(&e, &t, &mut rng, n, case));
+        checked += 6;
     }
     // The models must be informative, not the whole line.
     assert!(
@@ -295,6 +307,102 @@ fn arithmetic_encloses_exact_rational_values() {
     eprintln!(
         "arithmetic: {checked} point checks, {finite_results}/3000 finite, {:?}",
         start.elapsed()
+    );
+}
+
+/// The tree with some leaves on mixed-degree tables: an affine leaf in fewer
+/// parameters made mixed (the parameters it lacks weigh `2..=order` when it meets the
+/// others), or a parameter of such a leaf's kind.
+fn mixed(e: Expr, rng: &mut Rng, n: usize) -> Expr {
+    let b = |e: Box<Expr>, rng: &mut Rng| Box::new(mixed(*e, rng, n));
+    match e {
+        Expr::Affine(c, coef, o) if o >= 2 && rng.below(2) == 0 => {
+            let nl = 1 + rng.below(coef.len() as u64) as usize;
+            let w = 2 + rng.below(o as u64 - 1) as u32;
+            let leaf = Expr::Lifted(Box::new(Expr::Affine(c, coef[..nl].to_vec(), o)), w);
+            if rng.below(4) == 0 {
+                Expr::Param(Box::new(leaf), rng.below(n as u64) as usize, n)
+            } else {
+                leaf
+            }
+        }
+        Expr::WithRem(e, r, d) => Expr::WithRem(b(e, rng), r, d),
+        Expr::Add(x, y) => Expr::Add(b(x, rng), b(y, rng)),
+        Expr::Sub(x, y) => Expr::Sub(b(x, rng), b(y, rng)),
+        Expr::Mul(x, y) => Expr::Mul(b(x, rng), b(y, rng)),
+        Expr::Div(x, y) => Expr::Div(b(x, rng), y),
+        Expr::Sqr(x) => Expr::Sqr(b(x, rng)),
+        Expr::Powi(x, k) => Expr::Powi(b(x, rng), k),
+        Expr::Neg(x) => Expr::Neg(b(x, rng)),
+        Expr::AddF(x, f) => Expr::AddF(b(x, rng), f),
+        Expr::SubF(x, f) => Expr::SubF(b(x, rng), f),
+        Expr::MulF(x, f) => Expr::MulF(b(x, rng), f),
+        Expr::DivF(x, f) => Expr::DivF(b(x, rng), f),
+        other => other,
+    }
+}
+
+/// Mixed-degree models (`Tm::with_lifted_weight`: parameters past the first ones weigh
+/// more toward the order, so their high-degree terms are truncated into the remainder)
+/// enclose the exact rational values of random expressions, as classic ones do; and
+/// they are smaller: with the weight equal to the order, 6 full and 20 lifted
+/// parameters at order 3 make 104 monomials (84 in the 6, plus 20), not 3,654.
+#[test]
+fn mixed_degree_arithmetic_encloses_exact_rational_values() {
+    let mut rng = Rng(0x5EED_0A1F);
+    let (mut checked, mut mixed_results, mut finite) = (0usize, 0usize, 0usize);
+    for case in 0..3000 {
+        let n = 2 + rng.below(4) as usize;
+        let order = 2 + rng.below(4) as u32;
+        let depth = 1 + rng.below(4) as u32;
+        let e = rand_expr(&mut rng, n, order, depth);
+        let e = mixed(e, &mut rng, n);
+        let t = e.tm();
+        if t.full_params().is_some() {
+            mixed_results += 1;
+        }
+        finite += usize::from(encloses_at_points(&e, &t, &mut rng, n, case));
+        checked += 6;
+        // Reparameterised (some parameters dropped or moved) they still hold every value.
+        let nv = t.n_vars();
+        let map: Vec<Option<usize>> = (0..nv)
+            .map(|k| (rng.below(4) != 0).then_some(nv - 1 - k))
+            .collect();
+        let r = t.reparam(&map, nv);
+        let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+        let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+        let mut yi = vec![0.0; nv];
+        for (k, m) in map.iter().enumerate() {
+            if let Some(j) = m {
+                yi[*j] = xi[k];
+            }
+        }
+        let v = e.exact(&xq);
+        let at = r.eval_at(&yi);
+        assert!(
+            contains_exact(&at, &v),
+            "case {case}: exact {} not in {at:?} after reparam {map:?}\n{t:?}\n{r:?}",
+            v.to_f64().unwrap_or(f64::NAN)
+        );
+    }
+    assert!(mixed_results > 1000, "only {mixed_results} mixed results");
+    assert!(finite > 2500, "only {finite} finite results");
+    eprintln!("mixed degree: {checked} point checks, {mixed_results} mixed, {finite} finite");
+    // The table sizes (C(6 + 3, 3) = 84 monomials in the full parameters, one per lifted
+    // one) and the product's truncation: a lifted parameter squared is not a term.
+    let a = (0..6).fold(Tm::constant(0.5, 6, 3), |s, k| s + Tm::var(k, 6, 3) * 0.1);
+    let m = a.clone().with_lifted_weight(3);
+    let lifted = (6..26).fold(m.clone(), |s, k| s + m.param(k, 26) * 0.01);
+    assert_eq!(lifted.n_terms(), 104);
+    assert_eq!(lifted.full_params(), Some(6));
+    let classic = (6..26).fold(a, |s, k| s + Tm::var(k, 26, 3) * 0.01);
+    assert_eq!(classic.n_terms(), 3654);
+    let sq = m.param(7, 26).sqr();
+    assert_eq!(sq.value(), 0.0);
+    let r = sq.rem();
+    assert!(
+        r.lo <= 0.0 && r.hi >= 1.0 && r.width() < 2.0 + 1e-12,
+        "{r:?}"
     );
 }
 

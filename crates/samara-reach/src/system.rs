@@ -954,7 +954,9 @@ fn linear_parts(x: &[Tm]) -> (Vec<f64>, Vec<Vec<f64>>) {
 /// The Taylor models of a box: `x_i = mid_i + rad_i xi_k` for the `k`-th state of
 /// non-zero width, constants otherwise; [`mid_rad`] makes the model's range contain the
 /// box.
-fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
+/// With `lifted_weight > 1` the models are mixed-degree ([`Tm::with_lifted_weight`]):
+/// every parameter lifted later weighs that much toward the order.
+fn box_models(b: &[Interval], order: u32, lifted_weight: u32) -> Vec<Tm> {
     let free: Vec<usize> = (0..b.len()).filter(|&i| b[i].hi > b[i].lo).collect();
     let n = free.len();
     b.iter()
@@ -964,6 +966,13 @@ fn box_models(b: &[Interval], order: u32) -> Vec<Tm> {
             Some(k) => {
                 let (mid, rad) = mid_rad(*v);
                 Tm::var(k, n, order) * rad + mid
+            }
+        })
+        .map(|m| {
+            if lifted_weight > 1 {
+                m.with_lifted_weight(lifted_weight)
+            } else {
+                m
             }
         })
         .collect()
@@ -1178,7 +1187,8 @@ fn lift_remainders(y: Vec<Tm>, n: usize, order: u32) -> Vec<Tm> {
             let (p, r) = v.split_rem();
             if l {
                 let (m, rad) = mid_rad(r);
-                let out = p + Tm::var(k, total, order) * rad + m;
+                let xi = fresh_param(&p, k, total, order);
+                let out = p + xi * rad + m;
                 k += 1;
                 out
             } else {
@@ -1186,6 +1196,17 @@ fn lift_remainders(y: Vec<Tm>, n: usize, order: u32) -> Vec<Tm> {
             }
         })
         .collect()
+}
+
+/// The parameter `xi_k` of `total` for a symbolic remainder of `p`: on `p`'s own table
+/// kind (a mixed-degree `p` gives it its lifted weight), or a classic one of `order`
+/// when `p` has no order of its own (a constant).
+fn fresh_param(p: &Tm, k: usize, total: usize, order: u32) -> Tm {
+    if p.order() == order {
+        p.param(k, total)
+    } else {
+        Tm::var(k, total, order)
+    }
 }
 
 /// How many times its initial magnitude (`1 + max |x_i|` over the sub-box) a state's
@@ -1202,6 +1223,30 @@ fn monomials(n: usize, order: usize) -> usize {
     c
 }
 
+/// Number of monomials of a mixed-degree table ([`Tm::with_lifted_weight`]): `full`
+/// parameters of weight 1 and `lifted` of weight `lw`, weighted degree at most `order`
+/// (the classic count `monomials(full + lifted, order)` when `lw <= 1`): the lifted
+/// monomials of degree `d` times the full ones of degree up to `order - lw d`.
+fn mixed_monomials(full: usize, lifted: usize, order: usize, lw: u32) -> usize {
+    let lw = (lw as usize).min(order.max(1));
+    if lw <= 1 {
+        return monomials(full + lifted, order);
+    }
+    (0..=order / lw)
+        .map(|d| {
+            // Monomials of degree exactly d in `lifted` variables: C(lifted + d - 1, d).
+            let exact = if d == 0 {
+                1
+            } else if lifted == 0 {
+                0
+            } else {
+                monomials(lifted - 1, d)
+            };
+            exact.saturating_mul(monomials(full, order - lw * d))
+        })
+        .fold(0usize, |a, v| a.saturating_add(v))
+}
+
 /// Whether the run's time budget (its deadline, if any) is spent.
 fn past(deadline: Option<Instant>) -> bool {
     deadline.is_some_and(|d| Instant::now() > d)
@@ -1216,7 +1261,7 @@ fn fly_box(
     mode: NetworkError,
     deadline: Option<Instant>,
 ) -> SystemLeaf {
-    let mut x = box_models(b, s.order as u32);
+    let mut x = box_models(b, s.order as u32, s.flow.lifted_weight);
     // Most parameters the models may carry before the set is re-parameterised (0: the
     // network's error stays an interval).
     let max_params = match mode {
@@ -1224,7 +1269,8 @@ fn fly_box(
             let base = sys.dim();
             let m = net.n_outputs();
             let mut e = extra;
-            while e > 0 && monomials(base + e + m, s.order) > TERM_BUDGET {
+            while e > 0 && mixed_monomials(base, e + m, s.order, s.flow.lifted_weight) > TERM_BUDGET
+            {
                 e -= 1;
             }
             if e == 0 {
@@ -1588,9 +1634,22 @@ pub fn reduce_with(x: &[Tm], u: &[Tm], max_params: usize, order: u32) -> (Vec<Tm
             score[k] += pw / w;
         }
     }
-    let mut rank: Vec<usize> = (0..n).collect();
+    // On mixed-degree models the weight-1 parameters (the initial set's) are always
+    // kept, in place: they carry the nonlinear dependence, and a lifted parameter moved
+    // into their places would be a waste of the weights.
+    let full = x
+        .iter()
+        .chain(u)
+        .filter_map(|v| v.full_params())
+        .min()
+        .unwrap_or(0)
+        .min(n);
+    let keep = keep.max(full);
+    let mut rank: Vec<usize> = (full..n).collect();
     rank.sort_by(|&a, &b| score[b].total_cmp(&score[a]));
-    let mut kept = rank[..keep].to_vec();
+    let mut kept: Vec<usize> = (0..full)
+        .chain(rank[..keep - full].iter().copied())
+        .collect();
     kept.sort_unstable();
     let mut map: Vec<Option<usize>> = vec![None; n];
     for (j, &k) in kept.iter().enumerate() {
@@ -1604,7 +1663,8 @@ pub fn reduce_with(x: &[Tm], u: &[Tm], max_params: usize, order: u32) -> (Vec<Tm
             let (p, r) = v.reparam(&map, total).split_rem();
             let (m, rad) = mid_rad(r);
             if rad > 0.0 {
-                p + Tm::var(keep + i, total, order) * rad + m
+                let xi = fresh_param(&p, keep + i, total, order);
+                p + xi * rad + m
             } else {
                 p + m
             }
@@ -1842,6 +1902,15 @@ mod tests {
         assert_eq!(monomials(27, 4), 31_465);
         assert_eq!(monomials(24, 3), 2_925);
         assert_eq!(monomials(0, 5), 1);
+        // Mixed degree: the classic count at weight 1; at order 3 with 6 full and 20
+        // lifted parameters of weight 3, C(9, 3) + 20 = 104; of weight 2,
+        // 84 + 20 * 7 = 224 (each lifted one alone or times one full one).
+        assert_eq!(mixed_monomials(6, 20, 3, 1), monomials(26, 3));
+        assert_eq!(mixed_monomials(6, 20, 3, 3), 104);
+        assert_eq!(mixed_monomials(6, 20, 3, 2), 224);
+        // Order 4, weight 2: 210 + 41 * 28 + C(42, 2) = 2,219.
+        assert_eq!(mixed_monomials(6, 41, 4, 2), 2_219);
+        assert_eq!(mixed_monomials(6, 0, 4, 2), 210);
     }
 
     /// `mid_rad` ends for intervals whose radius is tiny against their midpoint (it

@@ -61,6 +61,12 @@ pub struct TmFlowSettings {
     /// flights' x + y spread where 5 % ends 3.07x; on ARCH-COMP, 5 % is as tight and
     /// faster (TORA 0.42 s against 1.03 s; `docs/reach.md`).
     pub lift_at: f64,
+    /// How much each lifted parameter (above) weighs toward `order` (default 1: as
+    /// much as an initial parameter). With `order`, lifted parameters enter linearly
+    /// only (mixed-degree Taylor models, [`samara_num::Tm::with_lifted_weight`]): the
+    /// nonlinear dependence stays on the initial set, and each lifted parameter costs
+    /// one coefficient per model instead of its share of every monomial of the order.
+    pub lifted_weight: u32,
     /// Polynomial stand-ins with a bounded disturbance for terms that a step cannot
     /// expand (an `abs` across 0, a `sqrt` near 0; [`crate::standin`]), tried before the
     /// plain Taylor step wherever the a-priori box needs them (default on).
@@ -77,6 +83,7 @@ impl Default for TmFlowSettings {
             max_halvings: 12,
             max_params: 0,
             lift_at: 0.05,
+            lifted_weight: 1,
             stand_ins: true,
         }
     }
