@@ -8,6 +8,11 @@
 //! `p(xi)` is evaluated in exact real arithmetic from the stored coefficients. Every
 //! operation maps enclosures of its operands to an enclosure of the exact real result.
 //!
+//! A *mixed-degree* model ([`Tm::with_lifted_weight`]) counts the degree with weights:
+//! its first parameters weigh 1 and the later ones (remainders lifted to parameters by a
+//! flow) weigh `W`, and "degree" below then means that weighted degree. Products add
+//! weighted degrees, so every truncation rule stays sound.
+//!
 //! # Rounding policy
 //!
 //! Coefficients are computed in IEEE 754 binary64 with round-to-nearest (the platform
