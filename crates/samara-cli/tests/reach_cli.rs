@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 
 mod support;
-use support::{reference, samara};
+use support::{json_of_success, reference, samara};
 
 /// A small network with `inputs` inputs and one output, written as ONNX.
 fn tiny_network(dir: &Path, inputs: usize) -> PathBuf {
@@ -180,13 +180,7 @@ fn small_run_is_proved_and_writes_json_and_figures() {
         .arg(&out_dir)
         .output()
         .unwrap();
-    assert_eq!(
-        out.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let s = json_of_success(&out);
     assert_eq!(s["verdict"], "proved");
     let fin: Vec<f64> = s["final_x_plus_y"]
         .as_array()
@@ -343,13 +337,7 @@ fn reach_flies_the_specs_loop() {
             .arg(dir.path().join(out))
             .output()
             .unwrap();
-        assert_eq!(
-            o.status.code(),
-            Some(0),
-            "{}",
-            String::from_utf8_lossy(&o.stderr)
-        );
-        serde_json::from_slice(&o.stdout).unwrap()
+        json_of_success(&o)
     };
     let s = |p: &Path| p.display().to_string();
     let by_spec = run(
@@ -450,13 +438,7 @@ fn sets_auto_adds_taylor_models_only_where_zonotopes_leave_the_goal_unknown() {
     };
     let decided = dir.path().join("decided");
     let o = run(&decided, "100");
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let s = json_of_success(&o);
     assert_eq!(s["verdict"], "proved");
     assert!(
         !decided.join("taylor").exists(),
@@ -542,13 +524,7 @@ fn system_run_is_proved(sys: &str, net: &str, args: &[&str]) {
         .arg(dir.path().join("run"))
         .output()
         .unwrap();
-    assert_eq!(
-        o.status.code(),
-        Some(0),
-        "{}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    let s: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let s = json_of_success(&o);
     assert_eq!(s["verdict"]["verdict"], "proved", "{s}");
 }
 

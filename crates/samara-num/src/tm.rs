@@ -410,19 +410,15 @@ fn common(a: &Tm, b: &Tm) -> (&'static Table, bool) {
     let eff = |t: &Table| if t.is_mixed() { t.full } else { usize::MAX };
     let full = eff(a.t).min(eff(b.t));
     let lw = a.t.lw.max(b.t.lw);
-    let fits = |t: &Table| {
-        t.n == n
-            && t.order == order
-            && (!t.is_mixed() && lw == 1 || t.is_mixed() && t.full == full && t.lw == lw)
-    };
+    // The key `table_mixed` normalises to (classic tables ignore `full`).
+    let fits =
+        |t: &Table| t.n == n && t.order == order && t.lw == lw && (lw == 1 || t.full == full);
     if fits(a.t) {
         (a.t, fixed)
     } else if fits(b.t) {
         (b.t, fixed)
-    } else if lw > 1 {
-        (table_mixed(n, order, full, lw), fixed)
     } else {
-        (table(n, order), fixed)
+        (table_mixed(n, order, full, lw), fixed)
     }
 }
 
@@ -516,8 +512,13 @@ impl Tm {
     /// `cst + sum_k coef[k] xi_k`, a model in `n = coef.len()` parameters of order `order`
     /// (for `order = 0` the linear terms are bounded into the remainder).
     pub fn affine(cst: f64, coef: &[f64], order: u32) -> Tm {
-        let n = coef.len();
-        let t = table(n, order);
+        Tm::affine_on(table(coef.len(), order), cst, coef)
+    }
+
+    /// `cst + sum_k coef[k] xi_k` on table `t` (`coef.len() = t.n`; for order 0 the
+    /// linear terms are bounded into the remainder).
+    fn affine_on(t: &'static Table, cst: f64, coef: &[f64]) -> Tm {
+        let (n, order) = (t.n, t.order);
         let mut c = vec![0.0; t.len()];
         c[0] = cst;
         let mut rem = Interval::point(0.0);
@@ -556,15 +557,13 @@ impl Tm {
     /// order and weights (a mixed-degree model's new parameters weigh as it says).
     pub fn param(&self, k: usize, n: usize) -> Tm {
         assert!(k < n, "Tm::param: parameter {k} out of {n}");
-        let t = table_mixed(n, self.t.order, self.t.full, self.t.lw);
-        let mut c = vec![0.0; t.len()];
-        let mut rem = Interval::point(0.0);
-        if t.order >= 1 {
-            c[1 + k] = 1.0;
-        } else {
-            rem = sym(1.0);
-        }
-        Tm::raw(t, true, c, rem)
+        let mut coef = vec![0.0; n];
+        coef[k] = 1.0;
+        Tm::affine_on(
+            table_mixed(n, self.t.order, self.t.full, self.t.lw),
+            0.0,
+            &coef,
+        )
     }
 
     /// A model without parameters whose value is any point of `i` (like [`Scalar::cst`],
