@@ -151,12 +151,20 @@ pub struct ReachArgs {
     /// The loop of --spec to fly (default: its first).
     #[arg(long = "loop", value_name = "NAME", requires = "spec")]
     pub loop_name: Option<String>,
-    /// Compute only part I of N (0-based) of the built-in glider run: the initial pieces
+    /// Compute only part I of N (0-based) of the run. Zonotope sets: the initial pieces
     /// (the initial set cut along its widest parameter, usually the height) in N
-    /// contiguous ranges, each piece refined on its own. --out is then the shard file; `samara merge reach` puts the N files together
-    /// into the one-process reach.json and figures (zonotope sets only).
+    /// contiguous ranges, each piece refined on its own. Taylor-model sets (--system,
+    /// --sets taylor): the cells of --grid in N contiguous ranges. --out is then the
+    /// shard file; `samara merge reach` puts the N files together into the one-process
+    /// reach.json (and, for zonotope sets, the figures)
     #[arg(long, value_name = "I/N", allow_hyphen_values = true, value_parser = shard::parse_shard)]
     pub shard: Option<Shard>,
+    /// With Taylor-model sets (--system, --sets taylor): cut the initial set into a fixed
+    /// grid first, NAME=K cutting state NAME into K equal pieces (repeatable; other
+    /// states uncut), and fly every cell as its own run, with its own --max-leaves
+    /// budget (docs/reach.md, "Grids and shards"). What --shard divides
+    #[arg(long, value_name = "NAME=K")]
+    pub grid: Vec<String>,
 }
 
 /// Parse `A:B` or `A` into a finite, non-inverted interval; `what` names the flag and
@@ -488,8 +496,14 @@ fn check_zonotope_flags(a: &ReachArgs) -> Result<()> {
 
 /// Run `samara reach`.
 pub fn run(a: &ReachArgs) -> Result<ExitCode> {
-    if let Some(sh) = a.shard {
+    // Taylor-model runs shard by their --grid (crate::reach_system); zonotope runs by
+    // their initial pieces.
+    let taylor = a.system.is_some() || a.sets == "taylor";
+    if let Some(sh) = a.shard.filter(|_| !taylor) {
         return run_shard(a, sh);
+    }
+    if !a.grid.is_empty() && !taylor {
+        bail!("--grid applies to Taylor-model sets (--sets taylor or --system); the zonotope sets are cut by --max-leaves (and sharded by their initial pieces)");
     }
     if let Some(sys) = &a.system {
         return crate::reach_system::run(a, sys);
@@ -542,7 +556,7 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     // sets 2-4x tighter (docs/reach.md, "How small a set meets the criterion").
     tuned.lift_at = a.lift_at.or(Some(GLIDER_LIFT_AT));
     let a = &tuned;
-    let plan = plan(a, false)?;
+    let plan = plan(a, a.shard.is_some())?;
     let sys = crate::reach_system::builtin_system(&plan.settings)?;
     // The published setting's measure, x + y (its width against the flights').
     let mut coef = vec![0.0; sys.dim()];
@@ -820,15 +834,9 @@ fn figure_title(network: &Path, s: &ReachSettings) -> String {
 /// `samara reach --shard I/N --out FILE`: part I of N of the run (the initial pieces
 /// `Shard::range` of their number, each refined on its own) as a shard file.
 fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
-    let why = "their sub-box search shares one budget and a wall-clock --timeout across all sub-boxes, so parts could not merge into exactly the one-process result; run them unsharded";
-    if a.system.is_some() {
-        bail!("--shard applies to the built-in glider setting with zonotope sets; --system runs are not sharded ({why})");
-    }
     match a.sets.as_str() {
         "zonotope" => check_zonotope_flags(a)?,
-        "taylor" | "auto" => {
-            bail!("--shard applies to zonotope sets (--sets zonotope); --sets {} runs are not sharded ({why})", a.sets)
-        }
+        "auto" => bail!("--shard with --sets auto: the two kinds of set are sharded differently; shard the zonotope run (--sets zonotope) or the Taylor-model run (--sets taylor with --grid)"),
         other => bail!("--sets {other}: give zonotope, taylor or auto"),
     }
     let plan = plan(a, true)?;

@@ -5,12 +5,14 @@
 //! line, or the JSON summary with `--json`.
 
 use crate::reach::ReachArgs;
+use crate::verify::shard::{self, Shard};
 use anyhow::{anyhow, bail, Context, Result};
+use samara_reach::grid;
 use samara_reach::system::{
     reach_system, Measure, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
 };
 use samara_report::write_atomic;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// Files `reach --system` writes.
@@ -66,7 +68,9 @@ pub fn run(a: &ReachArgs, path: &Path) -> Result<ExitCode> {
 }
 
 /// Reachability of a checked system under a loaded controller; `path` names the
-/// system in messages and the report.
+/// system in messages and the report. With --grid the cells are flown as separate runs
+/// (`samara_reach::grid`); with --shard only this shard's range of them, written as a
+/// shard file for `samara merge reach`.
 pub fn run_system(
     a: &ReachArgs,
     sys: &samara_system::System,
@@ -84,42 +88,268 @@ pub fn run_system(
     if let Some(n) = a.samples {
         s.samples = n;
     }
+    let pieces = grid_pieces(a, sys)?;
+    let inputs = if path.is_file() {
+        vec![("--system", path), ("--network", a.network.as_path())]
+    } else {
+        vec![("--network", a.network.as_path())]
+    };
+    if let Some(sh) = a.shard {
+        let Some(pieces) = pieces else {
+            bail!("--shard with Taylor-model sets needs --grid NAME=K (the grid's cells are what the shards divide), e.g. --grid theta=3 --grid y=8");
+        };
+        return run_shard(a, sh, sys, path, net, &s, &pieces, &inputs);
+    }
     crate::reach::start_threads(a)?;
-    samara_report::guard::check_output_dir(
-        "--out",
-        &a.out,
-        &WRITES,
-        &if path.is_file() {
-            vec![("--system", path), ("--network", a.network.as_path())]
-        } else {
-            vec![("--network", a.network.as_path())]
-        },
-    )?;
+    samara_report::guard::check_output_dir("--out", &a.out, &WRITES, &inputs)?;
     let out = samara_report::guard::OutDir::prepare(&a.out)?;
-    let res = reach_system(sys, net, &s).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let report = serde_json::json!({
-        "system": path.display().to_string(),
-        "network": a.network.display().to_string(),
-        "settings": {"order": s.order, "max_boxes": s.max_boxes, "samples": s.samples},
-        "result": &res,
-    });
-    write_atomic(
-        &a.out.join("reach.json"),
-        serde_json::to_string_pretty(&report)?.as_bytes(),
+    let res = match &pieces {
+        None => reach_system(sys, net, &s),
+        Some(p) => {
+            let total = grid::cell_count(sys, p).map_err(|e| anyhow!("--grid: {e}"))?;
+            grid::reach_cells(sys, net, &s, p, 0..total)
+        }
+    }
+    .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let code = write_report(
+        &a.out,
+        a.json,
+        &path.display().to_string(),
+        &a.network.display().to_string(),
+        report_settings(&s, pieces.as_deref()),
+        &res,
     )?;
     out.keep();
-    if a.json {
-        println!("{}", serde_json::to_string_pretty(&summary(&res))?);
+    Ok(code)
+}
+
+/// The settings recorded in reach.json.
+fn report_settings(s: &SystemReachSettings, pieces: Option<&[usize]>) -> serde_json::Value {
+    let mut v =
+        serde_json::json!({"order": s.order, "max_boxes": s.max_boxes, "samples": s.samples});
+    if let Some(p) = pieces {
+        v["grid"] = serde_json::json!(p);
+    }
+    v
+}
+
+/// Write `out/reach.json` and print the human line (or the JSON summary); the exit code
+/// of the verdict. Shared by runs and `samara merge reach` of Taylor-model shards.
+fn write_report(
+    out: &Path,
+    json: bool,
+    system: &str,
+    network: &str,
+    settings: serde_json::Value,
+    res: &SystemReach,
+) -> Result<ExitCode> {
+    let report = serde_json::json!({
+        "system": system,
+        "network": network,
+        "settings": settings,
+        "result": res,
+    });
+    write_atomic(
+        &out.join("reach.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    if json {
+        println!("{}", serde_json::to_string_pretty(&summary(res))?);
     } else {
-        println!("{}", human_line(path, &res));
-        eprintln!("wrote {}", a.out.display());
+        println!("{}", human_line(system, res));
+        eprintln!("wrote {}", out.display());
     }
     Ok(match res.verdict {
         SystemVerdict::Proved => ExitCode::SUCCESS,
         // Without a goal, success means sets to the horizon.
-        SystemVerdict::NoGoal if lost(&res).is_none() => ExitCode::SUCCESS,
+        SystemVerdict::NoGoal if lost(res).is_none() => ExitCode::SUCCESS,
         _ => ExitCode::from(1),
     })
+}
+
+/// `--grid NAME=K ...` as pieces per state (`None` without the flag), checked against
+/// the system's states and initial set.
+fn grid_pieces(a: &ReachArgs, sys: &samara_system::System) -> Result<Option<Vec<usize>>> {
+    if a.grid.is_empty() {
+        return Ok(None);
+    }
+    let mut pieces = vec![1usize; sys.dim()];
+    let mut seen = vec![false; sys.dim()];
+    for g in &a.grid {
+        let (name, k) = g.split_once('=').ok_or_else(|| {
+            anyhow!("--grid {g:?}: expected NAME=K, a state and its number of pieces (e.g. --grid theta=3)")
+        })?;
+        let i = sys
+            .states
+            .iter()
+            .position(|n| n == name.trim())
+            .ok_or_else(|| {
+                anyhow!(
+                    "--grid {g:?}: no state `{}`; the states are {}",
+                    name.trim(),
+                    sys.states.join(", ")
+                )
+            })?;
+        let k: usize = k.trim().parse().ok().filter(|k| *k >= 1).ok_or_else(|| {
+            anyhow!("--grid {g:?}: K must be a whole number of pieces, at least 1")
+        })?;
+        if seen[i] {
+            bail!(
+                "--grid {g:?}: state `{}` is cut twice; give each state once",
+                sys.states[i]
+            );
+        }
+        seen[i] = true;
+        pieces[i] = k;
+    }
+    grid::cell_count(sys, &pieces).map_err(|e| anyhow!("--grid: {e}"))?;
+    Ok(Some(pieces))
+}
+
+/// What every shard of one grid run shares (`run` of the shard file): the system (its
+/// text's digest and parameter values), the network's digest, the grid and the settings
+/// that change results. The wall-clock budget is not part of it (each shard has its own).
+fn run_record(
+    a: &ReachArgs,
+    sys: &samara_system::System,
+    s: &SystemReachSettings,
+    pieces: &[usize],
+    cells: usize,
+) -> Result<serde_json::Value> {
+    Ok(serde_json::json!({
+        "sets": "taylor",
+        "system": shard::digest(sys.source().as_bytes()),
+        "params": sys.params.iter().map(|(n, v)| serde_json::json!([n, shard::f(*v)])).collect::<Vec<_>>(),
+        "init": sys.init.iter().map(|(l, h)| [shard::f(*l), shard::f(*h)]).collect::<Vec<_>>(),
+        "network": shard::digest_file(&a.network, "--network")?,
+        "grid": pieces,
+        "cells": cells,
+        "order": s.order,
+        "max_boxes": s.max_boxes,
+        "samples": s.samples,
+        "seed": s.seed,
+        "network_error": s.network_error,
+        "lift_at": shard::f(s.flow.lift_at),
+        "lifted_weight": s.flow.lifted_weight,
+        "precondition": s.precondition,
+        "measures": s.measures.iter().map(|m| serde_json::json!({
+            "name": m.name,
+            "coef": m.coef.iter().map(|c| shard::f(*c)).collect::<Vec<_>>(),
+            "offset": shard::f(m.offset),
+        })).collect::<Vec<_>>(),
+    }))
+}
+
+/// `--shard I/N` of a Taylor-model grid run: cells `Shard::range` of the grid's, written
+/// as a shard file.
+#[allow(clippy::too_many_arguments)]
+fn run_shard(
+    a: &ReachArgs,
+    sh: Shard,
+    sys: &samara_system::System,
+    path: &Path,
+    net: &samara_nn::Network,
+    s: &SystemReachSettings,
+    pieces: &[usize],
+    inputs: &[(&str, &Path)],
+) -> Result<ExitCode> {
+    samara_report::guard::check_output_file("--out", &a.out, inputs)?;
+    let total = grid::cell_count(sys, pieces).map_err(|e| anyhow!("--grid: {e}"))?;
+    let range = sh.range(total);
+    if range.is_empty() {
+        bail!(
+            "--shard {}/{}: the grid has {total} cells, fewer than the {} shards; use at most {total} shards or a finer --grid",
+            sh.i,
+            sh.n,
+            sh.n
+        );
+    }
+    let run = run_record(a, sys, s, pieces, total)?;
+    crate::reach::start_threads(a)?;
+    let res = grid::reach_cells(sys, net, s, pieces, range.clone())
+        .map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let result = serde_json::json!({
+        "cells": [range.start, range.end],
+        "system_name": path.display().to_string(),
+        "network_name": a.network.display().to_string(),
+        "reach": &res,
+    });
+    shard::write(&a.out, "reach", sh, run, result)?;
+    if a.json {
+        println!(
+            "{}",
+            serde_json::json!({"shard": [sh.i, sh.n], "cells": [range.start, range.end],
+                "verdict": &res.verdict, "covered": res.covered, "out": a.out})
+        );
+    } else {
+        println!(
+            "shard {}/{}: cells {}..{} of {total}: {} ({} sub-boxes, {:.2} s, sets to the horizon for {} of these cells); partial result in {} (merge with `samara merge reach`)",
+            sh.i,
+            sh.n,
+            range.start,
+            range.end,
+            res.verdict.name(),
+            res.boxes,
+            res.seconds,
+            percent(res.covered),
+            a.out.display()
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// `samara merge reach` of Taylor-model grid shards: the shards' cells checked to be the
+/// grid's ranges in order, their results merged (`samara_reach::grid::merge_parts`) and
+/// written as the one-process run writes them.
+pub fn merge_shards(
+    run: &serde_json::Value,
+    shards: &[(PathBuf, serde_json::Value)],
+    out: &Path,
+    json: bool,
+) -> Result<ExitCode> {
+    let total = run["cells"]
+        .as_u64()
+        .and_then(|n| usize::try_from(n).ok())
+        .ok_or_else(|| anyhow!("shard files: bad `run.cells` ({})", run["cells"]))?;
+    let n = shards.len();
+    let mut parts = Vec::with_capacity(n);
+    for (i, (file, r)) in shards.iter().enumerate() {
+        let range = Shard { i, n }.range(total);
+        if r["cells"] != serde_json::json!([range.start, range.end]) {
+            bail!(
+                "{}: cells {}, expected {}..{} of {total} for shard {i}/{n}",
+                file.display(),
+                r["cells"],
+                range.start,
+                range.end
+            );
+        }
+        let res: SystemReach = serde_json::from_value(r["reach"].clone()).map_err(|e| {
+            anyhow!(
+                "{}: `result.reach` is not a reach result: {e}",
+                file.display()
+            )
+        })?;
+        parts.push((range.len(), res));
+    }
+    let merged = grid::merge_parts(parts);
+    let name = |k: &str| shards[0].1[k].as_str().unwrap_or("").to_string();
+    // As the one-process run records them.
+    let settings = serde_json::json!({
+        "order": run["order"], "max_boxes": run["max_boxes"], "samples": run["samples"],
+        "grid": run["grid"],
+    });
+    let dir = samara_report::guard::OutDir::prepare(out)?;
+    let code = write_report(
+        out,
+        json,
+        &name("system_name"),
+        &name("network_name"),
+        settings,
+        &merged,
+    )?;
+    dir.keep();
+    Ok(code)
 }
 
 /// `--network-error`: `interval`, `symbolic`, `symbolic:N` or `auto`.
@@ -164,7 +394,7 @@ fn lost(r: &SystemReach) -> Option<String> {
     r.leaves.iter().find_map(|l| l.failure.clone())
 }
 
-fn human_line(path: &Path, r: &SystemReach) -> String {
+fn human_line(system: &str, r: &SystemReach) -> String {
     let what = match &r.verdict {
         SystemVerdict::Proved => "proved: every goal holds on the sound enclosure".to_string(),
         SystemVerdict::Violated { initial, goal } => {
@@ -193,8 +423,7 @@ fn human_line(path: &Path, r: &SystemReach) -> String {
         String::new()
     };
     let mut line = format!(
-        "{}: {what} ({} sub-boxes, Taylor models of order {}, network error {ne}, {:.2} s{cover})",
-        path.display(),
+        "{system}: {what} ({} sub-boxes, Taylor models of order {}, network error {ne}, {:.2} s{cover})",
         r.boxes,
         r.order,
         r.seconds

@@ -124,7 +124,7 @@ impl Kind {
 /// Merge the shard files of one sharded run into what one process writes.
 #[derive(clap::Args, Debug)]
 #[command(
-    after_help = "Examples:\n  samara robustness --network n.onnx --data d.csv --shard 0/3 --out s0.json   # ... 1/3, 2/3\n  samara merge robustness s0.json s1.json s2.json --json\n  samara vnncomp instances.csv --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT --out part-$SLURM_ARRAY_TASK_ID.json\n  samara merge vnncomp part-*.json --out results.csv\n  samara reach --network n.onnx --goal-ystar 2 --shard 0/4 --out r0.json   # ... 3/4\n  samara merge reach r0.json r1.json r2.json r3.json --out out/reach\n\nExit codes: 0 merged (reach: proved or no goal, as `samara reach`), 1 reach: violated or unknown, 2 a usage or input error (a missing or duplicate shard, shards of different runs, a bad file, a reach run that cannot be merged exactly)."
+    after_help = "Examples:\n  samara robustness --network n.onnx --data d.csv --shard 0/3 --out s0.json   # ... 1/3, 2/3\n  samara merge robustness s0.json s1.json s2.json --json\n  samara vnncomp instances.csv --shard $SLURM_ARRAY_TASK_ID/$SLURM_ARRAY_TASK_COUNT --out part-$SLURM_ARRAY_TASK_ID.json\n  samara merge vnncomp part-*.json --out results.csv\n  samara reach --network n.onnx --goal-ystar 2 --shard 0/4 --out r0.json   # ... 3/4\n  samara merge reach r0.json r1.json r2.json r3.json --out out/reach\n  samara reach --system s.sys --network n.onnx --grid theta=4 --shard 1/2 --out t1.json   # and 0/2\n  samara merge reach t0.json t1.json --out out/t\n\nExit codes: 0 merged (reach: proved or no goal, as `samara reach`), 1 reach: violated or unknown, 2 a usage or input error (a missing or duplicate shard, shards of different runs, a bad file, a reach run that cannot be merged exactly)."
 )]
 pub struct MergeArgs {
     /// The command whose shards these are.
@@ -257,7 +257,11 @@ pub fn run_merge(a: &MergeArgs) -> Result<ExitCode> {
             let Some(out) = &a.out else {
                 bail!("--out DIR is required for `samara merge reach` (the folder of reach.json and the figures)");
             };
-            crate::reach::merge_reach(&run, &shards, out, a.json)
+            if run["sets"] == "taylor" {
+                crate::reach_system::merge_shards(&run, &shards, out, a.json)
+            } else {
+                crate::reach::merge_reach(&run, &shards, out, a.json)
+            }
         }
     }
 }

@@ -591,3 +591,44 @@ fn lifted_weight_is_checked_and_applies_to_taylor_models_only() {
         ],
     );
 }
+
+/// `--grid NAME=K`: Taylor-model sets only; a state that does not exist, a count that is
+/// not a whole number of at least 1, a state cut twice, a state whose initial value is
+/// a point, and too many cells each get a message naming the flag and the fix (exit 2,
+/// nothing written).
+#[test]
+fn grid_is_checked_and_applies_to_taylor_models_only() {
+    refused_before_writing(&[
+        (vec!["--grid", "y=2"], "--grid applies to Taylor-model sets"),
+        (
+            vec!["--sets", "taylor", "--grid", "z=2"],
+            "no state `z`; the states are v_xp, v_yp, omega, theta, x, y",
+        ),
+        (
+            vec!["--sets", "taylor", "--grid", "y=0"],
+            "K must be a whole number of pieces, at least 1",
+        ),
+        (vec!["--sets", "taylor", "--grid", "y"], "expected NAME=K"),
+        (
+            vec!["--sets", "taylor", "--grid", "y=2", "--grid", "y=3"],
+            "state `y` is cut twice",
+        ),
+        (
+            vec!["--sets", "taylor", "--grid", "theta=2"],
+            "its initial value is the single point 0",
+        ),
+        (
+            vec![
+                "--sets",
+                "taylor",
+                "--init",
+                "theta=-0.1:0.1",
+                "--grid",
+                "y=1000",
+                "--grid",
+                "theta=1000",
+            ],
+            "the grid has 1000000 cells, more than 100000",
+        ),
+    ]);
+}

@@ -360,6 +360,9 @@ fn sharded_equals_unsharded(
     std::fs::create_dir_all(dir).unwrap();
     let net = denorm_net();
     let full = dir.join("full");
+    // Taylor-model runs shard the cells of their --grid and draw no figure.
+    let taylor = args.contains(&"--grid");
+    let word = if taylor { "cells" } else { "pieces" };
     let (code, summary, err) = reach(
         &net,
         args,
@@ -371,7 +374,7 @@ fn sharded_equals_unsharded(
             let f = dir.join(format!("part-{i}.json"));
             let s = format!("{i}/{n}");
             let o = reach_shard(&net, args, &s, &f);
-            assert!(o.starts_with(&format!("shard {s}: pieces")), "{o}");
+            assert!(o.starts_with(&format!("shard {s}: {word}")), "{o}");
             f
         })
         .collect();
@@ -384,13 +387,19 @@ fn sharded_equals_unsharded(
         mcode, code,
         "merge: {msummary}{merr}\nunsharded: {summary}{err}"
     );
-    let (a, b) = (reach_json(&full), reach_json(&merged));
+    let (mut a, mut b) = (reach_json(&full), reach_json(&merged));
+    if taylor {
+        // The result's own wall (one process) or compute (the shards' sum) time.
+        for v in [&mut a, &mut b] {
+            v["result"].as_object_mut().unwrap().remove("seconds");
+        }
+    }
     assert_eq!(a, b, "merged reach.json differs from the one-process one");
     assert_eq!(
         strip(serde_json::from_str(&summary).unwrap()),
         strip(serde_json::from_str(&msummary).unwrap())
     );
-    for fig in ["reach.svg", "reach.png"] {
+    for fig in ["reach.svg", "reach.png"].iter().filter(|_| !taylor) {
         assert!(
             std::fs::read(full.join(fig)).unwrap() == std::fs::read(merged.join(fig)).unwrap(),
             "{fig} differs"
@@ -538,24 +547,125 @@ fn reach_merge_refuses_shards_that_do_not_make_one_run() {
     ]);
     assert_eq!(code, Some(2));
     assert!(err.contains("--out DIR is required"), "{err}");
-    // --system and Taylor-model sets are not sharded.
-    let sys = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/archcomp/tora.sys");
+    // Taylor-model runs shard the cells of a --grid: without one, refused; --sets auto
+    // (two kinds of set) is not sharded.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let sys = root.join("examples/archcomp/tora.sys");
+    let tora = root.join("crates/samara-reach/tests/data/archcomp/controller_tora.onnx");
     let f = dir.path().join("x.json");
-    for extra in [
-        vec!["--system".as_ref(), sys.as_os_str()],
-        vec!["--sets".as_ref(), "taylor".as_ref()],
-        vec!["--sets".as_ref(), "auto".as_ref()],
+    let shard_args: [&OsStr; 4] = [
+        "--shard".as_ref(),
+        "0/2".as_ref(),
+        "--out".as_ref(),
+        f.as_os_str(),
+    ];
+    let (code, o, err) = run(&[
+        &[
+            "reach".as_ref(),
+            "--system".as_ref(),
+            sys.as_os_str(),
+            "--network".as_ref(),
+            tora.as_os_str(),
+        ][..],
+        &shard_args[..],
+    ]
+    .concat());
+    assert_eq!(code, Some(2), "{o}{err}");
+    assert!(err.contains("needs --grid"), "{err}");
+    for (sets, needle) in [
+        ("taylor", "needs --grid"),
+        ("auto", "--shard with --sets auto"),
     ] {
-        let mut e: Vec<&OsStr> = extra;
-        e.extend([
+        let mut e: Vec<&OsStr> = vec!["--sets".as_ref(), sets.as_ref()];
+        e.extend(shard_args);
+        let (code, o, err) = reach(&net, &[], &e);
+        assert_eq!(code, Some(2), "{o}{err}");
+        assert!(err.contains(needle), "{err}");
+    }
+    assert!(!f.exists());
+}
+
+/// Taylor-model sets on a fixed grid (`--sets taylor --grid`): the shards' cells, merged
+/// in any order of files, give the one-process reach.json (but `seconds`), JSON summary
+/// and exit code; a cell range past the grid, a Taylor-model shard without a grid, and
+/// shards of two different grids are refused (exit 2).
+#[test]
+fn reach_taylor_grid_shards_merge_to_the_unsharded_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let args = [
+        "--sets",
+        "taylor",
+        "--y0",
+        "2.0:2.2",
+        "--init",
+        "theta=-0.002:0.002",
+        "--horizon",
+        "1",
+        "--goal-ystar",
+        "100",
+        "--samples",
+        "8",
+        "--grid",
+        "y=2",
+        "--grid",
+        "theta=2",
+    ];
+    let (r, files) = sharded_equals_unsharded(&args, 3, &[2, 0, 1], &dir.path().join("a"));
+    assert_eq!(
+        r["result"]["verdict"]["verdict"], "proved",
+        "{}",
+        r["result"]
+    );
+    assert_eq!(r["settings"]["grid"], serde_json::json!([1, 1, 1, 2, 1, 2]));
+    assert_eq!(r["result"]["covered"], 1.0);
+    let net = denorm_net();
+    // Five shards of four cells: the first has none.
+    let (code, _, err) = reach(
+        &net,
+        &args,
+        &[
+            "--shard".as_ref(),
+            "0/5".as_ref(),
+            "--out".as_ref(),
+            dir.path().join("x.json").as_os_str(),
+        ],
+    );
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("the grid has 4 cells, fewer than the 5 shards"),
+        "{err}"
+    );
+    let (code, _, err) = reach(
+        &net,
+        &args[..12],
+        &[
             "--shard".as_ref(),
             "0/2".as_ref(),
             "--out".as_ref(),
-            f.as_os_str(),
-        ]);
-        let (code, o, err) = reach(&net, &[], &e);
-        assert_eq!(code, Some(2), "{o}{err}");
-        assert!(err.contains("not sharded"), "{err}");
-        assert!(!f.exists());
-    }
+            dir.path().join("x.json").as_os_str(),
+        ],
+    );
+    assert_eq!(code, Some(2), "{err}");
+    assert!(
+        err.contains("--shard with Taylor-model sets needs --grid"),
+        "{err}"
+    );
+    // Shard 1/3 of a grid along y only does not merge with the others.
+    let mut other = args[..12].to_vec();
+    other.extend(["--grid", "y=4"]);
+    let f = dir.path().join("other.json");
+    reach_shard(&net, &other, "1/3", &f);
+    let out = dir.path().join("mixed");
+    let (code, _, err) = run(&[
+        "merge".as_ref(),
+        "reach".as_ref(),
+        files[1].as_os_str(),
+        f.as_os_str(),
+        files[2].as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("shards of different runs"), "{err}");
+    assert!(!out.exists());
 }

@@ -25,6 +25,7 @@
 
 pub mod driver;
 pub mod flow;
+pub mod grid;
 pub mod netstep;
 pub mod parts;
 pub mod sampling;

@@ -34,7 +34,7 @@ use samara_nn::Network;
 use samara_num::{Interval, Scalar, Tm};
 use samara_system::sim::{fly, goals_hold, SystemFlight};
 use samara_system::{band_decision, GoalKind, System, When};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Settings of a system reachability run.
@@ -138,7 +138,7 @@ pub fn end_band_measures(sys: &System) -> Vec<Measure> {
 
 /// A measure's range at the horizon: the sets' enclosure (hull over the sub-boxes;
 /// `None` unless every sub-box has sets there) and the flights' spread.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct MeasureRange {
     /// The measure's name.
     pub name: String,
@@ -152,7 +152,7 @@ pub struct MeasureRange {
 
 /// How the error of the network step (CROWN's gap, the remainder of the controller's
 /// Taylor model) enters the set that the plant then carries over the period.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum NetworkError {
     /// As an interval remainder of each input: cheapest, but the states the input
@@ -225,7 +225,7 @@ pub enum SystemReachError {
 }
 
 /// The verdict of a system run.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "verdict", rename_all = "lowercase")]
 pub enum SystemVerdict {
     /// Every flight from the initial set meets every goal (sound enclosure).
@@ -260,7 +260,7 @@ impl SystemVerdict {
 }
 
 /// The sets of one sub-box.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SystemLeaf {
     /// The sub-box of the initial set.
     pub init: Vec<[f64; 2]>,
@@ -302,7 +302,7 @@ fn undecidable(sys: &System, ok: &[bool]) -> bool {
 }
 
 /// The result of a system run.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, Serialize, Deserialize)]
 pub struct SystemReach {
     /// The system's name.
     pub system: String,

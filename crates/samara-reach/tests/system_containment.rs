@@ -337,6 +337,84 @@ fn tora_auto_mode_proves_the_goal_and_contains_flights() {
     assert!(n > 300 * sys.steps());
 }
 
+/// A fixed grid over TORA's initial set (`samara_reach::grid`, what `--grid` and a
+/// Taylor-model `--shard` run): the cells tile the set, every cell proves the goal and
+/// contains flights, and the merge of the cells cut into ranges, each result taken
+/// through JSON as shard files carry it, is exactly the one-process grid run.
+#[test]
+fn tora_grid_cells_merge_exactly_and_contain_flights() {
+    use samara_reach::grid;
+    let sys = system("tora.sys");
+    let net = fixture("controller_tora.onnx");
+    let s = SystemReachSettings {
+        order: 3,
+        network_error: Some(NetworkError::Symbolic { extra: 20 }),
+        measures: vec![samara_reach::system::Measure {
+            name: "x1 + x2".into(),
+            coef: vec![1.0, 1.0, 0.0, 0.0],
+            offset: 0.0,
+        }],
+        ..SystemReachSettings::default()
+    };
+    let pieces = [2, 1, 3, 1];
+    let total = grid::cell_count(&sys, &pieces).unwrap();
+    assert_eq!(total, 6);
+    let whole = grid::reach_cells(&sys, &net, &s, &pieces, 0..total).unwrap();
+    assert_eq!(whole.verdict, SystemVerdict::Proved, "{:?}", whole.verdict);
+    assert_tiles(&sys, &whole, total * s.max_boxes);
+    // Every cell's sub-boxes lie in that cell.
+    let mut at = 0;
+    for c in 0..total {
+        let cell = grid::cell_box(&sys.init, &pieces, c);
+        let mut v = 0.0;
+        while at < whole.leaves.len()
+            && whole.leaves[at]
+                .init
+                .iter()
+                .zip(&cell)
+                .all(|(b, &(lo, hi))| lo <= b[0] && b[1] <= hi)
+        {
+            let l = &whole.leaves[at].init;
+            v += (0..4)
+                .map(|i| (l[i][1] - l[i][0]) / (cell[i].1 - cell[i].0))
+                .product::<f64>();
+            at += 1;
+        }
+        assert!((v - 1.0).abs() < 1e-12, "cell {c}: its sub-boxes cover {v}");
+    }
+    assert_eq!(at, whole.leaves.len());
+    let n = check_contains(&sys, &net, &whole, 300, 53);
+    assert!(n > 300 * sys.steps());
+    let m = &whole.measures[0];
+    let (e, f) = (m.enclosure.unwrap(), m.sampled.unwrap());
+    assert!(e[0] <= f[0] && f[1] <= e[1], "{m:?}");
+    // Cut into shards: 0..1, 1..4, 4..6.
+    let parts: Vec<(usize, SystemReach)> = [0..1, 1..4, 4..6]
+        .into_iter()
+        .map(|r| {
+            let p = grid::reach_cells(&sys, &net, &s, &pieces, r.clone()).unwrap();
+            let text = serde_json::to_string(&p).unwrap();
+            (r.len(), serde_json::from_str(&text).unwrap())
+        })
+        .collect();
+    let merged = grid::merge_parts(parts);
+    assert_eq!(merged.verdict, whole.verdict);
+    assert_eq!(merged.covered, whole.covered);
+    assert_eq!(merged.boxes, whole.boxes);
+    assert_eq!(merged.instants, whole.instants);
+    assert_eq!(merged.periods, whole.periods);
+    assert_eq!(merged.measures[0].enclosure, whole.measures[0].enclosure);
+    assert_eq!(merged.measures[0].sampled, whole.measures[0].sampled);
+    for (a, b) in merged.leaves.iter().zip(&whole.leaves) {
+        assert_eq!(
+            (&a.init, &a.instants, &a.periods),
+            (&b.init, &b.instants, &b.periods)
+        );
+    }
+    // A range outside the grid is refused.
+    assert!(grid::reach_cells(&sys, &net, &s, &pieces, 5..7).is_err());
+}
+
 #[test]
 fn double_pendulum_more_robust_is_falsified_by_a_real_flight() {
     let sys = system("double_pendulum_more_robust.sys");

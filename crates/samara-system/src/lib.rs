@@ -243,6 +243,12 @@ impl System {
         Self::parse_with(&self.src, &self.file, overrides)
     }
 
+    /// The file's text as parsed (before parameter overrides): what identifies the
+    /// system across processes, e.g. in the run record of shard files.
+    pub fn source(&self) -> &str {
+        &self.src
+    }
+
     /// The value of a parameter.
     pub fn param(&self, name: &str) -> Option<f64> {
         self.params.iter().find(|(n, _)| n == name).map(|p| p.1)
