@@ -29,6 +29,8 @@ from ._samara import SamaraError
 __version__ = _samara.__version__
 
 __all__ = [
+    "SystemReachResult",
+    "reach_system",
     "Network",
     "Spec",
     "VerifyResult",
@@ -599,6 +601,93 @@ def reach(
         bool(clip), max_leaves, samples, seed,
     )
     return ReachResult(json.loads(text))
+
+
+class SystemReachResult(_Result):
+    """The result of :func:`reach_system` (the ``result`` of ``samara reach --system``'s
+    ``reach.json``: ``system``, ``verdict`` (``{'verdict': 'proved' | 'violated' |
+    'unknown' | 'none', ...}``), ``instants`` and ``periods`` (per control instant /
+    period, the hull over the sub-boxes of every state as ``[lo, hi]``), ``boxes``,
+    ``covered``, ``order``, ``network_error``, ``seconds``, ``leaves``, ``measures``),
+    plus ``cells`` (``[start, end]`` of a grid run, else None) and ``total_cells``.
+    ``bbox`` is ``instants`` as a numpy array (k, states, 2)."""
+
+    @property
+    def bbox(self) -> np.ndarray:
+        return np.asarray(self._d["instants"], dtype=np.float64).reshape(len(self._d["instants"]), -1, 2)
+
+
+def _system_result(text: str) -> SystemReachResult:
+    d = json.loads(text)
+    r = dict(d["reach"])
+    r["cells"] = d["cells"]
+    r["total_cells"] = d["total_cells"]
+    return SystemReachResult(r)
+
+
+def _system_source(system: Union[str, PathLike]) -> Tuple[str, str]:
+    """A system given as a path or as the file's text: (text, name for messages)."""
+    if isinstance(system, os.PathLike) or (isinstance(system, str) and "\n" not in system):
+        p = Path(system)
+        if not p.is_file():
+            raise FileNotFoundError(f"system {str(system)!r}: no such file; pass a system file's path or its text")
+        return p.read_text(), str(p)
+    return str(system), "<system text>"
+
+
+def reach_system(
+    system: Union[str, PathLike],
+    network: Network,
+    *,
+    grid: Optional[Mapping[str, int]] = None,
+    cells: Optional[Tuple[int, int]] = None,
+    order: int = 4,
+    network_error: str = "auto",
+    lifted_weight: int = 1,
+    lift_at: float = 0.05,
+    max_leaves: int = 256,
+    samples: int = 200,
+    seed: int = 1,
+    timeout: Optional[float] = None,
+) -> SystemReachResult:
+    """Taylor-model reachable sets of any closed loop written as a system file, as
+    ``samara reach --system FILE`` computes them (no files written). ``system``: a path or
+    the file's text. ``grid``: ``{state: pieces}`` cuts the initial set into a fixed grid
+    whose cells are flown as separate runs (``--grid``), ``cells``: only the cells
+    ``[start, end)`` of it (what a shard computes; merge with
+    :func:`samara.distributed.merge_reach_system`). The other arguments are the CLI's
+    flags (``--order``, ``--network-error``, ``--lifted-weight``, ``--lift-at``,
+    ``--max-leaves``, ``--samples``, ``--timeout``)."""
+    text, name = _system_source(system)
+    return _reach_system_text(
+        text, name, network, grid, cells, order=order, network_error=network_error,
+        lifted_weight=lifted_weight, lift_at=lift_at, max_leaves=max_leaves, samples=samples,
+        seed=seed, timeout=timeout,
+    )
+
+
+def _reach_system_text(
+    text: str,
+    name: str,
+    network: Network,
+    grid: Optional[Mapping[str, int]],
+    cells: Optional[Tuple[int, int]],
+    order: int = 4,
+    network_error: str = "auto",
+    lifted_weight: int = 1,
+    lift_at: float = 0.05,
+    max_leaves: int = 256,
+    samples: int = 200,
+    seed: int = 1,
+    timeout: Optional[float] = None,
+) -> SystemReachResult:
+    out = _samara.reach_system(
+        text, name, network._net, {str(k): int(v) for k, v in (grid or {}).items()},
+        None if cells is None else (int(cells[0]), int(cells[1])),
+        int(order), str(network_error), int(lifted_weight), float(lift_at),
+        int(max_leaves), int(samples), int(seed), None if timeout is None else float(timeout),
+    )
+    return _system_result(out)
 
 
 def train(

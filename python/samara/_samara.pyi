@@ -92,6 +92,22 @@ def reach(
     samples: Optional[int],
     seed: Optional[int],
 ) -> str: ...
+def reach_system(
+    system: str,
+    file: str,
+    network: Network,
+    grid: Dict[str, int],
+    cells: Optional[Tuple[int, int]],
+    order: int,
+    network_error: str,
+    lifted_weight: int,
+    lift_at: float,
+    max_leaves: int,
+    samples: int,
+    seed: int,
+    timeout: Optional[float],
+) -> str: ...
+def merge_reach_system(parts: List[str]) -> str: ...
 def train(
     rows: bytes,
     n: int,

@@ -1,5 +1,6 @@
-"""Scale-out on Ray: the P5 robustness table with its points sharded over tasks, and a
-reachability analysis with its initial height interval partitioned over tasks.
+"""Scale-out on Ray: the P5 robustness table with its points sharded over tasks, a
+reachability analysis with its initial height interval partitioned over tasks, and a
+Taylor-model run of a system file with the cells of its grid shared out over tasks.
 
 Each task runs the same Rust code as one process (networks travel as exact float64
 ONNX bytes), and the merge is exact: the table's counts and per-point results, and the
@@ -20,14 +21,20 @@ Every worker needs the ``samara`` wheel installed (the same version).
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import Network, ReachResult, RobustnessResult, reach as _reach, read_table, robustness as _robustness
+from . import Network, ReachResult, RobustnessResult, SystemReachResult, _samara
+from . import _reach_system_text, _system_result, _system_source
+from . import reach as _reach, read_table, robustness as _robustness
 
-__all__ = ["local_cluster", "robustness", "reach_partition", "merge_robustness", "merge_reach", "shard_rows"]
+__all__ = [
+    "local_cluster", "robustness", "reach_partition", "reach_grid", "merge_robustness", "merge_reach",
+    "merge_reach_system", "shard_rows",
+]
 
 
 def _loopback_only() -> None:
@@ -216,3 +223,51 @@ def reach_partition(
         net_ref = ray.put(network)
         parts = ray.get([task.remote(net_ref, y, kwargs) for y in ys])
     return merge_reach(parts), parts
+
+
+def merge_reach_system(parts: Sequence[SystemReachResult]) -> SystemReachResult:
+    """Merge :func:`samara.reach_system` results of consecutive cell ranges of one grid
+    (in cell order, from cell 0) into the result of their union, exactly as one process
+    flying all the cells gives it (``samara_reach::grid::merge_parts``; ``seconds`` is
+    the parts' sum)."""
+    texts = []
+    for p in parts:
+        d = p.as_dict()
+        texts.append(json.dumps({"cells": d.pop("cells"), "total_cells": d.pop("total_cells"), "reach": d}))
+    return _system_result(_samara.merge_reach_system(texts))
+
+
+def _grid_task(text: str, name: str, net: Network, grid: Dict[str, int], cells: Tuple[int, int],
+               kw: Dict[str, Any]) -> SystemReachResult:
+    return _reach_system_text(text, name, net, grid, cells, **kw)
+
+
+def reach_grid(
+    system: Any,
+    network: Network,
+    grid: Dict[str, int],
+    tasks: Optional[int] = None,
+    local: bool = False,
+    **kwargs: Any,
+) -> SystemReachResult:
+    """:func:`samara.reach_system` with ``grid``, its cells shared out in ``tasks``
+    contiguous ranges (default: twice the cluster's CPUs), one Ray task each
+    (``local=True``: in this process, one after the other), merged with
+    :func:`merge_reach_system`: the same result as ``reach_system(..., grid=grid)``
+    (but ``seconds``, the tasks' sum). ``kwargs`` go to :func:`samara.reach_system`
+    (each task gets the whole ``timeout``)."""
+    text, name = _system_source(system)
+    # The number of cells, the product of the pieces (the first task checks them).
+    total = 1
+    for v in grid.values():
+        total *= max(int(v), 1)
+    if local:
+        ranges = shard_rows(total, tasks or 1)
+        parts = [_grid_task(text, name, network, dict(grid), r, kwargs) for r in ranges]
+    else:
+        ray = _ensure()
+        ranges = shard_rows(total, tasks or 2 * int(ray.cluster_resources().get("CPU", 1)))
+        task = ray.remote(_grid_task)
+        net_ref = ray.put(network)
+        parts = ray.get([task.remote(text, name, net_ref, dict(grid), r, kwargs) for r in ranges])
+    return merge_reach_system(parts)

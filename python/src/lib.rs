@@ -844,6 +844,161 @@ fn simulate<'py>(
         .collect())
 }
 
+/// Taylor-model reachable sets of a system file's closed loop, as `samara reach --system`
+/// computes them (with `--grid`, the cells `cells` of the grid; `samara_reach::grid`):
+/// JSON text `{"cells": [start, end] | null, "total_cells": C | null, "reach": result}`.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (system, file, network, grid, cells, order, network_error, lifted_weight, lift_at, max_leaves, samples, seed, timeout))]
+fn reach_system(
+    py: Python<'_>,
+    system: &str,
+    file: &str,
+    network: PyRef<'_, PyNetwork>,
+    grid: HashMap<String, usize>,
+    cells: Option<(usize, usize)>,
+    order: usize,
+    network_error: &str,
+    lifted_weight: u32,
+    lift_at: f64,
+    max_leaves: usize,
+    samples: usize,
+    seed: u64,
+    timeout: Option<f64>,
+) -> PyResult<String> {
+    use samara_reach::grid as g;
+    use samara_reach::system::{end_band_measures, NetworkError, SystemReachSettings};
+    let bad = |m: String| -> PyResult<String> { Err(PyValueError::new_err(m)) };
+    let sys = samara_system::System::parse(system, file)
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let net = network.net.clone();
+    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
+        return bad(format!(
+            "network: {} inputs and {} outputs; the system {file} observes {} values and reads {} network outputs: pass the controller made for it",
+            net.n_inputs(),
+            net.n_outputs(),
+            sys.n_observed(),
+            sys.n_net_outputs
+        ));
+    }
+    if !(1..=8).contains(&order) {
+        return bad(format!("order {order}: give 1 to 8 (3-5 is usual)"));
+    }
+    if !(1..=order as u32).contains(&lifted_weight) {
+        return bad(format!(
+            "lifted_weight {lifted_weight}: give 1 to the order ({order})"
+        ));
+    }
+    if !(lift_at.is_finite() && lift_at > 0.0 && lift_at <= 1.0) {
+        return bad(format!(
+            "lift_at {lift_at}: give a share of the width in (0, 1]"
+        ));
+    }
+    if !(1..=100_000).contains(&max_leaves) {
+        return bad(format!("max_leaves {max_leaves}: give 1 to 100000"));
+    }
+    if !(1..=100_000).contains(&samples) {
+        return bad(format!("samples {samples}: give 1 to 100000"));
+    }
+    if let Some(t) = timeout {
+        if !(t.is_finite() && t > 0.0) {
+            return bad(format!("timeout {t}: give a positive number of seconds"));
+        }
+    }
+    let mut s = SystemReachSettings {
+        order,
+        max_boxes: max_leaves,
+        samples,
+        seed,
+        timeout,
+        network_error: NetworkError::parse(network_error)
+            .map_err(|e| PyValueError::new_err(format!("network_error {network_error:?}: {e}")))?,
+        measures: end_band_measures(&sys),
+        ..SystemReachSettings::default()
+    };
+    s.flow.lift_at = lift_at;
+    s.flow.lifted_weight = lifted_weight;
+    let mut pieces = vec![1usize; sys.dim()];
+    for (k, &n) in &grid {
+        let Some(i) = sys.states.iter().position(|x| x == k) else {
+            return bad(format!(
+                "grid[{k:?}]: no such state; the states are {}",
+                sys.states.join(", ")
+            ));
+        };
+        pieces[i] = n;
+    }
+    let gridded = !grid.is_empty() || cells.is_some();
+    let total = if gridded {
+        Some(
+            g::cell_count(&sys, &pieces)
+                .map_err(|e| PyValueError::new_err(format!("grid: {e}")))?,
+        )
+    } else {
+        None
+    };
+    let range = match (total, cells) {
+        (Some(c), Some((a, b))) if a < b && b <= c => Some(a..b),
+        (Some(c), Some((a, b))) => {
+            return bad(format!(
+                "cells ({a}, {b}): give start < end <= {c}, the grid's cells"
+            ))
+        }
+        (Some(c), None) => Some(0..c),
+        _ => None,
+    };
+    let r = py.allow_threads(|| match &range {
+        None => samara_reach::system::reach_system(&sys, &net, &s),
+        Some(r) => g::reach_cells(&sys, &net, &s, &pieces, r.clone()),
+    });
+    let r = r.map_err(|e| SamaraError::new_err(format!("{file}: {e}")))?;
+    Ok(json!({
+        "cells": range.map(|r| [r.start, r.end]),
+        "total_cells": total,
+        "reach": r,
+    })
+    .to_string())
+}
+
+/// Merge the results (JSON of `reach_system`) of consecutive cell ranges, in cell order,
+/// into the result of their union (`samara_reach::grid::merge_parts`).
+#[pyfunction]
+fn merge_reach_system(parts: Vec<String>) -> PyResult<String> {
+    use samara_reach::system::SystemReach;
+    if parts.is_empty() {
+        return Err(PyValueError::new_err("parts: give at least one result"));
+    }
+    let mut out: Vec<(usize, SystemReach)> = Vec::new();
+    let (mut next, mut total) = (None::<usize>, None);
+    for (i, text) in parts.iter().enumerate() {
+        let v: Value = serde_json::from_str(text)
+            .map_err(|e| PyValueError::new_err(format!("parts[{i}]: not a result: {e}")))?;
+        let range = v["cells"]
+            .as_array()
+            .and_then(|a| Some((a.first()?.as_u64()? as usize, a.get(1)?.as_u64()? as usize)));
+        let Some((a, b)) = range else {
+            return Err(PyValueError::new_err(format!(
+                "parts[{i}]: not a grid result (no cells)"
+            )));
+        };
+        if next.is_some_and(|n| n != a)
+            || (next.is_none() && a != 0)
+            || total.is_some_and(|t| t != v["total_cells"])
+        {
+            return Err(PyValueError::new_err(format!(
+                "parts[{i}]: cells {a}..{b} do not continue the parts before it; give the ranges of one grid in order from cell 0"
+            )));
+        }
+        next = Some(b);
+        total = Some(v["total_cells"].clone());
+        let r: SystemReach = serde_json::from_value(v["reach"].clone())
+            .map_err(|e| PyValueError::new_err(format!("parts[{i}]: not a result: {e}")))?;
+        out.push((b - a, r));
+    }
+    let merged = samara_reach::grid::merge_parts(out);
+    Ok(json!({"cells": [0, next], "total_cells": total, "reach": merged}).to_string())
+}
+
 /// A 6-input, 1-output controller network with the state names (as the CLI's loader).
 fn controller_net(n: &samara_nn::Network) -> PyResult<samara_nn::Network> {
     if n.n_inputs() != 6 || n.n_outputs() != 1 {
@@ -1199,6 +1354,8 @@ fn _samara(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(read_table, m)?)?;
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(reach, m)?)?;
+    m.add_function(wrap_pyfunction!(reach_system, m)?)?;
+    m.add_function(wrap_pyfunction!(merge_reach_system, m)?)?;
     m.add_function(wrap_pyfunction!(train, m)?)?;
     m.add("SamaraError", m.py().get_type::<SamaraError>())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -62,6 +62,56 @@ def test_reach_partition_equals_one_process(cluster):
     assert merged["final_x_plus_y"][0] <= lo <= hi <= merged["final_x_plus_y"][1]
 
 
+def test_reach_grid_equals_one_process(cluster):
+    """TORA (ARCH-COMP, the competition's controller) on a 2 x 2 grid: the cells shared
+    out over Ray tasks, merged, give exactly what one process flying the grid gives, and
+    the cells' hull contains the sets of the whole initial set's run."""
+    from conftest import ROOT
+
+    sys_file = ROOT / "examples" / "archcomp" / "tora.sys"
+    net = samara.Network.from_onnx(ROOT / "crates" / "samara-reach" / "tests" / "data" / "archcomp" / "controller_tora.onnx")
+    kw = dict(order=3, network_error="symbolic:20", samples=16)
+    grid = {"x1": 2, "x3": 2}
+    one = samara.reach_system(sys_file, net, grid=grid, **kw)
+    assert one.verdict == {"verdict": "proved"}
+    assert one.cells == [0, 4] and one.total_cells == 4 and one.covered == 1.0
+    dist = sd.reach_grid(sys_file, net, grid, tasks=3, **kw)
+    local = sd.reach_grid(sys_file.read_text(), net, grid, tasks=2, local=True, **kw)
+    for r in (dist, local):
+        assert strip(r.as_dict()) == strip(one.as_dict())
+    # the merge alone, of ranges flown here
+    parts = [samara.reach_system(sys_file, net, grid=grid, cells=c, **kw) for c in [(0, 1), (1, 4)]]
+    assert strip(sd.merge_reach_system(parts).as_dict()) == strip(one.as_dict())
+    with pytest.raises(ValueError, match="do not continue"):
+        sd.merge_reach_system(parts[::-1])
+    # the hull rows contain every sub-box's own rows
+    bbox = one.bbox
+    for leaf in one.leaves:
+        rows = np.asarray(leaf["instants"])
+        assert np.all(bbox[: len(rows), :, 0] <= rows[..., 0])
+        assert np.all(rows[..., 1] <= bbox[: len(rows), :, 1])
+
+
+def test_reach_system_bad_arguments():
+    from conftest import ROOT
+
+    sys_file = ROOT / "examples" / "archcomp" / "tora.sys"
+    net = samara.Network.from_onnx(ROOT / "crates" / "samara-reach" / "tests" / "data" / "archcomp" / "controller_tora.onnx")
+    with pytest.raises(ValueError, match=r"grid\["):
+        samara.reach_system(sys_file, net, grid={"nope": 2})
+    with pytest.raises(ValueError, match="network_error"):
+        samara.reach_system(sys_file, net, network_error="symbolic:0")
+    with pytest.raises(ValueError, match="cells"):
+        samara.reach_system(sys_file, net, grid={"x1": 2}, cells=(1, 3))
+    with pytest.raises(ValueError, match="lifted_weight"):
+        samara.reach_system(sys_file, net, order=3, lifted_weight=4)
+    with pytest.raises(FileNotFoundError):
+        samara.reach_system("no/such.sys", net)
+    glider = samara.Network.from_onnx(reference("base_model_denorm.onnx"))
+    with pytest.raises(ValueError, match="observes 4 values"):
+        samara.reach_system(sys_file, glider)
+
+
 def test_local_cluster_binds_loopback(cluster):
     nodes = ray.nodes()
     assert nodes and all(n["NodeManagerAddress"] == "127.0.0.1" for n in nodes)

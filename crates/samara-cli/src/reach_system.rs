@@ -354,22 +354,7 @@ pub fn merge_shards(
 
 /// `--network-error`: `interval`, `symbolic`, `symbolic:N` or `auto`.
 fn parse_network_error(v: &str) -> Result<Option<NetworkError>> {
-    let bad = || {
-        anyhow!("--network-error {v:?}: give `interval`, `symbolic`, `symbolic:N` (N = 1 to 256 extra parameters; past the term budget of the order, N is lowered) or `auto`")
-    };
-    Ok(match v {
-        "auto" => None,
-        "interval" => Some(NetworkError::Interval),
-        "symbolic" => Some(NetworkError::Symbolic { extra: 20 }),
-        _ => {
-            let n: usize = v
-                .strip_prefix("symbolic:")
-                .and_then(|n| n.parse().ok())
-                .filter(|n| (1..=256).contains(n))
-                .ok_or_else(bad)?;
-            Some(NetworkError::Symbolic { extra: n })
-        }
-    })
+    NetworkError::parse(v).map_err(|e| anyhow!("--network-error {v:?}: {e}"))
 }
 
 fn summary(r: &SystemReach) -> serde_json::Value {

@@ -169,6 +169,26 @@ pub enum NetworkError {
     },
 }
 
+impl NetworkError {
+    /// A mode by name: `interval`, `symbolic` (20 extra parameters), `symbolic:N`
+    /// (`N` from 1 to 256) or `auto` (`None`: chosen per run). The error says what to give.
+    pub fn parse(v: &str) -> Result<Option<NetworkError>, String> {
+        Ok(match v {
+            "auto" => None,
+            "interval" => Some(NetworkError::Interval),
+            "symbolic" => Some(NetworkError::Symbolic { extra: 20 }),
+            _ => {
+                let n: usize = v
+                    .strip_prefix("symbolic:")
+                    .and_then(|n| n.parse().ok())
+                    .filter(|n| (1..=256).contains(n))
+                    .ok_or_else(|| "give `interval`, `symbolic`, `symbolic:N` (N = 1 to 256 extra parameters; past the term budget of the order, N is lowered) or `auto`".to_string())?;
+                Some(NetworkError::Symbolic { extra: n })
+            }
+        })
+    }
+}
+
 /// The modes tried on the whole initial set when the run chooses (`network_error:
 /// None`), cheapest first, each with the largest Taylor-model order it uses (`None`:
 /// the run's): the first to decide the goals is kept; when none does, the sub-boxes
