@@ -64,7 +64,9 @@ use std::borrow::Cow;
 use std::cell::RefCell;
 use std::collections::HashMap;
 use std::fmt;
+use std::hash::{BuildHasherDefault, Hasher};
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
+use std::rc::Rc;
 use std::sync::{Mutex, OnceLock};
 
 /// Unit roundoff of binary64, round-to-nearest.
@@ -77,6 +79,39 @@ const MAX_DEG: u32 = 8;
 const MAX_ORDER: u32 = 64;
 
 type S10 = Series<Interval, 10>;
+
+/// A multiply-rotate hasher (the FxHash scheme of rustc) for the exponent-vector and
+/// table-pair keys: the monomial index is looked up once per term in conversions and
+/// re-parameterisations, where SipHash cost a third of a Taylor-model flow's time
+/// (`perf`, six-state glider set). The keys are the program's own, so no flooding
+/// resistance is needed.
+#[derive(Default, Clone, Copy)]
+struct FxHasher(u64);
+
+impl Hasher for FxHasher {
+    #[inline]
+    fn write(&mut self, bytes: &[u8]) {
+        for chunk in bytes.chunks(8) {
+            let mut w = [0u8; 8];
+            w[..chunk.len()].copy_from_slice(chunk);
+            self.write_u64(u64::from_le_bytes(w));
+        }
+    }
+    #[inline]
+    fn write_u64(&mut self, v: u64) {
+        self.0 = (self.0.rotate_left(5) ^ v).wrapping_mul(0x51_7c_c1_b7_27_22_0a_95);
+    }
+    #[inline]
+    fn write_usize(&mut self, v: usize) {
+        self.write_u64(v as u64);
+    }
+    #[inline]
+    fn finish(&self) -> u64 {
+        self.0
+    }
+}
+
+type FxMap<K, V> = HashMap<K, V, BuildHasherDefault<FxHasher>>;
 
 #[inline(always)]
 fn up(x: f64) -> f64 {
@@ -200,7 +235,7 @@ struct Table {
     /// `gamma_m` for the largest number `m` of pairs mapping to one monomial (rounded up).
     gamma: f64,
     /// Exponent vector to index.
-    index: HashMap<Vec<u8>, u32>,
+    index: FxMap<Vec<u8>, u32>,
 }
 
 fn gen_monomials(n: usize, d: u32, cur: &mut Vec<u8>, out: &mut Vec<Vec<u8>>) {
@@ -252,7 +287,7 @@ impl Table {
         let mixed = full < n && lw > 1;
         let len = mons.len();
         assert!(len < u32::MAX as usize, "Tm table too large");
-        let index: HashMap<Vec<u8>, u32> = mons
+        let index: FxMap<Vec<u8>, u32> = mons
             .iter()
             .enumerate()
             .map(|(i, e)| (e.clone(), i as u32))
@@ -391,6 +426,51 @@ impl fmt::Debug for Tm {
             .field("lo", &self.lo)
             .finish()
     }
+}
+
+/// Per monomial of `from`, its index in `to` (`NOT_IN` if `to` lacks it: past its
+/// weighted order), for tables with `from.n <= to.n` (the extra parameters appended).
+/// Built once per pair and thread: a flow converts between the same few tables (states
+/// in `n` parameters meeting inputs in `n + 1`) at every operation of every step.
+fn conversion(from: &'static Table, to: &'static Table) -> Rc<Conversion> {
+    thread_local! {
+        static MAPS: RefCell<FxMap<(usize, usize), Rc<Conversion>>> = RefCell::new(FxMap::default());
+    }
+    let key = (from as *const Table as usize, to as *const Table as usize);
+    MAPS.with(|maps| {
+        if let Some(m) = maps.borrow().get(&key) {
+            return m.clone();
+        }
+        let mut k = vec![0u8; to.n];
+        let mut conv = Conversion {
+            kept: Vec::new(),
+            dropped: Vec::new(),
+        };
+        for i in 0..from.len() {
+            k[..from.n].copy_from_slice(from.exps(i));
+            match to.index.get(&k) {
+                Some(&j) => conv.kept.push((i as u32, j)),
+                None => conv.dropped.push(i as u32),
+            }
+        }
+        let m = Rc::new(conv);
+        let mut maps = maps.borrow_mut();
+        // Tables are leaked and few, but a long run re-parameterises often: keep the
+        // cache bounded.
+        if maps.len() >= 4096 {
+            maps.clear();
+        }
+        maps.insert(key, m.clone());
+        m
+    })
+}
+
+/// How the monomials of one table land on another ([`conversion`]).
+struct Conversion {
+    /// `(index in the source, index in the target)` of the monomials both have.
+    kept: Vec<(u32, u32)>,
+    /// Source monomials the target lacks (past its weighted order).
+    dropped: Vec<u32>,
 }
 
 /// The common table and fixedness of a binary operation.
@@ -799,6 +879,60 @@ impl Tm {
         Tm::raw(self.t, true, c, Interval::point(0.0)).finish()
     }
 
+    /// The same model at a lower order `order` (same parameters and weights): the terms
+    /// past it are bounded into the remainder (`[0, |c|]`-style for even monomials).
+    /// An order at or above the model's own, or a model without an order of its own,
+    /// gives the model unchanged.
+    pub fn with_order(self, order: u32) -> Tm {
+        if !self.fixed || order >= self.t.order {
+            return self;
+        }
+        let t = table_mixed(self.t.n, order, self.t.full, self.t.lw);
+        self.into_table(t, true)
+    }
+
+    /// This model on `other`'s table when `other` has at least its parameters and at
+    /// least its order (exact: every monomial is there); otherwise unchanged. Lets a
+    /// sum of a low-order and a high-order model keep the high order (binary operations
+    /// take the smaller order).
+    pub fn raised_to(self, other: &Tm) -> Tm {
+        if !self.fixed
+            || !other.fixed
+            || std::ptr::eq(self.t, other.t)
+            || self.t.n > other.t.n
+            || self.t.order > other.t.order
+        {
+            return self;
+        }
+        self.into_table(other.t, true)
+    }
+
+    /// Puts every model with an explicit order on the one table their binary operations
+    /// would meet on (the most parameters, the smallest order, mixed weights winning),
+    /// exactly as those operations convert them (terms past the table's order, if any,
+    /// bounded into the remainder). Models without an order of their own are left as
+    /// they are. A flow whose held inputs carry one more parameter than its states (a
+    /// lifted network error) then converts each state once per period instead of at
+    /// every operation of every step.
+    pub fn share_table(ms: &mut [Tm]) {
+        let mut it = ms.iter().filter(|m| m.fixed);
+        let Some(first) = it.next() else {
+            return;
+        };
+        let mut acc = first.clone();
+        for m in it {
+            let (t, fixed) = common(&acc, m);
+            if !std::ptr::eq(t, acc.t) {
+                acc = Tm::entire_on(t, fixed);
+            }
+        }
+        for m in ms.iter_mut().filter(|m| m.fixed) {
+            if !std::ptr::eq(m.t, acc.t) {
+                *m = std::mem::replace(m, Tm::cst(0.0)).into_table(acc.t, true);
+            }
+        }
+    }
+
     /// Whether `self` and `other` have the same parameters and order (one monomial
     /// table), so that their coefficients line up index by index.
     pub fn same_basis(&self, other: &Tm) -> bool {
@@ -896,21 +1030,31 @@ impl Tm {
             return Cow::Owned(r);
         }
         debug_assert!(self.t.n <= t.n);
+        let map = conversion(self.t, t);
         let mut c = vec![0.0; t.len()];
-        let (mut sn, mut sp) = (0.0, 0.0);
-        let mut key = vec![0u8; t.n];
-        for i in 0..self.t.len() {
-            let v = self.c[i];
-            if v == 0.0 {
-                continue;
-            }
-            key[..self.t.n].copy_from_slice(self.t.exps(i));
-            // Terms past the new (weighted) order are not in `t`.
-            match t.index.get(&key) {
-                Some(&k) => c[k as usize] = v,
-                None => acc_range(v, self.t.even[i], &mut sn, &mut sp),
+        for &(i, j) in &map.kept {
+            c[j as usize] = self.c[i as usize];
+        }
+        // Terms past the new (weighted) order are not in `t`: their range, summed in
+        // round-to-nearest and raised by the a-priori bound of recursive summation of
+        // nonnegative terms (as in `poly_range_from`; a NaN makes the model entire).
+        let (mut odd, mut pos, mut neg) = (0.0f64, 0.0f64, 0.0f64);
+        for &i in &map.dropped {
+            let v = self.c[i as usize];
+            if !self.t.even[i as usize] {
+                odd += v.abs();
+            } else if v > 0.0 {
+                pos += v;
+            } else {
+                neg -= v;
             }
         }
+        let raise = 1.0 + 4.0 * (map.dropped.len() as f64 + 2.0) * f64::EPSILON;
+        // `up` of a NaN is +inf; an exact zero stays zero (nothing dropped).
+        let lift = |v: f64| if v == 0.0 { 0.0 } else { up(v * raise) };
+        let (odd, pos, neg) = (lift(odd), lift(pos), lift(neg));
+        let sp = if pos == 0.0 { odd } else { up(odd + pos) };
+        let sn = if neg == 0.0 { odd } else { up(odd + neg) };
         let mut rem = self.rem;
         if sn != 0.0 || sp != 0.0 {
             rem = rem + Interval { lo: -sn, hi: sp };
@@ -1077,9 +1221,12 @@ impl Tm {
         }
         let err = up(up(t.gamma * kept) + 2.0 * pairs as f64 * ETA);
         let mut rem = sym(up(err + trunc));
-        if !is_zero(&a.rem) || !is_zero(&b.rem) {
-            let (pa, pb) = (a.poly_range(), b.poly_range());
-            rem = rem + a.rem * pb + b.rem * pa + a.rem * b.rem;
+        // Each operand's polynomial range only where the other has a remainder.
+        if !is_zero(&a.rem) {
+            rem = rem + a.rem * b.poly_range() + a.rem * b.rem;
+        }
+        if !is_zero(&b.rem) {
+            rem = rem + b.rem * a.poly_range();
         }
         Tm::raw(t, fixed, r, rem).finish()
     }
@@ -1192,6 +1339,14 @@ impl Mul for Tm {
 impl Div for Tm {
     type Output = Tm;
     fn div(self, o: Tm) -> Tm {
+        // The quotient has the numerator's order when that is the lower one: the
+        // denominator's reciprocal is then expanded at that order too (its terms past
+        // it bounded into the remainder first, soundly) instead of at its own.
+        let o = if self.fixed && o.fixed && self.t.order < o.t.order {
+            o.with_order(self.t.order)
+        } else {
+            o
+        };
         Tm::mul_ref(&self, &o.recip())
     }
 }

@@ -1059,3 +1059,65 @@ fn range_bound_keeps_the_additions_rounding_errors() {
     let e = Tm::affine(0.5, &[0.25, -0.125, 2.0], 1).bound();
     assert_eq!(e, Interval::new(0.5 - 2.375, 0.5 + 2.375));
 }
+
+/// Order changes keep every value: `Tm::with_order` (terms past a lower order bounded
+/// into the remainder, as the joint-degree truncation of a flow's time coefficients
+/// does), `Tm::raised_to` (a low-order model put on a higher-order table before a sum),
+/// `Tm::share_table` (states and inputs put on one table), and quotients whose
+/// numerator has the lower order (the denominator is lowered before its reciprocal).
+/// Checked on random classic and mixed-degree expressions against exact rationals; a
+/// raise onto a table that holds every monomial is exact (same remainder).
+#[test]
+fn order_changes_keep_every_value() {
+    let mut rng = Rng(0x5EED_0D3C);
+    let (mut checked, mut lowered, mut finite) = (0usize, 0usize, 0usize);
+    for case in 0..2000 {
+        let n = 2 + rng.below(4) as usize;
+        let order = 2 + rng.below(4) as u32;
+        let depth = 1 + rng.below(4) as u32;
+        let mut e = rand_expr(&mut rng, n, order, depth);
+        if rng.below(2) == 0 {
+            e = mixed(e, &mut rng, n);
+        }
+        let t = e.tm();
+        let low_order = rng.below(order as u64) as u32;
+        let low = t.clone().with_order(low_order);
+        if low.order() < t.order() {
+            lowered += 1;
+        }
+        finite += usize::from(encloses_at_points(&e, &low, &mut rng, n, case));
+        // Back onto the original table: exact, so the remainder does not move.
+        let back = low.clone().raised_to(&t);
+        assert_eq!(
+            back.rem(),
+            low.rem(),
+            "case {case}: raise changed the remainder"
+        );
+        encloses_at_points(&e, &back, &mut rng, n, case);
+        // A quotient of the lowered model by a higher-order divisor bounded away from 0.
+        let coef: Vec<f64> = (0..n).map(|_| rng.range(-0.2, 0.2)).collect();
+        let den = Expr::Affine(1.5 + rng.unit(), coef, order);
+        let quot = low.clone() / den.tm();
+        let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+        let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+        let v = e.exact(&xq) / den.exact(&xq);
+        let at = quot.eval_at(&xi);
+        assert!(
+            contains_exact(&at, &v),
+            "case {case}: exact quotient {} not in {at:?}",
+            v.to_f64().unwrap_or(f64::NAN)
+        );
+        // One table for a model and a parameter past its own.
+        let mut two = vec![t.clone(), t.param(n - 1, n)];
+        Tm::share_table(&mut two);
+        // (Models without an order of their own, constants, keep theirs.)
+        if t.order() > 0 {
+            assert!(two[0].same_basis(&two[1]), "case {case}: tables differ");
+        }
+        encloses_at_points(&e, &two[0], &mut rng, n, case);
+        checked += 19;
+    }
+    assert!(lowered > 1000, "only {lowered} lowered");
+    assert!(finite > 1500, "only {finite} finite");
+    eprintln!("order changes: {checked} point checks, {lowered} lowered, {finite} finite");
+}

@@ -31,6 +31,21 @@ pub fn solution_series<S: Scalar, const K: usize>(
     u: &[S],
     upto: usize,
 ) -> Option<Vec<Series<S, K>>> {
+    solution_series_trimmed::<S, K>(g, x0, u, upto, &|_, v| v)
+}
+
+/// [`solution_series`] with each state's time coefficient `k >= 1` passed through
+/// `trim(k, x_k)` before the later orders read it. `trim` must return an enclosure of
+/// its argument (for Taylor models: the same function with terms past a lower order
+/// bounded into the remainder), so that the coefficients stay sound; what it saves is
+/// the arithmetic of the higher time orders, whose contribution `x_k h^k` is small.
+pub fn solution_series_trimmed<S: Scalar, const K: usize>(
+    g: &Graph,
+    x0: &[S],
+    u: &[S],
+    upto: usize,
+    trim: &dyn Fn(usize, S) -> S,
+) -> Option<Vec<Series<S, K>>> {
     let m = upto + 1;
     if m > K || g.outputs.len() != x0.len() {
         return None;
@@ -328,7 +343,7 @@ pub fn solution_series<S: Scalar, const K: usize>(
             }
         }
         for (j, &o) in g.outputs.iter().enumerate() {
-            x[j][i + 1] = c[o * m + i].clone() / (i as f64 + 1.0);
+            x[j][i + 1] = trim(i + 1, c[o * m + i].clone() / (i as f64 + 1.0));
         }
     }
     // A state whose series is bad makes every later coefficient of everything reading
