@@ -1,0 +1,235 @@
+#!/usr/bin/env python3
+"""The six-state criterion of issue 14, as one resumable run: cover the reduced glider's
+six-state initial set (+-0.01 on v_xp, v_yp, omega, theta; +-0.05 on x; y0 in the
+published interval [0.1, 0.3] m / chord) with a grid of Taylor-model reach runs, give
+the cells that are lost or too wide a second round as two halves, and compare the hull
+of x + y at t = 20 with the flights' spread.
+
+Round 1 runs every cell of the grid (`samara reach ... --grid ... --shard C/N`, one
+process per cell, `--jobs` at a time; `docs/reach.md`, "Grids and shards"). A cell whose
+result file exists is not run again, so an interrupted run resumes, and the cells can be
+flown elsewhere (a job array) and their files copied into `--out`. Round 2 flies each
+cell that was lost, or whose x + y leaves the band, again from its own box cut in two
+along `--split` (default theta: measured to repair both kinds of failure).
+
+The band: x + y at t = 20 must lie within the flights' midpoint plus or minus their
+spread for the hull to be at most twice the spread (the criterion). The flights are the
+cells' own falsification flights (`--samples` over all cells: random starts plus each
+cell's centre and corners), or `--band LO:HI` for a spread measured on uniform flights
+(`docs/reach.md` gives [-3.905, 2.818] for the adversarial network, 10,000 DOP853
+flights, and [-5.79, 2.25] for the base one, 9,960).
+
+Standard library only. Writes DIR/cell-C.json (round 1), DIR/cell-C-split/ (round 2)
+and DIR/summary.json (atomically); exit 0 when the criterion is met, 1 when not (or
+not every cell is done), 2 on a usage error.
+
+    python3 bench/reach/six_state_cover.py --network ../shared/reference/adversarial_model_denorm.onnx \\
+        [--jobs 2] [--out out/six-state] [--order 4] [--symbolic 40] [--lifted-weight 2]
+        [--grid 3,3,3,3,1,8] [--scale 1.0] [--samples 10000] [--band LO:HI]
+        [--split theta] [--cells A:B] [--no-build]
+
+With the defaults (648 cells of a third of v_xp, v_yp, omega and theta, all of x, an
+eighth of y) a cell takes 30-45 s on one core for the adversarial network (2026-11-25;
+the base network's cells need `--symbolic 80`, about 140 s).
+"""
+
+import argparse
+import concurrent.futures
+import json
+import os
+import subprocess
+import sys
+
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+STATES = ["v_xp", "v_yp", "omega", "theta", "x", "y"]
+CENTRE = [1.0, 0.0, 0.0, 0.0, 0.0, None]
+RADIUS = [0.01, 0.01, 0.01, 0.01, 0.05, None]
+Y0 = (0.1 / 0.07, 0.3 / 0.07)
+
+
+def initial_box(scale):
+    """The six-state set, every interval scaled about its midpoint by `scale`."""
+    box = []
+    for c, r in zip(CENTRE, RADIUS):
+        if c is None:
+            mid, half = 0.5 * (Y0[0] + Y0[1]), 0.5 * (Y0[1] - Y0[0])
+            box.append((mid - scale * half, mid + scale * half))
+        else:
+            box.append((c - scale * r, c + scale * r))
+    return box
+
+
+def box_flags(box):
+    """`--init` for the first five states and `--y0` for y."""
+    flags = []
+    for name, (lo, hi) in zip(STATES[:5], box[:5]):
+        flags += ["--init", f"{name}={lo!r}:{hi!r}"]
+    flags += ["--y0", f"{box[5][0]!r}:{box[5][1]!r}"]
+    return flags
+
+
+def write_atomic(path, text):
+    tmp = path + ".tmp"
+    with open(tmp, "w") as f:
+        f.write(text)
+    os.replace(tmp, path)
+
+
+def run(cmd, log):
+    with open(log, "w") as f:
+        return subprocess.run(cmd, stdout=f, stderr=subprocess.STDOUT).returncode
+
+
+def outcome(reach):
+    """(enclosure of x + y or None, flights' range or None) of a reach result."""
+    measures = reach.get("measures") or []
+    if not measures:
+        return None, None
+    m = measures[0]
+    enc = m.get("enclosure") if reach.get("covered") == 1.0 else None
+    return enc, m.get("sampled")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--network", required=True)
+    ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1)
+    ap.add_argument("--out", default="out/six-state")
+    ap.add_argument("--order", type=int, default=4)
+    ap.add_argument("--symbolic", type=int, default=40)
+    ap.add_argument("--lifted-weight", type=int, default=2)
+    ap.add_argument("--grid", default="3,3,3,3,1,8",
+                    help="pieces per state v_xp,v_yp,omega,theta,x,y")
+    ap.add_argument("--scale", type=float, default=1.0,
+                    help="shrink the set about its midpoint (tests)")
+    ap.add_argument("--samples", type=int, default=10000)
+    ap.add_argument("--band", help="LO:HI, the spread of x + y over uniform flights")
+    ap.add_argument("--split", default="theta", choices=STATES)
+    ap.add_argument("--cells", help="A:B, run only cells A..B-1 of round 1")
+    ap.add_argument("--no-build", action="store_true")
+    a = ap.parse_args()
+
+    grid = [int(k) for k in a.grid.split(",")]
+    if len(grid) != 6 or any(k < 1 for k in grid) or not 0 < a.scale <= 1 or a.jobs < 1:
+        print("six_state_cover: --grid takes six counts >= 1, --scale is in (0, 1], "
+              "--jobs >= 1", file=sys.stderr)
+        return 2
+    if not os.path.isfile(a.network):
+        print(f"six_state_cover: no network file {a.network}", file=sys.stderr)
+        return 2
+    band = None
+    if a.band:
+        lo, hi = (float(v) for v in a.band.split(":"))
+        band = (lo, hi)
+    n_cells = 1
+    for k in grid:
+        n_cells *= k
+    first, last = 0, n_cells
+    if a.cells:
+        first, last = (int(v) for v in a.cells.split(":"))
+        if not 0 <= first < last <= n_cells:
+            print(f"six_state_cover: --cells must lie in 0:{n_cells}", file=sys.stderr)
+            return 2
+    if not a.no_build:
+        subprocess.run(["cargo", "build", "--release", "-q", "-p", "samara-cli"],
+                       cwd=ROOT, check=True)
+    samara = os.path.join(ROOT, "target", "release", "samara")
+    os.makedirs(a.out, exist_ok=True)
+
+    common = ["--network", a.network, "--sets", "taylor", "--order", str(a.order),
+              "--network-error", f"symbolic:{a.symbolic}",
+              "--lifted-weight", str(a.lifted_weight), "--max-leaves", "1",
+              "--threads", "1"]
+    grid_flags = []
+    for name, k in zip(STATES, grid):
+        if k > 1:
+            grid_flags += ["--grid", f"{name}={k}"]
+    whole = box_flags(initial_box(a.scale))
+
+    def cell_file(c):
+        return os.path.join(a.out, f"cell-{c}.json")
+
+    def round1(c):
+        if os.path.isfile(cell_file(c)):
+            return c, 0
+        cmd = [samara, "reach"] + common + whole + ["--samples", str(a.samples)] + \
+            grid_flags + ["--shard", f"{c}/{n_cells}", "--out", cell_file(c)]
+        return c, run(cmd, os.path.join(a.out, f"cell-{c}.log"))
+
+    with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
+        for c, rc in pool.map(round1, range(first, last)):
+            print(f"cell {c}: {'done' if rc == 0 else f'exit {rc}'}", flush=True)
+
+    cells = {}
+    for c in range(n_cells):
+        try:
+            with open(cell_file(c)) as f:
+                shard = json.load(f)
+        except (OSError, ValueError):
+            continue
+        reach = shard["result"]["reach"]
+        enc, flights = outcome(reach)
+        cells[c] = {"box": reach["leaves"][0]["init"], "enclosure": enc,
+                    "flights": flights, "seconds": reach["seconds"]}
+    flown = [v["flights"] for v in cells.values() if v["flights"]]
+    own = (min(f[0] for f in flown), max(f[1] for f in flown)) if flown else None
+    spread = band or own
+    if spread is None:
+        print("six_state_cover: no cell has finished", file=sys.stderr)
+        return 1
+    mid, width = 0.5 * (spread[0] + spread[1]), spread[1] - spread[0]
+
+    def in_band(enc):
+        return enc is not None and enc[0] >= mid - width and enc[1] <= mid + width
+
+    # Round 2: the cells lost or outside the band, from their own box in two halves.
+    again = [c for c, v in cells.items() if not in_band(v["enclosure"])]
+
+    def round2(c):
+        d = os.path.join(a.out, f"cell-{c}-split")
+        if not os.path.isfile(os.path.join(d, "reach.json")):
+            box = [tuple(b) for b in cells[c]["box"]]
+            cmd = [samara, "reach"] + common + box_flags(box) + \
+                ["--samples", str(max(8, a.samples // n_cells)),
+                 "--grid", f"{a.split}=2", "--out", d]
+            run(cmd, d + ".log")
+        try:
+            with open(os.path.join(d, "reach.json")) as f:
+                return c, outcome(json.load(f)["result"])[0]
+        except (OSError, ValueError, KeyError):
+            return c, None
+
+    with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
+        for c, enc in pool.map(round2, again):
+            cells[c]["second"] = enc
+            print(f"cell {c} in halves: {'enclosed' if enc else 'lost'}", flush=True)
+
+    final = {c: v.get("second", v["enclosure"]) for c, v in cells.items()}
+    missing = [c for c in range(n_cells) if final.get(c) is None]
+    hull = None
+    if not missing:
+        hull = (min(e[0] for e in final.values()), max(e[1] for e in final.values()))
+    ratio = (hull[1] - hull[0]) / width if hull else None
+    met = ratio is not None and ratio <= 2.0
+    summary = {
+        "network": a.network, "grid": grid, "scale": a.scale, "cells": n_cells,
+        "done": len(cells), "second_round": len(again),
+        "lost_or_missing": missing, "flights": list(spread),
+        "flights_source": "--band" if band else "the cells' own flights",
+        "hull": list(hull) if hull else None, "ratio": ratio,
+        "cell_seconds": sum(v["seconds"] for v in cells.values()),
+        "criterion_met": met,
+    }
+    write_atomic(os.path.join(a.out, "summary.json"), json.dumps(summary, indent=1) + "\n")
+    if hull:
+        print(f"x + y at t = 20 in [{hull[0]:.4f}, {hull[1]:.4f}] against flights "
+              f"[{spread[0]:.4f}, {spread[1]:.4f}]: ratio {ratio:.3f} "
+              f"({'criterion met' if met else 'above 2'})")
+    else:
+        print(f"{len(missing)} of {n_cells} cells not enclosed (or not run); "
+              f"see {a.out}/summary.json")
+    return 0 if met else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
