@@ -23,10 +23,17 @@ Standard library only. Writes DIR/cell-C.json (round 1), DIR/cell-C-split/ (roun
 and DIR/summary.json (atomically); exit 0 when the criterion is met, 1 when not (or
 not every cell is done), 2 on a usage error.
 
+`--ledger FILE` keeps one JSON line per finished cell and round (the run's settings,
+the network's SHA-256, the cell's box, its x + y enclosure or `null` when lost, its
+flights' range, seconds, and the commit of the build that flew it). Cells found there
+under the same settings are not flown again, so a covering run can be spread over
+several sittings (or machines) and kept in the repository
+(`bench/reach/six_state_ledger.jsonl`) instead of the 100 KB result files.
+
     python3 bench/reach/six_state_cover.py --network ../shared/reference/adversarial_model_denorm.onnx \\
         [--jobs 2] [--out out/six-state] [--order 4] [--symbolic 40] [--lifted-weight 2]
         [--grid 3,3,3,3,1,8] [--scale 1.0] [--samples 10000] [--band LO:HI]
-        [--split theta] [--cells A:B] [--no-build]
+        [--split theta] [--cells A:B] [--ledger FILE] [--no-build]
 
 With the defaults (648 cells of a third of v_xp, v_yp, omega and theta, all of x, an
 eighth of y) a cell takes 30-45 s on one core for the adversarial network (2026-11-25;
@@ -35,6 +42,7 @@ the base network's cells need `--symbolic 80`, about 140 s).
 
 import argparse
 import concurrent.futures
+import hashlib
 import json
 import os
 import subprocess
@@ -106,6 +114,7 @@ def main():
     ap.add_argument("--band", help="LO:HI, the spread of x + y over uniform flights")
     ap.add_argument("--split", default="theta", choices=STATES)
     ap.add_argument("--cells", help="A:B, run only cells A..B-1 of round 1")
+    ap.add_argument("--ledger", help="JSON-lines record of finished cells (resumable)")
     ap.add_argument("--no-build", action="store_true")
     a = ap.parse_args()
 
@@ -135,6 +144,29 @@ def main():
                        cwd=ROOT, check=True)
     samara = os.path.join(ROOT, "target", "release", "samara")
     os.makedirs(a.out, exist_ok=True)
+    with open(a.network, "rb") as f:
+        digest = hashlib.sha256(f.read()).hexdigest()
+    settings = {"network_sha256": digest, "grid": grid, "scale": a.scale,
+                "order": a.order, "symbolic": a.symbolic,
+                "lifted_weight": a.lifted_weight, "samples": a.samples}
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                            capture_output=True, text=True).stdout.strip() or None
+    ledger = {}  # (round, cell) -> entry
+    if a.ledger and os.path.isfile(a.ledger):
+        with open(a.ledger) as f:
+            for line in f:
+                e = json.loads(line)
+                if e.get("settings") == settings and e["round"] in (1, 2):
+                    ledger[(e["round"], e["cell"])] = e
+
+    def record(rnd, c, box, enc, flights, seconds):
+        e = {"settings": settings, "round": rnd, "cell": c, "box": box,
+             "enclosure": enc, "flights": flights, "seconds": seconds,
+             "commit": commit}
+        ledger[(rnd, c)] = e
+        if a.ledger:
+            with open(a.ledger, "a") as f:
+                f.write(json.dumps(e) + "\n")
 
     common = ["--network", a.network, "--sets", "taylor", "--order", str(a.order),
               "--network-error", f"symbolic:{a.symbolic}",
@@ -149,28 +181,46 @@ def main():
     def cell_file(c):
         return os.path.join(a.out, f"cell-{c}.json")
 
-    def round1(c):
-        if os.path.isfile(cell_file(c)):
-            return c, 0
-        cmd = [samara, "reach"] + common + whole + ["--samples", str(a.samples)] + \
-            grid_flags + ["--shard", f"{c}/{n_cells}", "--out", cell_file(c)]
-        return c, run(cmd, os.path.join(a.out, f"cell-{c}.log"))
-
-    with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
-        for c, rc in pool.map(round1, range(first, last)):
-            print(f"cell {c}: {'done' if rc == 0 else f'exit {rc}'}", flush=True)
-
-    cells = {}
-    for c in range(n_cells):
+    def load_cell(c):
+        """Cell `c` of round 1 from the ledger or its result file (then recorded)."""
+        if (1, c) in ledger:
+            e = ledger[(1, c)]
+            return {k: e[k] for k in ("box", "enclosure", "flights", "seconds")}
         try:
             with open(cell_file(c)) as f:
-                shard = json.load(f)
-        except (OSError, ValueError):
-            continue
-        reach = shard["result"]["reach"]
+                reach = json.load(f)["result"]["reach"]
+        except (OSError, ValueError, KeyError):
+            return None
         enc, flights = outcome(reach)
-        cells[c] = {"box": reach["leaves"][0]["init"], "enclosure": enc,
-                    "flights": flights, "seconds": reach["seconds"]}
+        cell = {"box": reach["leaves"][0]["init"], "enclosure": enc,
+                "flights": flights, "seconds": reach["seconds"]}
+        record(1, c, cell["box"], enc, flights, reach["seconds"])
+        return cell
+
+    def round1(c):
+        rc = 0
+        if (1, c) not in ledger and not os.path.isfile(cell_file(c)):
+            cmd = [samara, "reach"] + common + whole + ["--samples", str(a.samples)] + \
+                grid_flags + ["--shard", f"{c}/{n_cells}", "--out", cell_file(c)]
+            rc = run(cmd, os.path.join(a.out, f"cell-{c}.log"))
+        return c, rc, load_cell(c)
+
+    cells = {}
+    with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
+        for c, rc, cell in pool.map(round1, range(first, last)):
+            if cell is None:
+                print(f"cell {c}: no result (exit {rc}; see {a.out}/cell-{c}.log)",
+                      flush=True)
+            else:
+                cells[c] = cell
+                state = "enclosed" if cell["enclosure"] else "lost"
+                print(f"cell {c}: {state}, {cell['seconds']:.1f} s", flush=True)
+    # Cells outside --cells, from the ledger or earlier result files.
+    for c in range(n_cells):
+        if c not in cells:
+            cell = load_cell(c)
+            if cell is not None:
+                cells[c] = cell
     flown = [v["flights"] for v in cells.values() if v["flights"]]
     own = (min(f[0] for f in flown), max(f[1] for f in flown)) if flown else None
     spread = band or own
@@ -186,6 +236,8 @@ def main():
     again = [c for c, v in cells.items() if not in_band(v["enclosure"])]
 
     def round2(c):
+        if (2, c) in ledger:
+            return c, ledger[(2, c)]["enclosure"]
         d = os.path.join(a.out, f"cell-{c}-split")
         if not os.path.isfile(os.path.join(d, "reach.json")):
             box = [tuple(b) for b in cells[c]["box"]]
@@ -195,9 +247,12 @@ def main():
             run(cmd, d + ".log")
         try:
             with open(os.path.join(d, "reach.json")) as f:
-                return c, outcome(json.load(f)["result"])[0]
+                res = json.load(f)["result"]
         except (OSError, ValueError, KeyError):
             return c, None
+        enc, flights = outcome(res)
+        record(2, c, cells[c]["box"], enc, flights, res.get("seconds"))
+        return c, enc
 
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
         for c, enc in pool.map(round2, again):

@@ -909,11 +909,12 @@ impl Tm {
 
     /// Puts every model with an explicit order on the one table their binary operations
     /// would meet on (the most parameters, the smallest order, mixed weights winning),
-    /// exactly as those operations convert them (terms past the table's order, if any,
-    /// bounded into the remainder). Models without an order of their own are left as
-    /// they are. A flow whose held inputs carry one more parameter than its states (a
-    /// lifted network error) then converts each state once per period instead of at
-    /// every operation of every step.
+    /// where that move is exact: a model with a nonzero term the table lacks (a higher
+    /// order, or a monomial past the table's weights) is left as it is, so no model
+    /// loses a term here. Models without an order of their own are left as they are. A
+    /// flow whose held inputs carry one more parameter than its states (a lifted
+    /// network error) then converts each state once per period instead of at every
+    /// operation of every step.
     pub fn share_table(ms: &mut [Tm]) {
         let mut it = ms.iter().filter(|m| m.fixed);
         let Some(first) = it.next() else {
@@ -927,7 +928,14 @@ impl Tm {
             }
         }
         for m in ms.iter_mut().filter(|m| m.fixed) {
-            if !std::ptr::eq(m.t, acc.t) {
+            if std::ptr::eq(m.t, acc.t) || m.t.n > acc.t.n {
+                continue;
+            }
+            let exact = conversion(m.t, acc.t)
+                .dropped
+                .iter()
+                .all(|&i| m.c[i as usize] == 0.0);
+            if exact {
                 *m = std::mem::replace(m, Tm::cst(0.0)).into_table(acc.t, true);
             }
         }

@@ -1114,8 +1114,23 @@ fn order_changes_keep_every_value() {
         if t.order() > 0 {
             assert!(two[0].same_basis(&two[1]), "case {case}: tables differ");
         }
+        // Exact: the remainder is the model's own.
+        assert_eq!(
+            two[0].rem(),
+            t.rem(),
+            "case {case}: share_table changed the model"
+        );
         encloses_at_points(&e, &two[0], &mut rng, n, case);
-        checked += 19;
+        // A model of a higher order keeps its terms (left on its own table).
+        let mut mixed_orders = vec![t.clone(), low.clone()];
+        Tm::share_table(&mut mixed_orders);
+        assert_eq!(
+            mixed_orders[0].rem(),
+            t.rem(),
+            "case {case}: a higher order was cut"
+        );
+        encloses_at_points(&e, &mixed_orders[1], &mut rng, n, case);
+        checked += 25;
     }
     assert!(lowered > 1000, "only {lowered} lowered");
     assert!(finite > 1500, "only {finite} finite");
