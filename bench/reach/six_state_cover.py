@@ -25,7 +25,8 @@ not every cell is done), 2 on a usage error.
 
 `--ledger FILE` keeps one JSON line per finished cell and round (the run's settings,
 the network's SHA-256, the cell's box, its x + y enclosure or `null` when lost, its
-flights' range, seconds, and the commit of the build that flew it). Cells found there
+flights' range, seconds, and the commit of the build that flew it, `null` with
+`--no-build`). Cells found there
 under the same settings are not flown again, so a covering run can be spread over
 several sittings (or machines) and kept in the repository
 (`bench/reach/six_state_ledger.jsonl`) instead of the 100 KB result files.
@@ -149,8 +150,12 @@ def main():
     settings = {"network_sha256": digest, "grid": grid, "scale": a.scale,
                 "order": a.order, "symbolic": a.symbolic,
                 "lifted_weight": a.lifted_weight, "samples": a.samples}
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
-                            capture_output=True, text=True).stdout.strip() or None
+    # The commit of the build only when this run built it: with --no-build the binary
+    # may be older than the checkout (then the ledger says null).
+    commit = None
+    if not a.no_build:
+        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=ROOT,
+                                capture_output=True, text=True).stdout.strip() or None
     ledger = {}  # (round, cell) -> entry
     if a.ledger and os.path.isfile(a.ledger):
         with open(a.ledger) as f:

@@ -428,8 +428,9 @@ impl fmt::Debug for Tm {
     }
 }
 
-/// Per monomial of `from`, its index in `to` (`NOT_IN` if `to` lacks it: past its
-/// weighted order), for tables with `from.n <= to.n` (the extra parameters appended).
+/// How the monomials of `from` land on `to` (which of them `to` has, at which index,
+/// and which it lacks: past its weighted order), for tables with `from.n <= to.n` (the
+/// extra parameters appended).
 /// Built once per pair and thread: a flow converts between the same few tables (states
 /// in `n` parameters meeting inputs in `n + 1`) at every operation of every step.
 fn conversion(from: &'static Table, to: &'static Table) -> Rc<Conversion> {
@@ -475,28 +476,36 @@ struct Conversion {
 
 /// The common table and fixedness of a binary operation.
 fn common(a: &Tm, b: &Tm) -> (&'static Table, bool) {
-    if std::ptr::eq(a.t, b.t) {
-        return (a.t, a.fixed || b.fixed);
+    common_of((a.t, a.fixed), (b.t, b.fixed))
+}
+
+/// [`common`] on `(table, fixed)` pairs: what a binary operation's result is made on.
+fn common_of(
+    (at, af): (&'static Table, bool),
+    (bt, bf): (&'static Table, bool),
+) -> (&'static Table, bool) {
+    if std::ptr::eq(at, bt) {
+        return (at, af || bf);
     }
-    let n = a.t.n.max(b.t.n);
-    let (order, fixed) = match (a.fixed, b.fixed) {
-        (true, true) => (a.t.order.min(b.t.order), true),
-        (true, false) => (a.t.order, true),
-        (false, true) => (b.t.order, true),
-        (false, false) => (a.t.order.min(b.t.order), false),
+    let n = at.n.max(bt.n);
+    let (order, fixed) = match (af, bf) {
+        (true, true) => (at.order.min(bt.order), true),
+        (true, false) => (at.order, true),
+        (false, true) => (bt.order, true),
+        (false, false) => (at.order.min(bt.order), false),
     };
     // A mixed table's weights win over a classic one's (whose parameters past the
     // mixed table's `full` are truncated as the mixed weights say, soundly).
     let eff = |t: &Table| if t.is_mixed() { t.full } else { usize::MAX };
-    let full = eff(a.t).min(eff(b.t));
-    let lw = a.t.lw.max(b.t.lw);
+    let full = eff(at).min(eff(bt));
+    let lw = at.lw.max(bt.lw);
     // The key `table_mixed` normalises to (classic tables ignore `full`).
     let fits =
         |t: &Table| t.n == n && t.order == order && t.lw == lw && (lw == 1 || t.full == full);
-    if fits(a.t) {
-        (a.t, fixed)
-    } else if fits(b.t) {
-        (b.t, fixed)
+    if fits(at) {
+        (at, fixed)
+    } else if fits(bt) {
+        (bt, fixed)
     } else {
         (table_mixed(n, order, full, lw), fixed)
     }
@@ -916,27 +925,22 @@ impl Tm {
     /// network error) then converts each state once per period instead of at every
     /// operation of every step.
     pub fn share_table(ms: &mut [Tm]) {
-        let mut it = ms.iter().filter(|m| m.fixed);
-        let Some(first) = it.next() else {
+        let Some((t, _)) = ms
+            .iter()
+            .filter(|m| m.fixed)
+            .map(|m| (m.t, true))
+            .reduce(common_of)
+        else {
             return;
         };
-        let mut acc = first.clone();
-        for m in it {
-            let (t, fixed) = common(&acc, m);
-            if !std::ptr::eq(t, acc.t) {
-                acc = Tm::entire_on(t, fixed);
-            }
-        }
-        for m in ms.iter_mut().filter(|m| m.fixed) {
-            if std::ptr::eq(m.t, acc.t) || m.t.n > acc.t.n {
-                continue;
-            }
-            let exact = conversion(m.t, acc.t)
+        // The common table has the most parameters, so every model converts onto it.
+        for m in ms.iter_mut().filter(|m| m.fixed && !std::ptr::eq(m.t, t)) {
+            let exact = conversion(m.t, t)
                 .dropped
                 .iter()
                 .all(|&i| m.c[i as usize] == 0.0);
             if exact {
-                *m = std::mem::replace(m, Tm::cst(0.0)).into_table(acc.t, true);
+                *m = std::mem::replace(m, Tm::cst(0.0)).into_table(t, true);
             }
         }
     }

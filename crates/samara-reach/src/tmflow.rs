@@ -81,9 +81,9 @@ pub struct TmFlowSettings {
     pub stand_ins: bool,
     /// Truncate the solution's time coefficient `k >= 1` at parameter order
     /// `max(2, order + 1 - k)` (a joint degree in parameters and time, as Flow* does;
-    /// models of order 2 or less are left whole),
-    /// bounding the rest into its remainder: the higher time coefficients, which the
-    /// step scales by `h^k`, then cost products on smaller tables (default on).
+    /// models of order 2 or less are left whole), bounding the rest into its
+    /// remainder: the higher time coefficients, which the step scales by `h^k`, then
+    /// cost products on smaller tables (default on).
     pub joint_degree: bool,
 }
 
@@ -365,9 +365,12 @@ fn taylor_try(
     let tx = if s.joint_degree && base > 2 {
         let budget = TRIM_SHARE * bz.iter().map(tol).fold(f64::INFINITY, f64::min);
         let trim = |k: usize, v: Tm| {
-            let low = v
-                .clone()
-                .with_order((base + 1).saturating_sub(k as u32).max(2));
+            let order = (base + 1).saturating_sub(k as u32).max(2);
+            if order >= v.order() {
+                // Nothing to truncate (the first coefficient, or one already lower).
+                return v;
+            }
+            let low = v.clone().with_order(order);
             let added = low.rem().width() - v.rem().width();
             if added.is_finite() && added * pow_up(h, k).hi <= budget {
                 low
@@ -486,12 +489,11 @@ pub fn tm_period_parts(
     let mut all: Vec<Tm> = x.iter().chain(u).cloned().collect();
     Tm::share_table(&mut all);
     let mut u = all.split_off(x.len());
-    let x = all;
     let jmax = s.max_halvings.min(30);
     let units: u64 = 1 << jmax; // the period in units of period / 2^jmax
     let mut pos: u64 = 0;
     let mut level: u32 = 0; // current step = period / 2^level
-    let mut cur = x;
+    let mut cur = all;
     let mut boxes = Vec::new();
     while pos < units {
         // The largest step allowed at this position, no longer than the current level.
