@@ -34,7 +34,11 @@ several sittings (or machines) and kept in the repository
     python3 bench/reach/six_state_cover.py --network ../shared/reference/adversarial_model_denorm.onnx \\
         [--jobs 2] [--out out/six-state] [--order 4] [--symbolic 40] [--lifted-weight 2]
         [--grid 3,3,3,3,1,8] [--scale 1.0] [--samples 10000] [--band LO:HI]
-        [--split theta] [--cells A:B] [--ledger FILE] [--no-build]
+        [--split theta] [--cells A:B] [--ledger FILE] [--no-build] [--status]
+
+`--status` flies nothing and builds nothing: it prints how many cells of each round are
+done, in the band, too wide or lost, the hull of the settled cells, and the
+core-seconds spent and left (from the mean cell so far).
 
 With the defaults (648 cells of a third of v_xp, v_yp, omega and theta, all of x, an
 eighth of y) a cell takes 30-45 s on one core for the adversarial network (2026-11-25;
@@ -99,6 +103,41 @@ def outcome(reach):
     return enc, m.get("sampled")
 
 
+def report_status(cells, again, final, n_cells, spread, in_band, ledger):
+    """`--status`: what is done, the hull so far and the core-seconds left (estimated
+    from the mean cell so far and the share of cells that needed halves)."""
+    r1 = [v["seconds"] for v in cells.values() if v["seconds"] is not None]
+    lost = sum(1 for v in cells.values() if v["enclosure"] is None)
+    wide = sum(1 for v in cells.values() if v["enclosure"] is not None
+               and not in_band(v["enclosure"]))
+    done2 = [c for c in again if (2, c) in ledger]
+    r2 = [ledger[(2, c)]["seconds"] for c in done2
+          if (2, c) in ledger and ledger[(2, c)]["seconds"] is not None]
+    repaired = sum(1 for c in done2 if in_band(cells[c]["second"]))
+    enclosed = [e for e in final.values() if e is not None]
+    print(f"round 1: {len(cells)} of {n_cells} cells: "
+          f"{len(cells) - lost - wide} in the band, {wide} too wide, {lost} lost")
+    print(f"round 2: {len(done2)} of {len(again)} cells flown in halves, "
+          f"{repaired} of them now in the band")
+    print(f"band x + y in [{2 * spread[0] - 0.5 * (spread[0] + spread[1]):.3f}, "
+          f"{2 * spread[1] - 0.5 * (spread[0] + spread[1]):.3f}] (flights "
+          f"[{spread[0]:.3f}, {spread[1]:.3f}])")
+    if enclosed:
+        print(f"hull of the {len(enclosed)} cells settled so far (in the band, or "
+              f"enclosed in halves): "
+              f"[{min(e[0] for e in enclosed):.3f}, {max(e[1] for e in enclosed):.3f}]")
+    spent = sum(r1) + sum(r2)
+    if r1:
+        mean1 = sum(r1) / len(r1)
+        mean2 = sum(r2) / len(r2) if r2 else 2 * mean1
+        share = len(again) / len(cells)
+        left = mean1 * (n_cells - len(cells)) + mean2 * (
+            len(again) - len(done2) + share * (n_cells - len(cells)))
+        print(f"core-seconds: {spent:.0f} spent, about {left:.0f} left "
+              f"(mean cell {mean1:.1f} s, halves {mean2:.1f} s, "
+              f"{100 * share:.0f} % of cells need halves)")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--network", required=True)
@@ -117,6 +156,8 @@ def main():
     ap.add_argument("--cells", help="A:B, run only cells A..B-1 of round 1")
     ap.add_argument("--ledger", help="JSON-lines record of finished cells (resumable)")
     ap.add_argument("--no-build", action="store_true")
+    ap.add_argument("--status", action="store_true",
+                    help="report what the ledger and result files hold; fly nothing")
     a = ap.parse_args()
 
     grid = [int(k) for k in a.grid.split(",")]
@@ -140,6 +181,8 @@ def main():
         if not 0 <= first < last <= n_cells:
             print(f"six_state_cover: --cells must lie in 0:{n_cells}", file=sys.stderr)
             return 2
+    if a.status:
+        a.no_build = True
     if not a.no_build:
         subprocess.run(["cargo", "build", "--release", "-q", "-p", "samara-cli"],
                        cwd=ROOT, check=True)
@@ -204,7 +247,7 @@ def main():
 
     def round1(c):
         rc = 0
-        if (1, c) not in ledger and not os.path.isfile(cell_file(c)):
+        if not a.status and (1, c) not in ledger and not os.path.isfile(cell_file(c)):
             cmd = [samara, "reach"] + common + whole + ["--samples", str(a.samples)] + \
                 grid_flags + ["--shard", f"{c}/{n_cells}", "--out", cell_file(c)]
             rc = run(cmd, os.path.join(a.out, f"cell-{c}.log"))
@@ -213,7 +256,10 @@ def main():
     cells = {}
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
         for c, rc, cell in pool.map(round1, range(first, last)):
-            if cell is None:
+            if a.status:
+                if cell is not None:
+                    cells[c] = cell
+            elif cell is None:
                 print(f"cell {c}: no result (exit {rc}; see {a.out}/cell-{c}.log)",
                       flush=True)
             else:
@@ -244,6 +290,8 @@ def main():
         if (2, c) in ledger:
             return c, ledger[(2, c)]["enclosure"]
         d = os.path.join(a.out, f"cell-{c}-split")
+        if a.status and not os.path.isfile(os.path.join(d, "reach.json")):
+            return c, None
         if not os.path.isfile(os.path.join(d, "reach.json")):
             box = [tuple(b) for b in cells[c]["box"]]
             cmd = [samara, "reach"] + common + box_flags(box) + \
@@ -262,6 +310,8 @@ def main():
     with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
         for c, enc in pool.map(round2, again):
             cells[c]["second"] = enc
+            if a.status:
+                continue
             print(f"cell {c} in halves: {'enclosed' if enc else 'lost'}", flush=True)
 
     final = {c: v.get("second", v["enclosure"]) for c, v in cells.items()}
@@ -271,6 +321,9 @@ def main():
         hull = (min(e[0] for e in final.values()), max(e[1] for e in final.values()))
     ratio = (hull[1] - hull[0]) / width if hull else None
     met = ratio is not None and ratio <= 2.0
+    if a.status:
+        report_status(cells, again, final, n_cells, spread, in_band, ledger)
+        return 0 if met else 1
     summary = {
         "network": a.network, "grid": grid, "scale": a.scale, "cells": n_cells,
         "done": len(cells), "second_round": len(again),

@@ -122,6 +122,39 @@ fn up(x: f64) -> f64 {
     }
 }
 
+/// Upper bound of the exact sum of `n` non-negative floats from `s`, their float sum
+/// in round-to-nearest, in any order of additions: `|s - exact| <= gamma_{n-1} exact`
+/// (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed. 2002, (4.4)), so
+/// `exact <= s / (1 - gamma_{n-1}) <= s (1 + 4 n u)` while `n u <= 1/4`. Additions
+/// never round inexactly below the normal range (sums of subnormals are exact), so no
+/// absolute term is needed. Replaces one rounding up per term, whose chain of
+/// dependent `next_up`s made the sums latency-bound. NaN gives infinity.
+#[inline]
+fn nonneg_sum_bound(s: f64, n: usize) -> f64 {
+    if s.is_nan() {
+        return f64::INFINITY;
+    }
+    if n <= 1 || s == 0.0 || s == f64::INFINITY {
+        return s;
+    }
+    debug_assert!((n as f64) * U <= 0.25);
+    up(s + up(s * up(4.0 * n as f64 * U)))
+}
+
+/// Upper bound of the exact `sum_i a_i b_i` of `n` products of non-negative floats from
+/// `s`, its float value (each product rounded, then summed in any order): each term
+/// carries one rounding of its product and at most `n - 1` of the sum, so
+/// `gamma_n` bounds the relative error ([`nonneg_sum_bound`] with `n + 1`), and a
+/// product that underflows is off by at most half of the smallest subnormal `ETA`
+/// (counted as a whole `ETA` per term, before the relative factor).
+#[inline]
+fn nonneg_dot_bound(s: f64, n: usize) -> f64 {
+    if n == 0 {
+        return s;
+    }
+    nonneg_sum_bound(up(s + n as f64 * ETA), n + 1)
+}
+
 #[inline(always)]
 fn dn(x: f64) -> f64 {
     if x.is_nan() {
@@ -298,15 +331,29 @@ impl Table {
         let mut part = Vec::new();
         let mut count = vec![0usize; len];
         let mut key = vec![0u8; n];
+        // On mixed tables, `upto[w]`: the monomials of weighted degree <= w in index
+        // order (the partners of a monomial of weighted degree `order - w`), so that a
+        // row costs its partners rather than a pass over the whole table.
+        let upto: Vec<Vec<usize>> = if mixed {
+            (0..=order)
+                .map(|w| (0..len).filter(|&j| wdeg[j] <= w).collect())
+                .collect()
+        } else {
+            Vec::new()
+        };
         for i in 0..len {
             row.push(mul.len());
-            let wi = wdeg[i];
-            let partners: Vec<usize> = if mixed {
-                (0..len).filter(|&j| wi + wdeg[j] <= order).collect()
+            let partners: &[usize] = if mixed {
+                &upto[(order - wdeg[i]) as usize]
             } else {
-                (0..pre[(order - deg[i]) as usize]).collect()
+                &[]
             };
-            for j in partners {
+            let classic = 0..if mixed {
+                0
+            } else {
+                pre[(order - deg[i]) as usize]
+            };
+            for j in partners.iter().copied().chain(classic) {
                 for k in 0..n {
                     key[k] = mons[i][k] + mons[j][k];
                 }
@@ -1089,16 +1136,20 @@ impl Tm {
         let (t, fixed) = common(&self, o);
         let mut a = self.into_table(t, fixed);
         let b = o.convert(t, fixed);
-        let mut sa = 0.0;
+        // Each inexact sum is off by at most u |z| (Higham (2.5)); their magnitudes are
+        // summed plainly and bounded once ([`nonneg_sum_bound`]).
+        let (mut sa, mut cnt) = (0.0, 0usize);
         for (x, &y) in a.c.iter_mut().zip(&b.c) {
             if y != 0.0 {
                 let z = *x + s * y;
                 if *x != 0.0 {
-                    sa = up(sa + z.abs());
+                    sa += z.abs();
+                    cnt += 1;
                 }
                 *x = z;
             }
         }
+        let sa = nonneg_sum_bound(sa, cnt);
         let br = if s > 0.0 { b.rem } else { -b.rem };
         a.rem = iadd(a.rem, br);
         if sa != 0.0 {
@@ -1122,10 +1173,11 @@ impl Tm {
         for v in self.c.iter_mut() {
             if *v != 0.0 {
                 *v *= s;
-                sa = up(sa + v.abs());
+                sa += v.abs();
                 cnt += 1;
             }
         }
+        let sa = nonneg_sum_bound(sa, cnt);
         self.rem = self.rem * s;
         if cnt > 0 && (s.abs() != 1.0 && s != 0.0) {
             self.rem = self.rem + sym(up(up(sa * U) + cnt as f64 * ETA));
@@ -1144,10 +1196,11 @@ impl Tm {
         for v in self.c.iter_mut() {
             if *v != 0.0 {
                 *v /= s;
-                sa = up(sa + v.abs());
+                sa += v.abs();
                 cnt += 1;
             }
         }
+        let sa = nonneg_sum_bound(sa, cnt);
         self.rem = self.rem / s;
         if cnt > 0 && s.abs() != 1.0 {
             self.rem = self.rem + sym(up(up(sa * U) + cnt as f64 * ETA));
@@ -1185,15 +1238,30 @@ impl Tm {
         let b = b.convert(t, fixed);
         let len = t.len();
         let ord = t.order as usize;
-        // Upward sums of |b_j| by degree, then by degree <= d and >= d.
-        let mut le = [0.0f64; MAX_ORDER as usize + 2];
-        let mut ge = [0.0f64; MAX_ORDER as usize + 2];
-        for j in 0..len {
-            let v = b.c[j];
-            if v != 0.0 {
-                let d = t.wdeg[j] as usize;
-                le[d] = up(le[d] + v.abs());
+        // Upward sums of |b_j| by degree, then by degree <= d and >= d. Four partial
+        // sums per degree (by j mod 4) so that consecutive terms of one degree do not
+        // wait for each other; every sum is bounded once ([`nonneg_sum_bound`], `len`
+        // terms at most) instead of rounding up after every term.
+        const W: usize = MAX_ORDER as usize + 2;
+        let mut part4 = [[0.0f64; W]; 4];
+        let wd = &t.wdeg[..len];
+        let bc = &b.c[..len];
+        let mut j = 0;
+        while j + 4 <= len {
+            for (lane, acc) in part4.iter_mut().enumerate() {
+                acc[wd[j + lane] as usize] += bc[j + lane].abs();
             }
+            j += 4;
+        }
+        while j < len {
+            part4[0][wd[j] as usize] += bc[j].abs();
+            j += 1;
+        }
+        let mut le = [0.0f64; W];
+        let mut ge = [0.0f64; W];
+        for d in 0..=ord {
+            let s = (part4[0][d] + part4[1][d]) + (part4[2][d] + part4[3][d]);
+            le[d] = nonneg_sum_bound(s, len);
         }
         ge[..=ord].copy_from_slice(&le[..=ord]);
         for d in 1..=ord {
@@ -1203,7 +1271,8 @@ impl Tm {
             ge[d] = up(ge[d] + ge[d + 1]);
         }
         let mut r = vec![0.0; len];
-        let (mut kept, mut trunc, mut pairs) = (0.0f64, 0.0f64, 0usize);
+        // Plain sums of |a_i| le[keep_i] and |a_i| ge[keep_i + 1], bounded once below.
+        let (mut kept, mut trunc, mut pairs, mut rows) = (0.0f64, 0.0f64, 0usize, 0usize);
         for i in 0..len {
             let ai = a.c[i];
             if ai == 0.0 {
@@ -1225,12 +1294,15 @@ impl Tm {
                 e - s
             };
             let aa = ai.abs();
-            kept = up(kept + up(aa * le[keep]));
+            kept += aa * le[keep];
             if keep < ord {
-                trunc = up(trunc + up(aa * ge[keep + 1]));
+                trunc += aa * ge[keep + 1];
             }
             pairs += m;
+            rows += 1;
         }
+        let kept = nonneg_dot_bound(kept, rows);
+        let trunc = nonneg_dot_bound(trunc, rows);
         let err = up(up(t.gamma * kept) + 2.0 * pairs as f64 * ETA);
         let mut rem = sym(up(err + trunc));
         // Each operand's polynomial range only where the other has a remainder.
@@ -1573,5 +1645,92 @@ impl Scalar for Tm {
             hi: d.hi.max(0.0),
         };
         self.convert(t, fixed).into_owned().with_rem(r)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    //! The once-bounded sums against exact integer arithmetic: every value is an integer
+    //! multiple of a power of two, so the exact sum is an `i128`, and a bound `B` is
+    //! sound iff `floor(B * 2^k) >= exact` (the exact sum is an integer in those units).
+    use super::*;
+    use proptest::prelude::*;
+
+    /// `floor(x * 2^k)` as an integer, `k` split into steps that keep `x` finite.
+    fn scaled(mut x: f64, mut k: i32) -> i128 {
+        while k > 0 {
+            let s = k.min(500);
+            x *= 2f64.powi(s);
+            k -= s;
+        }
+        x.floor() as i128
+    }
+
+    /// The sum in the order of `Tm::mul_ref`'s per-degree sums: four lanes by index.
+    fn lanes(v: &[f64]) -> f64 {
+        let mut l = [0.0f64; 4];
+        for (j, x) in v.iter().enumerate() {
+            l[j & 3] += x;
+        }
+        (l[0] + l[1]) + (l[2] + l[3])
+    }
+
+    /// Numerators (each exact as a float): uniform, or one large value and many just below half its ulp (each
+    /// dropped by every float addition), the worst case of a plain sum.
+    fn numerators() -> impl Strategy<Value = Vec<u64>> {
+        prop_oneof![
+            prop::collection::vec(0u64..(1 << 53), 1..400),
+            // 2^60 + a multiple of its ulp (256): exact; 127 is below half the ulp.
+            (1usize..2000, 0u64..(1 << 20)).prop_map(|(n, jitter)| {
+                let mut v = vec![(1u64 << 60) + 256 * jitter];
+                v.extend(std::iter::repeat_n(127, n));
+                v
+            }),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+
+        #[test]
+        fn sum_bound_holds_for_any_order(k in numerators()) {
+            let v: Vec<f64> = k.iter().map(|&x| x as f64 * 2f64.powi(-60)).collect();
+            let exact: i128 = k.iter().map(|&x| x as i128).sum();
+            for s in [v.iter().sum::<f64>(), lanes(&v), v.iter().rev().sum::<f64>()] {
+                let b = nonneg_sum_bound(s, v.len());
+                prop_assert!(scaled(b, 60) >= exact, "bound {b} below the exact sum");
+                // Not loose: within 4 n u of the exact sum (plus the ulp the rounding
+                // up may add).
+                let e = exact as f64 * 2f64.powi(-60);
+                prop_assert!(b <= e * (1.0 + 8.0 * v.len() as f64 * U) + f64::MIN_POSITIVE);
+            }
+        }
+
+        #[test]
+        fn dot_bound_holds_with_rounded_and_underflowing_products(
+            pq in prop::collection::vec((0u64..(1 << 40), 0u64..(1 << 40)), 1..300),
+            tiny in any::<bool>(),
+        ) {
+            // Units of 2^-60 (normal products) or 2^-1080 (products far below the
+            // normal range, rounded to multiples of 2^-1074).
+            let (e, k) = if tiny { (-540, 1080) } else { (-30, 60) };
+            let mut s = 0.0f64;
+            for &(p, q) in &pq {
+                s += (p as f64 * 2f64.powi(e)) * (q as f64 * 2f64.powi(e));
+            }
+            let exact: i128 = pq.iter().map(|&(p, q)| p as i128 * q as i128).sum();
+            let b = nonneg_dot_bound(s, pq.len());
+            prop_assert!(scaled(b, k) >= exact, "bound {b} below the exact sum");
+        }
+    }
+
+    #[test]
+    fn sum_bound_edge_cases() {
+        assert_eq!(nonneg_sum_bound(0.0, 10), 0.0);
+        assert_eq!(nonneg_sum_bound(3.0, 1), 3.0);
+        assert_eq!(nonneg_sum_bound(f64::INFINITY, 10), f64::INFINITY);
+        assert_eq!(nonneg_sum_bound(f64::NAN, 10), f64::INFINITY);
+        assert_eq!(nonneg_dot_bound(2.0, 0), 2.0);
+        assert!(nonneg_dot_bound(0.0, 3) > 0.0);
     }
 }
