@@ -41,8 +41,10 @@ done, in the band, too wide or lost, the hull of the settled cells, and the
 core-seconds spent and left (from the mean cell so far).
 
 With the defaults (648 cells of a third of v_xp, v_yp, omega and theta, all of x, an
-eighth of y) a cell takes 30-45 s on one core for the adversarial network (2026-11-25;
-the base network's cells need `--symbolic 80`, about 140 s).
+eighth of y) a cell takes 25-45 s on one core for the adversarial network (2026-11-26).
+The base network's thirds are lost with `--symbolic 40`; its run is `--grid
+3,3,3,6,1,8` (sixths of theta, 1,296 cells of about 22 s) with its own ledger,
+`bench/reach/six_state_ledger_base.jsonl`, and `--band=-5.79:2.25`.
 """
 
 import argparse
