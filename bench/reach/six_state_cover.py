@@ -105,7 +105,7 @@ def outcome(reach):
     return enc, m.get("sampled")
 
 
-def report_status(cells, again, final, n_cells, spread, in_band, ledger):
+def report_status(cells, again, final, n_cells, spread, band, in_band, ledger):
     """`--status`: what is done, the hull so far and the core-seconds left (estimated
     from the mean cell so far and the share of cells that needed halves)."""
     r1 = [v["seconds"] for v in cells.values() if v["seconds"] is not None]
@@ -113,16 +113,14 @@ def report_status(cells, again, final, n_cells, spread, in_band, ledger):
     wide = sum(1 for v in cells.values() if v["enclosure"] is not None
                and not in_band(v["enclosure"]))
     done2 = [c for c in again if (2, c) in ledger]
-    r2 = [ledger[(2, c)]["seconds"] for c in done2
-          if (2, c) in ledger and ledger[(2, c)]["seconds"] is not None]
+    r2 = [ledger[(2, c)]["seconds"] for c in done2 if ledger[(2, c)]["seconds"] is not None]
     repaired = sum(1 for c in done2 if in_band(cells[c]["second"]))
     enclosed = [e for e in final.values() if e is not None]
     print(f"round 1: {len(cells)} of {n_cells} cells: "
           f"{len(cells) - lost - wide} in the band, {wide} too wide, {lost} lost")
     print(f"round 2: {len(done2)} of {len(again)} cells flown in halves, "
           f"{repaired} of them now in the band")
-    print(f"band x + y in [{2 * spread[0] - 0.5 * (spread[0] + spread[1]):.3f}, "
-          f"{2 * spread[1] - 0.5 * (spread[0] + spread[1]):.3f}] (flights "
+    print(f"band x + y in [{band[0]:.3f}, {band[1]:.3f}] (flights "
           f"[{spread[0]:.3f}, {spread[1]:.3f}])")
     if enclosed:
         print(f"hull of the {len(enclosed)} cells settled so far (in the band, or "
@@ -324,7 +322,8 @@ def main():
     ratio = (hull[1] - hull[0]) / width if hull else None
     met = ratio is not None and ratio <= 2.0
     if a.status:
-        report_status(cells, again, final, n_cells, spread, in_band, ledger)
+        report_status(cells, again, final, n_cells, spread, (mid - width, mid + width),
+                      in_band, ledger)
         return 0 if met else 1
     summary = {
         "network": a.network, "grid": grid, "scale": a.scale, "cells": n_cells,
