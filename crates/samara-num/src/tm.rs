@@ -271,6 +271,15 @@ struct Table {
     index: FxMap<Vec<u8>, u32>,
 }
 
+/// SplitMix64 (Steele, Lea & Flood, "Fast splittable pseudorandom number generators",
+/// OOPSLA 2014): well-mixed 64-bit constants for [`Table::build`]'s additive hash.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
 fn gen_monomials(n: usize, d: u32, cur: &mut Vec<u8>, out: &mut Vec<Vec<u8>>) {
     if cur.len() == n {
         if d == 0 {
@@ -330,7 +339,34 @@ impl Table {
         let mut mul = Vec::new();
         let mut part = Vec::new();
         let mut count = vec![0usize; len];
-        let mut key = vec![0u8; n];
+        // Products by an additive hash: h(e) = sum_k e_k R_k (mod 2^64) gives
+        // h(m_i m_j) = h(m_i) + h(m_j), one addition per pair instead of hashing an
+        // exponent vector. The product is always in the table, so the lookup returns it
+        // exactly when h is injective on the table, which is checked (another seed
+        // otherwise).
+        let (hash, by_hash) = (0u64..)
+            .find_map(|seed| {
+                let r: Vec<u64> = (0..n as u64)
+                    .map(|k| splitmix64(seed * 1_000_003 + k))
+                    .collect();
+                let hash: Vec<u64> = mons
+                    .iter()
+                    .map(|e| {
+                        e.iter().zip(&r).fold(0u64, |h, (&x, &rk)| {
+                            h.wrapping_add(rk.wrapping_mul(x as u64))
+                        })
+                    })
+                    .collect();
+                let mut by_hash: FxMap<u64, u32> = FxMap::default();
+                by_hash.reserve(len);
+                for (i, &h) in hash.iter().enumerate() {
+                    if by_hash.insert(h, i as u32).is_some() {
+                        return None;
+                    }
+                }
+                Some((hash, by_hash))
+            })
+            .expect("an injective seed exists");
         // On mixed tables, `upto[w]`: the monomials of weighted degree <= w in index
         // order (the partners of a monomial of weighted degree `order - w`), so that a
         // row costs its partners rather than a pass over the whole table.
@@ -353,11 +389,9 @@ impl Table {
             } else {
                 pre[(order - deg[i]) as usize]
             };
+            let hi = hash[i];
             for j in partners.iter().copied().chain(classic) {
-                for k in 0..n {
-                    key[k] = mons[i][k] + mons[j][k];
-                }
-                let idx = index[&key];
+                let idx = by_hash[&hi.wrapping_add(hash[j])];
                 count[idx as usize] += 1;
                 mul.push(idx);
                 if mixed {
@@ -1271,25 +1305,28 @@ impl Tm {
             ge[d] = up(ge[d] + ge[d + 1]);
         }
         let mut r = vec![0.0; len];
+        // Local slices: the scatter's stores cannot alias them, so the loops keep their
+        // pointers in registers instead of reloading them through `a` and `b`.
+        let (ac, rr) = (&a.c[..len], &mut r[..]);
+        let (mul, part, rowv) = (&t.mul[..], &t.part[..], &t.row[..]);
         // Plain sums of |a_i| le[keep_i] and |a_i| ge[keep_i + 1], bounded once below.
         let (mut kept, mut trunc, mut pairs, mut rows) = (0.0f64, 0.0f64, 0usize, 0usize);
-        for i in 0..len {
-            let ai = a.c[i];
+        for (i, &ai) in ac.iter().enumerate() {
             if ai == 0.0 {
                 continue;
             }
-            let keep = ord - t.wdeg[i] as usize;
-            let m = if t.part.is_empty() {
+            let keep = ord - wd[i] as usize;
+            let m = if part.is_empty() {
                 let m = t.pre[keep];
-                let row = &t.mul[t.row[i]..t.row[i] + m];
-                for (&bj, &k) in b.c[..m].iter().zip(row) {
-                    r[k as usize] += ai * bj;
+                let row = &mul[rowv[i]..rowv[i] + m];
+                for (&bj, &k) in bc[..m].iter().zip(row) {
+                    rr[k as usize] += ai * bj;
                 }
                 m
             } else {
-                let (s, e) = (t.row[i], t.row[i + 1]);
-                for (&j, &k) in t.part[s..e].iter().zip(&t.mul[s..e]) {
-                    r[k as usize] += ai * b.c[j as usize];
+                let (s, e) = (rowv[i], rowv[i + 1]);
+                for (&j, &k) in part[s..e].iter().zip(&mul[s..e]) {
+                    rr[k as usize] += ai * bc[j as usize];
                 }
                 e - s
             };
@@ -1732,5 +1769,52 @@ mod tests {
         assert_eq!(nonneg_sum_bound(f64::NAN, 10), f64::INFINITY);
         assert_eq!(nonneg_dot_bound(2.0, 0), 2.0);
         assert!(nonneg_dot_bound(0.0, 3) > 0.0);
+    }
+
+    /// The product table by exponent vectors, independently of the additive hash that
+    /// builds it: every entry of `mul` is the index of the sum of its pair's exponents,
+    /// every pair within the order appears once, and no other (classic and mixed
+    /// tables; the reach runs use 6 of weight 1 and up to 40 of weight 2).
+    #[test]
+    fn product_table_matches_exponent_sums() {
+        for &(n, order, full, lw) in &[(3, 4, 3, 1), (6, 4, 6, 1), (8, 4, 2, 2), (20, 4, 6, 2)] {
+            let t = Table::build(n, order, full, lw);
+            let len = t.len();
+            let w = |e: &[u8]| -> u32 {
+                e.iter()
+                    .enumerate()
+                    .map(|(k, &x)| if k < full { x as u32 } else { lw * x as u32 })
+                    .sum()
+            };
+            let mut seen = 0usize;
+            for i in 0..len {
+                let (s, e) = (t.row[i], t.row[i + 1]);
+                let partners: Vec<usize> = if t.part.is_empty() {
+                    (0..e - s).collect()
+                } else {
+                    t.part[s..e].iter().map(|&j| j as usize).collect()
+                };
+                let want: Vec<usize> = (0..len)
+                    .filter(|&j| w(t.exps(i)) + w(t.exps(j)) <= order)
+                    .collect();
+                assert_eq!(
+                    partners,
+                    want,
+                    "partners of {i} on {:?}",
+                    (n, order, full, lw)
+                );
+                for (&j, &k) in partners.iter().zip(&t.mul[s..e]) {
+                    let sum: Vec<u8> = t
+                        .exps(i)
+                        .iter()
+                        .zip(t.exps(j))
+                        .map(|(a, b)| a + b)
+                        .collect();
+                    assert_eq!(t.exps(k as usize), &sum[..]);
+                    seen += 1;
+                }
+            }
+            assert_eq!(seen, t.mul.len());
+        }
     }
 }
