@@ -10,7 +10,9 @@ process per cell, `--jobs` at a time; `docs/reach.md`, "Grids and shards"). A ce
 result file exists is not run again, so an interrupted run resumes, and the cells can be
 flown elsewhere (a job array) and their files copied into `--out`. Round 2 flies each
 cell that was lost, or whose x + y leaves the band, again from its own box cut in two
-along `--split` (default theta: measured to repair both kinds of failure).
+along `--split` (default theta: measured to repair both kinds of failure). Round 3,
+once round 2 is complete, flies the cells still lost or outside the band in four
+pieces along the same state.
 
 The band: x + y at t = 20 must lie within the flights' midpoint plus or minus their
 spread for the hull to be at most twice the spread (the criterion). The flights are the
@@ -19,8 +21,8 @@ cell's centre and corners), or `--band LO:HI` for a spread measured on uniform f
 (`docs/reach.md` gives [-3.905, 2.818] for the adversarial network, 10,000 DOP853
 flights, and [-5.79, 2.25] for the base one, 9,960).
 
-Standard library only. Writes DIR/cell-C.json (round 1), DIR/cell-C-split/ (round 2)
-and DIR/summary.json (atomically); exit 0 when the criterion is met, 1 when not (or
+Standard library only. Writes DIR/cell-C.json (round 1), DIR/cell-C-split/ (round 2),
+DIR/cell-C-quarters/ (round 3) and DIR/summary.json (atomically); exit 0 when the criterion is met, 1 when not (or
 not every cell is done), 2 on a usage error.
 
 `--ledger FILE` keeps one JSON line per finished cell and round (the run's settings,
@@ -105,7 +107,7 @@ def outcome(reach):
     return enc, m.get("sampled")
 
 
-def report_status(cells, again, final, n_cells, spread, band, in_band, ledger):
+def report_status(cells, again, again3, final, n_cells, spread, band, in_band, ledger):
     """`--status`: what is done, the hull so far and the core-seconds left (estimated
     from the mean cell so far and the share of cells that needed halves)."""
     r1 = [v["seconds"] for v in cells.values() if v["seconds"] is not None]
@@ -115,24 +117,34 @@ def report_status(cells, again, final, n_cells, spread, band, in_band, ledger):
     done2 = [c for c in again if (2, c) in ledger]
     r2 = [ledger[(2, c)]["seconds"] for c in done2 if ledger[(2, c)]["seconds"] is not None]
     repaired = sum(1 for c in done2 if in_band(cells[c]["second"]))
-    enclosed = [e for e in final.values() if e is not None]
+    enclosed = [e for c, e in final.items() if e is not None and (
+        in_band(cells[c]["enclosure"]) or (2, c) in ledger or (3, c) in ledger)]
     print(f"round 1: {len(cells)} of {n_cells} cells: "
           f"{len(cells) - lost - wide} in the band, {wide} too wide, {lost} lost")
     print(f"round 2: {len(done2)} of {len(again)} cells flown in halves, "
           f"{repaired} of them now in the band")
+    if again3:
+        done3 = [c for c in again3 if (3, c) in ledger]
+        repaired3 = sum(1 for c in done3 if in_band(cells[c]["third"]))
+        print(f"round 3: {len(done3)} of {len(again3)} cells flown in quarters, "
+              f"{repaired3} of them now in the band")
     print(f"band x + y in [{band[0]:.3f}, {band[1]:.3f}] (flights "
           f"[{spread[0]:.3f}, {spread[1]:.3f}])")
     if enclosed:
         print(f"hull of the {len(enclosed)} cells settled so far (in the band, or "
-              f"enclosed in halves): "
+              f"enclosed in halves or quarters): "
               f"[{min(e[0] for e in enclosed):.3f}, {max(e[1] for e in enclosed):.3f}]")
-    spent = sum(r1) + sum(r2)
+    r3 = [ledger[(3, c)]["seconds"] for c in again3
+          if (3, c) in ledger and ledger[(3, c)]["seconds"] is not None]
+    spent = sum(r1) + sum(r2) + sum(r3)
     if r1:
         mean1 = sum(r1) / len(r1)
         mean2 = sum(r2) / len(r2) if r2 else 2 * mean1
         share = len(again) / len(cells)
+        mean3 = sum(r3) / len(r3) if r3 else 2 * mean2
         left = mean1 * (n_cells - len(cells)) + mean2 * (
-            len(again) - len(done2) + share * (n_cells - len(cells)))
+            len(again) - len(done2) + share * (n_cells - len(cells))) + mean3 * (
+            len(again3) - len(r3))
         print(f"core-seconds: {spent:.0f} spent, about {left:.0f} left "
               f"(mean cell {mean1:.1f} s, halves {mean2:.1f} s, "
               f"{100 * share:.0f} % of cells need halves)")
@@ -204,7 +216,7 @@ def main():
         with open(a.ledger) as f:
             for line in f:
                 e = json.loads(line)
-                if e.get("settings") == settings and e["round"] in (1, 2):
+                if e.get("settings") == settings and e["round"] in (1, 2, 3):
                     ledger[(e["round"], e["cell"])] = e
 
     def record(rnd, c, box, enc, flights, seconds):
@@ -286,17 +298,20 @@ def main():
     # Round 2: the cells lost or outside the band, from their own box in two halves.
     again = [c for c, v in cells.items() if not in_band(v["enclosure"])]
 
-    def round2(c):
-        if (2, c) in ledger:
-            return c, ledger[(2, c)]["enclosure"]
-        d = os.path.join(a.out, f"cell-{c}-split")
+    def again_run(rnd, c):
+        """Round `rnd` (2 or 3) of cell `c`: its own box cut in 2 (round 2) or 4 (round
+        3) pieces along `--split`."""
+        if (rnd, c) in ledger:
+            return c, ledger[(rnd, c)]["enclosure"]
+        pieces, name = (2, "split") if rnd == 2 else (4, "quarters")
+        d = os.path.join(a.out, f"cell-{c}-{name}")
         if a.status and not os.path.isfile(os.path.join(d, "reach.json")):
             return c, None
         if not os.path.isfile(os.path.join(d, "reach.json")):
             box = [tuple(b) for b in cells[c]["box"]]
             cmd = [samara, "reach"] + common + box_flags(box) + \
                 ["--samples", str(max(8, a.samples // n_cells)),
-                 "--grid", f"{a.split}=2", "--out", d]
+                 "--grid", f"{a.split}={pieces}", "--out", d]
             run(cmd, d + ".log")
         try:
             with open(os.path.join(d, "reach.json")) as f:
@@ -304,17 +319,27 @@ def main():
         except (OSError, ValueError, KeyError):
             return c, None
         enc, flights = outcome(res)
-        record(2, c, cells[c]["box"], enc, flights, res.get("seconds"))
+        record(rnd, c, cells[c]["box"], enc, flights, res.get("seconds"))
         return c, enc
 
-    with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
-        for c, enc in pool.map(round2, again):
-            cells[c]["second"] = enc
-            if a.status:
-                continue
-            print(f"cell {c} in halves: {'enclosed' if enc else 'lost'}", flush=True)
+    def fly_again(rnd, todo):
+        key, pieces = ("second", "halves") if rnd == 2 else ("third", "quarters")
+        with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
+            for c, enc in pool.map(lambda c: again_run(rnd, c), todo):
+                cells[c][key] = enc
+                if not a.status:
+                    print(f"cell {c} in {pieces}: {'enclosed' if enc else 'lost'}",
+                          flush=True)
 
-    final = {c: v.get("second", v["enclosure"]) for c, v in cells.items()}
+    fly_again(2, again)
+    # Round 3: the cells still lost or outside the band after round 2, in quarters.
+    # Only once round 2 has flown all its cells (so `--status` counts it right).
+    again3 = []
+    if all((2, c) in ledger for c in again):
+        again3 = [c for c in again if not in_band(cells[c]["second"])]
+    fly_again(3, again3)
+
+    final = {c: v.get("third", v.get("second", v["enclosure"])) for c, v in cells.items()}
     missing = [c for c in range(n_cells) if final.get(c) is None]
     hull = None
     if not missing:
@@ -322,12 +347,12 @@ def main():
     ratio = (hull[1] - hull[0]) / width if hull else None
     met = ratio is not None and ratio <= 2.0
     if a.status:
-        report_status(cells, again, final, n_cells, spread, (mid - width, mid + width),
+        report_status(cells, again, again3, final, n_cells, spread, (mid - width, mid + width),
                       in_band, ledger)
         return 0 if met else 1
     summary = {
         "network": a.network, "grid": grid, "scale": a.scale, "cells": n_cells,
-        "done": len(cells), "second_round": len(again),
+        "done": len(cells), "second_round": len(again), "third_round": len(again3),
         "lost_or_missing": missing, "flights": list(spread),
         "flights_source": "--band" if band else "the cells' own flights",
         "hull": list(hull) if hull else None, "ratio": ratio,
