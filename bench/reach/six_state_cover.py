@@ -62,6 +62,9 @@ STATES = ["v_xp", "v_yp", "omega", "theta", "x", "y"]
 CENTRE = [1.0, 0.0, 0.0, 0.0, 0.0, None]
 RADIUS = [0.01, 0.01, 0.01, 0.01, 0.05, None]
 Y0 = (0.1 / 0.07, 0.3 / 0.07)
+# Rounds 2 and 3: the cell's key for the result, the pieces' word, how many pieces
+# along --split, and the result folder's suffix.
+AGAIN = {2: ("second", "halves", 2, "split"), 3: ("third", "quarters", 4, "quarters")}
 
 
 def initial_box(scale):
@@ -303,7 +306,7 @@ def main():
         3) pieces along `--split`."""
         if (rnd, c) in ledger:
             return c, ledger[(rnd, c)]["enclosure"]
-        pieces, name = (2, "split") if rnd == 2 else (4, "quarters")
+        _, _, pieces, name = AGAIN[rnd]
         d = os.path.join(a.out, f"cell-{c}-{name}")
         if a.status and not os.path.isfile(os.path.join(d, "reach.json")):
             return c, None
@@ -323,7 +326,7 @@ def main():
         return c, enc
 
     def fly_again(rnd, todo):
-        key, pieces = ("second", "halves") if rnd == 2 else ("third", "quarters")
+        key, pieces, _, _ = AGAIN[rnd]
         with concurrent.futures.ThreadPoolExecutor(a.jobs) as pool:
             for c, enc in pool.map(lambda c: again_run(rnd, c), todo):
                 cells[c][key] = enc
