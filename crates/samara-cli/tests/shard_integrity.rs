@@ -311,3 +311,142 @@ fn vnncomp_merge_refuses_tampered_shards() {
     assert!(text.lines().nth(2).unwrap().contains(",sat,"), "{text}");
     assert!(!text.contains("unsat,0.0,phase"), "{text}");
 }
+
+/// The first `n` rows of the published normalised training data, in `dir`.
+fn robustness_data(dir: &Path, n: usize) -> PathBuf {
+    let text = std::fs::read_to_string(reference("Training_Data_Normalised.csv")).unwrap();
+    let rows: Vec<&str> = text.lines().take(n).collect();
+    let p = dir.join("data.csv");
+    std::fs::write(&p, rows.join("\n") + "\n").unwrap();
+    p
+}
+
+/// `samara robustness` on the copied network and `data` with two radii, plus `extra`.
+fn robustness(dir: &Path, data: &Path, extra: &[&OsStr]) -> (Option<i32>, String, String) {
+    let net = dir.join("net.onnx");
+    if !net.exists() {
+        std::fs::copy(reference("base_model_norm.onnx"), &net).unwrap();
+    }
+    let mut a: Vec<&OsStr> = vec![
+        "robustness".as_ref(),
+        "--network".as_ref(),
+        net.as_os_str(),
+        "--data".as_ref(),
+        data.as_os_str(),
+        "--eps".as_ref(),
+        "1e-3,1e-2".as_ref(),
+        "--lipschitz".as_ref(),
+        "1e-3,1e-1".as_ref(),
+    ];
+    a.extend(extra);
+    run(&a)
+}
+
+fn robustness_shard(dir: &Path, data: &Path, i: usize, file: &Path) {
+    let s = format!("{i}/2");
+    let (code, o, e) = robustness(
+        dir,
+        data,
+        &[
+            "--shard".as_ref(),
+            s.as_ref(),
+            "--out".as_ref(),
+            file.as_os_str(),
+        ],
+    );
+    assert_eq!(code, Some(0), "{o}{e}");
+}
+
+#[test]
+fn robustness_merge_refuses_edited_inputs_and_tampered_shards() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let data = robustness_data(d, 6);
+    let (s0, s1) = (d.join("s0.json"), d.join("s1.json"));
+    let out = d.join("merged.csv");
+    // Honest: the merge is the one-process run (the per-point CSV byte for byte).
+    let full = d.join("full.csv");
+    let (code, one, e) = robustness(
+        d,
+        &data,
+        &["--json".as_ref(), "--out".as_ref(), full.as_os_str()],
+    );
+    assert_eq!(code, Some(0), "{one}{e}");
+    robustness_shard(d, &data, 0, &s0);
+    robustness_shard(d, &data, 1, &s1);
+    let (code, m, e) = run(&[
+        "merge".as_ref(),
+        "robustness".as_ref(),
+        s1.as_os_str(),
+        s0.as_os_str(),
+        "--json".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert_eq!(code, Some(0), "{m}{e}");
+    assert_eq!(
+        std::fs::read_to_string(&full).unwrap(),
+        std::fs::read_to_string(&out).unwrap()
+    );
+    assert_eq!(
+        strip(serde_json::from_str(&one).unwrap()),
+        strip(serde_json::from_str(&m).unwrap())
+    );
+    std::fs::remove_file(&out).unwrap();
+    let (v0, v1) = (read(&s0), read(&s1));
+    let t = d.join("t.json");
+    // Not re-sealed.
+    let mut v = v1.clone();
+    v["result"]["points"][0]["f_max"] = "0.5".into();
+    write(&t, v, false);
+    let e = merge_refused("robustness", &[&s0, &t], &out);
+    assert!(
+        e.contains("t.json") && e.contains("payload digest does not match"),
+        "{e}"
+    );
+    // Re-sealed: a point twice, a point of another shard, bounds that cross.
+    let mut v = v1.clone();
+    let pts = v["result"]["points"].as_array_mut().unwrap();
+    pts[1] = pts[0].clone();
+    write(&t, v, true);
+    let e = merge_refused("robustness", &[&s0, &t], &out);
+    assert!(
+        e.contains("t.json") && e.contains("appears more than once"),
+        "{e}"
+    );
+    let mut v = v1.clone();
+    v["result"]["points"][0] = v0["result"]["points"][0].clone();
+    write(&t, v, true);
+    let e = merge_refused("robustness", &[&s0, &t], &out);
+    assert!(
+        e.contains("t.json") && e.contains("is not of this shard's rows 3..6"),
+        "{e}"
+    );
+    let mut v = v1.clone();
+    let f_max = v["result"]["points"][0]["f_max"].clone();
+    v["result"]["points"][0]["f_min"] = f_max;
+    v["result"]["points"][0]["f_max"] = "-1e300".into();
+    write(&t, v, true);
+    let e = merge_refused("robustness", &[&s0, &t], &out);
+    assert!(
+        e.contains("t.json") && e.contains("contradict each other"),
+        "{e}"
+    );
+    let mut v = v1.clone();
+    v["result"]["points"].as_array_mut().unwrap().pop();
+    write(&t, v, true);
+    let e = merge_refused("robustness", &[&s0, &t], &out);
+    assert!(e.contains("t.json") && e.contains("cut short"), "{e}");
+    // The data edited between the shards' runs (a value changed, the row count kept).
+    let text = std::fs::read_to_string(&data).unwrap();
+    std::fs::write(&data, text.replacen("0.75", "0.5", 1)).unwrap();
+    robustness_shard(d, &data, 1, &s1);
+    let e = merge_refused("robustness", &[&s0, &s1], &out);
+    assert!(
+        e.contains("s0.json")
+            && e.contains("s1.json")
+            && e.contains("input `--data` changed between the shards' runs"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
