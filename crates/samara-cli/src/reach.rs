@@ -447,22 +447,7 @@ fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
     }
     // The flags are checked; now the network, then the library's own check of the
     // settings against it.
-    if !a.network.exists() {
-        bail!(
-            "--network {}: no such file; give the path of an .onnx controller with 6 raw inputs and 1 output (e.g. base_model_denorm.onnx)",
-            a.network.display()
-        );
-    }
-    let net = crate::nnload::load_network(&a.network).with_context(|| {
-        format!(
-            "--network {}: cannot load the network; give an ONNX file samara can read",
-            a.network.display()
-        )
-    })?;
-    let net = match &decl {
-        Some(d) => spec_controller(net, d, &a.network)?,
-        None => net,
-    };
+    let net = controller(&a.network, decl.as_ref())?;
     settings.validate(&net).map_err(|e| match e {
         samara_reach::ReachError::NetworkShape { .. } => {
             anyhow!("--network {}: {e}", a.network.display())
@@ -472,6 +457,27 @@ fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
         _ => anyhow!("{e}"),
     })?;
     Ok(Plan { settings, net })
+}
+
+/// The controller a run flies: the `--network` file, with the normalisation of `--spec`'s
+/// network declaration composed (`decl`).
+fn controller(network: &Path, decl: Option<&NetDecl>) -> Result<samara_nn::Network> {
+    if !network.exists() {
+        bail!(
+            "--network {}: no such file; give the path of an .onnx controller with 6 raw inputs and 1 output (e.g. base_model_denorm.onnx)",
+            network.display()
+        );
+    }
+    let net = crate::nnload::load_network(network).with_context(|| {
+        format!(
+            "--network {}: cannot load the network; give an ONNX file samara can read",
+            network.display()
+        )
+    })?;
+    match decl {
+        Some(d) => spec_controller(net, d, network),
+        None => Ok(net),
+    }
 }
 
 /// `--order` and `--timeout` do not apply to zonotope sets.
@@ -854,15 +860,23 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     }
     let (prep, range, flown) = done.map_err(|e| anyhow!("{e}"))?;
     let secs = t0.elapsed().as_secs_f64();
-    let run = run_json(
-        s,
-        &shard::digest_file(&a.network, "--network")?,
-        prep.pieces(),
-    );
+    let mut inputs = vec![(
+        "--network".to_string(),
+        a.network.as_path(),
+        "--network".to_string(),
+    )];
+    if let Some(p) = &a.spec {
+        inputs.push(("--spec".to_string(), p.as_path(), "--spec".to_string()));
+    }
+    let run = run_json(s, shard::digest_inputs(inputs)?, prep.pieces());
     let mut result = json!({
         "pieces": [range.start, range.end],
         "shared": shared_json(&prep),
         "network": a.network.display().to_string(),
+        // Where the merge reads the controller back to re-check a counterexample.
+        "network_file": shard::resolved(&a.network),
+        "spec_file": a.spec.as_deref().map(shard::resolved),
+        "loop": a.loop_name,
         "threads": a.threads.unwrap_or_else(rayon::current_num_threads),
         "seconds": secs,
         "subboxes": flown.iter().map(flown_json).collect::<Vec<_>>(),
@@ -921,11 +935,11 @@ fn read_f(v: &Value, what: &str) -> Result<f64> {
         .ok_or_else(|| anyhow!("{what}: expected a number text, found {v}"))
 }
 
-/// The inputs and settings every shard of one run shares (`run` of the shard file):
-/// numbers as exact text, so the merge rebuilds the settings bit for bit.
-fn run_json(s: &ReachSettings, network_digest: &str, pieces: usize) -> Value {
+/// The inputs (content digests of `--network` and `--spec`) and settings every shard of
+/// one run shares (`run` of the shard file): numbers as exact text, so the merge rebuilds the settings bit for bit.
+fn run_json(s: &ReachSettings, inputs: Value, pieces: usize) -> Value {
     json!({
-        "network": network_digest,
+        "inputs": inputs,
         "samara": env!("CARGO_PKG_VERSION"),
         "model": s.model.name(),
         "init": s.init.iter().map(|&(lo, hi)| pair([lo, hi])).collect::<Vec<_>>(),
@@ -1146,6 +1160,51 @@ fn missing(
     )
 }
 
+/// The merge's re-check of the shards' counterexample (a sampled trajectory that misses
+/// the goal): the controller read back from where shard 0 found it (with its --spec),
+/// which must be the files the shards digested, and the trajectory flown again
+/// ([`samara_reach::verdict::recheck_violation`], the run's own falsification test).
+fn recheck_counterexample(
+    run: &Value,
+    r0: &Value,
+    file0: &Path,
+    s: &ReachSettings,
+    v: &Verdict,
+) -> Result<()> {
+    let at = format!("{}: the counterexample", file0.display());
+    let path = |k: &str| -> Result<Option<PathBuf>> {
+        match &r0[k] {
+            Value::Null => Ok(None),
+            Value::String(p) => Ok(Some(PathBuf::from(p))),
+            x => bail!("{}: bad `{k}` ({x})", file0.display()),
+        }
+    };
+    let network =
+        path("network_file")?.ok_or_else(|| anyhow!("{}: no `network_file`", file0.display()))?;
+    let spec = path("spec_file")?;
+    for (flag, p) in [("--network", Some(&network)), ("--spec", spec.as_ref())] {
+        let Some(p) = p else { continue };
+        let now = shard::digest_file(p, &format!("{at}: re-checking it needs {flag}"))?;
+        if run["inputs"][flag] != now.as_str() {
+            bail!(
+                "{at}: input `{flag}` ({}) changed since the shards ran (content digest {} then, {now} now); run every shard again",
+                p.display(),
+                run["inputs"][flag]
+            );
+        }
+    }
+    let decl = match &spec {
+        Some(p) => Some(spec_settings(p, r0["loop"].as_str())?.1),
+        None => None,
+    };
+    let net = controller(&network, decl.as_ref())?;
+    samara_reach::verdict::recheck_violation(&net, s, v).map_err(|e| {
+        anyhow!(
+            "{at} does not hold: {e}; the shard is damaged or tampered with, run the shards again"
+        )
+    })
+}
+
 /// `samara merge reach`: the N shards' flown sub-boxes, the run's refinement replayed
 /// over them (`samara_reach::parts::refine`: the same rounds and sub-box budget as one
 /// process), then `DIR/reach.json` and the figures as one process writes them. The
@@ -1244,6 +1303,9 @@ pub fn merge_reach(
             x_plus_y: read_f(&v["x_plus_y"], "violation.x_plus_y")?,
         }),
     };
+    if let Some(v) = &violation {
+        recheck_counterexample(run, r0, file0, &s, v)?;
+    }
     let (verdict, fin) = parts::finish(&s, violation, &mut done);
     let o = Outcome {
         verdict: &verdict,

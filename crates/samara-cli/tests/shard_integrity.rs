@@ -10,6 +10,7 @@ use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
 mod support;
+use support::sealing::write_shard as write;
 use support::{reference, samara};
 
 fn run<S: AsRef<OsStr>>(args: &[S]) -> (Option<i32>, String, String) {
@@ -21,31 +22,8 @@ fn run<S: AsRef<OsStr>>(args: &[S]) -> (Option<i32>, String, String) {
     )
 }
 
-/// 64-bit FNV-1a (its published offset basis and prime), written here independently of
-/// samara's, to re-seal a shard after editing it as a forger would.
-fn fnv1a(b: &[u8]) -> String {
-    let mut h: u64 = 14_695_981_039_346_656_037;
-    for x in b {
-        h ^= u64::from(*x);
-        h = h.wrapping_mul(1_099_511_628_211);
-    }
-    format!("{h:016x}")
-}
-
 fn read(p: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
-}
-
-/// Write `v` back; with `reseal`, with its payload digest recomputed (the canonical
-/// serde_json text of the document without `digest`), so only the deeper checks can
-/// catch the edit.
-fn write(p: &Path, mut v: Value, reseal: bool) {
-    if reseal {
-        v.as_object_mut().unwrap().remove("digest");
-        let d = fnv1a(serde_json::to_string(&v).unwrap().as_bytes());
-        v["digest"] = Value::String(d);
-    }
-    std::fs::write(p, serde_json::to_string_pretty(&v).unwrap()).unwrap();
 }
 
 /// `samara merge KIND FILES... --out OUT` must fail with exit 2; returns stderr.
@@ -446,6 +424,104 @@ fn robustness_merge_refuses_edited_inputs_and_tampered_shards() {
         e.contains("s0.json")
             && e.contains("s1.json")
             && e.contains("input `--data` changed between the shards' runs"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}
+
+/// `samara reach --network NET ARGS --shard I/2 --out FILE --threads 2` (exit 0).
+fn reach_shard(net: &Path, args: &[&str], i: usize, file: &Path) {
+    let s = format!("{i}/2");
+    let mut a: Vec<&OsStr> = vec!["reach".as_ref(), "--network".as_ref(), net.as_os_str()];
+    a.extend(args.iter().map(OsStr::new));
+    a.extend([
+        "--threads".as_ref(),
+        "2".as_ref(),
+        "--shard".as_ref(),
+        s.as_ref(),
+        "--out".as_ref(),
+        file.as_os_str(),
+    ]);
+    let (code, o, e) = run(&a);
+    assert_eq!(code, Some(0), "{o}{e}");
+}
+
+/// A short flight whose goal band the highest starts miss at once: violated, with a
+/// sampled counterexample that every shard carries.
+const VIOLATED: [&str; 8] = [
+    "--y0",
+    "2.0:2.1",
+    "--horizon",
+    "0.5",
+    "--goal-ystar",
+    "2.05",
+    "--goal-from",
+    "0",
+];
+
+#[test]
+fn reach_merge_refuses_edited_inputs_and_tampered_shards() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let net = d.join("net.onnx");
+    std::fs::copy(reference("base_model_denorm.onnx"), &net).unwrap();
+    let (s0, s1) = (d.join("s0.json"), d.join("s1.json"));
+    let out = d.join("merged");
+    reach_shard(&net, &VIOLATED, 0, &s0);
+    reach_shard(&net, &VIOLATED, 1, &s1);
+    // Honest: merged, violated (exit 1), the counterexample re-checked.
+    let (code, o, e) = run(&[
+        "merge".as_ref(),
+        "reach".as_ref(),
+        s0.as_os_str(),
+        s1.as_os_str(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]);
+    assert_eq!(code, Some(1), "{o}{e}");
+    assert!(o.starts_with("violated"), "{o}");
+    std::fs::remove_dir_all(&out).unwrap();
+    let (v0, v1) = (read(&s0), read(&s1));
+    assert!(v0["result"]["shared"]["violation"].is_object(), "{v0}");
+    let (t0, t1) = (d.join("t0.json"), d.join("t1.json"));
+    // Not re-sealed: a sub-box's enclosure narrowed.
+    let mut v = v1.clone();
+    v["result"]["subboxes"][0]["leaf"]["steps"][0]["x_plus_y"][0] = "0.0".into();
+    write(&t1, v, false);
+    let e = merge_refused("reach", &[&s0, &t1], &out);
+    assert!(
+        e.contains("t1.json") && e.contains("payload digest does not match"),
+        "{e}"
+    );
+    // Re-sealed: the counterexample moved (in both shards, which must agree) so that its
+    // flight no longer misses the goal where it says.
+    for (v, t) in [(&v0, &t0), (&v1, &t1)] {
+        let mut v = v.clone();
+        v["result"]["shared"]["violation"]["x_plus_y"] = "3.5".into();
+        write(t, v, true);
+    }
+    let e = merge_refused("reach", &[&t0, &t1], &out);
+    assert!(
+        e.contains("t0.json: the counterexample does not hold"),
+        "{e}"
+    );
+    // The network replaced between the shards' runs.
+    std::fs::copy(reference("adversarial_model_denorm.onnx"), &net).unwrap();
+    reach_shard(&net, &VIOLATED, 1, &s1);
+    let e = merge_refused("reach", &[&s0, &s1], &out);
+    assert!(
+        e.contains("s0.json")
+            && e.contains("s1.json")
+            && e.contains("input `--network` changed between the shards' runs"),
+        "{e}"
+    );
+    // ... or after both ran: the merge's re-check reads it back.
+    std::fs::copy(reference("base_model_denorm.onnx"), &net).unwrap();
+    reach_shard(&net, &VIOLATED, 1, &s1);
+    std::fs::copy(reference("adversarial_model_denorm.onnx"), &net).unwrap();
+    let e = merge_refused("reach", &[&s0, &s1], &out);
+    assert!(
+        e.contains("input `--network`") && e.contains("changed since the shards ran"),
         "{e}"
     );
     assert!(!out.exists());

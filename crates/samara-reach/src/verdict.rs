@@ -116,6 +116,45 @@ pub(crate) fn first_violation(samples: &[Sample], g: &Goal, s: &ReachSettings) -
     None
 }
 
+/// Re-check a `Violated` verdict concretely: the trajectory from its initial state (a
+/// point of the initial set) is flown again exactly as the run's samples are
+/// ([`simulate_one`](crate::sampling::simulate_one)) and must miss the goal where and
+/// as the verdict says, bit for bit ([`first_violation`], the run's own test). Used by
+/// `samara merge reach` on the counterexample its shards carry.
+pub fn recheck_violation(
+    net: &samara_nn::Network,
+    s: &ReachSettings,
+    v: &Verdict,
+) -> Result<(), String> {
+    let Verdict::Violated { initial, .. } = v else {
+        return Err(format!("a `{}` verdict is not a counterexample", v.name()));
+    };
+    let Some(g) = &s.goal else {
+        return Err("the run has no goal to violate".into());
+    };
+    if initial.len() != s.init.len()
+        || !initial
+            .iter()
+            .zip(&s.init)
+            .all(|(x, (lo, hi))| lo <= x && x <= hi)
+    {
+        return Err(format!(
+            "its initial state {initial:?} is not a point of the initial set"
+        ));
+    }
+    let plant = samara_plant::Plant::new(s.model);
+    let smp = crate::sampling::simulate_one(&plant, net, s, initial)
+        .ok_or_else(|| format!("the flight from {initial:?} fails"))?;
+    match first_violation(&[smp], g, s) {
+        Some(w) if &w == v => Ok(()),
+        Some(w) => Err(format!(
+            "the flight from it misses the goal elsewhere ({})",
+            w.reason()
+        )),
+        None => Err(format!("the flight from {initial:?} meets the goal")),
+    }
+}
+
 /// The verdict of a run: no goal, the falsifying trajectory if there is one, unknown if
 /// a sub-box lost its enclosure, proved if every sub-box's enclosures lie in the band
 /// (the goal [`leaf_goal`] found on each flown sub-box; `fin`: the hull of `x + y` at the
