@@ -523,6 +523,8 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         "auto" => {
             // The Taylor-model flags are checked now, not after the zonotope run.
             crate::reach_system::taylor_settings(a)?;
+            // On to Taylor-model sets when the zonotopes leave the goal unknown, or lose
+            // the enclosure with no goal (no result over the horizon either way).
             let (code, unknown) = run_zonotope(a, true)?;
             if !unknown {
                 return Ok(code);
@@ -533,7 +535,7 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
             // The zonotope run started the thread pool already.
             t.threads = None;
             eprintln!(
-                "--sets auto: the zonotope sets left the goal unknown (reach.json in {}); now Taylor-model sets, written to {}",
+                "--sets auto: the zonotope sets left the goal unknown or lost the enclosure (reach.json in {}); now Taylor-model sets, written to {}",
                 a.out.display(),
                 t.out.display()
             );
@@ -579,9 +581,10 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     crate::reach_system::run_system(a, &sys, Path::new("built-in setting"), &plan.net, vec![xy])
 }
 
-/// The built-in glider setting on zonotope sets; also whether the verdict is `unknown`.
-/// With `quiet_unknown` an `unknown` verdict is reported on stderr only (files written),
-/// leaving stdout to the run that follows (`--sets auto`).
+/// The built-in glider setting on zonotope sets; also whether the run has no result
+/// (the verdict is `unknown`, or there is no goal and a sub-box lost its enclosure). With
+/// `quiet_unknown` such a run is reported on stderr only (files written), leaving stdout
+/// to the run that follows (`--sets auto`).
 fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> {
     let plan = plan(a, false)?;
     start_threads(a)?;
@@ -596,7 +599,7 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
     }
     let res = res.map_err(|e| anyhow!("{e}"))?;
 
-    let o = Outcome::of(&res);
+    let o = Outcome::of(&res, &plan.settings);
     let settings = settings_json(
         &a.network.display().to_string(),
         a.threads.unwrap_or_else(rayon::current_num_threads),
@@ -618,7 +621,7 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
         plan.settings.goal.as_ref().map(|g| g.ystar),
     )
     .render(&a.out.join("reach.png"), &a.out.join("reach.svg"))?;
-    let unknown = matches!(o.verdict, Verdict::Unknown { .. });
+    let unknown = matches!(o.verdict, Verdict::Unknown { .. }) || o.lost.is_some();
     if unknown && quiet_unknown {
         eprintln!("{}", human_line(&plan.settings, &o));
         out.keep();
@@ -643,6 +646,8 @@ fn finish(
     }
     out.keep();
     Ok(match o.verdict {
+        // No goal, but a sub-box lost its enclosure: no result over the horizon.
+        Verdict::NoGoal if o.lost.is_some() => ExitCode::from(1),
         Verdict::Proved | Verdict::NoGoal => ExitCode::SUCCESS,
         Verdict::Violated { .. } | Verdict::Unknown { .. } => ExitCode::from(1),
     })
@@ -727,11 +732,15 @@ struct Outcome<'a> {
     subproblems: usize,
     seconds: f64,
     sampled_trajectories: usize,
+    /// Where a sub-box lost its enclosure, if one did
+    /// (`samara_reach::verdict::lost_enclosure`).
+    lost: Option<String>,
 }
 
 impl<'a> Outcome<'a> {
-    fn of(res: &'a ReachResult) -> Self {
+    fn of(res: &'a ReachResult, s: &ReachSettings) -> Self {
         Outcome {
+            lost: samara_reach::verdict::lost_enclosure(&res.leaves, s),
             verdict: &res.verdict,
             final_x_plus_y: res.final_x_plus_y,
             sampled_x_plus_y: res.sampled_x_plus_y,
@@ -759,6 +768,7 @@ fn report_json(settings: Value, s: &ReachSettings, res: &Outcome, leaves: Value)
         "subproblems": res.subproblems,
         "seconds": res.seconds,
         "sampled_trajectories": res.sampled_trajectories,
+        "enclosure_lost": res.lost,
         "state_names": &STATE_NAMES[..s.model.dim()],
         "leaves": leaves,
     })
@@ -780,6 +790,7 @@ fn summary(res: &Outcome, out: &Path) -> serde_json::Value {
     m.insert("width_ratio".into(), num(res.width_ratio()));
     m.insert("subproblems".into(), serde_json::json!(res.subproblems));
     m.insert("seconds".into(), serde_json::json!(res.seconds));
+    m.insert("enclosure_lost".into(), serde_json::json!(res.lost));
     m.insert("out".into(), serde_json::json!(out.display().to_string()));
     v
 }
@@ -796,6 +807,10 @@ fn human_line(s: &ReachSettings, res: &Outcome) -> String {
     };
     let detail = match res.verdict {
         Verdict::Unknown { reason } => format!("; reason: {reason}"),
+        Verdict::NoGoal => match &res.lost {
+            Some(why) => format!("; no result: {why}"),
+            None => String::new(),
+        },
         Verdict::Violated {
             initial,
             t,
@@ -1308,6 +1323,7 @@ pub fn merge_reach(
     }
     let (verdict, fin) = parts::finish(&s, violation, &mut done);
     let o = Outcome {
+        lost: samara_reach::verdict::lost_enclosure(done.iter().map(|f| &f.leaf), &s),
         verdict: &verdict,
         final_x_plus_y: fin,
         sampled_x_plus_y: read_pair(&sh["sampled_x_plus_y"], "sampled_x_plus_y")?,
