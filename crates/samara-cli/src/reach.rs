@@ -459,6 +459,16 @@ fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
     Ok(Plan { settings, net })
 }
 
+/// A network in the wrong units (`ReachSettings::units_warning`: its outputs at the
+/// initial set's corners far outside the actuator range), as a warning naming the flag.
+fn units_warnings(a: &ReachArgs, plan: &Plan) -> Vec<String> {
+    plan.settings
+        .units_warning(&plan.net)
+        .map(|w| format!("--network {}: {w}", a.network.display()))
+        .into_iter()
+        .collect()
+}
+
 /// The controller a run flies: the `--network` file, with the normalisation of `--spec`'s
 /// network declaration composed (`decl`).
 fn controller(network: &Path, decl: Option<&NetDecl>) -> Result<samara_nn::Network> {
@@ -565,6 +575,9 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     tuned.lift_at = a.lift_at.or(Some(GLIDER_LIFT_AT));
     let a = &tuned;
     let plan = plan(a, a.shard.is_some())?;
+    for w in units_warnings(a, &plan) {
+        eprintln!("warning: {w}");
+    }
     let sys = crate::reach_system::builtin_system(&plan.settings)?;
     // The published setting's measure, x + y (its width against the flights').
     let mut coef = vec![0.0; sys.dim()];
@@ -587,6 +600,10 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
 /// to the run that follows (`--sets auto`).
 fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> {
     let plan = plan(a, false)?;
+    let warnings = units_warnings(a, &plan);
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     start_threads(a)?;
     // Output directory: create and probe before the (possibly long) analysis; a failed
     // run removes the folders it created.
@@ -599,7 +616,7 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
     }
     let res = res.map_err(|e| anyhow!("{e}"))?;
 
-    let o = Outcome::of(&res, &plan.settings);
+    let o = Outcome::of(&res, &plan.settings, warnings);
     let settings = settings_json(
         &a.network.display().to_string(),
         a.threads.unwrap_or_else(rayon::current_num_threads),
@@ -735,11 +752,14 @@ struct Outcome<'a> {
     /// Where a sub-box lost its enclosure, if one did
     /// (`samara_reach::verdict::lost_enclosure`).
     lost: Option<String>,
+    /// Warnings on the inputs ([`units_warnings`]), in the JSON as `warnings`.
+    warnings: Vec<String>,
 }
 
 impl<'a> Outcome<'a> {
-    fn of(res: &'a ReachResult, s: &ReachSettings) -> Self {
+    fn of(res: &'a ReachResult, s: &ReachSettings, warnings: Vec<String>) -> Self {
         Outcome {
+            warnings,
             lost: samara_reach::verdict::lost_enclosure(&res.leaves, s),
             verdict: &res.verdict,
             final_x_plus_y: res.final_x_plus_y,
@@ -769,6 +789,7 @@ fn report_json(settings: Value, s: &ReachSettings, res: &Outcome, leaves: Value)
         "seconds": res.seconds,
         "sampled_trajectories": res.sampled_trajectories,
         "enclosure_lost": res.lost,
+        "warnings": res.warnings,
         "state_names": &STATE_NAMES[..s.model.dim()],
         "leaves": leaves,
     })
@@ -791,6 +812,7 @@ fn summary(res: &Outcome, out: &Path) -> serde_json::Value {
     m.insert("subproblems".into(), serde_json::json!(res.subproblems));
     m.insert("seconds".into(), serde_json::json!(res.seconds));
     m.insert("enclosure_lost".into(), serde_json::json!(res.lost));
+    m.insert("warnings".into(), serde_json::json!(res.warnings));
     m.insert("out".into(), serde_json::json!(out.display().to_string()));
     v
 }
@@ -862,6 +884,10 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     }
     let plan = plan(a, true)?;
     let s = &plan.settings;
+    let warnings = units_warnings(a, &plan);
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     start_threads(a)?;
     let t0 = Instant::now();
     let spinner = progress(s);
@@ -892,6 +918,7 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
         "network_file": shard::resolved(&a.network),
         "spec_file": a.spec.as_deref().map(shard::resolved),
         "loop": a.loop_name,
+        "warnings": warnings,
         "threads": a.threads.unwrap_or_else(rayon::current_num_threads),
         "seconds": secs,
         "subboxes": flown.iter().map(flown_json).collect::<Vec<_>>(),
@@ -1324,6 +1351,8 @@ pub fn merge_reach(
     let (verdict, fin) = parts::finish(&s, violation, &mut done);
     let o = Outcome {
         lost: samara_reach::verdict::lost_enclosure(done.iter().map(|f| &f.leaf), &s),
+        warnings: serde_json::from_value(r0["warnings"].clone())
+            .map_err(|e| anyhow!("{}: bad `warnings`: {e}", file0.display()))?,
         verdict: &verdict,
         final_x_plus_y: fin,
         sampled_x_plus_y: read_pair(&sh["sampled_x_plus_y"], "sampled_x_plus_y")?,
@@ -1334,6 +1363,9 @@ pub fn merge_reach(
             .and_then(|n| usize::try_from(n).ok())
             .ok_or_else(|| anyhow!("{}: bad `sampled_trajectories`", file0.display()))?,
     };
+    for w in &o.warnings {
+        eprintln!("warning: {w}");
+    }
     let network = r0["network"]
         .as_str()
         .ok_or_else(|| anyhow!("{}: bad `network`", file0.display()))?;
