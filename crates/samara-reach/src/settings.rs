@@ -140,7 +140,7 @@ pub fn units_warning(net: &Network, states: &[Vec<f64>], range: (f64, f64)) -> O
                 **y - range.1
             };
             // NaN counts as far: no control at all.
-            !(d <= UNITS_FACTOR * width)
+            d.is_nan() || d > UNITS_FACTOR * width
         })
         .count();
     if outs.is_empty() || 2 * far <= outs.len() {
