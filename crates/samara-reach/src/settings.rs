@@ -294,3 +294,47 @@ impl ReachSettings {
         self.steps()
     }
 }
+
+#[cfg(test)]
+mod units_tests {
+    use super::*;
+    use samara_nn::{Affine, Layer};
+
+    /// `ex = w * y + b` over the six states (only y, the sixth, weighs).
+    fn net(w: f64, b: f64) -> Network {
+        Network {
+            input_names: (0..6).map(|i| format!("s{i}")).collect(),
+            output_names: vec!["ex".into()],
+            input_norm: None,
+            layers: vec![Layer::Affine(Affine::new(
+                6,
+                1,
+                vec![0.0, 0.0, 0.0, 0.0, 0.0, w],
+                vec![b],
+            ))],
+            output_denorm: None,
+        }
+    }
+
+    #[test]
+    fn units_warning_needs_most_outputs_far_outside_the_range() {
+        let states: Vec<Vec<f64>> = [1.0, 2.0, 3.0]
+            .iter()
+            .map(|&y| vec![1.0, 0.0, 0.0, 0.0, 0.0, y])
+            .collect();
+        let range = (0.181, 0.193);
+        // Ten widths of the range is 0.12 on either side.
+        assert!(units_warning(&net(0.0, 0.187), &states, range).is_none());
+        assert!(units_warning(&net(0.0, 0.193 + 0.119), &states, range).is_none());
+        assert!(units_warning(&net(0.0, 0.193 + 0.121), &states, range).is_some());
+        assert!(units_warning(&net(0.0, 0.181 - 0.121), &states, range).is_some());
+        // 0.1 y + 0.1 = 0.2, 0.3, 0.4: one state of three far out, not most of them.
+        assert!(units_warning(&net(0.1, 0.1), &states, range).is_none());
+        // 0.2 y - 0.01 = 0.19, 0.39, 0.59: two of three.
+        let w = units_warning(&net(0.2, -0.01), &states, range).unwrap();
+        assert!(w.contains("at 2 of 3 initial states"), "{w}");
+        assert!(w.contains("no normalisation layers"), "{w}");
+        let w = units_warning(&net(0.0, f64::NAN), &states, range).unwrap();
+        assert!(w.contains("3 of 3 initial states"), "{w}");
+    }
+}
