@@ -447,22 +447,7 @@ fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
     }
     // The flags are checked; now the network, then the library's own check of the
     // settings against it.
-    if !a.network.exists() {
-        bail!(
-            "--network {}: no such file; give the path of an .onnx controller with 6 raw inputs and 1 output (e.g. base_model_denorm.onnx)",
-            a.network.display()
-        );
-    }
-    let net = crate::nnload::load_network(&a.network).with_context(|| {
-        format!(
-            "--network {}: cannot load the network; give an ONNX file samara can read",
-            a.network.display()
-        )
-    })?;
-    let net = match &decl {
-        Some(d) => spec_controller(net, d, &a.network)?,
-        None => net,
-    };
+    let net = controller(&a.network, decl.as_ref())?;
     settings.validate(&net).map_err(|e| match e {
         samara_reach::ReachError::NetworkShape { .. } => {
             anyhow!("--network {}: {e}", a.network.display())
@@ -472,6 +457,37 @@ fn plan(a: &ReachArgs, as_file: bool) -> Result<Plan> {
         _ => anyhow!("{e}"),
     })?;
     Ok(Plan { settings, net })
+}
+
+/// A network in the wrong units (`ReachSettings::units_warning`: its outputs at the
+/// initial set's corners far outside the actuator range), as a warning naming the flag.
+fn units_warnings(a: &ReachArgs, plan: &Plan) -> Vec<String> {
+    plan.settings
+        .units_warning(&plan.net)
+        .map(|w| format!("--network {}: {w}", a.network.display()))
+        .into_iter()
+        .collect()
+}
+
+/// The controller a run flies: the `--network` file, with the normalisation of `--spec`'s
+/// network declaration composed (`decl`).
+fn controller(network: &Path, decl: Option<&NetDecl>) -> Result<samara_nn::Network> {
+    if !network.exists() {
+        bail!(
+            "--network {}: no such file; give the path of an .onnx controller with 6 raw inputs and 1 output (e.g. base_model_denorm.onnx)",
+            network.display()
+        );
+    }
+    let net = crate::nnload::load_network(network).with_context(|| {
+        format!(
+            "--network {}: cannot load the network; give an ONNX file samara can read",
+            network.display()
+        )
+    })?;
+    match decl {
+        Some(d) => spec_controller(net, d, network),
+        None => Ok(net),
+    }
 }
 
 /// `--order` and `--timeout` do not apply to zonotope sets.
@@ -517,6 +533,8 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
         "auto" => {
             // The Taylor-model flags are checked now, not after the zonotope run.
             crate::reach_system::taylor_settings(a)?;
+            // On to Taylor-model sets when the zonotopes leave the goal unknown, or lose
+            // the enclosure with no goal (no result over the horizon either way).
             let (code, unknown) = run_zonotope(a, true)?;
             if !unknown {
                 return Ok(code);
@@ -527,7 +545,7 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
             // The zonotope run started the thread pool already.
             t.threads = None;
             eprintln!(
-                "--sets auto: the zonotope sets left the goal unknown (reach.json in {}); now Taylor-model sets, written to {}",
+                "--sets auto: the zonotope sets left the goal unknown or lost the enclosure (reach.json in {}); now Taylor-model sets, written to {}",
                 a.out.display(),
                 t.out.display()
             );
@@ -557,6 +575,9 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     tuned.lift_at = a.lift_at.or(Some(GLIDER_LIFT_AT));
     let a = &tuned;
     let plan = plan(a, a.shard.is_some())?;
+    for w in units_warnings(a, &plan) {
+        eprintln!("warning: {w}");
+    }
     let sys = crate::reach_system::builtin_system(&plan.settings)?;
     // The published setting's measure, x + y (its width against the flights').
     let mut coef = vec![0.0; sys.dim()];
@@ -573,11 +594,16 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     crate::reach_system::run_system(a, &sys, Path::new("built-in setting"), &plan.net, vec![xy])
 }
 
-/// The built-in glider setting on zonotope sets; also whether the verdict is `unknown`.
-/// With `quiet_unknown` an `unknown` verdict is reported on stderr only (files written),
-/// leaving stdout to the run that follows (`--sets auto`).
+/// The built-in glider setting on zonotope sets; also whether the run has no result
+/// (the verdict is `unknown`, or there is no goal and a sub-box lost its enclosure). With
+/// `quiet_unknown` such a run is reported on stderr only (files written), leaving stdout
+/// to the run that follows (`--sets auto`).
 fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> {
     let plan = plan(a, false)?;
+    let warnings = units_warnings(a, &plan);
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     start_threads(a)?;
     // Output directory: create and probe before the (possibly long) analysis; a failed
     // run removes the folders it created.
@@ -590,7 +616,7 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
     }
     let res = res.map_err(|e| anyhow!("{e}"))?;
 
-    let o = Outcome::of(&res);
+    let o = Outcome::of(&res, &plan.settings, warnings);
     let settings = settings_json(
         &a.network.display().to_string(),
         a.threads.unwrap_or_else(rayon::current_num_threads),
@@ -612,7 +638,7 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
         plan.settings.goal.as_ref().map(|g| g.ystar),
     )
     .render(&a.out.join("reach.png"), &a.out.join("reach.svg"))?;
-    let unknown = matches!(o.verdict, Verdict::Unknown { .. });
+    let unknown = matches!(o.verdict, Verdict::Unknown { .. }) || o.lost.is_some();
     if unknown && quiet_unknown {
         eprintln!("{}", human_line(&plan.settings, &o));
         out.keep();
@@ -637,6 +663,8 @@ fn finish(
     }
     out.keep();
     Ok(match o.verdict {
+        // No goal, but a sub-box lost its enclosure: no result over the horizon.
+        Verdict::NoGoal if o.lost.is_some() => ExitCode::from(1),
         Verdict::Proved | Verdict::NoGoal => ExitCode::SUCCESS,
         Verdict::Violated { .. } | Verdict::Unknown { .. } => ExitCode::from(1),
     })
@@ -721,11 +749,18 @@ struct Outcome<'a> {
     subproblems: usize,
     seconds: f64,
     sampled_trajectories: usize,
+    /// Where a sub-box lost its enclosure, if one did
+    /// (`samara_reach::verdict::lost_enclosure`).
+    lost: Option<String>,
+    /// Warnings on the inputs ([`units_warnings`]), in the JSON as `warnings`.
+    warnings: Vec<String>,
 }
 
 impl<'a> Outcome<'a> {
-    fn of(res: &'a ReachResult) -> Self {
+    fn of(res: &'a ReachResult, s: &ReachSettings, warnings: Vec<String>) -> Self {
         Outcome {
+            warnings,
+            lost: samara_reach::verdict::lost_enclosure(&res.leaves, s),
             verdict: &res.verdict,
             final_x_plus_y: res.final_x_plus_y,
             sampled_x_plus_y: res.sampled_x_plus_y,
@@ -753,6 +788,8 @@ fn report_json(settings: Value, s: &ReachSettings, res: &Outcome, leaves: Value)
         "subproblems": res.subproblems,
         "seconds": res.seconds,
         "sampled_trajectories": res.sampled_trajectories,
+        "enclosure_lost": res.lost,
+        "warnings": res.warnings,
         "state_names": &STATE_NAMES[..s.model.dim()],
         "leaves": leaves,
     })
@@ -774,6 +811,8 @@ fn summary(res: &Outcome, out: &Path) -> serde_json::Value {
     m.insert("width_ratio".into(), num(res.width_ratio()));
     m.insert("subproblems".into(), serde_json::json!(res.subproblems));
     m.insert("seconds".into(), serde_json::json!(res.seconds));
+    m.insert("enclosure_lost".into(), serde_json::json!(res.lost));
+    m.insert("warnings".into(), serde_json::json!(res.warnings));
     m.insert("out".into(), serde_json::json!(out.display().to_string()));
     v
 }
@@ -790,6 +829,10 @@ fn human_line(s: &ReachSettings, res: &Outcome) -> String {
     };
     let detail = match res.verdict {
         Verdict::Unknown { reason } => format!("; reason: {reason}"),
+        Verdict::NoGoal => match &res.lost {
+            Some(why) => format!("; no result: {why}"),
+            None => String::new(),
+        },
         Verdict::Violated {
             initial,
             t,
@@ -841,6 +884,10 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     }
     let plan = plan(a, true)?;
     let s = &plan.settings;
+    let warnings = units_warnings(a, &plan);
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     start_threads(a)?;
     let t0 = Instant::now();
     let spinner = progress(s);
@@ -854,15 +901,24 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     }
     let (prep, range, flown) = done.map_err(|e| anyhow!("{e}"))?;
     let secs = t0.elapsed().as_secs_f64();
-    let run = run_json(
-        s,
-        &shard::digest_file(&a.network, "--network")?,
-        prep.pieces(),
-    );
+    let mut inputs = vec![(
+        "--network".to_string(),
+        a.network.as_path(),
+        "--network".to_string(),
+    )];
+    if let Some(p) = &a.spec {
+        inputs.push(("--spec".to_string(), p.as_path(), "--spec".to_string()));
+    }
+    let run = run_json(s, shard::digest_inputs(inputs)?, prep.pieces());
     let mut result = json!({
         "pieces": [range.start, range.end],
         "shared": shared_json(&prep),
         "network": a.network.display().to_string(),
+        // Where the merge reads the controller back to re-check a counterexample.
+        "network_file": shard::resolved(&a.network),
+        "spec_file": a.spec.as_deref().map(shard::resolved),
+        "loop": a.loop_name,
+        "warnings": warnings,
         "threads": a.threads.unwrap_or_else(rayon::current_num_threads),
         "seconds": secs,
         "subboxes": flown.iter().map(flown_json).collect::<Vec<_>>(),
@@ -921,11 +977,11 @@ fn read_f(v: &Value, what: &str) -> Result<f64> {
         .ok_or_else(|| anyhow!("{what}: expected a number text, found {v}"))
 }
 
-/// The inputs and settings every shard of one run shares (`run` of the shard file):
-/// numbers as exact text, so the merge rebuilds the settings bit for bit.
-fn run_json(s: &ReachSettings, network_digest: &str, pieces: usize) -> Value {
+/// The inputs (content digests of `--network` and `--spec`) and settings every shard of
+/// one run shares (`run` of the shard file): numbers as exact text, so the merge rebuilds the settings bit for bit.
+fn run_json(s: &ReachSettings, inputs: Value, pieces: usize) -> Value {
     json!({
-        "network": network_digest,
+        "inputs": inputs,
         "samara": env!("CARGO_PKG_VERSION"),
         "model": s.model.name(),
         "init": s.init.iter().map(|&(lo, hi)| pair([lo, hi])).collect::<Vec<_>>(),
@@ -1146,6 +1202,51 @@ fn missing(
     )
 }
 
+/// The merge's re-check of the shards' counterexample (a sampled trajectory that misses
+/// the goal): the controller read back from where shard 0 found it (with its --spec),
+/// which must be the files the shards digested, and the trajectory flown again
+/// ([`samara_reach::verdict::recheck_violation`], the run's own falsification test).
+fn recheck_counterexample(
+    run: &Value,
+    r0: &Value,
+    file0: &Path,
+    s: &ReachSettings,
+    v: &Verdict,
+) -> Result<()> {
+    let at = format!("{}: the counterexample", file0.display());
+    let path = |k: &str| -> Result<Option<PathBuf>> {
+        match &r0[k] {
+            Value::Null => Ok(None),
+            Value::String(p) => Ok(Some(PathBuf::from(p))),
+            x => bail!("{}: bad `{k}` ({x})", file0.display()),
+        }
+    };
+    let network =
+        path("network_file")?.ok_or_else(|| anyhow!("{}: no `network_file`", file0.display()))?;
+    let spec = path("spec_file")?;
+    for (flag, p) in [("--network", Some(&network)), ("--spec", spec.as_ref())] {
+        let Some(p) = p else { continue };
+        let now = shard::digest_file(p, &format!("{at}: re-checking it needs {flag}"))?;
+        if run["inputs"][flag] != now.as_str() {
+            bail!(
+                "{at}: input `{flag}` ({}) changed since the shards ran (content digest {} then, {now} now); run every shard again",
+                p.display(),
+                run["inputs"][flag]
+            );
+        }
+    }
+    let decl = match &spec {
+        Some(p) => Some(spec_settings(p, r0["loop"].as_str())?.1),
+        None => None,
+    };
+    let net = controller(&network, decl.as_ref())?;
+    samara_reach::verdict::recheck_violation(&net, s, v).map_err(|e| {
+        anyhow!(
+            "{at} does not hold: {e}; the shard is damaged or tampered with, run the shards again"
+        )
+    })
+}
+
 /// `samara merge reach`: the N shards' flown sub-boxes, the run's refinement replayed
 /// over them (`samara_reach::parts::refine`: the same rounds and sub-box budget as one
 /// process), then `DIR/reach.json` and the figures as one process writes them. The
@@ -1244,8 +1345,14 @@ pub fn merge_reach(
             x_plus_y: read_f(&v["x_plus_y"], "violation.x_plus_y")?,
         }),
     };
+    if let Some(v) = &violation {
+        recheck_counterexample(run, r0, file0, &s, v)?;
+    }
     let (verdict, fin) = parts::finish(&s, violation, &mut done);
     let o = Outcome {
+        lost: samara_reach::verdict::lost_enclosure(done.iter().map(|f| &f.leaf), &s),
+        warnings: serde_json::from_value(r0["warnings"].clone())
+            .map_err(|e| anyhow!("{}: bad `warnings`: {e}", file0.display()))?,
         verdict: &verdict,
         final_x_plus_y: fin,
         sampled_x_plus_y: read_pair(&sh["sampled_x_plus_y"], "sampled_x_plus_y")?,
@@ -1256,6 +1363,9 @@ pub fn merge_reach(
             .and_then(|n| usize::try_from(n).ok())
             .ok_or_else(|| anyhow!("{}: bad `sampled_trajectories`", file0.display()))?,
     };
+    for w in &o.warnings {
+        eprintln!("warning: {w}");
+    }
     let network = r0["network"]
         .as_str()
         .ok_or_else(|| anyhow!("{}: bad `network`", file0.display()))?;

@@ -2,11 +2,15 @@
 //! (the shards' partial results put back together into what one process writes), so a
 //! Slurm or Kubernetes job array needs no glue script.
 //!
-//! A shard file is JSON: `{"format": "samara-shard/1", "kind", "shard": [I, N], "run",
-//! "result"}`. `run` records the inputs (content digests) and settings; every shard of one
-//! run carries the same `run`. Numbers that must merge exactly are stored as their
-//! shortest round-trip decimal text (`{:?}`), which `str::parse` reads back to the same
-//! f64.
+//! A shard file is JSON: `{"format": "samara-shard/2", "kind", "shard": [I, N], "run",
+//! "result", "digest"}`. `run` records the inputs (a content digest of every file the
+//! whole run reads, not only this shard's share, and where relative paths were resolved)
+//! and the settings; every shard of one run carries the same `run`, so a file edited
+//! between two shards' runs is caught by the merge, which names the input or setting
+//! that differs. `digest` is the digest of the rest of the document (its canonical
+//! serde_json text: sorted keys, exact floats), so a shard edited or damaged after it was
+//! written is refused. Numbers that must merge exactly are stored as their shortest
+//! round-trip decimal text (`{:?}`), which `str::parse` reads back to the same f64.
 
 use anyhow::{anyhow, bail, Result};
 use serde_json::{json, Value};
@@ -15,7 +19,11 @@ use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 /// The shard-file format tag.
-pub const FORMAT: &str = "samara-shard/1";
+pub const FORMAT: &str = "samara-shard/2";
+
+/// The format of shards written before inputs and payloads were digested: refused with
+/// a message saying to run them again.
+const OLD_FORMAT: &str = "samara-shard/1";
 
 /// Shard `i` of `n` (0-based).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -92,12 +100,114 @@ pub fn get_f(v: &Value, key: &str, file: &Path) -> Result<f64> {
     })
 }
 
-/// Write a shard file.
+/// The payload digest of a shard document (everything but its `digest` field): the
+/// digest of its canonical serde_json text (keys sorted, floats exact), which reading the
+/// file back reproduces.
+fn payload_digest(doc: &Value) -> Result<String> {
+    let mut d = doc.clone();
+    if let Some(m) = d.as_object_mut() {
+        m.remove("digest");
+    }
+    Ok(digest(serde_json::to_string(&d)?.as_bytes()))
+}
+
+/// Write a shard file: the document and its payload digest.
 pub fn write(out: &Path, kind: &str, shard: Shard, run: Value, result: Value) -> Result<()> {
-    let doc = json!({"format": FORMAT, "kind": kind, "shard": [shard.i, shard.n],
+    let mut doc = json!({"format": FORMAT, "kind": kind, "shard": [shard.i, shard.n],
         "run": run, "result": result});
+    doc["digest"] = Value::String(payload_digest(&doc)?);
     samara_report::write_atomic(out, serde_json::to_string_pretty(&doc)?.as_bytes())
         .map_err(|e| anyhow!("--out {}: {e}", out.display()))
+}
+
+/// The digests of the files a run reads, keyed by how the run names them (a path relative
+/// to the run's root, or a flag): `run.inputs` of the shard files. A file is read once
+/// however many instances use it.
+pub fn digest_inputs<'a>(
+    files: impl IntoIterator<Item = (String, &'a Path, String)>,
+) -> Result<Value> {
+    let mut m = serde_json::Map::new();
+    for (name, path, flag) in files {
+        if !m.contains_key(&name) {
+            m.insert(name, Value::String(digest_file(path, &flag)?));
+        }
+    }
+    Ok(Value::Object(m))
+}
+
+/// A path made absolute (the current folder joined to a relative one) and, where it
+/// exists, canonical: the `--root` a run resolved its relative paths against.
+pub fn resolved(p: &Path) -> String {
+    let p = if p.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        p
+    };
+    let abs = std::fs::canonicalize(p).unwrap_or_else(|_| {
+        std::env::current_dir()
+            .map(|d| d.join(p))
+            .unwrap_or_else(|_| p.to_path_buf())
+    });
+    abs.display().to_string()
+}
+
+/// A JSON value in a message: strings without their quotes.
+fn show(v: &Value) -> String {
+    match v {
+        Value::String(s) => s.clone(),
+        Value::Null => "none".into(),
+        v => v.to_string(),
+    }
+}
+
+/// Where two shards' `run` records differ, one phrase each: `input `NAME` (content
+/// digest A vs B)` for a file under `inputs`, `setting `PATH` (A vs B)` otherwise.
+fn run_differences(a: &Value, b: &Value) -> Vec<String> {
+    fn walk(a: &Value, b: &Value, path: &str, out: &mut Vec<String>) {
+        if a == b {
+            return;
+        }
+        match (a, b) {
+            (Value::Object(x), Value::Object(y)) => {
+                let mut keys: Vec<&String> = x.keys().chain(y.keys()).collect();
+                keys.sort();
+                keys.dedup();
+                for k in keys {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    let (va, vb) = (
+                        x.get(k).unwrap_or(&Value::Null),
+                        y.get(k).unwrap_or(&Value::Null),
+                    );
+                    // Reach's Taylor-model shards record their file digests as
+                    // `run.network` and `run.system`.
+                    if path == "inputs" || (path.is_empty() && (k == "network" || k == "system")) {
+                        if va != vb {
+                            let word = if va.is_null() || vb.is_null() {
+                                "read by one shard only"
+                            } else {
+                                "changed between the shards' runs"
+                            };
+                            out.push(format!(
+                                "input `{k}` {word} (content digest {} vs {})",
+                                show(va),
+                                show(vb)
+                            ));
+                        }
+                    } else {
+                        walk(va, vb, &p, out);
+                    }
+                }
+            }
+            _ => out.push(format!("setting `{path}` ({} vs {})", show(a), show(b))),
+        }
+    }
+    let mut out = Vec::new();
+    walk(a, b, "", &mut out);
+    out
 }
 
 /// Which command's shards are merged.
@@ -151,6 +261,12 @@ fn read_shards(a: &MergeArgs) -> Result<(Value, Vec<(PathBuf, Value)>)> {
             std::fs::read_to_string(p).map_err(|e| anyhow!("{}: cannot read: {e}", p.display()))?;
         let v: Value = serde_json::from_str(&text)
             .map_err(|e| anyhow!("{}: not a shard file (JSON: {e})", p.display()))?;
+        if v["format"] == OLD_FORMAT {
+            bail!(
+                "{}: a shard written by an older samara ({OLD_FORMAT}: without digests of its inputs and payload); run the shards again with this samara",
+                p.display()
+            );
+        }
         if v["format"] != FORMAT {
             bail!(
                 "{}: not a shard file (no \"format\": \"{FORMAT}\"); write shards with --shard I/N --out FILE",
@@ -165,6 +281,16 @@ fn read_shards(a: &MergeArgs) -> Result<(Value, Vec<(PathBuf, Value)>)> {
                 a.kind.name()
             );
         }
+        let recorded = v["digest"].as_str().unwrap_or("none").to_string();
+        let computed = payload_digest(&v)?;
+        if recorded != computed {
+            bail!(
+                "{}: the shard's payload digest does not match its contents (recorded {recorded}, computed {computed}): the file was edited or damaged after shard {}/{} wrote it; run that shard again",
+                p.display(),
+                v["shard"][0],
+                v["shard"][1]
+            );
+        }
         docs.push((p.clone(), v));
     }
     let (first, d0) = &docs[0];
@@ -175,11 +301,10 @@ fn read_shards(a: &MergeArgs) -> Result<(Value, Vec<(PathBuf, Value)>)> {
     for (p, d) in &docs {
         if d["run"] != d0["run"] {
             bail!(
-                "{} and {}: shards of different runs (their inputs or settings differ: {} vs {})",
+                "{} and {}: shards of different runs: {}; run every shard on the same inputs and settings",
                 first.display(),
                 p.display(),
-                d0["run"],
-                d["run"]
+                run_differences(&d0["run"], &d["run"]).join("; ")
             );
         }
         let (i, m) = (d["shard"][0].as_u64(), d["shard"][1].as_u64());
@@ -251,7 +376,7 @@ pub fn run_merge(a: &MergeArgs) -> Result<ExitCode> {
             let Some(out) = &a.out else {
                 bail!("--out FILE is required for `samara merge vnncomp` (the results CSV)");
             };
-            super::vnncomp::merge_vnncomp(&shards, out, a.json)
+            super::vnncomp::merge_vnncomp(&run, &shards, out, a.json)
         }
         Kind::Reach => {
             let Some(out) = &a.out else {
@@ -288,5 +413,34 @@ mod tests {
         assert!(parse_shard("-1/3").is_err());
         assert!(parse_shard("1").is_err());
         assert_eq!(parse_shard("2/3"), Ok(Shard { i: 2, n: 3 }));
+    }
+
+    #[test]
+    fn run_differences_name_the_input_or_setting() {
+        let a =
+            json!({"inputs": {"a.onnx": "01", "p.vnnlib": "02"}, "goal": {"ystar": "2.0"}, "n": 3});
+        let b = json!({"inputs": {"a.onnx": "01", "p.vnnlib": "03", "q.vnnlib": "04"}, "goal": {"ystar": "2.5"}, "n": 3});
+        assert_eq!(
+            run_differences(&a, &b),
+            [
+                "setting `goal.ystar` (2.0 vs 2.5)",
+                "input `p.vnnlib` changed between the shards' runs (content digest 02 vs 03)",
+                "input `q.vnnlib` read by one shard only (content digest none vs 04)",
+            ]
+        );
+        assert!(run_differences(&a, &a).is_empty());
+    }
+
+    #[test]
+    fn payload_digest_ignores_only_the_digest_field() {
+        let mut d = json!({"format": FORMAT, "run": {"x": "1.5"}, "result": [1, 2]});
+        let before = payload_digest(&d).unwrap();
+        d["digest"] = json!("anything");
+        assert_eq!(payload_digest(&d).unwrap(), before);
+        // Read back from its text, the same digest.
+        let back: Value = serde_json::from_str(&serde_json::to_string_pretty(&d).unwrap()).unwrap();
+        assert_eq!(payload_digest(&back).unwrap(), before);
+        d["result"][0] = json!(3);
+        assert_ne!(payload_digest(&d).unwrap(), before);
     }
 }

@@ -346,6 +346,10 @@ pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
         )?;
     }
     let mut controller = make_controller(&a.controller, a.no_clip)?;
+    let warnings = units_warnings(a, &plan)?;
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     // Output directory: create and probe before simulating, so a bad path fails fast;
     // a failed run removes the folders it created.
     let out = samara_report::guard::OutDir::prepare(&a.out)?;
@@ -362,10 +366,9 @@ pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
     let wall = t0.elapsed().as_secs_f64();
     write_outputs(a, &plan, &flights, controller.name())?;
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&summary(a, &plan, &flights, wall))?
-        );
+        let mut s = summary(a, &plan, &flights, wall);
+        s["warnings"] = serde_json::json!(warnings);
+        println!("{}", serde_json::to_string_pretty(&s)?);
     } else {
         eprintln!(
             "simulated {} flight(s) of model {} in {:.3} s; wrote {}",
@@ -377,6 +380,27 @@ pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
     }
     out.keep();
     Ok(ExitCode::SUCCESS)
+}
+
+/// A network controller in the wrong units: its outputs at the starts far outside the
+/// actuator range (`samara_reach::settings::units_warning`, the check `samara reach`
+/// makes), as a warning naming the flag. None for `pid` and `constant:`.
+fn units_warnings(a: &SimulateArgs, plan: &Plan) -> Result<Vec<String>> {
+    if a.controller == "pid" || a.controller.starts_with("constant:") {
+        return Ok(Vec::new());
+    }
+    let net = crate_nn_load(Path::new(&a.controller))?;
+    let starts: Vec<Vec<f64>> = plan
+        .starts
+        .iter()
+        .map(|&y0| initial_state(&plan.plant, y0))
+        .collect();
+    Ok(
+        samara_reach::settings::units_warning(&net, &starts, EX_RANGE)
+            .map(|w| format!("--controller {}: {w}", a.controller))
+            .into_iter()
+            .collect(),
+    )
 }
 
 fn state_header(dim: usize) -> String {

@@ -921,8 +921,10 @@ pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
     let secs = t0.elapsed().as_secs_f64();
     if let (Some(s), Some(out)) = (a.shard, &a.out) {
         let run = json!({
-            "network": shard::digest_file(&a.network, "--network")?,
-            "data": shard::digest_file(&a.data, "--data")?,
+            "inputs": shard::digest_inputs([
+                ("--network".to_string(), a.network.as_path(), "--network".to_string()),
+                ("--data".to_string(), a.data.as_path(), "--data".to_string()),
+            ])?,
             "points": rows.len(),
             "eps": eps.iter().map(|e| shard::f(*e)).collect::<Vec<_>>(),
             "lipschitz": ls.iter().map(|l| shard::f(*l)).collect::<Vec<_>>(),
@@ -1028,8 +1030,21 @@ fn merge_robustness(
                 r["rows"][1]
             );
         }
-        next = rows.1.unwrap_or(0) as usize;
+        let end = rows.1.unwrap_or(0) as usize;
+        if end < next || end > n_rows {
+            bail!(
+                "{}: rows {}..{} of a {n_rows}-row data set",
+                file.display(),
+                r["rows"][0],
+                r["rows"][1]
+            );
+        }
+        let range = next..end;
+        next = end;
         secs += r["seconds"].as_f64().unwrap_or(0.0);
+        // Every (row, radius) of the shard's rows exactly once.
+        let mut seen = std::collections::HashSet::new();
+        let first = points.len();
         for p in r["points"].as_array().into_iter().flatten() {
             let g = |k: &str| shard::get_f(p, k, file);
             points.push(samara_verify::robustness::PointBall {
@@ -1047,6 +1062,50 @@ fn merge_robustness(
                 lipschitz_upper: g("lipschitz_upper")?,
                 lipschitz_lower: g("lipschitz_lower")?,
             });
+            let q = points.last().expect("pushed");
+            if !range.contains(&q.index) || !eps.contains(&q.eps) {
+                bail!(
+                    "{}: a point of row {} radius {} is not of this shard's rows {}..{} and the run's radii",
+                    file.display(),
+                    q.index,
+                    q.eps,
+                    range.start,
+                    range.end
+                );
+            }
+            if !seen.insert((q.index, q.eps.to_bits())) {
+                bail!(
+                    "{}: row {} radius {} appears more than once (the shard is damaged or tampered with); run it again",
+                    file.display(),
+                    q.index,
+                    q.eps
+                );
+            }
+            // Sound bounds and witnesses cannot cross (NaN fails too).
+            if !(q.f_min <= q.f_max
+                && q.witnessed_deviation <= q.max_deviation
+                && q.lipschitz_lower <= q.lipschitz_upper)
+            {
+                bail!(
+                    "{}: row {} radius {}: its bounds contradict each other (f_min {} > f_max {}, a witnessed deviation above the bound, or a Lipschitz lower bound above the upper); the shard is damaged or tampered with, run it again",
+                    file.display(),
+                    q.index,
+                    q.eps,
+                    q.f_min,
+                    q.f_max
+                );
+            }
+        }
+        if points.len() - first != range.len() * eps.len() {
+            bail!(
+                "{}: {} points for rows {}..{} and {} radii (expected {}): the shard was cut short or damaged; run it again",
+                file.display(),
+                points.len() - first,
+                range.start,
+                range.end,
+                eps.len(),
+                range.len() * eps.len()
+            );
         }
     }
     if next != n_rows {

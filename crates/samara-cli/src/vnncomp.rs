@@ -10,8 +10,9 @@ use samara_spec::vnnlib;
 use samara_verify::engine::Point;
 use samara_verify::route::{prove_routed, Engine};
 use samara_verify::{Prepared, Settings, UnknownReason, Verdict};
+use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -131,11 +132,60 @@ pub struct Decided {
     pub outputs: Option<Vec<f64>>,
 }
 
-/// Decide one instance within `timeout` seconds. A counterexample is re-evaluated by the
-/// network's plain f64 evaluator before it is reported: a point the engines confirmed in
-/// exact rational arithmetic stays `sat` (its f64 outputs are the ones written; a
-/// disagreement is said on stderr); a point neither exact arithmetic confirmed nor the
-/// f64 re-evaluation satisfies becomes `unknown` (rounding).
+/// A counterexample re-checked concretely ([`recheck`]).
+pub enum Recheck {
+    /// The network's f64 outputs at the point satisfy the disjunct.
+    Holds(Vec<f64>),
+    /// f64 rounding puts the point outside the disjunct by `margin`, but exact rational
+    /// arithmetic confirms it (a `sat` still; the f64 outputs are the ones written).
+    ExactOnly(Vec<f64>, f64),
+    /// Neither f64 nor exact arithmetic confirms the point (`margin`: by how much the
+    /// f64 outputs miss the disjunct).
+    Fails(f64),
+}
+
+/// Re-check a counterexample `x` of disjunct `disjunct` of `q` by evaluating the network
+/// concretely: its plain f64 evaluator (`Network::eval_f64`), then, if that misses the
+/// region by rounding, exact rational arithmetic. The one check of `samara vnncomp`'s
+/// verdicts and of `samara merge vnncomp`'s `sat` parts.
+pub fn recheck(net: &Network, q: &Query, x: &[f64], disjunct: usize) -> Result<Recheck> {
+    let Some(cs) = q.region.get(disjunct) else {
+        bail!(
+            "disjunct {disjunct} does not exist (the property has {})",
+            q.region.len()
+        );
+    };
+    if x.len() != net.n_inputs() {
+        bail!(
+            "{} input values for a network of {} inputs",
+            x.len(),
+            net.n_inputs()
+        );
+    }
+    let y = net.eval_f64(x);
+    let again = Point {
+        inputs: vec![x.to_vec()],
+        outputs: vec![y.clone()],
+        free: vec![],
+    };
+    if again.satisfies(cs) {
+        return Ok(Recheck::Holds(y));
+    }
+    let margin = again.margin(cs);
+    let exact = samara_verify::net::PwlNet::from_network(net)
+        .ok()
+        .and_then(|pwl| samara_verify::exact::exact_satisfies(&[&pwl], &again, cs));
+    Ok(if exact == Some(true) {
+        Recheck::ExactOnly(y, margin)
+    } else {
+        Recheck::Fails(margin)
+    })
+}
+
+/// Decide one instance within `timeout` seconds. A counterexample is re-checked
+/// ([`recheck`]) before it is reported: a point that the f64 re-evaluation or exact
+/// rational arithmetic confirms stays `sat` (its f64 outputs are the ones written; a
+/// disagreement is said on stderr); any other becomes `unknown` (rounding).
 pub fn decide(net: Network, q: &Query, timeout: f64, max_nodes: usize) -> Result<Decided> {
     let mut nets = HashMap::new();
     nets.insert("f".to_string(), net);
@@ -152,29 +202,20 @@ pub fn decide(net: Network, q: &Query, timeout: f64, max_nodes: usize) -> Result
     )?;
     let mut outputs = None;
     if let Verdict::Violated(c) = &verdict {
-        let x = &c.point.inputs[0];
-        let y = nets["f"].eval_f64(x);
-        let again = Point {
-            inputs: vec![x.clone()],
-            outputs: vec![y.clone()],
-            free: vec![],
-        };
-        let cs = &q.region[c.disjunct];
-        if !again.satisfies(cs) {
-            if c.exact == Some(true) {
+        match recheck(&nets["f"], q, &c.point.inputs[0], c.disjunct)? {
+            Recheck::Holds(y) => outputs = Some(y),
+            Recheck::ExactOnly(y, margin) => {
                 eprintln!(
-                    "note: the counterexample holds in exact arithmetic but the f64 re-evaluation puts it outside the region by rounding (margin {:e})",
-                    again.margin(cs)
+                    "note: the counterexample holds in exact arithmetic but the f64 re-evaluation puts it outside the region by rounding (margin {margin:e})"
                 );
-            } else {
+                outputs = Some(y);
+            }
+            Recheck::Fails(margin) => {
                 verdict = Verdict::Unknown(UnknownReason::Rounding {
-                    margin: again.margin(cs),
+                    margin,
                     tolerance: 0.0,
                 });
             }
-        }
-        if matches!(verdict, Verdict::Violated(_)) {
-            outputs = Some(y);
         }
     }
     Ok(Decided {
@@ -286,6 +327,219 @@ fn csv_field(s: &str) -> String {
     }
 }
 
+/// A result word of the results CSV, typed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum Word {
+    Unsat,
+    Sat,
+    Timeout,
+    Unknown,
+}
+
+impl Word {
+    fn of(v: &Verdict) -> Word {
+        match v {
+            Verdict::Proved => Word::Unsat,
+            Verdict::Violated(_) => Word::Sat,
+            Verdict::Unknown(UnknownReason::Timeout { .. }) => Word::Timeout,
+            Verdict::Unknown(_) => Word::Unknown,
+        }
+    }
+
+    fn text(self) -> &'static str {
+        match self {
+            Word::Unsat => "unsat",
+            Word::Sat => "sat",
+            Word::Timeout => "timeout",
+            Word::Unknown => "unknown",
+        }
+    }
+}
+
+/// A `sat` instance's counterexample as a shard stores it.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Cex {
+    /// The input point.
+    inputs: Vec<f64>,
+    /// The network's f64 outputs there (re-computed by the merge).
+    outputs: Vec<f64>,
+    /// The engine's margin (null when not finite).
+    margin: Option<f64>,
+    /// Whether exact arithmetic confirmed it (`exact_check`).
+    exact_check: Option<bool>,
+    /// Which disjunct of the property's region the point lies in.
+    disjunct: usize,
+}
+
+/// Why an instance is `timeout` or `unknown`.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Reason {
+    kind: String,
+    message: String,
+}
+
+/// One decided instance, typed: what a shard stores and what both the one-process run
+/// and the merge format the results-CSV line, the `--json` row and the progress line
+/// from (never a stored text copy).
+#[derive(Clone, Debug, Serialize, Deserialize)]
+struct Part {
+    /// The instances CSV's line number.
+    line: usize,
+    onnx: String,
+    vnnlib: String,
+    /// The instance's timeout times --timeout-scale.
+    timeout: f64,
+    result: Word,
+    seconds: f64,
+    /// The engine's tag (`route::Engine::tag`).
+    engine: String,
+    /// For `sat` only.
+    counterexample: Option<Cex>,
+    /// For `timeout` and `unknown` only.
+    unknown_reason: Option<Reason>,
+}
+
+impl Part {
+    fn of(l: &Line, t: f64, d: &Decided) -> Part {
+        let counterexample = match (&d.verdict, &d.outputs) {
+            (Verdict::Violated(c), Some(y)) => Some(Cex {
+                inputs: c.point.inputs[0].clone(),
+                outputs: y.clone(),
+                margin: Some(c.margin).filter(|m| m.is_finite()),
+                exact_check: c.exact,
+                disjunct: c.disjunct,
+            }),
+            _ => None,
+        };
+        Part {
+            line: l.lineno,
+            onnx: l.onnx.clone(),
+            vnnlib: l.vnnlib.clone(),
+            timeout: t,
+            result: Word::of(&d.verdict),
+            seconds: d.seconds,
+            engine: d.engine.tag().to_string(),
+            counterexample,
+            unknown_reason: match &d.verdict {
+                Verdict::Unknown(r) => Some(Reason {
+                    kind: r.kind().to_string(),
+                    message: r.to_string(),
+                }),
+                _ => None,
+            },
+        }
+    }
+
+    /// The results CSV's line.
+    fn csv_line(&self) -> String {
+        let detail = match (&self.unknown_reason, &self.counterexample) {
+            (Some(r), _) => r.kind.clone(),
+            (None, Some(c)) => format!(
+                "exact_check={}",
+                c.exact_check.map_or("none".into(), |b| b.to_string())
+            ),
+            (None, None) => String::new(),
+        };
+        format!(
+            "{},{},{},{},{:.3},{},{}\n",
+            csv_field(&self.onnx),
+            csv_field(&self.vnnlib),
+            self.timeout,
+            self.result.text(),
+            self.seconds,
+            self.engine,
+            csv_field(&detail)
+        )
+    }
+
+    /// The `--json` row (the `verify-vnnlib --json` fields).
+    fn row(&self) -> Result<String> {
+        let cx = match (&self.counterexample, &self.unknown_reason) {
+            (Some(c), _) => json!({"inputs": c.inputs, "outputs": c.outputs,
+                "margin": c.margin, "exact_check": c.exact_check}),
+            (None, Some(r)) => json!(r.message),
+            (None, None) => Value::Null,
+        };
+        let reason = self.unknown_reason.as_ref().map_or(
+            Value::Null,
+            |r| json!({"kind": r.kind, "message": r.message}),
+        );
+        Ok(serde_json::to_string(
+            &json!({"line": self.line, "onnx": self.onnx, "vnnlib": self.vnnlib,
+            "timeout": self.timeout, "result": self.result.text(), "seconds": self.seconds,
+            "engine": self.engine, "counterexample": cx, "unknown_reason": reason}),
+        )?)
+    }
+
+    /// The progress line on stdout.
+    fn progress(&self) -> String {
+        format!(
+            "{} {} {} {:.2}s",
+            self.onnx,
+            self.vnnlib,
+            self.result.text(),
+            self.seconds
+        )
+    }
+}
+
+/// What every shard of one `samara vnncomp` run shares (`run` of the shard file).
+#[derive(Serialize, Deserialize)]
+struct VnncompRun {
+    /// The instances CSV: its content digest and its resolved path (the merge reads it
+    /// back to check every part against its line).
+    instances: String,
+    instances_file: String,
+    n_instances: usize,
+    /// The folder the CSV's paths were resolved against.
+    root: String,
+    /// The content digest of every network and property file of the whole benchmark,
+    /// keyed by the CSV's path text.
+    inputs: Value,
+    timeout_scale: String,
+    max_nodes: usize,
+}
+
+/// A vnncomp shard's `result`.
+#[derive(Serialize, Deserialize)]
+struct VnncompShard {
+    /// The instance indices `[start, end)` of this shard.
+    instances: [usize; 2],
+    /// How many of them are done (the file is rewritten after each).
+    done: usize,
+    parts: Vec<Part>,
+}
+
+/// The `run` record of a vnncomp run: every input's content digest and the settings.
+fn vnncomp_run(a: &VnncompArgs, text: &str, all: &[Line], root: &Path) -> Result<VnncompRun> {
+    let files = all.iter().flat_map(|l| {
+        let at = format!("{}:{}:", a.instances.display(), l.lineno);
+        [
+            (l.onnx.clone(), root.join(&l.onnx), format!("{at} onnx")),
+            (
+                l.vnnlib.clone(),
+                root.join(&l.vnnlib),
+                format!("{at} vnnlib"),
+            ),
+        ]
+    });
+    let files: Vec<(String, PathBuf, String)> = files.collect();
+    Ok(VnncompRun {
+        instances: super::shard::digest(text.as_bytes()),
+        instances_file: super::shard::resolved(&a.instances),
+        n_instances: all.len(),
+        root: super::shard::resolved(root),
+        inputs: super::shard::digest_inputs(
+            files
+                .iter()
+                .map(|(n, p, f)| (n.clone(), p.as_path(), f.clone())),
+        )?,
+        timeout_scale: format!("{:?}", a.timeout_scale),
+        max_nodes: a.max_nodes,
+    })
+}
+
 /// Run `samara vnncomp`: exit 0 when the benchmark ran (verdicts are data), 2 on bad
 /// input (every instance is loaded and checked before the first is run).
 pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
@@ -300,8 +554,6 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     let all = parse_instances(&a.instances, &text)?;
     let range = a.shard.map_or(0..all.len(), |s| s.range(all.len()));
     let lines = &all[range.clone()];
-    let run = json!({"instances": super::shard::digest(text.as_bytes()), "n_instances": all.len(),
-        "timeout_scale": super::shard::f(a.timeout_scale), "max_nodes": a.max_nodes});
     let root = match &a.root {
         Some(r) => r.clone(),
         None => a
@@ -320,6 +572,12 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         .map(|(f, p)| (f.as_str(), p.as_path()))
         .collect();
     samara_report::guard::check_output_file("--out", &a.out, &refs)?;
+    // A shard seals every input of the whole run (not only its own lines), so the merge
+    // sees a file edited between two shards' runs.
+    let run = match a.shard {
+        Some(_) => Some(serde_json::to_value(vnncomp_run(a, &text, &all, &root)?)?),
+        None => None,
+    };
     // Load everything first: a bad instance is an input error before any computation.
     let mut loaded = Vec::new();
     for l in lines {
@@ -351,10 +609,14 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     };
     let t0 = Instant::now();
     let mut csv = String::from(HEADER);
-    let mut parts = Vec::new();
+    let mut shard_doc = VnncompShard {
+        instances: [range.start, range.end],
+        done: 0,
+        parts: Vec::new(),
+    };
     let mut rows = Vec::new();
-    let mut counts: std::collections::BTreeMap<&str, usize> = Default::default();
-    if let Some(s) = a.shard {
+    let mut counts: BTreeMap<Word, usize> = Default::default();
+    if let (Some(s), Some(run)) = (a.shard, &run) {
         // At once, so a shard with no instances (N above their number) still leaves its
         // file, and a cut-short shard leaves one that the merge refuses.
         super::shard::write(
@@ -362,50 +624,28 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
             "vnncomp",
             s,
             run.clone(),
-            json!({"instances": [range.start, range.end], "done": 0, "parts": []}),
+            serde_json::to_value(&shard_doc)?,
         )?;
     }
     for (l, (net, q, t)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
         let d = decide(net, &q, t, a.max_nodes)?;
-        let word = result_word(&d.verdict);
-        *counts.entry(word).or_default() += 1;
-        let detail = match &d.verdict {
-            Verdict::Unknown(r) => r.kind().to_string(),
-            Verdict::Violated(c) => format!(
-                "exact_check={}",
-                c.exact.map_or("none".into(), |b| b.to_string())
-            ),
-            Verdict::Proved => String::new(),
-        };
-        let csv_line = format!(
-            "{},{},{},{word},{:.3},{},{}\n",
-            csv_field(&l.onnx),
-            csv_field(&l.vnnlib),
-            t,
-            d.seconds,
-            d.engine.tag(),
-            csv_field(&detail)
-        );
-        let progress = format!("{} {} {word} {:.2}s", l.onnx, l.vnnlib, d.seconds);
-        let (cx, reason) = verdict_json(&d);
-        let row = serde_json::to_string(
-            &json!({"line": l.lineno, "onnx": l.onnx, "vnnlib": l.vnnlib, "timeout": t,
-            "result": word, "seconds": d.seconds, "engine": d.engine.tag(),
-            "counterexample": cx, "unknown_reason": reason}),
-        )?;
-        if let Some(s) = a.shard {
-            parts.push(json!({"csv": csv_line, "row": row, "result": word,
-                "seconds": d.seconds, "progress": progress}));
+        let part = Part::of(l, t, &d);
+        *counts.entry(part.result).or_default() += 1;
+        let row = part.row()?;
+        let progress = part.progress();
+        if let (Some(s), Some(run)) = (a.shard, &run) {
+            shard_doc.parts.push(part);
+            shard_doc.done = shard_doc.parts.len();
             super::shard::write(
                 &a.out,
                 "vnncomp",
                 s,
                 run.clone(),
-                json!({"instances": [range.start, range.end], "done": parts.len(), "parts": parts}),
+                serde_json::to_value(&shard_doc)?,
             )?;
         } else {
-            csv.push_str(&csv_line);
+            csv.push_str(&part.csv_line());
             samara_report::write_atomic(&a.out, csv.as_bytes())
                 .map_err(|e| anyhow!("--out {}: {e}", a.out.display()))?;
         }
@@ -421,7 +661,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         if a.json {
             println!(
                 "{}",
-                json!({"shard": [s.i, s.n], "instances": [range.start, range.end], "counts": counts,
+                json!({"shard": [s.i, s.n], "instances": [range.start, range.end], "counts": word_counts(&counts),
                     "total_seconds": total, "out": a.out})
             );
         } else {
@@ -444,26 +684,31 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
 /// The results CSV's header.
 const HEADER: &str = "onnx,vnnlib,timeout,result,seconds,engine,detail\n";
 
+/// The counts by result word, keyed by the word's text.
+fn word_counts(counts: &BTreeMap<Word, usize>) -> BTreeMap<&'static str, usize> {
+    counts.iter().map(|(w, n)| (w.text(), *n)).collect()
+}
+
 /// The closing summary on stdout: `--json` (every instance's row, as serialised, and the
 /// counts) or one line.
 fn summary(
     n: usize,
-    counts: &std::collections::BTreeMap<&str, usize>,
+    counts: &BTreeMap<Word, usize>,
     rows: &[String],
     total: f64,
     out: &Path,
     json_out: bool,
 ) {
-    let summary: Vec<String> = ["unsat", "sat", "timeout", "unknown"]
+    let summary: Vec<String> = [Word::Unsat, Word::Sat, Word::Timeout, Word::Unknown]
         .iter()
-        .map(|w| format!("{w} {}", counts.get(w).copied().unwrap_or(0)))
+        .map(|w| format!("{} {}", w.text(), counts.get(w).copied().unwrap_or(0)))
         .collect();
     if json_out {
         // By hand, in serde_json's (sorted-key, compact) form: the rows are kept as they
         // were serialised, so merged shards print the same numbers digit for digit.
         println!(
             "{{\"counts\":{},\"instances\":[{}],\"out\":{},\"total_seconds\":{}}}",
-            json!(counts),
+            json!(word_counts(counts)),
             rows.join(","),
             json!(out),
             json!(total)
@@ -477,52 +722,190 @@ fn summary(
     }
 }
 
-/// `samara merge vnncomp`: the shards' rows in instance order, the results CSV and the
-/// summary, as one process writes them.
-pub fn merge_vnncomp(shards: &[(PathBuf, Value)], out: &Path, json_out: bool) -> Result<ExitCode> {
+/// Check one part of a shard against the run: it is the instance of its line (the same
+/// files and timeout), its fields agree with its result word, and a `sat` part's
+/// counterexample holds when the network is evaluated concretely ([`recheck`]; the
+/// network and property are read back and must be the files the shards digested).
+/// Returns the part with the re-computed outputs.
+fn check_part(file: &Path, run: &VnncompRun, l: &Line, scale: f64, mut p: Part) -> Result<Part> {
+    let at = format!(
+        "{}: line {} ({}, {})",
+        file.display(),
+        l.lineno,
+        l.onnx,
+        l.vnnlib
+    );
+    let t = l.timeout * scale;
+    if p.line != l.lineno || p.onnx != l.onnx || p.vnnlib != l.vnnlib || p.timeout != t {
+        bail!(
+            "{}: the part for line {} is line {} ({}, {}, timeout {}), not the instances CSV's ({}, {}, timeout {t}): the shard does not belong to these instances; run it again",
+            file.display(),
+            l.lineno,
+            p.line,
+            p.onnx,
+            p.vnnlib,
+            p.timeout,
+            l.onnx,
+            l.vnnlib
+        );
+    }
+    if !(p.seconds.is_finite() && p.seconds >= 0.0) {
+        bail!("{at}: `seconds` {} is not a wall time", p.seconds);
+    }
+    if ![
+        Engine::InputSplit,
+        Engine::Phase,
+        Engine::InputSplitThenPhase,
+    ]
+    .iter()
+    .any(|e| e.tag() == p.engine)
+    {
+        bail!("{at}: unknown engine `{}`", p.engine);
+    }
+    match (p.result, &p.counterexample, &p.unknown_reason) {
+        (Word::Unsat, None, None) => {}
+        (Word::Timeout, None, Some(r)) if r.kind == "timeout" => {}
+        (Word::Unknown, None, Some(r)) if r.kind != "timeout" => {}
+        (Word::Sat, None, _) => {
+            bail!("{at}: `sat` without a counterexample; a `sat` part must carry its point (run the shard again)")
+        }
+        (Word::Sat, Some(c), None) => {
+            let root = Path::new(&run.root);
+            let (onnx, vnnlib) = (root.join(&l.onnx), root.join(&l.vnnlib));
+            for (name, path) in [(&l.onnx, &onnx), (&l.vnnlib, &vnnlib)] {
+                let now = super::shard::digest_file(path, &format!("{at}: re-checking the counterexample needs"))?;
+                if run.inputs[name.as_str()] != now.as_str() {
+                    bail!(
+                        "{at}: input `{name}` ({}) changed since the shards ran (content digest {} then, {now} now); run every shard again",
+                        path.display(),
+                        run.inputs[name.as_str()]
+                    );
+                }
+            }
+            let (net, q) = load_instance(&onnx, &vnnlib, "onnx", "vnnlib")
+                .map_err(|e| anyhow!("{at}: {e}"))?;
+            let y = match recheck(&net, &q, &c.inputs, c.disjunct)
+                .map_err(|e| anyhow!("{at}: the `sat` counterexample is malformed: {e}"))?
+            {
+                Recheck::Holds(y) | Recheck::ExactOnly(y, _) => y,
+                Recheck::Fails(margin) => bail!(
+                    "{at}: the `sat` counterexample does not hold: the network's outputs there miss the property's region (margin {margin:e}); the shard is damaged or tampered with, run it again"
+                ),
+            };
+            if y.iter().map(|v| v.to_bits()).ne(c.outputs.iter().map(|v| v.to_bits())) {
+                bail!(
+                    "{at}: the `sat` counterexample's outputs {:?} are not the network's {:?} at its inputs; the shard is damaged or tampered with, run it again",
+                    c.outputs,
+                    y
+                );
+            }
+            if let Some(c) = &mut p.counterexample {
+                c.outputs = y;
+            }
+        }
+        _ => bail!(
+            "{at}: result `{}` with {} counterexample and {} unknown reason: the fields contradict each other; the shard is damaged or tampered with, run it again",
+            p.result.text(),
+            if p.counterexample.is_some() { "a" } else { "no" },
+            p.unknown_reason
+                .as_ref()
+                .map_or("no".to_string(), |r| format!("a `{}`", r.kind))
+        ),
+    }
+    Ok(p)
+}
+
+/// `samara merge vnncomp`: the shards' instances in order, each checked against the run's
+/// instances CSV (read back from where the shards resolved it: every instance exactly
+/// once) and rebuilt from its typed result, every `sat` counterexample re-checked on the
+/// network; then the results CSV and the summary, as one process writes them.
+pub fn merge_vnncomp(
+    run: &Value,
+    shards: &[(PathBuf, Value)],
+    out: &Path,
+    json_out: bool,
+) -> Result<ExitCode> {
+    let (file0, _) = &shards[0];
+    let run: VnncompRun = serde_json::from_value(run.clone())
+        .map_err(|e| anyhow!("{}: not a vnncomp run record: {e}", file0.display()))?;
+    let csv_path = PathBuf::from(&run.instances_file);
+    let text = std::fs::read_to_string(&csv_path).map_err(|e| {
+        anyhow!(
+            "{}: the run's instances CSV {}: cannot read: {e} (the merge reads the run's inputs back to check the shards)",
+            file0.display(),
+            csv_path.display()
+        )
+    })?;
+    if super::shard::digest(text.as_bytes()) != run.instances {
+        bail!(
+            "input `{}` changed since the shards ran (content digest {} then, {} now); run every shard again",
+            csv_path.display(),
+            run.instances,
+            super::shard::digest(text.as_bytes())
+        );
+    }
+    let all = parse_instances(&csv_path, &text)?;
+    if all.len() != run.n_instances {
+        bail!(
+            "{}: {} instances recorded, the CSV {} has {}",
+            file0.display(),
+            run.n_instances,
+            csv_path.display(),
+            all.len()
+        );
+    }
+    let scale: f64 = run
+        .timeout_scale
+        .parse()
+        .map_err(|_| anyhow!("{}: bad `run.timeout_scale`", file0.display()))?;
     let mut csv = String::from(HEADER);
     let mut rows = Vec::new();
-    let mut counts: std::collections::BTreeMap<&str, usize> = Default::default();
+    let mut counts: BTreeMap<Word, usize> = Default::default();
     let mut total = 0.0;
-    let mut next = 0u64;
+    let mut next = 0usize;
     let mut n = 0;
-    for (file, r) in shards {
-        let (lo, hi) = (r["instances"][0].as_u64(), r["instances"][1].as_u64());
-        let parts = r["parts"].as_array().cloned().unwrap_or_default();
-        if lo != Some(next) {
+    let n_shards = shards.len();
+    for (i, (file, r)) in shards.iter().enumerate() {
+        let r: VnncompShard = serde_json::from_value(r.clone())
+            .map_err(|e| anyhow!("{}: not a vnncomp shard result: {e}", file.display()))?;
+        let want = super::shard::Shard { i, n: n_shards }.range(all.len());
+        if r.instances != [want.start, want.end] || want.start != next {
             bail!(
-                "{}: instances {}..{}, expected to start at {next} (the shards do not tile the instances)",
+                "{}: instances {}..{}, expected {}..{} for shard {i}/{n_shards} (the shards do not tile the instances)",
                 file.display(),
-                r["instances"][0],
-                r["instances"][1]
+                r.instances[0],
+                r.instances[1],
+                want.start,
+                want.end
             );
         }
-        let hi = hi.unwrap_or(0);
-        if parts.len() as u64 != hi - next {
+        if r.parts.len() > want.len() {
+            bail!(
+                "{}: {} instance parts for its {} instances {}..{}: an instance appears more than once (the shard is damaged or tampered with); run it again",
+                file.display(),
+                r.parts.len(),
+                want.len(),
+                want.start,
+                want.end
+            );
+        }
+        if r.parts.len() != want.len() || r.done != r.parts.len() {
             bail!(
                 "{}: {} of its {} instances done (the shard was cut short); run it again",
                 file.display(),
-                parts.len(),
-                hi - next
+                r.parts.len().min(r.done),
+                want.len()
             );
         }
-        next = hi;
-        for p in &parts {
-            let (Some(c), Some(row), Some(word)) =
-                (p["csv"].as_str(), p["row"].as_str(), p["result"].as_str())
-            else {
-                bail!("{}: a malformed instance entry", file.display());
-            };
-            let word = ["unsat", "sat", "timeout", "unknown"]
-                .into_iter()
-                .find(|w| *w == word)
-                .ok_or_else(|| anyhow!("{}: result `{word}`", file.display()))?;
-            *counts.entry(word).or_default() += 1;
-            csv.push_str(c);
-            rows.push(row.to_string());
-            total += p["seconds"].as_f64().unwrap_or(0.0);
+        next = want.end;
+        for (l, p) in all[want].iter().zip(r.parts) {
+            let p = check_part(file, &run, l, scale, p)?;
+            *counts.entry(p.result).or_default() += 1;
+            csv.push_str(&p.csv_line());
+            rows.push(p.row()?);
+            total += p.seconds;
             if !json_out {
-                println!("{}", p["progress"].as_str().unwrap_or_default());
+                println!("{}", p.progress());
             }
             n += 1;
         }

@@ -9,6 +9,9 @@ use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+mod support;
+use support::sealing::write_shard;
+
 fn run(args: &[&OsStr]) -> (Option<i32>, String, String) {
     let o = Command::new(env!("CARGO_BIN_EXE_samara"))
         .args(args)
@@ -206,15 +209,25 @@ fn vnncomp_shards_merge_to_the_unsharded_result() {
         serde_json::from_str(&merged).unwrap(),
     );
     assert_eq!(a["counts"]["unsat"], 3);
-    // The merged rows are the shards' rows, digit for digit, in instance order.
+    // The merged rows are rebuilt from the shards' typed parts, digit for digit, in
+    // instance order (no text copy is stored).
     let mut parts = Vec::new();
     for f in &shards {
         let v: Value = serde_json::from_str(&std::fs::read_to_string(f).unwrap()).unwrap();
         for p in v["result"]["parts"].as_array().unwrap() {
-            parts.push(serde_json::from_str::<Value>(p["row"].as_str().unwrap()).unwrap());
+            assert!(p.get("csv").is_none() && p.get("row").is_none(), "{p}");
+            parts.push(p.clone());
         }
     }
-    assert_eq!(b["instances"].as_array().unwrap(), &parts);
+    let rows = b["instances"].as_array().unwrap();
+    assert_eq!(rows.len(), parts.len());
+    for (row, p) in rows.iter().zip(&parts) {
+        for k in [
+            "line", "onnx", "vnnlib", "timeout", "result", "seconds", "engine",
+        ] {
+            assert_eq!(row[k], p[k], "{k}: {row} vs {p}");
+        }
+    }
     assert_eq!(strip(a), strip(b));
     // The results CSV: the same rows in instance order (the seconds column aside).
     let cols = |p: &Path| -> Vec<String> {
@@ -444,7 +457,7 @@ fn reach_three_shards_merge_to_the_unsharded_result() {
         .as_array_mut()
         .unwrap()
         .retain(|b| b["key"].as_str().unwrap().ends_with(':'));
-    std::fs::write(f1, serde_json::to_string(&v).unwrap()).unwrap();
+    write_shard(f1, v, true);
     let out = dir.path().join("cut");
     let mut m: Vec<&OsStr> = vec!["merge".as_ref(), "reach".as_ref()];
     m.extend(files.iter().map(|f| f.as_os_str()));
@@ -529,7 +542,7 @@ fn reach_merge_refuses_shards_that_do_not_make_one_run() {
     let mut v: Value = serde_json::from_str(&std::fs::read_to_string(&s1).unwrap()).unwrap();
     let gone = v["result"]["subboxes"].as_array_mut().unwrap().remove(0);
     let cut = dir.path().join("cut.json");
-    std::fs::write(&cut, serde_json::to_string(&v).unwrap()).unwrap();
+    write_shard(&cut, v, true);
     let err = merge(&[&s0, &cut]);
     assert!(
         err.contains(&format!(

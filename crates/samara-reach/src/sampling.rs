@@ -55,6 +55,17 @@ pub fn simulate_samples(plant: &Plant, net: &Network, s: &ReachSettings, n: usiz
                 .collect(),
         );
     }
+    starts
+        .par_iter()
+        .filter_map(|x0| simulate_one(plant, net, s, x0))
+        .collect()
+}
+
+/// One simulated trajectory from `x0`, as [`simulate_samples`] flies each of its starts
+/// (DOP853 at rtol 1e-10, atol 1e-12; the run's period, horizon, clip and reset
+/// filter); `None` if the flight fails. Deterministic: the same start gives the same
+/// trajectory bit for bit (what re-checking a sampled counterexample relies on).
+pub fn simulate_one(plant: &Plant, net: &Network, s: &ReachSettings, x0: &[f64]) -> Option<Sample> {
     let ls = LoopSettings {
         period: s.period,
         horizon: s.horizon,
@@ -62,27 +73,22 @@ pub fn simulate_samples(plant: &Plant, net: &Network, s: &ReachSettings, n: usiz
         reset_filter: s.reset_filter,
         output_step: Some(sample_step(s.period)),
     };
-    starts
-        .par_iter()
-        .filter_map(|x0| {
-            let mut c = NetworkController::new(net.clone(), s.clip, "net");
-            let f = fly(plant, &mut c, x0, &ls).ok()?;
-            let mut states = vec![x0.clone()];
-            states.extend(f.steps.iter().map(|r| r.state_end.clone()));
-            let xy = f.dense.iter().map(|(_, st, _)| (st[4], st[5])).collect();
-            let txy = f
-                .dense
-                .iter()
-                .map(|(t, st, _)| (t, st[4] + st[5]))
-                .collect();
-            Some(Sample {
-                initial: x0.clone(),
-                states,
-                xy,
-                txy,
-            })
-        })
-        .collect()
+    let mut c = NetworkController::new(net.clone(), s.clip, "net");
+    let f = fly(plant, &mut c, x0, &ls).ok()?;
+    let mut states = vec![x0.to_vec()];
+    states.extend(f.steps.iter().map(|r| r.state_end.clone()));
+    let xy = f.dense.iter().map(|(_, st, _)| (st[4], st[5])).collect();
+    let txy = f
+        .dense
+        .iter()
+        .map(|(t, st, _)| (t, st[4] + st[5]))
+        .collect();
+    Some(Sample {
+        initial: x0.to_vec(),
+        states,
+        xy,
+        txy,
+    })
 }
 
 /// Output spacing of the sampled trajectories: 0.05, or the nearest finer step that

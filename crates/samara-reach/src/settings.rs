@@ -109,7 +109,84 @@ pub struct ReachSettings {
     pub flow: FlowSettings,
 }
 
+/// How many actuator-range widths outside the range a network's raw output must lie,
+/// at most of the sample states, for [`units_warning`] to suspect its units. A raw-unit
+/// controller of the glider stays within about one width of the range (the published
+/// `_denorm` networks: 0.1818 to 0.1936 over the nine published flights, range [0.181,
+/// 0.193]); a normalised one read with raw states gives 0.5 to 100.
+pub const UNITS_FACTOR: f64 = 10.0;
+
+/// A suspected units mismatch, in words (`None` when none is seen): the network's raw
+/// output (before any clip) at `states` (the controller reads their first
+/// `net.n_inputs()` values) lies more than [`UNITS_FACTOR`] widths of the actuator range
+/// `range` outside it at more than half of them. The likely cause is a network in
+/// normalised units (inputs in [0, 1], a normalised output) flown where physical units
+/// are expected; the clip would then pin every control to an end of the range, and the
+/// flight or the sets would be the clip's, not the network's.
+pub fn units_warning(net: &Network, states: &[Vec<f64>], range: (f64, f64)) -> Option<String> {
+    let n = net.n_inputs();
+    let outs: Vec<f64> = states
+        .iter()
+        .filter(|x| x.len() >= n && net.n_outputs() == 1)
+        .map(|x| net.eval_f64(&x[..n])[0])
+        .collect();
+    let width = (range.1 - range.0).max(f64::MIN_POSITIVE);
+    let far = outs
+        .iter()
+        .filter(|y| {
+            let d = if **y < range.0 {
+                range.0 - **y
+            } else {
+                **y - range.1
+            };
+            // NaN counts as far: no control at all.
+            d.is_nan() || d > UNITS_FACTOR * width
+        })
+        .count();
+    if outs.is_empty() || 2 * far <= outs.len() {
+        return None;
+    }
+    let lo = outs.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = outs.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let layers = if net.input_norm.is_none() && net.output_denorm.is_none() {
+        " and the file carries no normalisation layers"
+    } else {
+        ""
+    };
+    Some(format!(
+        "the network's output at {far} of {} initial states lies more than {UNITS_FACTOR} times the actuator range's width outside [{}, {}] (from {lo:.4} to {hi:.4}){layers}: it looks like a network in normalised units (inputs in [0, 1], a normalised output) where physical units are expected, and every control would be pinned to the clip; pass the raw-unit network (the `_denorm` file, e.g. base_model_denorm.onnx), or declare the normalisation in a spec (`normalise NAME input/output`, with --spec)",
+        outs.len(),
+        range.0,
+        range.1
+    ))
+}
+
 impl ReachSettings {
+    /// [`units_warning`] at the initial set's corners (at most 64: the first six
+    /// parameters) and centre, against the run's clip (the actuator range
+    /// `samara_plant::EX_RANGE` without one).
+    pub fn units_warning(&self, net: &Network) -> Option<String> {
+        let params: Vec<usize> = (0..self.init.len())
+            .filter(|&i| self.init[i].1 > self.init[i].0)
+            .take(6)
+            .collect();
+        let mut states: Vec<Vec<f64>> = (0..1usize << params.len())
+            .map(|corner| {
+                let mut x: Vec<f64> = self.init.iter().map(|b| 0.5 * (b.0 + b.1)).collect();
+                for (j, &i) in params.iter().enumerate() {
+                    x[i] = if corner >> j & 1 == 1 {
+                        self.init[i].1
+                    } else {
+                        self.init[i].0
+                    };
+                }
+                x
+            })
+            .collect();
+        states.push(self.init.iter().map(|b| 0.5 * (b.0 + b.1)).collect());
+        units_warning(net, &states, self.clip.unwrap_or(samara_plant::EX_RANGE))
+    }
+
     /// The published setting for `model`: `y0 ∈ [1.4286, 4.2857]`, start `(1,0,0,0,0,y0)`.
     pub fn published(model: Model) -> Self {
         let mut init = vec![(1.0, 1.0), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), (0.0, 0.0)];
@@ -215,5 +292,49 @@ impl ReachSettings {
             }
         }
         self.steps()
+    }
+}
+
+#[cfg(test)]
+mod units_tests {
+    use super::*;
+    use samara_nn::{Affine, Layer};
+
+    /// `ex = w * y + b` over the six states (only y, the sixth, weighs).
+    fn net(w: f64, b: f64) -> Network {
+        Network {
+            input_names: (0..6).map(|i| format!("s{i}")).collect(),
+            output_names: vec!["ex".into()],
+            input_norm: None,
+            layers: vec![Layer::Affine(Affine::new(
+                6,
+                1,
+                vec![0.0, 0.0, 0.0, 0.0, 0.0, w],
+                vec![b],
+            ))],
+            output_denorm: None,
+        }
+    }
+
+    #[test]
+    fn units_warning_needs_most_outputs_far_outside_the_range() {
+        let states: Vec<Vec<f64>> = [1.0, 2.0, 3.0]
+            .iter()
+            .map(|&y| vec![1.0, 0.0, 0.0, 0.0, 0.0, y])
+            .collect();
+        let range = (0.181, 0.193);
+        // Ten widths of the range is 0.12 on either side.
+        assert!(units_warning(&net(0.0, 0.187), &states, range).is_none());
+        assert!(units_warning(&net(0.0, 0.193 + 0.119), &states, range).is_none());
+        assert!(units_warning(&net(0.0, 0.193 + 0.121), &states, range).is_some());
+        assert!(units_warning(&net(0.0, 0.181 - 0.121), &states, range).is_some());
+        // 0.1 y + 0.1 = 0.2, 0.3, 0.4: one state of three far out, not most of them.
+        assert!(units_warning(&net(0.1, 0.1), &states, range).is_none());
+        // 0.2 y - 0.01 = 0.19, 0.39, 0.59: two of three.
+        let w = units_warning(&net(0.2, -0.01), &states, range).unwrap();
+        assert!(w.contains("at 2 of 3 initial states"), "{w}");
+        assert!(w.contains("no normalisation layers"), "{w}");
+        let w = units_warning(&net(0.0, f64::NAN), &states, range).unwrap();
+        assert!(w.contains("3 of 3 initial states"), "{w}");
     }
 }

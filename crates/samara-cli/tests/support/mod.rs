@@ -5,6 +5,7 @@
 use std::process::Command;
 
 mod reference;
+pub mod sealing;
 
 /// The `samara` binary built for these tests.
 pub fn samara() -> Command {
