@@ -5,7 +5,8 @@
 //!
 //! Data flow of one sub-box `B` of the initial set (states with a non-zero width are
 //! the parameters `xi in [-1, 1]^n`, `x_i = mid_i + rad_i xi_i`):
-//! 1. at each control instant: the resets; the network's inputs `observe(x)` as Taylor
+//! 1. at each control instant but the horizon: the resets (when they fire and what the
+//!    set at an instant is come from `samara_system::System::begin_period`); the network's inputs `observe(x)` as Taylor
 //!    models; their linear part `c + G xi` goes to CROWN, the rest (higher-order terms
 //!    and remainders) as a noise box; the network's outputs come back as
 //!    `coef . xi + cst +- dev` (Taylor models of order 1 with an interval remainder) —
@@ -1326,9 +1327,13 @@ fn fly_box(
     let steps = sys.steps();
     let mut obs = vec![Tm::cst(0.0); sys.n_observed()];
     let mut u = vec![Tm::cst(0.0); sys.n_inputs()];
+    // The plant's semantics from samara-system, as the simulator takes them: the resets
+    // act on the initial set, then at the start of every period but at the horizon; the
+    // set recorded and checked at an instant k >= 1 is the previous period's flow at its
+    // end, before the resets.
+    sys.initial_state(&mut x);
     for k in 0..=steps {
         let t = k as f64 * sys.period;
-        sys.apply_resets(&mut x);
         let hull: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
         leaf.instants.push(to_pairs(&hull));
         check_goals(sys, &x, &hull, t, t, &mut ok, &mut met, &mut refuted);
@@ -1363,6 +1368,12 @@ fn fly_box(
             ));
             break;
         }
+        let hull = if sys.resets.is_empty() {
+            hull
+        } else {
+            sys.begin_period(k, &mut x);
+            x.iter().map(|v| v.bound()).collect()
+        };
         // Room for this period's symbolic remainders (one per input at most).
         let crowded =
             max_params > 0 && x.iter().map(|v| v.n_vars()).max().unwrap_or(0) > max_params;

@@ -306,10 +306,34 @@ impl System {
         self.actuate.affine(0, self.n_net_outputs)
     }
 
-    /// Apply the `reset` statements (at a control instant).
+    /// Apply the `reset` statements to a state, unconditionally. Code that flies the
+    /// closed loop calls [`System::initial_state`] and [`System::begin_period`] instead,
+    /// which say *when* resets fire (see "Semantics of a closed loop" in docs/system.md).
     pub fn apply_resets<S: Scalar>(&self, x: &mut [S]) {
         for &(i, v) in &self.resets {
             x[i] = S::cst(v);
+        }
+    }
+
+    /// The state at `t = 0` from a point (or set) of the `init` box: the resets fire at
+    /// the first control instant before anything reads the state, so a reset state's
+    /// `init` value is overwritten at once. One definition for the simulator
+    /// ([`sim::fly`]) and the reachability code (`samara_reach::system`), so that both
+    /// give the same meaning to a plant.
+    pub fn initial_state<S: Scalar>(&self, x: &mut [S]) {
+        self.apply_resets(x)
+    }
+
+    /// The state that the period starting at control instant `k` (time `k * period`)
+    /// flies from and that the network reads, from the state at that instant: the
+    /// resets fire at the instants `k = 0 .. steps() - 1`, before the network reads the
+    /// state, and **never at the horizon** (`k >= steps()` leaves `x` as it is). The
+    /// state *at* an instant `k >= 1` (what goals, "at end" and the recorded flights
+    /// see) is the previous period's flow at its end, before this call; see
+    /// docs/system.md, "Semantics of a closed loop".
+    pub fn begin_period<S: Scalar>(&self, k: usize, x: &mut [S]) {
+        if k < self.steps() {
+            self.apply_resets(x)
         }
     }
 

@@ -1,5 +1,7 @@
-//! Closed-loop simulation of a system file: at each control instant the resets are
-//! applied, the network reads the observed states, its outputs are mapped to the plant's
+//! Closed-loop simulation of a system file, with the semantics of
+//! [`System::initial_state`] and [`System::begin_period`] (docs/system.md, "Semantics of
+//! a closed loop"): at each control instant but the horizon the resets are applied, the
+//! network reads the observed states, its outputs are mapped to the plant's
 //! inputs (affine map, then clip) and held for one period, over which the equations are
 //! integrated by samara-sim's DOP853 (rtol 1e-10, atol 1e-12, the step carried over from
 //! period to period as the built-in closed loop does). The same sample-and-hold protocol
@@ -92,8 +94,9 @@ pub fn fly(
     let mut scratch = Vec::new();
     let mut buf = Vec::new();
     let mut h_next = 0.0f64;
+    sys.initial_state(&mut x);
     for k in 0..sys.steps() {
-        sys.apply_resets(&mut x);
+        sys.begin_period(k, &mut x);
         sys.observe(&x, &mut obs);
         let y = net(&obs);
         if y.len() < sys.n_net_outputs {
