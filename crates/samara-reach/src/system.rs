@@ -33,7 +33,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::Network;
 use samara_num::{Interval, Scalar, Tm};
-use samara_system::sim::{fly, goals_hold, SystemFlight};
+use samara_system::sim::{fly, fly_until, goals_hold, SimError, SystemFlight};
 use samara_system::{band_decision, GoalKind, System, When};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -430,17 +430,27 @@ pub fn reach_system(
     });
     // Falsification first.
     let eval = controller(net);
-    let flights: Vec<(Vec<f64>, Result<SystemFlight, String>)> = starts(sys, s.samples, s.seed)
+    let flights: Vec<(Vec<f64>, Result<SystemFlight, SimError>)> = starts(sys, s.samples, s.seed)
         .into_par_iter()
         .map(|x0| {
-            let f = fly(sys, &eval, &x0, 10).map_err(|e| e.to_string());
+            let f = fly_until(sys, &eval, &x0, 10, deadline);
             (x0, f)
         })
         .collect();
     let mut ok_flights = Vec::with_capacity(flights.len());
     let mut violation = None;
+    // A flight the simulator cannot finish (its step collapsed on a switch, or the
+    // budget ran out) witnesses nothing; the sets do not need it.
+    let mut unflown: Option<String> = None;
     for (x0, f) in flights {
-        let f = f.map_err(SystemReachError::Simulation)?;
+        let f = match f {
+            Ok(f) => f,
+            Err(e @ (SimError::StepCollapse { .. } | SimError::Timeout { .. })) => {
+                unflown.get_or_insert_with(|| format!("the flight from {x0:?} stopped: {e}"));
+                continue;
+            }
+            Err(e) => return Err(SystemReachError::Simulation(e.to_string())),
+        };
         if violation.is_none() {
             if let Some(gi) = goals_hold(sys, &f).iter().position(|h| !h) {
                 violation = Some(SystemVerdict::Violated {
@@ -563,7 +573,12 @@ pub fn reach_system(
             // Without goals the sets are the result; a sub-box that stops early says so
             // in its `failure`.
             _ if sys.goals.is_empty() => SystemVerdict::NoGoal,
-            (None, Some(r)) => SystemVerdict::Unknown { reason: r },
+            (None, Some(r)) => SystemVerdict::Unknown {
+                reason: match &unflown {
+                    Some(u) => format!("{r}; {u}"),
+                    None => r,
+                },
+            },
             (None, None) => SystemVerdict::Proved,
         }
     };
@@ -1308,6 +1323,7 @@ fn fly_box(
     // With symbolic remainders, the flow's own remainders become parameters too.
     let flow = TmFlowSettings {
         max_params,
+        deadline,
         ..s.flow.clone()
     };
     let mut leaf = SystemLeaf {

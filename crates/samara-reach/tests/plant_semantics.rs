@@ -138,3 +138,32 @@ fn reset_states_hold_the_last_period_at_instants_and_at_the_end() {
         r.verdict
     );
 }
+
+/// Time limits (issue 35, item 3): on a sliding-mode plant (`x' = if x < 0 then y + 0.5
+/// else y - 0.5`, `|y| < 0.5`: the field points at the switch from both sides) every
+/// falsification flight's step collapses and the flowpipe halves its steps to the
+/// limit; a 2 s budget still ends the run within 2 s plus one period's work (1 s here),
+/// `unknown` with a reason that says so and names the collapsed flight.
+#[test]
+fn sliding_mode_reach_ends_within_its_timeout() {
+    let src = "state x, y\ninput u\nx' = if x < 0 then y + 0.5 else y - 0.5\n\
+               y' = 0.01 * u\nperiod 0.5\nhorizon 5\nobserve x\nactuate u = net[0]\n\
+               init x in [-0.1, 0.1]\ninit y in [-0.1, 0.1]\ngoal band x <= 1 always\n";
+    let sys = System::parse(src, "slide.sys").unwrap();
+    let net = small_net();
+    let s = SystemReachSettings {
+        timeout: Some(2.0),
+        ..Default::default()
+    };
+    let start = std::time::Instant::now();
+    let r = reach_system(&sys, &net, &s).unwrap();
+    let wall = start.elapsed().as_secs_f64();
+    eprintln!("{:?} in {wall:.2} s", r.verdict);
+    assert!(wall <= 3.0, "{wall:.2} s");
+    match &r.verdict {
+        SystemVerdict::Unknown { reason } => {
+            assert!(reason.contains("collapsed"), "{reason}");
+        }
+        v => panic!("{v:?}"),
+    }
+}

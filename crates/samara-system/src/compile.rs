@@ -5,7 +5,7 @@ use crate::error::{closest, Pos, SystemError};
 use crate::graph::{Bin2, Builder, Cond, Graph, Op, Un};
 use crate::lex::err;
 use crate::parse::{Bin, Cmp, Expr, GoalAst, Stmt, WhenAst};
-use crate::{Goal, GoalKind, System, When};
+use crate::{Goal, GoalKind, Switch, System, When};
 use std::collections::HashMap;
 use std::f64::consts::PI;
 
@@ -56,6 +56,8 @@ struct Lower<'a, 'c> {
     mode: Mode,
     let_nodes: Vec<usize>,
     net_max: usize,
+    /// The condition operand (`a - b` of `if a < b`) and place of every `if` lowered.
+    switches: Vec<(usize, Pos)>,
 }
 
 type R<T> = Result<T, SystemError>;
@@ -86,6 +88,7 @@ impl<'a, 'c> Lower<'a, 'c> {
             mode: Mode::Rhs,
             let_nodes: Vec::new(),
             net_max: 0,
+            switches: Vec::new(),
         };
         if matches!(mode, Mode::Rhs | Mode::States) {
             for (_, _, e) in lets {
@@ -215,6 +218,7 @@ impl<'a, 'c> Lower<'a, 'c> {
                     Cmp::Gt => (self.bin(Bin::Sub, r, l, *p)?, Cond::Neg),
                     Cmp::Ge => (self.bin(Bin::Sub, r, l, *p)?, Cond::NonPos),
                 };
+                self.switches.push((c, *p));
                 let (a, b) = (self.expr(a)?, self.expr(b)?);
                 self.push(Op::Select(k, c, a, b), *p)
             }
@@ -523,6 +527,24 @@ pub(crate) fn compile(
         }
     }
     let rhs = rhs_b.b.finish(&outs);
+    // Every `if` of the equations whose condition varies, as its own graph (for the
+    // simulator's diagnosis of a collapsed step: which switch flips at the state).
+    let mut switches: Vec<Switch> = Vec::new();
+    for &(c, p) in &rhs_b.switches {
+        if rhs_b.b.konst(c).is_some() || switches.iter().any(|w| w.pos == p) {
+            continue;
+        }
+        switches.push(Switch {
+            pos: p,
+            text: src
+                .lines()
+                .nth(p.line.saturating_sub(1))
+                .unwrap_or("")
+                .trim()
+                .to_string(),
+            condition: rhs_b.b.finish(&[c]),
+        });
+    }
     // Pass 4: the rest.
     let mut period = None;
     let mut horizon = None;
@@ -847,6 +869,7 @@ pub(crate) fn compile(
         n_net_outputs: n_net,
         resets,
         goals,
+        switches,
         rhs,
         src: src.to_string(),
     })

@@ -160,6 +160,19 @@ pub fn band_decision(r: Interval, lo: f64, hi: f64) -> Option<bool> {
     }
 }
 
+/// An `if` of the equations: where it is and its condition as a graph over the states
+/// and inputs (`a - b` for `if a < b` or `a <= b`, `b - a` for `>` and `>=`: the branch
+/// changes where it changes sign).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Switch {
+    /// Place of the `if` in the file.
+    pub pos: Pos,
+    /// Its source line, trimmed.
+    pub text: String,
+    /// The condition operand (one output).
+    pub condition: Graph,
+}
+
 /// A checked, compiled system file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct System {
@@ -191,6 +204,8 @@ pub struct System {
     pub resets: Vec<(usize, f64)>,
     /// Goals (all must hold).
     pub goals: Vec<Goal>,
+    /// The `if`s of the equations whose condition is not constant, in file order.
+    pub switches: Vec<Switch>,
     rhs: Graph,
     src: String,
 }
@@ -335,6 +350,29 @@ impl System {
         if k < self.steps() {
             self.apply_resets(x)
         }
+    }
+
+    /// The `if`s whose condition changes sign within a relative distance `rel` of the
+    /// state `x` (under the held inputs `u`): the condition evaluated on intervals over
+    /// the box `x_i +- rel (1 + |x_i|)` contains 0. Names the switch at which a flight's
+    /// step size collapsed ([`sim::SimError::StepCollapse`]).
+    pub fn switches_at(&self, x: &[f64], u: &[f64], rel: f64) -> Vec<&Switch> {
+        let xb: Vec<Interval> = x
+            .iter()
+            .map(|&v| {
+                let r = rel * (1.0 + v.abs());
+                Interval::new(v - r, v + r)
+            })
+            .collect();
+        let ub: Vec<Interval> = u.iter().map(|&v| Interval::point(v)).collect();
+        self.switches
+            .iter()
+            .filter(|w| {
+                let mut o = [Interval::point(0.0)];
+                w.condition.eval(&xb, &ub, &mut o);
+                !(o[0].lo > 0.0 || o[0].hi < 0.0)
+            })
+            .collect()
     }
 
     /// Number of control periods in the horizon.

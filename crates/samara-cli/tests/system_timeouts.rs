@@ -1,0 +1,67 @@
+//! Time limits of `samara reach --system` (issue 35, item 3): a sliding-mode plant, whose
+//! field points at the switch `x = 0` from both sides, stalls every integrator (the step
+//! size collapses on the discontinuity); the run must still come back within
+//! `--timeout` plus the larger of 1 s and one control period, with `unknown (timeout)`
+//! and exit code 1.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+mod support;
+
+/// A network with 2 inputs and 1 output, `u = 0.1 relu(x + y) + 0.05`, as ONNX.
+fn small_network(dir: &Path) -> PathBuf {
+    use samara_nn::{Activation, Affine, Layer, Network};
+    let net = Network {
+        input_names: vec!["x".into(), "y".into()],
+        output_names: vec!["u".into()],
+        input_norm: None,
+        layers: vec![
+            Layer::Affine(Affine::new(2, 1, vec![1.0, 1.0], vec![0.0])),
+            Layer::Act(Activation::Relu),
+            Layer::Affine(Affine::new(1, 1, vec![0.1], vec![0.05])),
+        ],
+        output_denorm: None,
+    };
+    let p = dir.join("c.onnx");
+    samara_nn::onnx::save(&net, &p, &Default::default()).unwrap();
+    p
+}
+
+/// The sliding-mode plant of issue 35: `x' = y + 0.5` left of 0, `y - 0.5` right of it,
+/// with `|y| < 0.5` throughout, so every flight from the box reaches `x = 0` and slides
+/// along it.
+pub const SLIDE: &str = "state x, y\ninput u\n\
+    x' = if x < 0 then y + 0.5 else y - 0.5\ny' = 0.01 * u\nperiod 0.5\nhorizon 5\n\
+    actuate u = net[0]\ninit x in [-0.1, 0.1]\ninit y in [-0.1, 0.1]\n\
+    goal band x <= 1 always\n";
+
+#[test]
+fn sliding_mode_reach_returns_within_the_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let sys = dir.path().join("slide.sys");
+    std::fs::write(&sys, SLIDE).unwrap();
+    let net = small_network(dir.path());
+    let out = dir.path().join("o");
+    let timeout = 2.0;
+    let start = Instant::now();
+    let o = support::samara()
+        .args(["reach", "--system"])
+        .arg(&sys)
+        .arg("--network")
+        .arg(&net)
+        .args(["--timeout", "2", "--json", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let wall = start.elapsed().as_secs_f64();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    eprintln!("{wall:.2} s\n{stdout}\n{stderr}");
+    // The promise: timeout + max(1 s, one period of 0.5 s).
+    assert!(wall <= timeout + 1.0, "{wall:.2} s");
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    assert_eq!(v["verdict"], "unknown", "{v}");
+    assert!(v["reason"].as_str().unwrap().contains("timeout"), "{v}");
+}
