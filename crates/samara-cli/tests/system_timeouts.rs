@@ -36,13 +36,20 @@ pub const SLIDE: &str = "state x, y\ninput u\n\
     actuate u = net[0]\ninit x in [-0.1, 0.1]\ninit y in [-0.1, 0.1]\n\
     goal band x <= 1 always\n";
 
-#[test]
-fn sliding_mode_reach_returns_within_the_timeout() {
+/// A temporary folder with `slide.sys` and `c.onnx`, and an output path inside it (the
+/// folder lives as long as the first value).
+fn slide_files() -> (tempfile::TempDir, PathBuf, PathBuf, PathBuf) {
     let dir = tempfile::tempdir().unwrap();
     let sys = dir.path().join("slide.sys");
     std::fs::write(&sys, SLIDE).unwrap();
     let net = small_network(dir.path());
     let out = dir.path().join("o");
+    (dir, sys, net, out)
+}
+
+#[test]
+fn sliding_mode_reach_returns_within_the_timeout() {
+    let (_dir, sys, net, out) = slide_files();
     let timeout = 2.0;
     let start = Instant::now();
     let o = support::samara()
@@ -75,11 +82,7 @@ fn sliding_mode_reach_returns_within_the_timeout() {
 /// state became NaN or infinite"; nothing is left in the output folder.
 #[test]
 fn sliding_mode_simulate_names_the_switch() {
-    let dir = tempfile::tempdir().unwrap();
-    let sys = dir.path().join("slide.sys");
-    std::fs::write(&sys, SLIDE).unwrap();
-    let net = small_network(dir.path());
-    let out = dir.path().join("o");
+    let (_dir, sys, net, out) = slide_files();
     let start = Instant::now();
     let o = support::samara()
         .args(["simulate", "--system"])
