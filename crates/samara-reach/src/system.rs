@@ -6,10 +6,11 @@
 //! Data flow of one sub-box `B` of the initial set (states with a non-zero width are
 //! the parameters `xi in [-1, 1]^n`, `x_i = mid_i + rad_i xi_i`):
 //! 1. at each control instant but the horizon: the resets (when they fire and what the
-//!    set at an instant is come from `samara_system::System::begin_period`); the network's inputs `observe(x)` as Taylor
-//!    models; their linear part `c + G xi` goes to CROWN, the rest (higher-order terms
-//!    and remainders) as a noise box; the network's outputs come back as
-//!    `coef . xi + cst +- dev` (Taylor models of order 1 with an interval remainder) —
+//!    set at an instant is come from `samara_system::System::begin_period`); the
+//!    network's inputs `observe(x)` as Taylor models; their linear part `c + G xi`
+//!    goes to CROWN, the rest (higher-order terms and remainders) as a noise box; the
+//!    network's outputs come back as `coef . xi + cst +- dev` (Taylor models of
+//!    order 1 with an interval remainder) —
 //!    or, for networks without ReLU, the network evaluated on the Taylor models
 //!    themselves (Taylor expansion of tanh / sigmoid), whichever is narrower;
 //! 2. the inputs `actuate(outputs)` then the clips, on Taylor models (a clip that is

@@ -47,7 +47,8 @@ pub struct Stats {
 }
 
 /// Where and how an integration's step size collapsed: [`COLLAPSE_STEPS`] attempted
-/// steps shorter than [`COLLAPSE_REL`] of the integration span, or a step that vanished
+/// steps shorter than [`COLLAPSE_REL`] of the integration span with no accepted step of
+/// normal length between them, or a step that vanished
 /// against `t` with a finite error. A right-hand side that switches where its field
 /// points at the switch from both sides (a sliding mode: `if x < 0 then 1 else -1`)
 /// makes any explicit integrator chatter there with steps of ~1e-11; a transversal
@@ -65,8 +66,8 @@ pub struct Collapse {
 /// A step shorter than this share of the integration span counts toward a collapse.
 pub const COLLAPSE_REL: f64 = 1e-7;
 
-/// Attempted steps shorter than [`COLLAPSE_REL`] of the span after which an integration
-/// stops as collapsed.
+/// Attempted steps shorter than [`COLLAPSE_REL`] of the span, in a row (no accepted
+/// step of normal length between them), after which an integration stops as collapsed.
 pub const COLLAPSE_STEPS: usize = 1000;
 
 /// Stage derivatives `k_j` of one step.
@@ -401,6 +402,11 @@ impl StepControl for Standard<'_> {
     }
 
     fn accepted(&mut self, err: f64, last: bool, stats: &mut Stats) {
+        // A step of normal length ends a run of short ones (a switch crossed): only
+        // short steps in a row, as on a sliding mode, add up to a collapse.
+        if self.h.abs() >= COLLAPSE_REL * self.span.abs() {
+            self.tiny = 0;
+        }
         let fac = if err == 0.0 {
             10.0
         } else {
@@ -528,6 +534,22 @@ mod tests {
         let st = integrate(&DOP853, cross, &mut y, 0.0, 1.0, tol, None, &[], None);
         assert_eq!(st.collapse, None);
         assert!((y[0] - 0.65).abs() < 1e-9, "{}", y[0]);
+        // Many crossings in one call (a relay switching up to 400 times, more short
+        // steps in all than COLLAPSE_STEPS) are not a collapse: each crossing ends
+        // with steps of normal length. y' = 1 on [0, 0.1) mod 0.2 of x = t, 0.5
+        // elsewhere (the value is not checked: a step may straddle a whole cycle
+        // unseen, which no error estimate detects).
+        let relay = |y: &[f64], d: &mut [f64]| {
+            d[0] = 1.0;
+            d[1] = if y[0].rem_euclid(0.2) < 0.1 { 1.0 } else { 0.5 };
+        };
+        let mut y = [0.0, 0.0];
+        let st = integrate(&DOP853, relay, &mut y, 0.0, 40.0, tol, None, &[], None);
+        assert_eq!(st.collapse, None, "{st:?}");
+        assert!(
+            y[1].is_finite() && st.accepted + st.rejected > COLLAPSE_STEPS,
+            "{st:?}"
+        );
     }
 
     #[test]
