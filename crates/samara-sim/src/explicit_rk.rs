@@ -48,8 +48,8 @@ pub struct Stats {
 
 /// Where and how an integration's step size collapsed: [`COLLAPSE_STEPS`] attempted
 /// steps shorter than [`COLLAPSE_REL`] of the integration span with no accepted step of
-/// normal length between them, or a step that vanished
-/// against `t` with a finite error. A right-hand side that switches where its field
+/// normal length between them, [`COLLAPSE_MAX_STEPS`] attempts in all, or a step that
+/// vanished against `t` with a finite error. A right-hand side that switches where its field
 /// points at the switch from both sides (a sliding mode: `if x < 0 then 1 else -1`)
 /// makes any explicit integrator chatter there with steps of ~1e-11; a transversal
 /// switch costs a few dozen short steps, far below the count.
@@ -69,6 +69,15 @@ pub const COLLAPSE_REL: f64 = 1e-7;
 /// Attempted steps shorter than [`COLLAPSE_REL`] of the span, in a row (no accepted
 /// step of normal length between them), after which an integration stops as collapsed.
 pub const COLLAPSE_STEPS: usize = 1000;
+
+/// Attempted steps of one integration call after which it stops as collapsed whatever
+/// their lengths: a chattering whose steps alternate between short and normal ones (a
+/// `sign` term whose stages all fall on one side of the switch now and then) never
+/// makes [`COLLAPSE_STEPS`] short ones in a row. An average step under 1e-5 of the span:
+/// the published closed loops take about ten steps per period, and an explicit
+/// integrator this far below its accuracy step is following a discontinuity (or a
+/// stiffness it is not made for).
+pub const COLLAPSE_MAX_STEPS: usize = 100_000;
 
 /// Stage derivatives `k_j` of one step.
 pub(crate) type Stages = [[f64; MAX_DIM]; MAX_STAGES];
@@ -294,6 +303,8 @@ struct Standard<'a> {
     outputs: OutputPoints<'a>,
     /// Attempts shorter than [`COLLAPSE_REL`] of the span so far.
     tiny: usize,
+    /// Attempts so far (for [`COLLAPSE_MAX_STEPS`]).
+    attempts: usize,
     /// Set when the step vanished with a finite error, or after [`COLLAPSE_STEPS`]
     /// tiny attempts.
     collapsed: bool,
@@ -320,6 +331,10 @@ impl StepControl for Standard<'_> {
             if self.tiny > COLLAPSE_STEPS {
                 self.collapsed = true;
             }
+        }
+        self.attempts += 1;
+        if self.attempts > COLLAPSE_MAX_STEPS {
+            self.collapsed = true;
         }
         (self.h, last)
     }
@@ -467,6 +482,7 @@ where
         h_proposed: 0.0,
         last_rejected: false,
         tiny: 0,
+        attempts: 0,
         collapsed: false,
         outputs: OutputPoints {
             times: out_times,
@@ -550,6 +566,25 @@ mod tests {
             y[1].is_finite() && st.accepted + st.rejected > COLLAPSE_STEPS,
             "{st:?}"
         );
+    }
+
+    /// The chattering of a `sign` term found by the differential plant test (issue 35):
+    /// `x' = -0.48 x - 0.29 sign(x - 0.32) - 0.13`, sliding at x = 0.32, ran ten million
+    /// steps (44 s) because normal steps now and then broke the run of short ones; it is
+    /// now stopped as collapsed after [`COLLAPSE_MAX_STEPS`] attempts, at the switch.
+    #[test]
+    fn sign_chattering_collapses_within_the_step_budget() {
+        let tol = Tolerances::default();
+        let f = |y: &[f64], d: &mut [f64]| {
+            let s = (y[0] - 0.3196429523991142).signum();
+            d[0] = -0.4778242883048819 * y[0] - 0.9665913621863802 * 0.3 * s - 0.1335;
+        };
+        let mut y = [0.3847310974746946];
+        let st = integrate(&DOP853, f, &mut y, 0.0, 0.2, tol, None, &[], None);
+        let c = st.collapse.expect("collapse reported");
+        assert!((c.state[0] - 0.3196429523991142).abs() < 1e-6, "{c:?}");
+        // Caught by the step budget, not by a run of short steps.
+        assert_eq!(st.accepted + st.rejected, COLLAPSE_MAX_STEPS, "{st:?}");
     }
 
     #[test]
