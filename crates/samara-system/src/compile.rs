@@ -527,24 +527,25 @@ pub(crate) fn compile(
         }
     }
     let rhs = rhs_b.b.finish(&outs);
-    // Every `if` of the equations whose condition varies, as its own graph (for the
-    // simulator's diagnosis of a collapsed step: which switch flips at the state).
+    // Every `if` of the equations whose condition varies, its condition an output of
+    // one graph (for the simulator's diagnosis of a collapsed step: which switch flips
+    // at the state); one pass over the instructions however many `if`s there are.
     let mut switches: Vec<Switch> = Vec::new();
+    let mut conds: Vec<usize> = Vec::new();
+    let mut seen: std::collections::HashSet<(usize, usize)> = Default::default();
+    let lines: Vec<&str> = src.lines().collect();
     for &(c, p) in &rhs_b.switches {
-        if rhs_b.b.konst(c).is_some() || switches.iter().any(|w| w.pos == p) {
+        if rhs_b.b.konst(c).is_some() || !seen.insert((p.line, p.col)) {
             continue;
         }
+        let line = lines.get(p.line.saturating_sub(1)).copied().unwrap_or("");
         switches.push(Switch {
             pos: p,
-            text: src
-                .lines()
-                .nth(p.line.saturating_sub(1))
-                .unwrap_or("")
-                .trim()
-                .to_string(),
-            condition: rhs_b.b.finish(&[c]),
+            text: switch_excerpt(line, p.col),
         });
+        conds.push(c);
     }
+    let switch_conditions = rhs_b.b.finish(&conds);
     // Pass 4: the rest.
     let mut period = None;
     let mut horizon = None;
@@ -870,7 +871,25 @@ pub(crate) fn compile(
         resets,
         goals,
         switches,
+        switch_conditions,
         rhs,
         src: src.to_string(),
     })
+}
+
+/// The source of an `if` for messages: its whole line (trimmed) when short, else 100
+/// characters from the `if` on (a long line of many `if`s is not copied for each).
+fn switch_excerpt(line: &str, col: usize) -> String {
+    let line = line.trim_end();
+    if line.len() <= 160 {
+        return line.trim_start().to_string();
+    }
+    // The column as a byte offset (exact for ASCII; elsewhere the nearest character
+    // boundary after it): constant work per `if`, however long the line.
+    let mut at = col.saturating_sub(1).min(line.len());
+    while !line.is_char_boundary(at) {
+        at += 1;
+    }
+    let from: String = line[at..].chars().take(100).collect();
+    format!("... {from} ...")
 }

@@ -160,17 +160,14 @@ pub fn band_decision(r: Interval, lo: f64, hi: f64) -> Option<bool> {
     }
 }
 
-/// An `if` of the equations: where it is and its condition as a graph over the states
-/// and inputs (`a - b` for `if a < b` or `a <= b`, `b - a` for `>` and `>=`: the branch
-/// changes where it changes sign).
+/// An `if` of the equations: where it is in the file. Its condition is the matching
+/// output of [`System::switch_conditions`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Switch {
     /// Place of the `if` in the file.
     pub pos: Pos,
     /// Its source line, trimmed.
     pub text: String,
-    /// The condition operand (one output).
-    pub condition: Graph,
 }
 
 /// A checked, compiled system file.
@@ -206,6 +203,10 @@ pub struct System {
     pub goals: Vec<Goal>,
     /// The `if`s of the equations whose condition is not constant, in file order.
     pub switches: Vec<Switch>,
+    /// Their conditions over the states and inputs, output `k` for `switches[k]`: `a -
+    /// b` for `if a < b` or `a <= b`, `b - a` for `>` and `>=` (the branch changes where
+    /// it changes sign).
+    pub switch_conditions: Graph,
     rhs: Graph,
     src: String,
 }
@@ -365,13 +366,13 @@ impl System {
             })
             .collect();
         let ub: Vec<Interval> = u.iter().map(|&v| Interval::point(v)).collect();
+        let mut o = vec![Interval::point(0.0); self.switches.len()];
+        self.switch_conditions.eval(&xb, &ub, &mut o);
         self.switches
             .iter()
-            .filter(|w| {
-                let mut o = [Interval::point(0.0)];
-                w.condition.eval(&xb, &ub, &mut o);
-                !(o[0].lo > 0.0 || o[0].hi < 0.0)
-            })
+            .zip(&o)
+            .filter(|(_, c)| !(c.lo > 0.0 || c.hi < 0.0))
+            .map(|(w, _)| w)
             .collect()
     }
 
