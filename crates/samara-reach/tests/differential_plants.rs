@@ -437,7 +437,7 @@ fn generated_plants_sets_contain_flights_and_verdicts_hold() {
 }
 
 #[test]
-#[ignore = "5,000 generated plants: minutes; run with --ignored (release recommended)"]
+#[ignore = "5,000 generated plants: about 20 minutes in release on 2 shared cores; run with --ignored --release"]
 fn five_thousand_generated_plants() {
     let t = run_generated(3535, 5000, 16);
     assert!(t.plants >= 4750, "{t:?}");
