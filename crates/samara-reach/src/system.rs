@@ -5,10 +5,12 @@
 //!
 //! Data flow of one sub-box `B` of the initial set (states with a non-zero width are
 //! the parameters `xi in [-1, 1]^n`, `x_i = mid_i + rad_i xi_i`):
-//! 1. at each control instant: the resets; the network's inputs `observe(x)` as Taylor
-//!    models; their linear part `c + G xi` goes to CROWN, the rest (higher-order terms
-//!    and remainders) as a noise box; the network's outputs come back as
-//!    `coef . xi + cst +- dev` (Taylor models of order 1 with an interval remainder) —
+//! 1. at each control instant but the horizon: the resets (when they fire and what the
+//!    set at an instant is come from `samara_system::System::begin_period`); the
+//!    network's inputs `observe(x)` as Taylor models; their linear part `c + G xi`
+//!    goes to CROWN, the rest (higher-order terms and remainders) as a noise box; the
+//!    network's outputs come back as `coef . xi + cst +- dev` (Taylor models of
+//!    order 1 with an interval remainder) —
 //!    or, for networks without ReLU, the network evaluated on the Taylor models
 //!    themselves (Taylor expansion of tanh / sigmoid), whichever is narrower;
 //! 2. the inputs `actuate(outputs)` then the clips, on Taylor models (a clip that is
@@ -32,7 +34,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::Network;
 use samara_num::{Interval, Scalar, Tm};
-use samara_system::sim::{fly, goals_hold, SystemFlight};
+use samara_system::sim::{fly, fly_until, goals_hold, SimError, SystemFlight};
 use samara_system::{band_decision, GoalKind, System, When};
 use serde::{Deserialize, Serialize};
 use std::time::Instant;
@@ -429,17 +431,27 @@ pub fn reach_system(
     });
     // Falsification first.
     let eval = controller(net);
-    let flights: Vec<(Vec<f64>, Result<SystemFlight, String>)> = starts(sys, s.samples, s.seed)
+    let flights: Vec<(Vec<f64>, Result<SystemFlight, SimError>)> = starts(sys, s.samples, s.seed)
         .into_par_iter()
         .map(|x0| {
-            let f = fly(sys, &eval, &x0, 10).map_err(|e| e.to_string());
+            let f = fly_until(sys, &eval, &x0, 10, deadline);
             (x0, f)
         })
         .collect();
     let mut ok_flights = Vec::with_capacity(flights.len());
     let mut violation = None;
+    // A flight the simulator cannot finish (its step collapsed on a switch, or the
+    // budget ran out) witnesses nothing; the sets do not need it.
+    let mut unflown: Option<String> = None;
     for (x0, f) in flights {
-        let f = f.map_err(SystemReachError::Simulation)?;
+        let f = match f {
+            Ok(f) => f,
+            Err(e @ (SimError::StepCollapse { .. } | SimError::Timeout { .. })) => {
+                unflown.get_or_insert_with(|| format!("the flight from {x0:?} stopped: {e}"));
+                continue;
+            }
+            Err(e) => return Err(SystemReachError::Simulation(e.to_string())),
+        };
         if violation.is_none() {
             if let Some(gi) = goals_hold(sys, &f).iter().position(|h| !h) {
                 violation = Some(SystemVerdict::Violated {
@@ -562,7 +574,12 @@ pub fn reach_system(
             // Without goals the sets are the result; a sub-box that stops early says so
             // in its `failure`.
             _ if sys.goals.is_empty() => SystemVerdict::NoGoal,
-            (None, Some(r)) => SystemVerdict::Unknown { reason: r },
+            (None, Some(r)) => SystemVerdict::Unknown {
+                reason: match &unflown {
+                    Some(u) => format!("{r}; {u}"),
+                    None => r,
+                },
+            },
             (None, None) => SystemVerdict::Proved,
         }
     };
@@ -1307,6 +1324,7 @@ fn fly_box(
     // With symbolic remainders, the flow's own remainders become parameters too.
     let flow = TmFlowSettings {
         max_params,
+        deadline,
         ..s.flow.clone()
     };
     let mut leaf = SystemLeaf {
@@ -1326,9 +1344,13 @@ fn fly_box(
     let steps = sys.steps();
     let mut obs = vec![Tm::cst(0.0); sys.n_observed()];
     let mut u = vec![Tm::cst(0.0); sys.n_inputs()];
+    // The plant's semantics from samara-system, as the simulator takes them: the resets
+    // act on the initial set, then at the start of every period but at the horizon; the
+    // set recorded and checked at an instant k >= 1 is the previous period's flow at its
+    // end, before the resets.
+    sys.initial_state(&mut x);
     for k in 0..=steps {
         let t = k as f64 * sys.period;
-        sys.apply_resets(&mut x);
         let hull: Vec<Interval> = x.iter().map(|v| v.bound()).collect();
         leaf.instants.push(to_pairs(&hull));
         check_goals(sys, &x, &hull, t, t, &mut ok, &mut met, &mut refuted);
@@ -1363,6 +1385,12 @@ fn fly_box(
             ));
             break;
         }
+        let hull = if sys.resets.is_empty() {
+            hull
+        } else {
+            sys.begin_period(k, &mut x);
+            x.iter().map(|v| v.bound()).collect()
+        };
         // Room for this period's symbolic remainders (one per input at most).
         let crowded =
             max_params > 0 && x.iter().map(|v| v.n_vars()).max().unwrap_or(0) > max_params;

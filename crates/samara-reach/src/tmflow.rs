@@ -85,6 +85,10 @@ pub struct TmFlowSettings {
     /// remainder: the higher time coefficients, which the step scales by `h^k`, then
     /// cost products on smaller tables (default on).
     pub joint_degree: bool,
+    /// Wall-clock deadline: the flowpipe reads the clock before every step it tries
+    /// (halvings included) and stops with [`TmFlowError::Timeout`] past it (set by the
+    /// reach driver from `--timeout`; default none).
+    pub deadline: Option<std::time::Instant>,
 }
 
 impl Default for TmFlowSettings {
@@ -100,6 +104,7 @@ impl Default for TmFlowSettings {
             lifted_weight: 1,
             stand_ins: true,
             joint_degree: true,
+            deadline: None,
         }
     }
 }
@@ -111,6 +116,12 @@ pub enum TmFlowError {
     #[error("no validated enclosure at t = {t:.6} into the period (the set is too wide or the right-hand side is singular there)")]
     NoEnclosure {
         /// Time into the period where it failed.
+        t: f64,
+    },
+    /// The deadline of [`TmFlowSettings::deadline`] passed.
+    #[error("time budget spent at t = {t:.6} into the period")]
+    Timeout {
+        /// Time into the period.
         t: f64,
     },
     /// The enclosure stopped being finite.
@@ -502,6 +513,11 @@ pub fn tm_period_parts(
             j += 1;
         }
         loop {
+            if s.deadline.is_some_and(|d| std::time::Instant::now() > d) {
+                return Err(TmFlowError::Timeout {
+                    t: pos as f64 / units as f64 * period,
+                });
+            }
             let h = period / (1u64 << j) as f64;
             let last = j >= jmax;
             match step(sys, &cur, &u, &bu, h, s, last) {

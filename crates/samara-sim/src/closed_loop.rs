@@ -107,6 +107,18 @@ pub enum SimError {
     /// The output step does not divide the period.
     #[error("the output step {0} must be positive, divide the period, and give at most 1000000 points per period")]
     OutputStep(f64),
+    /// The integrator's step size collapsed ([`crate::Collapse`]): the right-hand side
+    /// switches at the state faster than any step can follow (the quadrant masks of the
+    /// plate and full models where the field points at a switch from both sides).
+    #[error("the integrator's step size collapsed at t = {t} (state {state:?}, held input ex = {ex}): the right-hand side switches there (a quadrant mask of the model) faster than any step can follow; try another start or the reduced model, whose right-hand side is smooth")]
+    StepCollapse {
+        /// Time where the step collapsed.
+        t: f64,
+        /// The state there.
+        state: Vec<f64>,
+        /// Input held during the period.
+        ex: f64,
+    },
     /// The state became NaN or infinite (the model left its valid range).
     #[error("the state became NaN or infinite in the control period ending at t = {t} (held input ex = {ex}): the model left its valid range; clip the controller's output (drop --no-clip) or start nearer the published heights")]
     NonFinite {
@@ -318,6 +330,13 @@ pub fn fly(
         let t0 = k as f64 * period;
         for row in buf.chunks_exact(dim + 1) {
             dense.push(t0 + row[0], &row[1..], ex);
+        }
+        if let Some(c) = stats.collapse {
+            return Err(SimError::StepCollapse {
+                t: k as f64 * period + c.t,
+                state: c.state[..dim].to_vec(),
+                ex,
+            });
         }
         if s.iter().any(|v| !v.is_finite()) {
             return Err(SimError::NonFinite {

@@ -41,7 +41,43 @@ pub struct Stats {
     pub evals: usize,
     /// Step size proposed for a continuation (0 if not provided by the step control).
     pub h_next: f64,
+    /// Where the step size collapsed, if it did (the state is then NaN, as for any
+    /// failed integration, so callers that only check finiteness still stop).
+    pub collapse: Option<Collapse>,
 }
+
+/// Where and how an integration's step size collapsed: [`COLLAPSE_STEPS`] attempted
+/// steps shorter than [`COLLAPSE_REL`] of the integration span with no accepted step of
+/// normal length between them, [`COLLAPSE_MAX_STEPS`] attempts in all, or a step that
+/// vanished against `t` with a finite error. A right-hand side that switches where its field
+/// points at the switch from both sides (a sliding mode: `if x < 0 then 1 else -1`)
+/// makes any explicit integrator chatter there with steps of ~1e-11; a transversal
+/// switch costs a few dozen short steps, far below the count.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Collapse {
+    /// Time of the last accepted state.
+    pub t: f64,
+    /// The step size last attempted.
+    pub h: f64,
+    /// The last accepted state (its first `n` entries, `n` the system's dimension).
+    pub state: [f64; MAX_DIM],
+}
+
+/// A step shorter than this share of the integration span counts toward a collapse.
+pub const COLLAPSE_REL: f64 = 1e-7;
+
+/// Attempted steps shorter than [`COLLAPSE_REL`] of the span, in a row (no accepted
+/// step of normal length between them), after which an integration stops as collapsed.
+pub const COLLAPSE_STEPS: usize = 1000;
+
+/// Attempted steps of one integration call after which it stops as collapsed whatever
+/// their lengths: a chattering whose steps alternate between short and normal ones (a
+/// `sign` term whose stages all fall on one side of the switch now and then) never
+/// makes [`COLLAPSE_STEPS`] short ones in a row. An average step under 1e-5 of the span:
+/// the published closed loops take about ten steps per period, and an explicit
+/// integrator this far below its accuracy step is following a discontinuity (or a
+/// stiffness it is not made for).
+pub const COLLAPSE_MAX_STEPS: usize = 100_000;
 
 /// Stage derivatives `k_j` of one step.
 pub(crate) type Stages = [[f64; MAX_DIM]; MAX_STAGES];
@@ -84,6 +120,10 @@ pub(crate) trait StepControl {
     );
     /// After an accepted step (and its output): the next step size; `last` ends the run.
     fn accepted(&mut self, err: f64, last: bool, stats: &mut Stats);
+    /// Whether the step size has collapsed ([`Collapse`]); checked before every attempt.
+    fn collapsed(&self) -> bool {
+        false
+    }
 }
 
 /// `sum_j w_j k_j[i]` over stages `0..m`, `j` ascending.
@@ -120,6 +160,13 @@ where
     let mut t = t0;
     loop {
         let (h, last) = ctl.attempt(t);
+        if ctl.collapsed() {
+            let mut state = [0.0; MAX_DIM];
+            state[..n].copy_from_slice(&y[..n]);
+            stats.collapse = Some(Collapse { t, h, state });
+            y[..n].fill(f64::NAN);
+            return stats;
+        }
         for st in 1..explicit {
             for i in 0..n {
                 ys[i] = y[i] + h * weighted(&tab.a[st], &k, i, st);
@@ -254,6 +301,13 @@ struct Standard<'a> {
     h_proposed: f64,
     last_rejected: bool,
     outputs: OutputPoints<'a>,
+    /// Attempts shorter than [`COLLAPSE_REL`] of the span so far.
+    tiny: usize,
+    /// Attempts so far (for [`COLLAPSE_MAX_STEPS`]).
+    attempts: usize,
+    /// Set when the step vanished with a finite error, or after [`COLLAPSE_STEPS`]
+    /// tiny attempts.
+    collapsed: bool,
 }
 
 impl StepControl for Standard<'_> {
@@ -272,7 +326,21 @@ impl StepControl for Standard<'_> {
             self.h_proposed = self.h_proposed.max(self.h);
             self.h = self.tf - t;
         }
+        if !last && self.h.abs() < COLLAPSE_REL * self.span.abs() {
+            self.tiny += 1;
+            if self.tiny > COLLAPSE_STEPS {
+                self.collapsed = true;
+            }
+        }
+        self.attempts += 1;
+        if self.attempts > COLLAPSE_MAX_STEPS {
+            self.collapsed = true;
+        }
         (self.h, last)
+    }
+
+    fn collapsed(&self) -> bool {
+        self.collapsed
     }
 
     fn solution_step(&self, t: f64, h: f64, last: bool) -> (f64, f64) {
@@ -318,7 +386,12 @@ impl StepControl for Standard<'_> {
         };
         self.last_rejected = true;
         let vanished = !(self.h.abs() > 16.0 * f64::EPSILON * t.abs().max(self.tf.abs()));
-        if vanished || stats.accepted + stats.rejected > MAX_STEPS {
+        if vanished && err.is_finite() {
+            // A finite error that no step can meet: the step collapsed (reported with
+            // the state, before the next attempt).
+            self.collapsed = true;
+            Rejection::Retry
+        } else if vanished || stats.accepted + stats.rejected > MAX_STEPS {
             Rejection::GiveUp
         } else {
             Rejection::Retry
@@ -344,6 +417,11 @@ impl StepControl for Standard<'_> {
     }
 
     fn accepted(&mut self, err: f64, last: bool, stats: &mut Stats) {
+        // A step of normal length ends a run of short ones (a switch crossed): only
+        // short steps in a row, as on a sliding mode, add up to a collapse.
+        if self.h.abs() >= COLLAPSE_REL * self.span.abs() {
+            self.tiny = 0;
+        }
         let fac = if err == 0.0 {
             10.0
         } else {
@@ -403,6 +481,9 @@ where
         h: 0.0,
         h_proposed: 0.0,
         last_rejected: false,
+        tiny: 0,
+        attempts: 0,
+        collapsed: false,
         outputs: OutputPoints {
             times: out_times,
             next: out_times
@@ -445,6 +526,65 @@ mod tests {
     fn oscillator(y: &[f64], d: &mut [f64]) {
         d[0] = y[1];
         d[1] = -y[0];
+    }
+
+    /// A sliding mode (`x' = 1` left of 0.3, `-1` right of it: the field points at the
+    /// switch from both sides) collapses the step: reported at once (not after ten
+    /// million steps) with the time the flight reaches the switch (0.3 from x = 0, up to
+    /// the chattering's width) and the state there; a transversal switch (`x' = 1` then
+    /// `0.5`) does not, and lands on the closed form 0.3 + 0.5 (1 - 0.3) = 0.65.
+    #[test]
+    fn sliding_mode_collapses_and_transversal_switch_does_not() {
+        let tol = Tolerances::default();
+        let slide = |y: &[f64], d: &mut [f64]| d[0] = if y[0] < 0.3 { 1.0 } else { -1.0 };
+        let mut y = [0.0];
+        let st = integrate(&DOP853, slide, &mut y, 0.0, 1.0, tol, None, &[], None);
+        let c = st.collapse.expect("collapse reported");
+        assert!(y[0].is_nan(), "a collapsed integration ends NaN");
+        assert!((c.t - 0.3).abs() < 1e-6, "{c:?}");
+        assert!((c.state[0] - 0.3).abs() < 1e-6, "{c:?}");
+        assert!(c.h.abs() < COLLAPSE_REL, "{c:?}");
+        assert!(st.accepted + st.rejected < 10 * COLLAPSE_STEPS, "{st:?}");
+        let cross = |y: &[f64], d: &mut [f64]| d[0] = if y[0] < 0.3 { 1.0 } else { 0.5 };
+        let mut y = [0.0];
+        let st = integrate(&DOP853, cross, &mut y, 0.0, 1.0, tol, None, &[], None);
+        assert_eq!(st.collapse, None);
+        assert!((y[0] - 0.65).abs() < 1e-9, "{}", y[0]);
+        // Many crossings in one call (a relay switching up to 400 times, more short
+        // steps in all than COLLAPSE_STEPS) are not a collapse: each crossing ends
+        // with steps of normal length. y' = 1 on [0, 0.1) mod 0.2 of x = t, 0.5
+        // elsewhere (the value is not checked: a step may straddle a whole cycle
+        // unseen, which no error estimate detects).
+        let relay = |y: &[f64], d: &mut [f64]| {
+            d[0] = 1.0;
+            d[1] = if y[0].rem_euclid(0.2) < 0.1 { 1.0 } else { 0.5 };
+        };
+        let mut y = [0.0, 0.0];
+        let st = integrate(&DOP853, relay, &mut y, 0.0, 40.0, tol, None, &[], None);
+        assert_eq!(st.collapse, None, "{st:?}");
+        assert!(
+            y[1].is_finite() && st.accepted + st.rejected > COLLAPSE_STEPS,
+            "{st:?}"
+        );
+    }
+
+    /// The chattering of a `sign` term found by the differential plant test (issue 35):
+    /// `x' = -0.48 x - 0.29 sign(x - 0.32) - 0.13`, sliding at x = 0.32, ran ten million
+    /// steps (44 s) because normal steps now and then broke the run of short ones; it is
+    /// now stopped as collapsed after [`COLLAPSE_MAX_STEPS`] attempts, at the switch.
+    #[test]
+    fn sign_chattering_collapses_within_the_step_budget() {
+        let tol = Tolerances::default();
+        let f = |y: &[f64], d: &mut [f64]| {
+            let s = (y[0] - 0.3196429523991142).signum();
+            d[0] = -0.4778242883048819 * y[0] - 0.9665913621863802 * 0.3 * s - 0.1335;
+        };
+        let mut y = [0.3847310974746946];
+        let st = integrate(&DOP853, f, &mut y, 0.0, 0.2, tol, None, &[], None);
+        let c = st.collapse.expect("collapse reported");
+        assert!((c.state[0] - 0.3196429523991142).abs() < 1e-6, "{c:?}");
+        // Caught by the step budget, not by a run of short steps.
+        assert_eq!(st.accepted + st.rejected, COLLAPSE_MAX_STEPS, "{st:?}");
     }
 
     #[test]

@@ -34,7 +34,7 @@ pub use closed_loop::{
     LoopSettings, SimError, StepRecord,
 };
 pub use control::{ConstantController, Controller, NetworkController, PidController};
-pub use explicit_rk::{Stats, Tolerances};
+pub use explicit_rk::{Collapse, Stats, Tolerances};
 
 /// Largest state dimension handled by the fixed-size integrator buffers.
 pub const MAX_DIM: usize = 12;

@@ -5,7 +5,7 @@ use crate::error::{closest, Pos, SystemError};
 use crate::graph::{Bin2, Builder, Cond, Graph, Op, Un};
 use crate::lex::err;
 use crate::parse::{Bin, Cmp, Expr, GoalAst, Stmt, WhenAst};
-use crate::{Goal, GoalKind, System, When};
+use crate::{Goal, GoalKind, Switch, System, When};
 use std::collections::HashMap;
 use std::f64::consts::PI;
 
@@ -56,6 +56,8 @@ struct Lower<'a, 'c> {
     mode: Mode,
     let_nodes: Vec<usize>,
     net_max: usize,
+    /// The condition operand (`a - b` of `if a < b`) and place of every `if` lowered.
+    switches: Vec<(usize, Pos)>,
 }
 
 type R<T> = Result<T, SystemError>;
@@ -86,6 +88,7 @@ impl<'a, 'c> Lower<'a, 'c> {
             mode: Mode::Rhs,
             let_nodes: Vec::new(),
             net_max: 0,
+            switches: Vec::new(),
         };
         if matches!(mode, Mode::Rhs | Mode::States) {
             for (_, _, e) in lets {
@@ -215,6 +218,7 @@ impl<'a, 'c> Lower<'a, 'c> {
                     Cmp::Gt => (self.bin(Bin::Sub, r, l, *p)?, Cond::Neg),
                     Cmp::Ge => (self.bin(Bin::Sub, r, l, *p)?, Cond::NonPos),
                 };
+                self.switches.push((c, *p));
                 let (a, b) = (self.expr(a)?, self.expr(b)?);
                 self.push(Op::Select(k, c, a, b), *p)
             }
@@ -523,6 +527,25 @@ pub(crate) fn compile(
         }
     }
     let rhs = rhs_b.b.finish(&outs);
+    // Every `if` of the equations whose condition varies, its condition an output of
+    // one graph (for the simulator's diagnosis of a collapsed step: which switch flips
+    // at the state); one pass over the instructions however many `if`s there are.
+    let mut switches: Vec<Switch> = Vec::new();
+    let mut conds: Vec<usize> = Vec::new();
+    let mut seen: std::collections::HashSet<(usize, usize)> = Default::default();
+    let lines: Vec<&str> = src.lines().collect();
+    for &(c, p) in &rhs_b.switches {
+        if rhs_b.b.konst(c).is_some() || !seen.insert((p.line, p.col)) {
+            continue;
+        }
+        let line = lines.get(p.line.saturating_sub(1)).copied().unwrap_or("");
+        switches.push(Switch {
+            pos: p,
+            text: switch_excerpt(line, p.col),
+        });
+        conds.push(c);
+    }
+    let switch_conditions = rhs_b.b.finish(&conds);
     // Pass 4: the rest.
     let mut period = None;
     let mut horizon = None;
@@ -847,7 +870,26 @@ pub(crate) fn compile(
         n_net_outputs: n_net,
         resets,
         goals,
+        switches,
+        switch_conditions,
         rhs,
         src: src.to_string(),
     })
+}
+
+/// The source of an `if` for messages: its whole line (trimmed) when short, else 100
+/// characters from the `if` on (a long line of many `if`s is not copied for each).
+fn switch_excerpt(line: &str, col: usize) -> String {
+    let line = line.trim_end();
+    if line.len() <= 160 {
+        return line.trim_start().to_string();
+    }
+    // The column as a byte offset (exact for ASCII; elsewhere the nearest character
+    // boundary after it): constant work per `if`, however long the line.
+    let mut at = col.saturating_sub(1).min(line.len());
+    while !line.is_char_boundary(at) {
+        at += 1;
+    }
+    let from: String = line[at..].chars().take(100).collect();
+    format!("... {from} ...")
 }

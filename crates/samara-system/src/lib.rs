@@ -160,6 +160,16 @@ pub fn band_decision(r: Interval, lo: f64, hi: f64) -> Option<bool> {
     }
 }
 
+/// An `if` of the equations: where it is in the file. Its condition is the matching
+/// output of [`System::switch_conditions`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Switch {
+    /// Place of the `if` in the file.
+    pub pos: Pos,
+    /// Its source line, trimmed.
+    pub text: String,
+}
+
 /// A checked, compiled system file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct System {
@@ -191,6 +201,12 @@ pub struct System {
     pub resets: Vec<(usize, f64)>,
     /// Goals (all must hold).
     pub goals: Vec<Goal>,
+    /// The `if`s of the equations whose condition is not constant, in file order.
+    pub switches: Vec<Switch>,
+    /// Their conditions over the states and inputs, output `k` for `switches[k]`: `a -
+    /// b` for `if a < b` or `a <= b`, `b - a` for `>` and `>=` (the branch changes where
+    /// it changes sign).
+    pub switch_conditions: Graph,
     rhs: Graph,
     src: String,
 }
@@ -306,11 +322,58 @@ impl System {
         self.actuate.affine(0, self.n_net_outputs)
     }
 
-    /// Apply the `reset` statements (at a control instant).
+    /// Apply the `reset` statements to a state, unconditionally. Code that flies the
+    /// closed loop calls [`System::initial_state`] and [`System::begin_period`] instead,
+    /// which say *when* resets fire (see "Semantics of a closed loop" in docs/system.md).
     pub fn apply_resets<S: Scalar>(&self, x: &mut [S]) {
         for &(i, v) in &self.resets {
             x[i] = S::cst(v);
         }
+    }
+
+    /// The state at `t = 0` from a point (or set) of the `init` box: the resets fire at
+    /// the first control instant before anything reads the state, so a reset state's
+    /// `init` value is overwritten at once. One definition for the simulator
+    /// ([`sim::fly`]) and the reachability code (`samara_reach::system`), so that both
+    /// give the same meaning to a plant.
+    pub fn initial_state<S: Scalar>(&self, x: &mut [S]) {
+        self.apply_resets(x)
+    }
+
+    /// The state that the period starting at control instant `k` (time `k * period`)
+    /// flies from and that the network reads, from the state at that instant: the
+    /// resets fire at the instants `k = 0 .. steps() - 1`, before the network reads the
+    /// state, and **never at the horizon** (`k >= steps()` leaves `x` as it is). The
+    /// state *at* an instant `k >= 1` (what goals, "at end" and the recorded flights
+    /// see) is the previous period's flow at its end, before this call; see
+    /// docs/system.md, "Semantics of a closed loop".
+    pub fn begin_period<S: Scalar>(&self, k: usize, x: &mut [S]) {
+        if k < self.steps() {
+            self.apply_resets(x)
+        }
+    }
+
+    /// The `if`s whose condition changes sign within a relative distance `rel` of the
+    /// state `x` (under the held inputs `u`): the condition evaluated on intervals over
+    /// the box `x_i +- rel (1 + |x_i|)` contains 0. Names the switch at which a flight's
+    /// step size collapsed ([`sim::SimError::StepCollapse`]).
+    pub fn switches_at(&self, x: &[f64], u: &[f64], rel: f64) -> Vec<&Switch> {
+        let xb: Vec<Interval> = x
+            .iter()
+            .map(|&v| {
+                let r = rel * (1.0 + v.abs());
+                Interval::new(v - r, v + r)
+            })
+            .collect();
+        let ub: Vec<Interval> = u.iter().map(|&v| Interval::point(v)).collect();
+        let mut o = vec![Interval::point(0.0); self.switches.len()];
+        self.switch_conditions.eval(&xb, &ub, &mut o);
+        self.switches
+            .iter()
+            .zip(&o)
+            .filter(|(_, c)| !(c.lo > 0.0 || c.hi < 0.0))
+            .map(|(w, _)| w)
+            .collect()
     }
 
     /// Number of control periods in the horizon.

@@ -1,5 +1,7 @@
-//! Closed-loop simulation of a system file: at each control instant the resets are
-//! applied, the network reads the observed states, its outputs are mapped to the plant's
+//! Closed-loop simulation of a system file, with the semantics of
+//! [`System::initial_state`] and [`System::begin_period`] (docs/system.md, "Semantics of
+//! a closed loop"): at each control instant but the horizon the resets are applied, the
+//! network reads the observed states, its outputs are mapped to the plant's
 //! inputs (affine map, then clip) and held for one period, over which the equations are
 //! integrated by samara-sim's DOP853 (rtol 1e-10, atol 1e-12, the step carried over from
 //! period to period as the built-in closed loop does). The same sample-and-hold protocol
@@ -44,12 +46,49 @@ pub enum SimError {
     /// More states than the integrators' fixed buffers hold.
     #[error("the system has {0} states; the closed-loop integrator handles at most {max} (samara_sim::MAX_DIM)", max = samara_sim::MAX_DIM)]
     TooManyStates(usize),
+    /// The integrator's step size collapsed (`samara_sim::Collapse`): the right-hand
+    /// side switches at the state faster than any step can follow, typically an `if`
+    /// whose field points at its switch from both sides (a sliding mode).
+    #[error("the integrator's step size collapsed at t = {t} (state {state:?}, step {h:.1e}): {}; smooth the switch (blend the branches with 0.5 * (1 + tanh(k * (a - b))) for a large k) or give the `if` hysteresis (a state that remembers the branch, so that it changes only past a margin)", switch_text(switches))]
+    StepCollapse {
+        /// Time where the step collapsed.
+        t: f64,
+        /// The state there.
+        state: Vec<f64>,
+        /// The step size last tried.
+        h: f64,
+        /// The `if`s whose condition changes sign at that state, as `file:line:col:
+        /// source line` (empty: none found, e.g. an `abs`, `min`, `max` or `sign`).
+        switches: Vec<String>,
+    },
+    /// The time budget given to [`fly_until`] was spent.
+    #[error("the time budget was spent before the control period ending at t = {t}")]
+    Timeout {
+        /// End of the period not flown.
+        t: f64,
+    },
     /// The state left the finite numbers.
     #[error("the state became NaN or infinite in the control period ending at t = {t}")]
     NonFinite {
         /// End of the period.
         t: f64,
     },
+}
+
+/// The switches of a [`SimError::StepCollapse`] message.
+fn switch_text(switches: &[String]) -> String {
+    if switches.is_empty() {
+        "the right-hand side is not smooth there (no `if` of the file flips at that state: look at abs, sign, min or max)".to_string()
+    } else {
+        format!(
+            "the right-hand side switches there, at {}",
+            switches
+                .iter()
+                .map(|w| format!("`if` {w}"))
+                .collect::<Vec<_>>()
+                .join(" and ")
+        )
+    }
 }
 
 /// Fly `sys` under the controller `net` (network inputs -> outputs) from `x0`, with
@@ -59,6 +98,19 @@ pub fn fly(
     net: &dyn Fn(&[f64]) -> Vec<f64>,
     x0: &[f64],
     per_period: usize,
+) -> Result<SystemFlight, SimError> {
+    fly_until(sys, net, x0, per_period, None)
+}
+
+/// [`fly`] within a time budget: the clock is read before every control period, and a
+/// flight still going at `deadline` stops with [`SimError::Timeout`] (a period itself
+/// is bounded by the integrator's collapse detection, `samara_sim::Collapse`).
+pub fn fly_until(
+    sys: &System,
+    net: &dyn Fn(&[f64]) -> Vec<f64>,
+    x0: &[f64],
+    per_period: usize,
+    deadline: Option<std::time::Instant>,
 ) -> Result<SystemFlight, SimError> {
     let n = sys.dim();
     if x0.len() != n {
@@ -92,8 +144,14 @@ pub fn fly(
     let mut scratch = Vec::new();
     let mut buf = Vec::new();
     let mut h_next = 0.0f64;
+    sys.initial_state(&mut x);
     for k in 0..sys.steps() {
-        sys.apply_resets(&mut x);
+        if deadline.is_some_and(|d| std::time::Instant::now() > d) {
+            return Err(SimError::Timeout {
+                t: (k + 1) as f64 * period,
+            });
+        }
+        sys.begin_period(k, &mut x);
         sys.observe(&x, &mut obs);
         let y = net(&obs);
         if y.len() < sys.n_net_outputs {
@@ -121,6 +179,21 @@ pub fn fly(
             Some(&mut buf),
         );
         h_next = stats.h_next;
+        if let Some(c) = stats.collapse {
+            let state = c.state[..n].to_vec();
+            let file = &sys.file;
+            let switches = sys
+                .switches_at(&state, &uu, 1e-6)
+                .into_iter()
+                .map(|w| format!("{file}:{}:{}: {}", w.pos.line, w.pos.col, w.text))
+                .collect();
+            return Err(SimError::StepCollapse {
+                t: k as f64 * period + c.t,
+                state,
+                h: c.h,
+                switches,
+            });
+        }
         if x.iter().any(|v| !v.is_finite()) {
             return Err(SimError::NonFinite {
                 t: (k + 1) as f64 * period,
