@@ -16,7 +16,7 @@ use samara_spec::{Bindings, Instance};
 use samara_verify::engine::Point;
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_with, Reference};
 use samara_verify::{
-    empty_input_box, optimise, prove, LpTighten, Prepared, Settings, UnknownReason, Verdict,
+    optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
 };
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -508,10 +508,15 @@ fn run_verify(l: &Loaded, property: Option<String>, settings: Settings) -> R<Val
             let mut reason = Value::Null;
             let (tag, cx) = match &verdict {
                 Verdict::Proved => {
-                    if let Some((app, k)) = empty_input_box(q) {
-                        vac = json!(format!(
-                            "the input domain of network call {app} is empty (input {k}): a data point outside the declared domain, whose ball the domain clips away"
-                        ));
+                    // Shared with the CLI: an empty input box or an empty premise.
+                    let vs = Settings {
+                        timeout: settings.timeout.min(10.0),
+                        ..settings
+                    };
+                    if let Some(why) =
+                        vacuity(q, &prep, &vs).map_err(|e| Error::Samara(e.to_string()))?
+                    {
+                        vac = json!(why);
                     }
                     ("proved", Value::Null)
                 }

@@ -72,8 +72,10 @@ def test_spec_from_text_and_verify(net):
     res = spec.verify(networks={"f": net}, params={"ystar": 50}, property="p1")
     assert len(res) == 1 and res[0].verdict == "proved" and res[0].property == "p1"
     assert res[0].counterexample is None and res[0].witness is None
+    # Above 45.91 (the largest x + y of the domain) no point meets P1's premise.
+    assert res[0].vacuous and "premise" in res[0].vacuity
     res = spec.verify(networks={"f": net}, params={"ystar": 40}, property="p1")
-    assert res[0].verdict == "violated"
+    assert res[0].verdict == "violated" and not res[0].vacuous
     w = res[0].witness
     assert w["y"] >= -w["x"] + 40 - 1e-9 and w["ex"] < 0.187
     assert set(res[0].as_dict()) == {"property", "verdict", "counterexample", "seconds", "vacuous", "vacuity", "unknown_reason"}
@@ -130,6 +132,9 @@ def test_errors(net):
         spec.verify(networks={"f": net}, timeout=-1)
     with pytest.raises(FileNotFoundError):
         spec.verify(networks={"f": net}, datasets={"train": "/nonexistent.csv"})
+    # Issue 35 item 9: values outside the declared range [0, 100] are refused.
+    with pytest.raises(ValueError, match=r"`ystar`.*outside its declared range \[0, 100\]"):
+        spec.verify(networks={"f": net}, params={"ystar": 1000}, property="p1")
     assert issubclass(samara.SamaraError, Exception)
 
 

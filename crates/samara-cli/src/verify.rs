@@ -16,7 +16,7 @@ use samara_spec::{vnnlib, Bindings, Instance, Spec};
 use samara_verify::engine::Point;
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_with, Reference};
 use samara_verify::{
-    empty_input_box, optimise, prove, LpTighten, Prepared, Settings, UnknownReason, Verdict,
+    optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
 };
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -341,6 +341,9 @@ pub fn load(a: &SpecArgs, free_params: bool) -> Result<Loaded> {
         }
         b.params.insert(k, x);
     }
+    // Values outside a declared `param NAME in [lo, hi]` are refused here (exit 2).
+    spec.check_bindings(&b)
+        .map_err(|e| anyhow!("--param: {e}"))?;
     for s in &a.datasets {
         let (k, v) = kv(s, "dataset")?;
         if !spec.datasets.contains_key(&k) {
@@ -559,6 +562,12 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
         lp_tighten: tighten_mode(a.lp_tighten),
         ..Default::default()
     };
+    // Deciding vacuity (is the premise empty over the domain?) is one root LP in
+    // practice; give it a short limit of its own (undecided: not called vacuous).
+    let vacuity_settings = Settings {
+        timeout: a.timeout.min(10.0),
+        ..settings
+    };
     let mut all_proved = true;
     let mut out = Vec::new();
     for (name, inst) in &lowered {
@@ -580,11 +589,9 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
             let (tag, cx) = match verdict {
                 Verdict::Proved => {
                     p += 1;
-                    if let Some((app, k)) = empty_input_box(q) {
+                    if let Some(why) = vacuity(q, &prep, &vacuity_settings)? {
                         vacuous.push(i.label.clone());
-                        vac = json!(format!(
-                            "the input domain of network call {app} is empty (input {k}): a data point outside the declared domain, whose ball the domain clips away"
-                        ));
+                        vac = json!(why);
                     }
                     ("proved", Value::Null)
                 }
@@ -646,7 +653,7 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
         }
         if !vacuous.is_empty() {
             eprintln!(
-                "warning: {name}: {} instance(s) proved only vacuously ({}): the input domain is empty there (a data point outside the declared domain; its ball is clipped to the domain), so nothing was checked; `samara robustness` evaluates the whole ball",
+                "warning: {name}: {} instance(s) proved only vacuously ({}): no point of the input domain meets the premise there (or a data point outside the declared domain has its ball clipped away), so the network was never checked; `samara robustness` evaluates the whole ball of a data point",
                 vacuous.len(),
                 vacuous.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
             );
