@@ -126,6 +126,17 @@ impl PyNetwork {
             )));
         }
         let x = f64s(xs);
+        // NaN, infinite or None (NaN through numpy) inputs are refused: a network
+        // evaluated there has no meaningful value (ReLUs would turn NaN into 0 in
+        // max-based code, and +-inf into an arbitrary number).
+        if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+            let (r, c) = (k / d.max(1), k % d.max(1));
+            let name = self.net.input_names.get(c).cloned().unwrap_or_default();
+            return Err(PyValueError::new_err(format!(
+                "Network.eval: input [{r}, {c}] (`{name}`, row {r}) is {}; pass finite numbers (NaN, inf and None have no network value)",
+                x[k]
+            )));
+        }
         let net = &self.net;
         let y = py.allow_threads(|| net.eval_batch_f64(&x, n));
         Ok(PyBytes::new(py, &f64_bytes(&y)))
