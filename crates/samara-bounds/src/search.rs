@@ -675,8 +675,28 @@ fn examine(
     };
     prof_add(P_OWNB, tp);
     let tp = Instant::now();
-    let left = open_bounds(maps, cases, &open, &pre, &lo, &hi, alpha_iters);
+    let mut left = open_bounds(maps, cases, &open, &pre, &lo, &hi, alpha_iters);
     prof_add(P_ALPHA, tp);
+    // Constraints whose bound is exactly at 0 on the piece (an output exactly 0 there
+    // against a strict inequality, two identical outputs compared): the bounds above
+    // always widen by a possible rounding and never close them; bounds rounded only
+    // where inexact ([`crate::constant`]) decide them.
+    if !left.is_empty() {
+        let centre: Vec<f64> = lo.iter().zip(&hi).map(|(a, b)| 0.5 * (a + b)).collect();
+        let mut everywhere = None;
+        left.retain(|(ci, _)| {
+            let f = crate::constant::fates(maps, &cases[*ci].constraints, &lo, &hi);
+            if f.iter().all(|f| *f == crate::constant::Fate::Always) {
+                everywhere.get_or_insert(*ci);
+            }
+            !f.contains(&crate::constant::Fate::Never)
+        });
+        if let Some(ci) = everywhere {
+            // Every point of the piece satisfies the case: its centre is one (the caller
+            // re-checks it exactly).
+            return Piece::Found(ci, centre);
+        }
+    }
     if left.is_empty() {
         PROF[P_CLOSED].fetch_add(1, AtOrd::Relaxed);
         return Piece::Closed;

@@ -125,9 +125,39 @@ pub fn to_cases(q: &Query) -> Option<Vec<(usize, Case)>> {
     Some(cases)
 }
 
+/// Constraints decided by bounds that round only where an operation was inexact
+/// ([`samara_bounds::constant`]): a case with a constraint that holds nowhere on its box
+/// is dropped, a constraint that holds everywhere is removed (a case left with none holds
+/// at every point of its box: the search's first candidate is one, re-checked exactly).
+/// Degenerate queries (an output exactly 0 on the box compared with 0, two outputs of the
+/// same expression compared) are so decided at once instead of splitting the box until
+/// the time limit: the search's own bounds always widen by a possible rounding, so a
+/// strict constraint whose bound is exactly 0 is never closed by them.
+fn settle_constant_constraints(
+    maps: &[(samara_nn::Affine, bool)],
+    cases: Vec<(usize, Case)>,
+) -> Vec<(usize, Case)> {
+    use samara_bounds::constant::{fates, Fate};
+    cases
+        .into_iter()
+        .filter_map(|(di, mut c)| {
+            let f = fates(maps, &c.constraints, &c.lo, &c.hi);
+            if f.contains(&Fate::Never) {
+                return None;
+            }
+            let mut k = 0;
+            c.constraints.retain(|_| {
+                k += 1;
+                f[k - 1] != Fate::Always
+            });
+            Some((di, c))
+        })
+        .collect()
+}
+
 /// Decide a box-shaped query on `net` (`None` when the query is not box-shaped).
 pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxAnswer> {
-    let cases = to_cases(q)?;
+    let cases = settle_constant_constraints(&net.maps, to_cases(q)?);
     if cases.is_empty() {
         return Some(BoxAnswer::Proved);
     }
