@@ -16,7 +16,7 @@ use samara_spec::{Bindings, Instance};
 use samara_verify::engine::Point;
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_with, Reference};
 use samara_verify::{
-    optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
+    left_after, optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
 };
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -486,6 +486,8 @@ fn reason_json(r: &UnknownReason) -> Value {
 }
 
 fn run_verify(l: &Loaded, property: Option<String>, settings: Settings) -> R<Value> {
+    // `timeout` is a deadline for the whole call (as the CLI's --timeout).
+    let start = Instant::now();
     let names: Vec<String> = match &property {
         Some(p) => vec![p.clone()],
         None => l
@@ -513,7 +515,12 @@ fn run_verify(l: &Loaded, property: Option<String>, settings: Settings) -> R<Val
         for i in inst {
             let q = &i.query;
             let ti = Instant::now();
-            let verdict = prove(q, &prep, &settings).map_err(|e| Error::Samara(e.to_string()))?;
+            let left = left_after(&settings, start);
+            let verdict = if left.timeout > 0.0 {
+                prove(q, &prep, &left).map_err(|e| Error::Samara(e.to_string()))?
+            } else {
+                Verdict::Unknown(UnknownReason::Timeout { nodes: 0 })
+            };
             let isecs = ti.elapsed().as_secs_f64();
             let mut vac = Value::Null;
             let mut reason = Value::Null;
@@ -521,7 +528,7 @@ fn run_verify(l: &Loaded, property: Option<String>, settings: Settings) -> R<Val
                 Verdict::Proved => {
                     // Shared with the CLI: an empty input box or an empty premise.
                     let vs = Settings {
-                        timeout: settings.timeout.min(10.0),
+                        timeout: left_after(&settings, start).timeout.min(10.0),
                         ..settings
                     };
                     if let Some(why) =
@@ -567,8 +574,10 @@ fn critical_value(l: &Loaded, property: &str, param: &str, settings: &Settings) 
     if let Goal::Optimise { sense, .. } = &mut q_min.goal {
         *sense = Sense::Min;
     }
+    // `timeout` is a deadline for both searches together (as the CLI).
     let sup = optimise(&q_max, &prep, settings).map_err(|e| Error::Samara(e.to_string()))?;
-    let inf = optimise(&q_min, &prep, settings).map_err(|e| Error::Samara(e.to_string()))?;
+    let inf = optimise(&q_min, &prep, &left_after(settings, t0))
+        .map_err(|e| Error::Samara(e.to_string()))?;
     let Some((lo, hi)) = l.spec.params[param].range else {
         return value(format!("parameter `{param}` has no range"));
     };

@@ -5,14 +5,16 @@
 //! first), which suits low-dimensional inputs; anything else stays with the ReLU-phase
 //! branch and bound of [`crate::engine`].
 //!
-//! Contract, as for every verdict of this crate: a point is reported only after its
-//! outputs are recomputed in exact rational arithmetic ([`crate::exact`]) and every
-//! constraint of its disjunct (input bounds included, strict ones strictly) holds there;
+//! Contract, as for every verdict of this crate: a point is reported only after every
+//! constraint of its disjunct (input bounds included, strict ones strictly) is shown to
+//! hold there rigorously: on an interval enclosure of its outputs that rounds only where
+//! inexact, or failing that with its outputs recomputed in exact rational arithmetic
+//! ([`crate::exact::rigorous_satisfies`]);
 //! `Proved` only from the search's sound bounds having closed every piece; anything cut
 //! short is `Unknown` with its reason.
 
 use crate::engine::Point;
-use crate::exact::exact_satisfies;
+use crate::exact::rigorous_satisfies;
 use crate::net::PwlNet;
 use crate::Counterexample;
 use samara_bounds::search::{self, Case, Outcome, OutputConstraint, StopReason};
@@ -178,7 +180,7 @@ pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxA
                 free: vec![],
             };
             let cs = &q.region[disjunct];
-            let exact = exact_satisfies(&[net], &point, cs);
+            let exact = rigorous_satisfies(&[net], &point, cs);
             if exact != Some(true) {
                 return Some(BoxAnswer::Unknown(BoxUnknown::NotConfirmed));
             }

@@ -513,6 +513,16 @@ pub fn vacuity(q: &Query, prep: &Prepared, s: &Settings) -> Result<Option<String
     Ok(None)
 }
 
+/// `s` with only the time its limit leaves after `t0` (never negative): one time
+/// limit as a deadline over several searches (a command's `--timeout` covers all its
+/// queries, not each).
+pub fn left_after(s: &Settings, t0: Instant) -> Settings {
+    Settings {
+        timeout: (s.timeout - t0.elapsed().as_secs_f64()).max(0.0),
+        ..*s
+    }
+}
+
 fn limits(s: &Settings, t0: Instant) -> Limits {
     Limits {
         seconds: (s.timeout - t0.elapsed().as_secs_f64()).max(0.0),
@@ -651,7 +661,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
                         .filter_map(|a| prep.pwl[&a.network].as_ref().ok())
                         .collect();
                     if nets.len() == q.applications.len() {
-                        exact = exact::exact_satisfies(&nets, &pt, &original);
+                        exact = exact::rigorous_satisfies(&nets, &pt, &original);
                     }
                 }
                 if exact == Some(false) {
