@@ -172,3 +172,14 @@ def test_long_calls_release_the_gil(net):
     if took < 0.1:
         pytest.skip(f"the call took {took:.3f} s: too short to tell")
     assert state["gap"] < 0.5 * took, (state["gap"], took)
+
+
+def test_timeout_is_a_deadline_for_critical():
+    """Issue 35: the two searches of a critical value share the time limit (20 s for
+    timeout=10 before on this network)."""
+    import time
+    net = samara.Network.from_onnx(reference("goedel_lipschitz_norm.onnx"))
+    t0 = time.monotonic()
+    r = samara.Spec(SPEC).critical(property="p1", param="ystar", networks={"f": net}, timeout=1.0)
+    assert time.monotonic() - t0 < 2.0
+    assert r.holds == "unknown" and r.unknown_reason["kind"] == "timeout"
