@@ -166,7 +166,9 @@ class Network:
 
     def eval(self, x: Any) -> np.ndarray:
         """Evaluate in float64: ``x`` of shape (n, n_inputs) gives (n, n_outputs); a single
-        point of shape (n_inputs,) gives (n_outputs,)."""
+        point of shape (n_inputs,) gives (n_outputs,). A NaN, infinite or ``None``
+        input raises ``ValueError`` naming its index: the network has no value there
+        (a NaN would otherwise vanish inside a ReLU and come out as a number)."""
         a, single = _rows(x, self.n_inputs, "Network.eval")
         n = a.shape[0]
         y = np.frombuffer(self._net.eval_rows(a.tobytes(), n), dtype=np.float64)

@@ -16,7 +16,7 @@ use samara_spec::{Bindings, Instance};
 use samara_verify::engine::Point;
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_with, Reference};
 use samara_verify::{
-    empty_input_box, optimise, prove, LpTighten, Prepared, Settings, UnknownReason, Verdict,
+    left_after, optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
 };
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -126,6 +126,17 @@ impl PyNetwork {
             )));
         }
         let x = f64s(xs);
+        // NaN, infinite or None (NaN through numpy) inputs are refused: a network
+        // evaluated there has no meaningful value (ReLUs would turn NaN into 0 in
+        // max-based code, and +-inf into an arbitrary number).
+        if let Some(k) = x.iter().position(|v| !v.is_finite()) {
+            let (r, c) = (k / d.max(1), k % d.max(1));
+            let name = self.net.input_names.get(c).cloned().unwrap_or_default();
+            return Err(PyValueError::new_err(format!(
+                "Network.eval: input [{r}, {c}] (`{name}`, row {r}) is {}; pass finite numbers (NaN, inf and None have no network value)",
+                x[k]
+            )));
+        }
         let net = &self.net;
         let y = py.allow_threads(|| net.eval_batch_f64(&x, n));
         Ok(PyBytes::new(py, &f64_bytes(&y)))
@@ -475,6 +486,8 @@ fn reason_json(r: &UnknownReason) -> Value {
 }
 
 fn run_verify(l: &Loaded, property: Option<String>, settings: Settings) -> R<Value> {
+    // `timeout` is a deadline for the whole call (as the CLI's --timeout).
+    let start = Instant::now();
     let names: Vec<String> = match &property {
         Some(p) => vec![p.clone()],
         None => l
@@ -502,16 +515,26 @@ fn run_verify(l: &Loaded, property: Option<String>, settings: Settings) -> R<Val
         for i in inst {
             let q = &i.query;
             let ti = Instant::now();
-            let verdict = prove(q, &prep, &settings).map_err(|e| Error::Samara(e.to_string()))?;
+            let left = left_after(&settings, start);
+            let verdict = if left.timeout > 0.0 {
+                prove(q, &prep, &left).map_err(|e| Error::Samara(e.to_string()))?
+            } else {
+                Verdict::Unknown(UnknownReason::Timeout { nodes: 0 })
+            };
             let isecs = ti.elapsed().as_secs_f64();
             let mut vac = Value::Null;
             let mut reason = Value::Null;
             let (tag, cx) = match &verdict {
                 Verdict::Proved => {
-                    if let Some((app, k)) = empty_input_box(q) {
-                        vac = json!(format!(
-                            "the input domain of network call {app} is empty (input {k}): a data point outside the declared domain, whose ball the domain clips away"
-                        ));
+                    // Shared with the CLI: an empty input box or an empty premise.
+                    let vs = Settings {
+                        timeout: left_after(&settings, start).timeout.min(10.0),
+                        ..settings
+                    };
+                    if let Some(why) =
+                        vacuity(q, &prep, &vs).map_err(|e| Error::Samara(e.to_string()))?
+                    {
+                        vac = json!(why);
                     }
                     ("proved", Value::Null)
                 }
@@ -551,8 +574,10 @@ fn critical_value(l: &Loaded, property: &str, param: &str, settings: &Settings) 
     if let Goal::Optimise { sense, .. } = &mut q_min.goal {
         *sense = Sense::Min;
     }
+    // `timeout` is a deadline for both searches together (as the CLI).
     let sup = optimise(&q_max, &prep, settings).map_err(|e| Error::Samara(e.to_string()))?;
-    let inf = optimise(&q_min, &prep, settings).map_err(|e| Error::Samara(e.to_string()))?;
+    let inf = optimise(&q_min, &prep, &left_after(settings, t0))
+        .map_err(|e| Error::Samara(e.to_string()))?;
     let Some((lo, hi)) = l.spec.params[param].range else {
         return value(format!("parameter `{param}` has no range"));
     };

@@ -98,3 +98,21 @@ def test_from_torch_matches_torch_forward():
     assert m.training  # the module's mode is restored
     with pytest.raises(ValueError, match="torch.nn.Module"):
         samara.Network.from_torch(lambda v: v)
+
+
+def test_non_finite_inputs_are_refused_naming_the_index():
+    """Issue 35 item 8: NaN used to vanish in the ReLUs (0.1089 out of all-NaN inputs),
+    +inf gave 0.1818 on the raw-unit network; None is NaN through numpy."""
+    for stem, bad in [("base_model_norm", np.nan), ("base_model_denorm", np.inf)]:
+        net = samara.Network.from_onnx(reference(f"{stem}.onnx"))
+        with pytest.raises(ValueError, match=r"input \[0, 0\]"):
+            net.eval(np.full(6, bad))
+    net = samara.Network.from_onnx(reference("base_model_norm.onnx"))
+    with pytest.raises(ValueError, match=r"input \[0, 0\]"):
+        net.eval([None] * 6)
+    x = np.full((3, 6), 0.5)
+    x[2, 4] = -np.inf
+    with pytest.raises(ValueError, match=r"input \[2, 4\]"):
+        net.eval(x)
+    # Finite rows still evaluate.
+    assert np.isfinite(net.eval(np.full((3, 6), 0.5))).all()

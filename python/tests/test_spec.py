@@ -72,8 +72,10 @@ def test_spec_from_text_and_verify(net):
     res = spec.verify(networks={"f": net}, params={"ystar": 50}, property="p1")
     assert len(res) == 1 and res[0].verdict == "proved" and res[0].property == "p1"
     assert res[0].counterexample is None and res[0].witness is None
+    # Above 45.91 (the largest x + y of the domain) no point meets P1's premise.
+    assert res[0].vacuous and "premise" in res[0].vacuity
     res = spec.verify(networks={"f": net}, params={"ystar": 40}, property="p1")
-    assert res[0].verdict == "violated"
+    assert res[0].verdict == "violated" and not res[0].vacuous
     w = res[0].witness
     assert w["y"] >= -w["x"] + 40 - 1e-9 and w["ex"] < 0.187
     assert set(res[0].as_dict()) == {"property", "verdict", "counterexample", "seconds", "vacuous", "vacuity", "unknown_reason"}
@@ -130,6 +132,9 @@ def test_errors(net):
         spec.verify(networks={"f": net}, timeout=-1)
     with pytest.raises(FileNotFoundError):
         spec.verify(networks={"f": net}, datasets={"train": "/nonexistent.csv"})
+    # Issue 35 item 9: values outside the declared range [0, 100] are refused.
+    with pytest.raises(ValueError, match=r"`ystar`.*outside its declared range \[0, 100\]"):
+        spec.verify(networks={"f": net}, params={"ystar": 1000}, property="p1")
     assert issubclass(samara.SamaraError, Exception)
 
 
@@ -167,3 +172,14 @@ def test_long_calls_release_the_gil(net):
     if took < 0.1:
         pytest.skip(f"the call took {took:.3f} s: too short to tell")
     assert state["gap"] < 0.5 * took, (state["gap"], took)
+
+
+def test_timeout_is_a_deadline_for_critical():
+    """Issue 35: the two searches of a critical value share the time limit (20 s for
+    timeout=10 before on this network)."""
+    import time
+    net = samara.Network.from_onnx(reference("goedel_lipschitz_norm.onnx"))
+    t0 = time.monotonic()
+    r = samara.Spec(SPEC).critical(property="p1", param="ystar", networks={"f": net}, timeout=1.0)
+    assert time.monotonic() - t0 < 2.0
+    assert r.holds == "unknown" and r.unknown_reason["kind"] == "timeout"

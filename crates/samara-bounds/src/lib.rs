@@ -21,6 +21,9 @@
 //!   then splitting the box (look-ahead, or the largest smear as in ReluVal, Wang et al.,
 //!   USENIX Security 2018) until every piece is proved empty or a point is found. Points
 //!   are re-evaluated concretely before they are reported.
+//! - [`constant`]: interval bounds rounded only where an operation was inexact, which
+//!   decide degenerate constraints (an output exactly 0 on the box, two outputs of the
+//!   same expression compared) that the widened bounds of the search never close.
 //! - [`lp`]: the min-max LP over a few linear bounds that gives the search its weights
 //!   for combining a conjunction's constraints.
 //! - [`phases`]: ReLU-phase splitting of the search's pieces that few ReLUs cross, with
@@ -29,6 +32,7 @@
 //!   beta-CROWN's, Wang et al., NeurIPS 2021); [`lp`] also gives those LP multipliers.
 #![warn(missing_docs)]
 
+pub mod constant;
 pub mod linset;
 pub mod lp;
 pub mod phases;

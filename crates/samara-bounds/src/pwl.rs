@@ -91,7 +91,12 @@ impl PwlNet {
             let mut z = vec![0.0; m.out];
             m.apply_f64(&a, &mut z);
             if *relu {
-                z.iter_mut().for_each(|v| *v = v.max(0.0));
+                // NaN propagates (f64::max(NaN, 0) would be 0).
+                z.iter_mut().for_each(|v| {
+                    if *v <= 0.0 {
+                        *v = 0.0
+                    }
+                });
             }
             a = z;
         }

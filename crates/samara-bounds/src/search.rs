@@ -411,9 +411,16 @@ enum Piece {
 }
 
 /// Full CROWN intermediate bounds of a piece, starting from bounds of a containing box.
-fn piece_bounds(maps: &[(Affine, bool)], lo: &[f64], hi: &[f64], known: Option<&Bounds>) -> Bounds {
-    let fwd = symbolic::hidden_pre(maps, lo, hi, known.map(|v| &v[..]));
-    symbolic::crown_pre(maps, lo, hi, Some(&fwd))
+/// Past `deadline` the forward bounds are kept for the neurons CROWN has not reached.
+fn piece_bounds(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    known: Option<&Bounds>,
+    deadline: Option<Instant>,
+) -> Bounds {
+    let fwd = symbolic::hidden_pre_until(maps, lo, hi, known.map(|v| &v[..]), deadline);
+    symbolic::crown_pre_until(maps, lo, hi, &fwd, deadline)
 }
 
 /// A conjunction's bounds on one piece.
@@ -440,6 +447,7 @@ fn best_bound(
     lo: &[f64],
     hi: &[f64],
     alpha_iters: usize,
+    deadline: Option<Instant>,
 ) -> ConjBound {
     let mut best = ConjBound {
         lb: f64::NEG_INFINITY,
@@ -450,7 +458,7 @@ fn best_bound(
     let mut fs = Vec::with_capacity(cs.len());
     for k in cs {
         let f = if alpha_iters > 0 {
-            symbolic::alpha_lower(maps, pre, &k.obj, lo, hi, alpha_iters)
+            symbolic::alpha_lower_until(maps, pre, &k.obj, lo, hi, alpha_iters, deadline)
         } else {
             symbolic::backward_lower(maps, pre, &k.obj, lo, hi)
         };
@@ -485,7 +493,9 @@ fn best_bound(
             // coefficient) instead of summing relaxations chosen for each constraint alone,
             // and alpha-CROWN optimises the slopes for it (the conjunction's weights and the
             // slopes together, as in the joint optimisation of Xu et al. 2021).
-            if let Some(lb) = combined_bound(maps, cs, pre, lo, hi, &mm.lambda, alpha_iters) {
+            if let Some(lb) =
+                combined_bound(maps, cs, pre, lo, hi, &mm.lambda, alpha_iters, deadline)
+            {
                 // Only the proof is taken: steering the look-ahead by the LP's value or
                 // by this bound (instead of the best single constraint's) did not help
                 // on ACAS Xu property 2.
@@ -506,6 +516,7 @@ fn best_bound(
 /// (Higham's bound, as in [`crate::symbolic`]), times a sound bound on `|y_o|` from the
 /// last hidden layer's bounds by interval arithmetic. `None` when the output bounds are
 /// not finite.
+#[allow(clippy::too_many_arguments)]
 fn combined_bound(
     maps: &[(Affine, bool)],
     cs: &[OutputConstraint],
@@ -514,6 +525,7 @@ fn combined_bound(
     hi: &[f64],
     lam: &[f64],
     alpha_iters: usize,
+    deadline: Option<Instant>,
 ) -> Option<f64> {
     let (last, _) = maps.last()?;
     // The argument needs non-negative weights (a negative one flips its constraint).
@@ -555,7 +567,7 @@ fn combined_bound(
     }
     let obj = Objective { c, d };
     let f = if alpha_iters > 0 {
-        symbolic::alpha_lower(maps, pre, &obj, lo, hi, alpha_iters)
+        symbolic::alpha_lower_until(maps, pre, &obj, lo, hi, alpha_iters, deadline)
     } else {
         symbolic::backward_lower(maps, pre, &obj, lo, hi)
     };
@@ -628,6 +640,7 @@ pub(crate) fn combination_certifies(
 }
 
 /// The open cases' bounds on one piece: the cases still open, with their bounds.
+#[allow(clippy::too_many_arguments)]
 fn open_bounds(
     maps: &[(Affine, bool)],
     cases: &[Case],
@@ -636,10 +649,19 @@ fn open_bounds(
     lo: &[f64],
     hi: &[f64],
     alpha_iters: usize,
+    deadline: Option<Instant>,
 ) -> Vec<(usize, ConjBound)> {
     open.iter()
         .map(|&ci| {
-            let b = best_bound(maps, &cases[ci].constraints, pre, lo, hi, alpha_iters);
+            let b = best_bound(
+                maps,
+                &cases[ci].constraints,
+                pre,
+                lo,
+                hi,
+                alpha_iters,
+                deadline,
+            );
             (ci, b)
         })
         .filter(|(_, b)| !b.closed)
@@ -671,12 +693,32 @@ fn examine(
     let tp = Instant::now();
     let pre = match (bounds, fin) {
         (Some(b), true) => b,
-        (b, _) => Arc::new(piece_bounds(maps, &lo, &hi, b.as_deref())),
+        (b, _) => Arc::new(piece_bounds(maps, &lo, &hi, b.as_deref(), deadline)),
     };
     prof_add(P_OWNB, tp);
     let tp = Instant::now();
-    let left = open_bounds(maps, cases, &open, &pre, &lo, &hi, alpha_iters);
+    let mut left = open_bounds(maps, cases, &open, &pre, &lo, &hi, alpha_iters, deadline);
     prof_add(P_ALPHA, tp);
+    // Constraints whose bound is exactly at 0 on the piece (an output exactly 0 there
+    // against a strict inequality, two identical outputs compared): the bounds above
+    // always widen by a possible rounding and never close them; bounds rounded only
+    // where inexact ([`crate::constant`]) decide them.
+    if !left.is_empty() {
+        let centre: Vec<f64> = lo.iter().zip(&hi).map(|(a, b)| 0.5 * (a + b)).collect();
+        let mut everywhere = None;
+        left.retain(|(ci, _)| {
+            let f = crate::constant::fates(maps, &cases[*ci].constraints, &lo, &hi);
+            if f.iter().all(|f| *f == crate::constant::Fate::Always) {
+                everywhere.get_or_insert(*ci);
+            }
+            !f.contains(&crate::constant::Fate::Never)
+        });
+        if let Some(ci) = everywhere {
+            // Every point of the piece satisfies the case: its centre is one (the caller
+            // re-checks it exactly).
+            return Piece::Found(ci, centre);
+        }
+    }
     if left.is_empty() {
         PROF[P_CLOSED].fetch_add(1, AtOrd::Relaxed);
         return Piece::Closed;
@@ -757,6 +799,11 @@ fn examine(
     let mut tries: Vec<(f64, Vec<Work>, usize)> = (0..lo.len())
         .into_par_iter()
         .filter_map(|t| {
+            // One trial bounds two halves by full CROWN: on a wide network with many
+            // inputs the whole look-ahead takes minutes, so each trial checks the clock.
+            if late() {
+                return None;
+            }
             let mid = 0.5 * (lo[t] + hi[t]);
             if !(mid > lo[t] && mid < hi[t]) {
                 return None;
@@ -767,8 +814,8 @@ fn examine(
             let mut halves = Vec::with_capacity(2);
             let mut total = 0.0;
             for (a, b) in [(&lo, &h1), (&l2, &hi)] {
-                let bd = piece_bounds(maps, a, b, Some(&pre));
-                let hl = open_bounds(maps, cases, &open, &bd, a, b, 0);
+                let bd = piece_bounds(maps, a, b, Some(&pre), deadline);
+                let hl = open_bounds(maps, cases, &open, &bd, a, b, 0, deadline);
                 total += hl
                     .iter()
                     .find(|h| h.0 == driver)
@@ -793,6 +840,9 @@ fn examine(
         })
         .collect();
     prof_add(P_LOOK, tp);
+    if late() {
+        return Piece::Late;
+    }
     // When no split makes real progress (less than 1% of the piece's own deficit, counted
     // for both halves), the look-ahead only sees rounding noise and would keep cutting
     // already thin sides: split by smear instead (|coefficient| * width of the most

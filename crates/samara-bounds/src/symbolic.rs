@@ -378,6 +378,27 @@ pub fn hidden_pre(
     hi: &[f64],
     known: Option<&[Vec<(f64, f64)>]>,
 ) -> Vec<Vec<(f64, f64)>> {
+    hidden_pre_until(maps, lo, hi, known, None)
+}
+
+/// [`hidden_pre`] that gives up at `deadline`, returning `known` (bounds of a box
+/// containing this one, so sound here) or unbounded ranges: on a wide network with
+/// many inputs one pass takes about a second, and a time limit must hold.
+pub fn hidden_pre_until(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    known: Option<&[Vec<(f64, f64)>]>,
+    deadline: Option<std::time::Instant>,
+) -> Vec<Vec<(f64, f64)>> {
+    let late = || deadline.is_some_and(|d| std::time::Instant::now() >= d);
+    let give_up = || match known {
+        Some(k) => k.to_vec(),
+        None => maps[..maps.len().saturating_sub(1)]
+            .iter()
+            .map(|(m, _)| vec![(f64::NEG_INFINITY, f64::INFINITY); m.out])
+            .collect(),
+    };
     let n = lo.len();
     let xmax = magnitudes(lo, hi);
     let (last, body) = maps.split_last().expect("a network has at least one map");
@@ -400,6 +421,9 @@ pub fn hidden_pre(
         let mut zu = Flat::zeros(m.out, n);
         for (upper, z) in [(false, &mut zl), (true, &mut zu)] {
             for o in 0..m.out {
+                if o % 16 == 0 && late() {
+                    return give_up();
+                }
                 let w = &m.w[o * m.inp..(o + 1) * m.inp];
                 let out = &mut z.coef[o * n..(o + 1) * n];
                 mag.iter_mut().for_each(|v| *v = 0.0);
@@ -753,11 +777,33 @@ pub fn alpha_lower(
     hi: &[f64],
     iters: usize,
 ) -> Linear {
+    alpha_lower_until(maps, pre, obj, lo, hi, iters, None)
+}
+
+/// [`alpha_lower`] that stops its gradient steps at `deadline` (any slopes give a sound
+/// bound, so stopping early only loosens it): each step is a backward pass through the
+/// whole network, which on a wide one takes long enough to overrun a time limit.
+pub fn alpha_lower_until(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    lo: &[f64],
+    hi: &[f64],
+    iters: usize,
+    deadline: Option<std::time::Instant>,
+) -> Linear {
     let base = backward_lower(maps, pre, obj, lo, hi);
+    let late = || deadline.is_some_and(|d| std::time::Instant::now() >= d);
+    if late() {
+        return base;
+    }
     let mut alpha = default_alpha(maps, pre);
     let (mut best_v, _) = alpha_value_grad(maps, pre, obj, lo, hi, &alpha);
     let mut best_a = alpha.clone();
     for it in 0..iters {
+        if late() {
+            break;
+        }
         let (v, grad) = alpha_value_grad(maps, pre, obj, lo, hi, &alpha);
         if v > best_v {
             best_v = v;
@@ -800,6 +846,19 @@ pub fn crown_pre(
     crown_pre_from(maps, lo, hi, fwd, 0)
 }
 
+/// [`crown_pre`] that, past `deadline`, keeps the forward bounds `fwd` (sound, looser)
+/// for the neurons not yet tightened: one backward pass per unstable neuron is long on
+/// a wide network, and a time limit must hold.
+pub fn crown_pre_until(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: &[Vec<(f64, f64)>],
+    deadline: Option<std::time::Instant>,
+) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_core(maps, lo, hi, Some(fwd), 0, deadline)
+}
+
 /// [`crown_pre`] that takes the bounds of the maps before `from` from `fwd` as they are
 /// (they must be given, and sound), and recomputes only the later ones: after a change
 /// of the bounds of map `from - 1` (a ReLU's phase fixed), the earlier maps' bounds
@@ -811,6 +870,19 @@ pub fn crown_pre_from(
     fwd: Option<&[Vec<(f64, f64)>]>,
     from: usize,
 ) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_core(maps, lo, hi, fwd, from, None)
+}
+
+fn crown_pre_core(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: Option<&[Vec<(f64, f64)>]>,
+    from: usize,
+    deadline: Option<std::time::Instant>,
+) -> Vec<Vec<(f64, f64)>> {
+    // Past the deadline, neurons keep their forward bounds (only when those are given).
+    let late = || fwd.is_some() && deadline.is_some_and(|d| std::time::Instant::now() >= d);
     let body = maps.len() - 1;
     let mut pre: Vec<Vec<(f64, f64)>> = Vec::with_capacity(body);
     let mut c = Vec::new();
@@ -831,7 +903,7 @@ pub fn crown_pre_from(
                 .map(|f| f[k][i])
                 .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
             // Layer 0 is exact under interval arithmetic already; skip stable neurons.
-            if k == 0 || fl >= 0.0 || fu <= 0.0 {
+            if k == 0 || fl >= 0.0 || fu <= 0.0 || late() {
                 bounds.push((fl, fu));
                 continue;
             }

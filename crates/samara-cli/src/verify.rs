@@ -14,9 +14,9 @@ use samara_spec::normal::{Goal, Query, Sense, Var};
 use samara_spec::syntax::Binder;
 use samara_spec::{vnnlib, Bindings, Instance, Spec};
 use samara_verify::engine::Point;
-use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_with, Reference};
+use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_until, Reference};
 use samara_verify::{
-    empty_input_box, optimise, prove, LpTighten, Prepared, Settings, UnknownReason, Verdict,
+    left_after, optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
 };
 use serde_json::{json, Value};
 use std::collections::HashMap;
@@ -60,8 +60,9 @@ pub struct VerifyArgs {
     /// Only this property (default: all).
     #[arg(long)]
     pub property: Option<String>,
-    /// Time limit per query in seconds (>= 0; `inf` for none). A query cut short is
-    /// `unknown` with its reason, never proved or violated.
+    /// Time limit of the whole command in seconds (>= 0; `inf` for none): every query
+    /// gets what is left of it. A query cut short is `unknown` with its reason, never
+    /// proved or violated.
     #[arg(long, default_value_t = 60.0)]
     pub timeout: f64,
     /// Tighten unstable neurons' bounds with LPs at the root of each search
@@ -87,7 +88,8 @@ pub struct CriticalArgs {
     /// The property.
     #[arg(long)]
     pub property: String,
-    /// Time limit in seconds (>= 0; `inf` for none). A search cut short reports
+    /// Time limit of the whole command in seconds (>= 0; `inf` for none), shared by its
+    /// two searches (the supremum's, then the infimum's). A search cut short reports
     /// `unknown` with its reason (exit 1), never a critical value.
     #[arg(long, default_value_t = 60.0)]
     pub timeout: f64,
@@ -126,8 +128,9 @@ pub struct RobustnessArgs {
     /// published (|f(x') - ref| <= L / eps) or lipschitz (|f(x') - f(x)| <= L ||x' - x||).
     #[arg(long, default_value = "published")]
     pub form: String,
-    /// Time limit of each point's search in seconds (>= 0; `inf` for none); a point
-    /// whose search is cut short counts as unknown unless its bounds already settle it.
+    /// Time limit of the whole command in seconds (>= 0; `inf` for none): every point's
+    /// search stops at it; a point whose search is cut short counts as unknown unless
+    /// its bounds already settle it.
     #[arg(long, default_value_t = 30.0)]
     pub timeout: f64,
     /// Node limit of each point's search; a point whose search reaches it counts as
@@ -341,6 +344,9 @@ pub fn load(a: &SpecArgs, free_params: bool) -> Result<Loaded> {
         }
         b.params.insert(k, x);
     }
+    // Values outside a declared `param NAME in [lo, hi]` are refused here (exit 2).
+    spec.check_bindings(&b)
+        .map_err(|e| anyhow!("--param: {e}"))?;
     for s in &a.datasets {
         let (k, v) = kv(s, "dataset")?;
         if !spec.datasets.contains_key(&k) {
@@ -518,6 +524,8 @@ pub fn run_check(a: &CheckArgs) -> Result<ExitCode> {
 /// Run `samara verify`.
 pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
     check_timeout(a.timeout)?;
+    // `--timeout` is a deadline for the whole command: every instance gets what is left.
+    let start = Instant::now();
     let l = load(&a.s, false)?;
     let names: Vec<String> = match &a.property {
         Some(p) => vec![p.clone()],
@@ -559,6 +567,13 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
         lp_tighten: tighten_mode(a.lp_tighten),
         ..Default::default()
     };
+    // Deciding vacuity (is the premise empty over the domain?) is one root LP in
+    // practice; it gets at most 10 s of what the deadline leaves (undecided: not called
+    // vacuous).
+    let vacuity_settings = || Settings {
+        timeout: left_after(&settings, start).timeout.min(10.0),
+        ..settings
+    };
     let mut all_proved = true;
     let mut out = Vec::new();
     for (name, inst) in &lowered {
@@ -566,7 +581,12 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
         let mut verdicts: Vec<(&Instance, Verdict, f64)> = Vec::new();
         for i in inst {
             let ti = Instant::now();
-            let v = prove(&i.query, &prep, &settings)?;
+            let left = left_after(&settings, start);
+            let v = if left.timeout > 0.0 {
+                prove(&i.query, &prep, &left)?
+            } else {
+                Verdict::Unknown(UnknownReason::Timeout { nodes: 0 })
+            };
             verdicts.push((i, v, ti.elapsed().as_secs_f64()));
         }
         let secs = t0.elapsed().as_secs_f64();
@@ -580,11 +600,9 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
             let (tag, cx) = match verdict {
                 Verdict::Proved => {
                     p += 1;
-                    if let Some((app, k)) = empty_input_box(q) {
+                    if let Some(why) = vacuity(q, &prep, &vacuity_settings())? {
                         vacuous.push(i.label.clone());
-                        vac = json!(format!(
-                            "the input domain of network call {app} is empty (input {k}): a data point outside the declared domain, whose ball the domain clips away"
-                        ));
+                        vac = json!(why);
                     }
                     ("proved", Value::Null)
                 }
@@ -646,7 +664,7 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
         }
         if !vacuous.is_empty() {
             eprintln!(
-                "warning: {name}: {} instance(s) proved only vacuously ({}): the input domain is empty there (a data point outside the declared domain; its ball is clipped to the domain), so nothing was checked; `samara robustness` evaluates the whole ball",
+                "warning: {name}: {} instance(s) proved only vacuously ({}): no point of the input domain meets the premise there (or a data point outside the declared domain has its ball clipped away), so the network was never checked; `samara robustness` evaluates the whole ball of a data point",
                 vacuous.len(),
                 vacuous.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
             );
@@ -703,8 +721,10 @@ pub fn critical_value(
     if let Goal::Optimise { sense, .. } = &mut q_min.goal {
         *sense = Sense::Min;
     }
+    // `--timeout` is a deadline for both searches together (the second gets what the
+    // first left).
     let sup = optimise(&q_max, &prep, settings)?;
-    let inf = optimise(&q_min, &prep, settings)?;
+    let inf = optimise(&q_min, &prep, &left_after(settings, t0))?;
     let (lo, hi) = l.spec.params[param]
         .range
         .ok_or_else(|| anyhow!("parameter `{param}` has no range"))?;
@@ -840,6 +860,12 @@ fn list(s: &str, flag: &str, ok: fn(f64) -> bool, allowed: &str) -> Result<Vec<f
 /// Run `samara robustness`.
 pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
     check_timeout(a.timeout)?;
+    // `--timeout` is a deadline for the whole command (each search also stops at it).
+    let start = Instant::now();
+    let deadline = a
+        .timeout
+        .is_finite()
+        .then(|| start + std::time::Duration::from_secs_f64(a.timeout.min(1e9)));
     if a.shard.is_some() && a.out.is_none() {
         bail!(
             "--shard needs --out FILE (the shard's partial result, for `samara merge robustness`)"
@@ -913,8 +939,16 @@ pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
         ..Default::default()
     };
     let range = a.shard.map_or(0..rows.len(), |s| s.range(rows.len()));
-    let mut points = sweep_with(&net, &rows[range.clone()], &eps, reference, None, &settings)
-        .map_err(|e| anyhow!("{e}"))?;
+    let mut points = sweep_until(
+        &net,
+        &rows[range.clone()],
+        &eps,
+        reference,
+        None,
+        &settings,
+        deadline,
+    )
+    .map_err(|e| anyhow!("{e}"))?;
     for p in &mut points {
         p.index += range.start;
     }

@@ -285,3 +285,59 @@ fn check_and_export_vnnlib() {
         "{err}"
     );
 }
+
+/// Issue 35 item 9. Above the critical value 45.91 of P1 on the naive network (the
+/// largest x + y of the declared domain, 41.714716998 + 4.19723352, by hand from the
+/// spec's domain) no domain point meets the premise `y >= -x + ystar`: the proof is
+/// vacuous and says so; below it the premise is met and the report is not vacuous. A
+/// value outside the declared range of `ystar` ([0, 100]) is refused with exit 2 naming
+/// the parameter, the range and the spec line.
+#[test]
+fn empty_premises_are_vacuous_and_out_of_range_parameters_refused() {
+    let net = format!("f={}", reference("base_model_norm.onnx"));
+    let verify = |ystar: &str, property: &str| {
+        let out = samara()
+            .args([
+                "verify",
+                SPEC,
+                "--property",
+                property,
+                "--json",
+                "--network",
+            ])
+            .arg(&net)
+            .arg("--param")
+            .arg(format!("ystar={ystar}"))
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+        let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap_or_default();
+        (out.status.code(), v, stderr)
+    };
+    let (code, v, err) = verify("50", "p1");
+    assert_eq!(code, Some(0), "{err}");
+    assert_eq!(v[0]["verdict"], "proved");
+    assert_eq!(v[0]["vacuous"], true, "{v}");
+    assert!(err.contains("vacuously"), "{err}");
+    // P2 (y <= -x - ystar) at ystar = 50 is empty too: y + x >= -41.68140527 + 0.482420778.
+    let (_, v, _) = verify("50", "p2");
+    assert_eq!(v[0]["vacuous"], true, "{v}");
+    // At ystar = 2 P2's premise is met (e.g. x = 1, y = -10): not vacuous, whatever
+    // the verdict.
+    let (_, v, _) = verify("2", "p2");
+    assert_eq!(v[0]["vacuous"], false, "{v}");
+    for bad in ["1000", "-0.5", "100.0001"] {
+        let (code, _, err) = verify(bad, "p1");
+        assert_eq!(code, Some(2), "ystar={bad}: {err}");
+        assert!(
+            err.contains("`ystar`")
+                && err.contains("[0, 100]")
+                && err.contains("alsomitra.spec:17")
+                && err.contains(bad),
+            "{err}"
+        );
+    }
+    // The ends of the range are in it.
+    let (code, _, err) = verify("100", "p1");
+    assert_eq!(code, Some(0), "{err}");
+}

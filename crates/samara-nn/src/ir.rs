@@ -116,14 +116,27 @@ impl Activation {
         }
     }
 
-    /// Apply to one f64.
+    /// Apply to one f64. NaN propagates (`f64::max(NaN, 0)` is 0, which would turn a
+    /// NaN input into a plausible number), as in [`Activation::apply`].
     #[inline]
     pub fn apply_f64(&self, x: f64) -> f64 {
         match *self {
-            Activation::Relu => x.max(0.0),
+            Activation::Relu => {
+                if x <= 0.0 {
+                    0.0
+                } else {
+                    x
+                }
+            }
             Activation::Sigmoid => 1.0 / (1.0 + (-x).exp()),
             Activation::Tanh => x.tanh(),
-            Activation::Clamp { lo, hi } => x.max(lo).min(hi),
+            Activation::Clamp { lo, hi } => {
+                if x.is_nan() {
+                    x
+                } else {
+                    x.max(lo).min(hi)
+                }
+            }
         }
     }
 

@@ -196,6 +196,23 @@ impl<const N: usize> Scalar for Dual<N> {
     fn hull(&self, _other: &Self) -> Self {
         *self
     }
+    /// A NaN in either operand's value gives that operand (the default would keep
+    /// `self`, dropping a NaN `other`).
+    fn smin(&self, other: &Self) -> Self {
+        if other.v.is_nan() || (!self.v.is_nan() && other.v < self.v) {
+            *other
+        } else {
+            *self
+        }
+    }
+    /// As [`Dual::smin`].
+    fn smax(&self, other: &Self) -> Self {
+        if other.v.is_nan() || (!self.v.is_nan() && other.v > self.v) {
+            *other
+        } else {
+            *self
+        }
+    }
 }
 
 #[cfg(test)]

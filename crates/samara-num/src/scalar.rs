@@ -249,17 +249,46 @@ impl Scalar for f64 {
     fn sign_minus(&self, c: f64) -> Sign {
         (*self - c).sign()
     }
+    /// NaN stays NaN (`f64::max(NaN, 0)` would be 0: a NaN input would come out as a
+    /// number).
     #[inline(always)]
     fn relu(&self) -> Self {
-        if *self > 0.0 {
-            *self
-        } else {
+        if *self <= 0.0 {
             0.0
+        } else {
+            *self
         }
     }
+    /// NaN stays NaN (see [`Scalar::relu`]).
     #[inline(always)]
     fn clamp_to(&self, lo: f64, hi: f64) -> Self {
-        self.max(lo).min(hi)
+        if self.is_nan() {
+            *self
+        } else {
+            self.max(lo).min(hi)
+        }
+    }
+    /// NaN in either operand gives NaN.
+    #[inline(always)]
+    fn smin(&self, other: &Self) -> Self {
+        if self.is_nan() || other.is_nan() {
+            f64::NAN
+        } else if *self <= *other {
+            *self
+        } else {
+            *other
+        }
+    }
+    /// NaN in either operand gives NaN.
+    #[inline(always)]
+    fn smax(&self, other: &Self) -> Self {
+        if self.is_nan() || other.is_nan() {
+            f64::NAN
+        } else if *self >= *other {
+            *self
+        } else {
+            *other
+        }
     }
 }
 
@@ -285,6 +314,14 @@ mod tests {
         assert_eq!(Scalar::relu(&-2.0), 0.0);
         assert_eq!(Scalar::relu(&2.0), 2.0);
         assert_eq!(Scalar::sign(&f64::NAN), Sign::Mixed);
+        // NaN propagates (issue 35: f64::max(0, NaN) is 0).
+        assert!(Scalar::relu(&f64::NAN).is_nan());
+        assert!(Scalar::clamp_to(&f64::NAN, 0.181, 0.193).is_nan());
+        assert!(Scalar::smax(&1.0, &f64::NAN).is_nan());
+        assert!(Scalar::smax(&f64::NAN, &1.0).is_nan());
+        assert!(Scalar::smin(&1.0, &f64::NAN).is_nan());
+        assert_eq!(Scalar::relu(&f64::INFINITY), f64::INFINITY);
+        assert_eq!(Scalar::relu(&-0.0), 0.0);
     }
 
     #[test]

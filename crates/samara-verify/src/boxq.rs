@@ -5,14 +5,16 @@
 //! first), which suits low-dimensional inputs; anything else stays with the ReLU-phase
 //! branch and bound of [`crate::engine`].
 //!
-//! Contract, as for every verdict of this crate: a point is reported only after its
-//! outputs are recomputed in exact rational arithmetic ([`crate::exact`]) and every
-//! constraint of its disjunct (input bounds included, strict ones strictly) holds there;
+//! Contract, as for every verdict of this crate: a point is reported only after every
+//! constraint of its disjunct (input bounds included, strict ones strictly) is shown to
+//! hold there rigorously: on an interval enclosure of its outputs that rounds only where
+//! inexact, or failing that with its outputs recomputed in exact rational arithmetic
+//! ([`crate::exact::rigorous_satisfies`]);
 //! `Proved` only from the search's sound bounds having closed every piece; anything cut
 //! short is `Unknown` with its reason.
 
 use crate::engine::Point;
-use crate::exact::exact_satisfies;
+use crate::exact::rigorous_satisfies;
 use crate::net::PwlNet;
 use crate::Counterexample;
 use samara_bounds::search::{self, Case, Outcome, OutputConstraint, StopReason};
@@ -125,9 +127,39 @@ pub fn to_cases(q: &Query) -> Option<Vec<(usize, Case)>> {
     Some(cases)
 }
 
+/// Constraints decided by bounds that round only where an operation was inexact
+/// ([`samara_bounds::constant`]): a case with a constraint that holds nowhere on its box
+/// is dropped, a constraint that holds everywhere is removed (a case left with none holds
+/// at every point of its box: the search's first candidate is one, re-checked exactly).
+/// Degenerate queries (an output exactly 0 on the box compared with 0, two outputs of the
+/// same expression compared) are so decided at once instead of splitting the box until
+/// the time limit: the search's own bounds always widen by a possible rounding, so a
+/// strict constraint whose bound is exactly 0 is never closed by them.
+fn settle_constant_constraints(
+    maps: &[(samara_nn::Affine, bool)],
+    cases: Vec<(usize, Case)>,
+) -> Vec<(usize, Case)> {
+    use samara_bounds::constant::{fates, Fate};
+    cases
+        .into_iter()
+        .filter_map(|(di, mut c)| {
+            let f = fates(maps, &c.constraints, &c.lo, &c.hi);
+            if f.contains(&Fate::Never) {
+                return None;
+            }
+            let mut k = 0;
+            c.constraints.retain(|_| {
+                k += 1;
+                f[k - 1] != Fate::Always
+            });
+            Some((di, c))
+        })
+        .collect()
+}
+
 /// Decide a box-shaped query on `net` (`None` when the query is not box-shaped).
 pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxAnswer> {
-    let cases = to_cases(q)?;
+    let cases = settle_constant_constraints(&net.maps, to_cases(q)?);
     if cases.is_empty() {
         return Some(BoxAnswer::Proved);
     }
@@ -148,7 +180,7 @@ pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxA
                 free: vec![],
             };
             let cs = &q.region[disjunct];
-            let exact = exact_satisfies(&[net], &point, cs);
+            let exact = rigorous_satisfies(&[net], &point, cs);
             if exact != Some(true) {
                 return Some(BoxAnswer::Unknown(BoxUnknown::NotConfirmed));
             }

@@ -66,6 +66,55 @@ pub fn exact_satisfies(nets: &[&PwlNet], p: &Point, cs: &[Constraint]) -> Option
     Some(true)
 }
 
+/// Whether the point satisfies the constraints, decided rigorously and fast when
+/// possible: the outputs are enclosed by interval arithmetic that rounds only where an
+/// operation was inexact ([`samara_bounds::constant`]), and a constraint that holds (or
+/// fails) on the whole enclosure is decided; only when the enclosure leaves one undecided
+/// are the outputs recomputed in exact rational arithmetic ([`exact_satisfies`], whose
+/// cost grows with the bit length of every weight and is seconds on an MNIST-size
+/// network). `None` if a value is not finite.
+pub fn rigorous_satisfies(nets: &[&PwlNet], p: &Point, cs: &[Constraint]) -> Option<bool> {
+    use samara_bounds::constant::{layer_intervals, Iv};
+    let mut outs = Vec::with_capacity(nets.len());
+    for (n, x) in nets.iter().zip(&p.inputs) {
+        if x.iter().any(|v| !v.is_finite()) {
+            return None;
+        }
+        let (_, y) = layer_intervals(&n.maps, x, x);
+        outs.push(y);
+    }
+    let mut all = true;
+    for c in cs {
+        let mut e = Iv::point(c.expr.constant);
+        for (v, k) in &c.expr.terms {
+            let t = match v {
+                Var::Input { app, index } => Iv::point(*p.inputs.get(*app)?.get(*index)?),
+                Var::Output { app, index } => *outs.get(*app)?.get(*index)?,
+                Var::Free(f) => Iv::point(*p.free.get(*f)?),
+            };
+            e = e.plus(t.scale(*k));
+        }
+        if !(e.lo.is_finite() && e.hi.is_finite()) {
+            all = false;
+            continue;
+        }
+        let (holds, fails) = match c.cmp {
+            Cmp::Lt => (e.hi < 0.0, e.lo >= 0.0),
+            Cmp::Le => (e.hi <= 0.0, e.lo > 0.0),
+            Cmp::Eq => (e.lo == 0.0 && e.hi == 0.0, e.lo > 0.0 || e.hi < 0.0),
+        };
+        if fails {
+            return Some(false);
+        }
+        all &= holds;
+    }
+    if all {
+        Some(true)
+    } else {
+        exact_satisfies(nets, p, cs)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -469,6 +469,60 @@ pub fn empty_input_box(q: &Query) -> Option<(usize, usize)> {
     })
 }
 
+/// Is the property's premise empty over the input domain? The premise of a disjunct is
+/// its constraints on inputs (and free variables) alone, the ones that name no network
+/// output. When every disjunct's premise is empty, `Proved` holds without looking at
+/// the networks: it is vacuous. Decided with the engine's own sound slack bound (the
+/// premise region's closure is empty), so never `true` when a point of the premise
+/// exists; `false` when not decided within `s.timeout` (an undecided premise is not
+/// called vacuous).
+pub fn premise_empty(q: &Query, prep: &Prepared, s: &Settings) -> Result<bool, VerifyError> {
+    prep.check(q)?;
+    if out_of_range(q).is_some() {
+        return Ok(false);
+    }
+    let mut p = q.clone();
+    p.goal = Goal::Prove;
+    for d in &mut p.region {
+        d.retain(|c| {
+            !c.expr
+                .terms
+                .iter()
+                .any(|(v, _)| matches!(v, Var::Output { .. }))
+        });
+    }
+    let (w, _) = widen_rounding_boxes(&p);
+    Ok(prove_checked(&w, prep, s)? == Verdict::Proved)
+}
+
+/// Why a `Proved` verdict of `q` is vacuous, if it is: an input box empty beyond
+/// rounding ([`empty_input_box`]) or a premise empty over the domain
+/// ([`premise_empty`], given at most `s.timeout` seconds). Shared by the CLI and the
+/// Python package, whose reports say `vacuous: true` with this text.
+pub fn vacuity(q: &Query, prep: &Prepared, s: &Settings) -> Result<Option<String>, VerifyError> {
+    if let Some((app, k)) = empty_input_box(q) {
+        return Ok(Some(format!(
+            "the input domain of network call {app} is empty (input {k}): a data point outside the declared domain, whose ball the domain clips away"
+        )));
+    }
+    if premise_empty(q, prep, s)? {
+        return Ok(Some(
+            "no point of the input domain meets the property's premise (its constraints on the inputs are infeasible over the domain), so the network was never checked".into(),
+        ));
+    }
+    Ok(None)
+}
+
+/// `s` with only the time its limit leaves after `t0` (never negative): one time
+/// limit as a deadline over several searches (a command's `--timeout` covers all its
+/// queries, not each).
+pub fn left_after(s: &Settings, t0: Instant) -> Settings {
+    Settings {
+        timeout: (s.timeout - t0.elapsed().as_secs_f64()).max(0.0),
+        ..*s
+    }
+}
+
 fn limits(s: &Settings, t0: Instant) -> Limits {
     Limits {
         seconds: (s.timeout - t0.elapsed().as_secs_f64()).max(0.0),
@@ -607,7 +661,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
                         .filter_map(|a| prep.pwl[&a.network].as_ref().ok())
                         .collect();
                     if nets.len() == q.applications.len() {
-                        exact = exact::exact_satisfies(&nets, &pt, &original);
+                        exact = exact::rigorous_satisfies(&nets, &pt, &original);
                     }
                 }
                 if exact == Some(false) {

@@ -69,7 +69,15 @@ pub struct Cell {
     pub unknown: usize,
 }
 
-fn gradient_bounds(net: &PwlNet, lo: &[f64], hi: &[f64], x: &[f64]) -> (f64, f64) {
+/// Past `deadline` the pattern enumeration (up to 2^14 LPs) stops and the upper bound
+/// is infinite (unknown).
+fn gradient_bounds(
+    net: &PwlNet,
+    lo: &[f64],
+    hi: &[f64],
+    x: &[f64],
+    deadline: Option<std::time::Instant>,
+) -> (f64, f64) {
     // Interval bounds per ReLU layer over the ball; enumerate the unstable neurons'
     // phases (capped); the gradient 1-norm of each pattern's linear map.
     let mut a_lo = lo.to_vec();
@@ -160,6 +168,9 @@ fn gradient_bounds(net: &PwlNet, lo: &[f64], hi: &[f64], x: &[f64]) -> (f64, f64
     }
     let mut upper = 0.0f64;
     for mask in 0..(1u32 << unstable.len()) {
+        if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+            return (lower, f64::INFINITY);
+        }
         let mut ph = phases.clone();
         for (b, (l, i)) in unstable.iter().enumerate() {
             ph[*l][*i] = if mask >> b & 1 == 1 { 1 } else { -1 };
@@ -260,6 +271,32 @@ pub fn sweep_with(
     domain: Option<&[(f64, f64)]>,
     settings: &Settings,
 ) -> Result<Vec<PointBall>, String> {
+    sweep_until(net, rows, eps, reference, domain, settings, None)
+}
+
+/// [`sweep_with`] with a deadline for the whole sweep (a command's `--timeout`): each
+/// search gets at most what is left of it (its own limit `settings.timeout` still
+/// applies); searches after the deadline keep only their first bounds, and their points
+/// are unknown where those do not settle them.
+pub fn sweep_until(
+    net: &Network,
+    rows: &[Vec<f64>],
+    eps: &[f64],
+    reference: Reference,
+    domain: Option<&[(f64, f64)]>,
+    settings: &Settings,
+    deadline: Option<std::time::Instant>,
+) -> Result<Vec<PointBall>, String> {
+    let within = |s: &Settings| match deadline {
+        Some(d) => Settings {
+            timeout: s.timeout.min(
+                d.saturating_duration_since(std::time::Instant::now())
+                    .as_secs_f64(),
+            ),
+            ..*s
+        },
+        None => *s,
+    };
     let pwl = PwlNet::from_network(net).map_err(|e| e.to_string())?;
     if net.n_outputs() != 1 {
         return Err(format!(
@@ -322,12 +359,11 @@ pub fn sweep_with(
                     label: "f".into(),
                 },
             };
-            let s = *settings;
-            let hi = optimise(&q, &prep, &s).map_err(|e| e.to_string())?;
+            let hi = optimise(&q, &prep, &within(settings)).map_err(|e| e.to_string())?;
             if let Goal::Optimise { sense, .. } = &mut q.goal {
                 *sense = Sense::Min;
             }
-            let lo = optimise(&q, &prep, &s).map_err(|e| e.to_string())?;
+            let lo = optimise(&q, &prep, &within(settings)).map_err(|e| e.to_string())?;
             // Sound extremes: the bounds (upper for max, lower for min); an incomplete
             // search keeps its sound bounds (which may still prove a cell) and its
             // witnesses (which may still refute one), and says why it stopped.
@@ -339,7 +375,7 @@ pub fn sweep_with(
                 .map(|v| (v - refv).abs())
                 .fold(f64::NEG_INFINITY, f64::max);
             let (bl, bh): (Vec<f64>, Vec<f64>) = input_box.iter().copied().unzip();
-            let (ll, lu) = gradient_bounds(&pwl, &bl, &bh, x);
+            let (ll, lu) = gradient_bounds(&pwl, &bl, &bh, x, deadline);
             Ok(PointBall {
                 index: i,
                 eps: e,

@@ -7,7 +7,8 @@ use rand::{Rng, SeedableRng};
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_spec::normal::{Application, Cmp, Constraint, Goal, LinExpr, Query, Sense, Var};
 use samara_verify::{
-    empty_input_box, optimise, prove, Prepared, Settings, UnknownReason, Verdict, VerifyError,
+    empty_input_box, optimise, premise_empty, prove, vacuity, Prepared, Settings, UnknownReason,
+    Verdict, VerifyError,
 };
 use std::collections::HashMap;
 
@@ -276,4 +277,66 @@ fn empty_domains_are_vacuous_and_rounding_empty_boxes_are_not() {
         prove(&q, &prep, &Settings::default()).unwrap(),
         Verdict::Proved
     );
+}
+
+fn inp(index: usize) -> Var {
+    Var::Input { app: 0, index }
+}
+
+/// Issue 35 item 9: a premise no domain point meets makes `Proved` vacuous. The premise
+/// `x0 + x1 >= t` over the box [-1, 1]^4 is empty exactly when t > 2 (the largest
+/// x0 + x1 of the box, by hand); a premise met by one point (t = 2, the corner) or
+/// more must never be called empty, and an undecided one is not either.
+#[test]
+fn premises_empty_over_the_domain_are_vacuous_and_only_those() {
+    let (m, _) = hard();
+    let prep = Prepared::new(&m);
+    let s = Settings {
+        timeout: 10.0,
+        ..Default::default()
+    };
+    let region = |t: f64, strict: bool| {
+        // x0 + x1 >= t (or > t) and f(x) < 50 (the negated conclusion).
+        vec![vec![
+            c(
+                vec![(inp(0), -1.0), (inp(1), -1.0)],
+                t,
+                if strict { Cmp::Lt } else { Cmp::Le },
+            ),
+            c(vec![(out(0), 1.0)], -50.0, Cmp::Lt),
+        ]]
+    };
+    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(35);
+    for k in 0..24 {
+        let t = match k {
+            0 => 2.0,
+            1 => 2.0 - 1e-9,
+            2 => 2.0 + 1e-3,
+            _ => r.gen_range(1.5..2.5),
+        };
+        for strict in [false, true] {
+            let q = query(4, region(t, strict), Goal::Prove, 0);
+            let empty = premise_empty(&q, &prep, &s).unwrap();
+            // Never empty when a point meets it (the corner (1, 1) reaches 2).
+            if t < 2.0 || (t == 2.0 && !strict) {
+                assert!(
+                    !empty,
+                    "t = {t}, strict {strict}: a point meets the premise"
+                );
+            }
+            if t > 2.0 + 1e-6 {
+                assert!(empty, "t = {t}: no point of the box reaches x0 + x1 = t");
+                assert!(vacuity(&q, &prep, &s).unwrap().is_some());
+                assert_eq!(prove(&q, &prep, &s).unwrap(), Verdict::Proved);
+            }
+        }
+    }
+    // A conclusion-only property (no premise) is never vacuous.
+    let q = query(
+        4,
+        vec![vec![c(vec![(out(0), 1.0)], 50.0, Cmp::Lt)]],
+        Goal::Prove,
+        0,
+    );
+    assert_eq!(vacuity(&q, &prep, &s).unwrap(), None);
 }

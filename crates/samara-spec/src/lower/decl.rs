@@ -63,6 +63,8 @@ pub struct ParamDecl {
     pub range: Option<(f64, f64)>,
     /// Default value.
     pub default: Option<f64>,
+    /// Where it is declared (bound values outside `range` are refused there).
+    pub pos: Pos,
 }
 
 /// A property (not yet lowered).
@@ -379,7 +381,14 @@ impl Spec {
                         }
                     }
                     param_pos.push((name.clone(), pos));
-                    spec.params.insert(name, ParamDecl { range, default });
+                    spec.params.insert(
+                        name,
+                        ParamDecl {
+                            range,
+                            default,
+                            pos,
+                        },
+                    );
                 }
                 Stmt::Loop {
                     name,

@@ -121,12 +121,44 @@ impl Spec {
         self.lower(p, b, Some(param.to_string()))
     }
 
+    /// Check bound parameter values against the declared ranges: a value outside
+    /// `param NAME in [lo, hi]` is refused (naming the parameter, the range and the
+    /// declaration's line), since a property is only meant for the range it declares
+    /// (e.g. `ystar` beyond the domain's reach makes every premise empty). Every
+    /// lowering calls it; callers may call it early to fail before loading anything else.
+    pub fn check_bindings(&self, b: &Bindings) -> Result<(), SpecError> {
+        let mut names: Vec<&String> = b.params.keys().collect();
+        names.sort();
+        for name in names {
+            let v = b.params[name];
+            let Some(decl) = self.params.get(name) else {
+                continue;
+            };
+            if let Some((lo, hi)) = decl.range {
+                if !(lo <= v && v <= hi) {
+                    return Err(self.error(
+                        decl.pos,
+                        format!(
+                            "the value {v} bound to parameter `{name}` is outside its declared range [{lo}, {hi}]"
+                        ),
+                        format!(
+                            "pass a value within [{lo}, {hi}] (e.g. --param {name}={}) or widen the range declared here",
+                            decl.default.unwrap_or(lo)
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
     pub(super) fn lower(
         &self,
         p: &PropertyDecl,
         b: &Bindings,
         critical: Option<String>,
     ) -> Result<Vec<Instance>, SpecError> {
+        self.check_bindings(b)?;
         for (name, (ni, no)) in &b.network_dims {
             if let Some(n) = self.networks.iter().find(|n| n.name == *name) {
                 if n.inputs.len() != *ni || n.outputs.len() != *no {
