@@ -332,6 +332,18 @@ pub fn fly(
             dense.push(t0 + row[0], &row[1..], ex);
         }
         if let Some(c) = stats.collapse {
+            // A step that collapses while the state runs off to huge values is a
+            // divergence (the model left its valid range), not a switching surface:
+            // report it as such, with the fix that applies.
+            if c.state[..dim]
+                .iter()
+                .any(|v| !v.is_finite() || v.abs() > DIVERGED)
+            {
+                return Err(SimError::NonFinite {
+                    t: (k + 1) as f64 * period,
+                    ex,
+                });
+            }
             return Err(SimError::StepCollapse {
                 t: k as f64 * period + c.t,
                 state: c.state[..dim].to_vec(),
@@ -357,6 +369,10 @@ pub fn fly(
         evals,
     })
 }
+
+/// A state component beyond this magnitude counts as diverged: the glider's states are
+/// of order 100 over every published flight, so 1e12 is far outside the model's range.
+const DIVERGED: f64 = 1e12;
 
 /// The published starts: y0 = n / 0.07 for n = 0.1:0.025:0.3 (nine values). MATLAB's
 /// colon operator computes `0.1 + i * 0.025`.
