@@ -8,10 +8,10 @@
 //! x = (0.5, 0) (Y_0 = 0.5): both sat, their points re-evaluated here through `samara_nn`.
 
 use samara_nn::{onnx, Activation, Affine, Layer, Network};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod support;
-use support::samara;
+use support::verify_vnnlib_json;
 
 fn split_net() -> Network {
     Network {
@@ -47,27 +47,7 @@ fn run(asserts: &str) -> (Option<i32>, serde_json::Value, Duration) {
     text += asserts;
     let p = dir.path().join("p.vnnlib");
     std::fs::write(&p, text).unwrap();
-    let t0 = Instant::now();
-    let out = samara()
-        .args(["verify-vnnlib", "--network", o.to_str().unwrap()])
-        .args([
-            "--property",
-            p.to_str().unwrap(),
-            "--timeout",
-            "20",
-            "--json",
-        ])
-        .output()
-        .unwrap();
-    let dt = t0.elapsed();
-    let v = serde_json::from_slice(&out.stdout).unwrap_or_else(|_| {
-        panic!(
-            "{}{}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        )
-    });
-    (out.status.code(), v, dt)
+    verify_vnnlib_json(o.to_str().unwrap(), p.to_str().unwrap())
 }
 
 #[test]
