@@ -47,6 +47,32 @@ pub(crate) enum PhaseResult {
     Found(usize, Vec<f64>),
     /// Undecided (budget spent, or a fully split node neither closed nor refuted).
     GaveUp,
+    /// No point found and no case left open except on fully split nodes whose region is
+    /// thin: the network is affine there and the exact min-max LP of the case's
+    /// constraints (and the phases) is within rounding of 0, so any point of it satisfies
+    /// the constraints only at the rounding level (Y_0 = relu(s), Y_1 = relu(-s) with
+    /// `Y_0 > 0` and `Y_1 > 0`: the region's closure is the set `s = 0`). Splitting the
+    /// inputs further cannot decide it; the search reports `thin_region` at once.
+    Thin,
+}
+
+/// Whether the min-max LP value `value` of the linear functions `fs` over `[lo, hi]` is
+/// within rounding of 0 from below (or above it): below `1e-9` times the size of the
+/// terms summed in them.
+fn thin_value(value: f64, fs: &[Linear], lo: &[f64], hi: &[f64]) -> bool {
+    let scale = fs
+        .iter()
+        .map(|f| {
+            f.cst.abs()
+                + f.slack.abs()
+                + f.coef
+                    .iter()
+                    .zip(lo.iter().zip(hi))
+                    .map(|(c, (a, b))| c.abs() * a.abs().max(b.abs()))
+                    .sum::<f64>()
+        })
+        .fold(0.0, f64::max);
+    value >= -1e-9 * scale
 }
 
 /// The unstable ReLUs of a piece (`l < 0 < u`), as `(map, neuron)`, in layer order.
@@ -105,6 +131,7 @@ pub(crate) fn split_phases(
     ));
     stack.push((vec![(j0, i0, true)], open.to_vec(), root, none));
     let mut seen = 0usize;
+    let mut thin = false;
     while let Some((fixes, open, parent, parent_fs)) = stack.pop() {
         seen += 1;
         *nodes += 1;
@@ -157,6 +184,8 @@ pub(crate) fn split_phases(
             continue;
         }
         let mut still = Vec::new();
+        // Whether every case left open here is thin (see [`PhaseResult::Thin`]).
+        let mut all_thin = true;
         for &ci in &open {
             let cs = &cases[ci].constraints;
             let mut fs = phase_fs.clone();
@@ -187,6 +216,9 @@ pub(crate) fn split_phases(
                 continue;
             }
             let mut cands = Vec::with_capacity(2);
+            all_thin &= mm
+                .as_ref()
+                .is_some_and(|m| thin_value(m.value, &fs, lo, hi));
             if let Some(mm) = mm {
                 cands.push(mm.x);
             }
@@ -206,6 +238,11 @@ pub(crate) fn split_phases(
         // range is the most balanced (both phases far from excluded).
         let un = unstable(maps, &nb);
         let Some(&(j0, _)) = un.first() else {
+            // Fully split: the network is affine on S and the LP exact up to rounding.
+            if all_thin {
+                thin = true;
+                continue;
+            }
             return PhaseResult::GaveUp;
         };
         let (j, i) = un
@@ -228,7 +265,11 @@ pub(crate) fn split_phases(
             stack.push((f, still.clone(), nb.clone(), fsa.clone()));
         }
     }
-    PhaseResult::Closed
+    if thin {
+        PhaseResult::Thin
+    } else {
+        PhaseResult::Closed
+    }
 }
 
 /// A sound lower bound over `S` of a function with linear lower bound `g` (valid on

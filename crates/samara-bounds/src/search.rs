@@ -148,6 +148,11 @@ pub enum StopReason {
     /// A piece became too small to split in floating point and was neither closed nor
     /// refuted (a boundary case the f64 bounds cannot decide).
     Unsplittable,
+    /// A piece's region is thin: with every ReLU phase fixed the network is affine and
+    /// the case's constraints leave room for points only at the rounding level
+    /// ([`crate::phases::PhaseResult::Thin`]); reported as soon as the rest of the
+    /// search is done, not after splitting that piece to the time limit.
+    ThinRegion,
 }
 
 /// The answer.
@@ -406,6 +411,8 @@ enum Piece {
     /// The pieces left open (a half closed by the look-ahead is dropped).
     Split(Vec<Work>),
     Stuck,
+    /// The piece's region is thin (see [`StopReason::ThinRegion`]); not split further.
+    Thin,
     /// Past the deadline before the piece was done.
     Late,
 }
@@ -782,6 +789,7 @@ fn examine(
                 return Piece::Closed;
             }
             crate::phases::PhaseResult::Found(ci, x) => return Piece::Found(ci, x),
+            crate::phases::PhaseResult::Thin => return Piece::Thin,
             crate::phases::PhaseResult::GaveUp => {}
         }
     }
@@ -931,6 +939,7 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     }
     // Depth first over the pieces of every box together, the most promising first.
     let mut stuck = false;
+    let mut thin = false;
     let mut heap: std::collections::BinaryHeap<Work> = groups
         .into_iter()
         .map(|(first, open)| Work {
@@ -992,11 +1001,14 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
                 }
                 Piece::Split(ws) => heap.extend(ws),
                 Piece::Stuck => stuck = true,
+                Piece::Thin => thin = true,
                 Piece::Late => return (Outcome::Unknown(StopReason::Timeout), stats),
             }
         }
     }
-    if stuck {
+    if thin {
+        (Outcome::Unknown(StopReason::ThinRegion), stats)
+    } else if stuck {
         (Outcome::Unknown(StopReason::Unsplittable), stats)
     } else {
         (Outcome::Empty, stats)

@@ -120,6 +120,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
+    quiet_on_broken_pipe();
     let cli = match Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
@@ -154,11 +155,49 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(code) => code,
+        Err(e) if is_broken_pipe(&e) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {}", error_chain(&e));
             ExitCode::from(2)
         }
     }
+}
+
+/// Whether `text` is the message of a write into a closed pipe (`EPIPE`), as printed by
+/// `std::io::Error` ("Broken pipe (os error 32)") or by `println!`'s panic.
+fn mentions_broken_pipe(text: &str) -> bool {
+    text.contains("Broken pipe") || text.contains("os error 32")
+}
+
+/// Whether an error (or one of its causes) is a write into a closed pipe.
+fn is_broken_pipe(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+            || mentions_broken_pipe(&c.to_string())
+    })
+}
+
+/// Make a write to a closed stdout end the program quietly with exit code 0, as ripgrep
+/// and other good CLIs do (`samara verify-vnnlib ... --json | head -c 10`), instead of
+/// `println!`'s panic message "failed printing to stdout: Broken pipe". Rust ignores
+/// `SIGPIPE`, so the write returns `EPIPE` and `println!` panics; this panic hook
+/// recognises that panic (in any thread) and exits at once. Every other panic keeps the
+/// default report.
+fn quiet_on_broken_pipe() {
+    let default = std::panic::take_hook();
+    std::panic::set_hook(Box::new(move |info| {
+        let payload = info.payload();
+        let text = payload
+            .downcast_ref::<String>()
+            .map(String::as_str)
+            .or_else(|| payload.downcast_ref::<&str>().copied())
+            .unwrap_or("");
+        if mentions_broken_pipe(text) {
+            std::process::exit(0);
+        }
+        default(info)
+    }));
 }
 
 /// The message of `e` and its causes joined by `: `, skipping a cause whose text the

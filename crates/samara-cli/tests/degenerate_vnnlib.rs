@@ -8,10 +8,10 @@
 
 use samara_nn::{onnx, Activation, Affine, Layer, Network};
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod support;
-use support::samara;
+use support::verify_vnnlib_json;
 
 fn net(layers: Vec<Layer>, n_in: usize, n_out: usize) -> Network {
     Network {
@@ -80,37 +80,10 @@ fn write(dir: &Path, name: &str, n: &Network, assert: &str) -> (String, String) 
     (onnx_path.display().to_string(), prop.display().to_string())
 }
 
-/// Run `verify-vnnlib --json` with a 20 s limit; (exit code, JSON, wall time).
-fn run(onnx: &str, prop: &str) -> (Option<i32>, serde_json::Value, Duration) {
-    let t0 = Instant::now();
-    let o = samara()
-        .args([
-            "verify-vnnlib",
-            "--network",
-            onnx,
-            "--property",
-            prop,
-            "--timeout",
-            "20",
-            "--json",
-        ])
-        .output()
-        .unwrap();
-    let dt = t0.elapsed();
-    let v = serde_json::from_slice(&o.stdout).unwrap_or_else(|_| {
-        panic!(
-            "{}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        )
-    });
-    (o.status.code(), v, dt)
-}
-
 fn check(n: &Network, name: &str, assert: &str, want: &str, holds: impl Fn(&[f64]) -> bool) {
     let dir = tempfile::tempdir().unwrap();
     let (o, p) = write(dir.path(), name, n, assert);
-    let (code, v, dt) = run(&o, &p);
+    let (code, v, dt) = verify_vnnlib_json(&o, &p);
     assert_eq!(v["result"], want, "{name} {assert}: {v}");
     assert_eq!(code, Some(if want == "unsat" { 0 } else { 1 }), "{v}");
     assert!(dt < Duration::from_secs(1), "{name} {assert}: {dt:?} ({v})");

@@ -44,6 +44,8 @@ pub fn box_reason(u: BoxUnknown) -> UnknownReason {
         BoxUnknown::Stopped(StopReason::Unsplittable) => UnknownReason::Numerical {
             what: "an input box became too small to split in floating point and was neither closed nor refuted by its bounds".into(),
         },
+        // The bound of the thin piece's slack is 0 up to rounding.
+        BoxUnknown::Stopped(StopReason::ThinRegion) => UnknownReason::ThinRegion { bound: 0.0 },
         BoxUnknown::NotConfirmed => UnknownReason::Rounding {
             margin: 0.0,
             tolerance: 0.0,

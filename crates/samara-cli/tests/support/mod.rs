@@ -24,5 +24,28 @@ pub fn json_of_success(o: &std::process::Output) -> serde_json::Value {
     serde_json::from_slice(&o.stdout).unwrap()
 }
 
+/// Run `samara verify-vnnlib --json --timeout 20` on a network and a property file;
+/// (exit code, the JSON printed, wall time). Fails with the output when it is not JSON.
+pub fn verify_vnnlib_json(
+    onnx: &str,
+    prop: &str,
+) -> (Option<i32>, serde_json::Value, std::time::Duration) {
+    let t0 = std::time::Instant::now();
+    let o = samara()
+        .args(["verify-vnnlib", "--network", onnx, "--property", prop])
+        .args(["--timeout", "20", "--json"])
+        .output()
+        .unwrap();
+    let dt = t0.elapsed();
+    let v = serde_json::from_slice(&o.stdout).unwrap_or_else(|_| {
+        panic!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        )
+    });
+    (o.status.code(), v, dt)
+}
+
 #[allow(unused_imports)] // each test file uses its own subset
 pub use reference::reference;
