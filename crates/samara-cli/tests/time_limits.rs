@@ -130,14 +130,7 @@ fn verify_vnnlib_on_an_mnist_size_classifier_keeps_its_time_limit() {
     }
 }
 
-const SPEC: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../models/alsomitra/alsomitra.spec"
-);
-
-fn reference(name: &str) -> String {
-    support::reference(name).display().to_string()
-}
+use support::{reference_str as reference, SPEC};
 
 /// `critical` ran each of its two searches with the whole limit (20.0 s for
 /// `--timeout 10` on this network); `verify` gave every instance of a data-set property

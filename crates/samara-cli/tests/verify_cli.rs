@@ -5,16 +5,7 @@
 mod support;
 use support::samara;
 
-const SPEC: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../models/alsomitra/alsomitra.spec"
-);
-
-/// A published reference file as a path string (fails, never skips, when it is
-/// missing: `support::reference`).
-fn reference(name: &str) -> String {
-    support::reference(name).display().to_string()
-}
+use support::{reference_str as reference, SPEC};
 
 #[test]
 fn verify_exit_codes_and_counterexamples() {

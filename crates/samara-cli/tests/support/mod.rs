@@ -7,6 +7,18 @@ use std::process::Command;
 mod reference;
 pub mod sealing;
 
+/// The shipped case-study spec, `models/alsomitra/alsomitra.spec`.
+pub const SPEC: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../models/alsomitra/alsomitra.spec"
+);
+
+/// A published reference file as a path string (fails, never skips, when it is
+/// missing: [`reference`]).
+pub fn reference_str(name: &str) -> String {
+    reference(name).display().to_string()
+}
+
 /// The `samara` binary built for these tests.
 pub fn samara() -> Command {
     Command::new(env!("CARGO_BIN_EXE_samara"))
