@@ -515,7 +515,9 @@ class ReachResult(_Result):
     ``settings``, ``verdict`` (``{'verdict': 'proved' | 'violated' | 'unknown' | 'none',
     'reason'?, 'counterexample'?}``), ``final_x_plus_y``, ``sampled_x_plus_y``,
     ``width_ratio``, ``subproblems``, ``seconds``, ``sampled_trajectories``,
-    ``state_names``, ``leaves``), plus arrays per control instant:
+    ``state_names``, ``leaves``, ``warnings`` (a network in the wrong units) and
+    ``enclosure_lost`` (``None``, or where the sets stopped before the horizon, which
+    ``samara reach`` reports with exit code 1)), plus arrays per control instant:
 
     - ``t``: (k,) the control instants;
     - ``bbox``: (k, 6, 2) the interval hull over all sub-boxes of the six physical states;
@@ -602,7 +604,14 @@ def reach(
         None if goal_from is None else float(goal_from),
         bool(clip), max_leaves, samples, seed,
     )
-    return ReachResult(json.loads(text))
+    r = ReachResult(json.loads(text))
+    # What `samara reach` prints on stderr: a network in the wrong units, an enclosure
+    # lost before the horizon (then ``r['enclosure_lost']`` says where).
+    for w in r["warnings"]:
+        warnings.warn(w, stacklevel=2)
+    if r["enclosure_lost"]:
+        warnings.warn(r["enclosure_lost"], stacklevel=2)
+    return r
 
 
 class SystemReachResult(_Result):

@@ -1165,8 +1165,16 @@ fn reach(
     let net = controller_net(&network.net)?;
     s.validate(&net)
         .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    // The checks `samara reach` makes on its inputs and result, from the same library
+    // calls: a network in the wrong units, an enclosure lost before the horizon.
+    let warnings: Vec<String> = s
+        .units_warning(&net)
+        .map(|w| format!("network: {w}"))
+        .into_iter()
+        .collect();
     let r = py.allow_threads(move || -> R<String> {
         let res = samara_reach::reach(&net, &s).map_err(|e| Error::Samara(e.to_string()))?;
+        let lost = samara_reach::verdict::lost_enclosure(&res.leaves, &s);
         let num = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
         let verdict = match &res.verdict {
             RV::Proved => json!({ "verdict": "proved" }),
@@ -1201,6 +1209,8 @@ fn reach(
             "sampled_trajectories": res.samples.len(),
             "state_names": &STATE_NAMES[..s.model.dim()],
             "leaves": serde_json::to_value(&res.leaves).map_err(|e| Error::Samara(e.to_string()))?,
+            "warnings": warnings,
+            "enclosure_lost": lost,
         })
         .to_string())
     })?;

@@ -137,3 +137,19 @@ def test_train_errors():
         samara.train(np.zeros((10, 7)), method="magic")
     with pytest.raises(ValueError):
         samara.train(np.zeros(10))
+
+
+def test_reach_warns_about_a_network_in_normalised_units(ctl):
+    # base_model_norm.onnx takes normalised inputs and gives a normalised output: flown
+    # as a raw-unit controller its outputs lie far outside the actuator range [0.181,
+    # 0.193], which `samara reach` warns about; the raw-unit file is not warned about.
+    norm = samara.Network.from_onnx(reference("base_model_norm.onnx"))
+    with pytest.warns(UserWarning, match="normalised units"):
+        r = samara.reach(norm, y0=(2.0, 2.1), horizon=1.0)
+    assert len(r.warnings) == 1 and "_denorm" in r.warnings[0]
+    import warnings as w
+
+    with w.catch_warnings():
+        w.simplefilter("error")
+        ok = samara.reach(ctl, y0=(2.0, 2.1), horizon=1.0)
+    assert ok.warnings == [] and ok.enclosure_lost is None
