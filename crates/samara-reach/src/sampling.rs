@@ -27,26 +27,7 @@ pub struct Sample {
 pub fn simulate_samples(plant: &Plant, net: &Network, s: &ReachSettings, n: usize) -> Vec<Sample> {
     use rand::{Rng, SeedableRng};
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(s.seed);
-    let params: Vec<usize> = (0..s.init.len())
-        .filter(|&i| s.init[i].1 > s.init[i].0)
-        .collect();
-    let mut starts: Vec<Vec<f64>> = Vec::new();
-    for corner in 0..(1usize << params.len().min(6)).min(n) {
-        starts.push(
-            (0..s.init.len())
-                .map(|i| match params.iter().position(|&p| p == i) {
-                    Some(j) => {
-                        if corner >> j & 1 == 1 {
-                            s.init[i].1
-                        } else {
-                            s.init[i].0
-                        }
-                    }
-                    None => s.init[i].0,
-                })
-                .collect(),
-        );
-    }
+    let mut starts: Vec<Vec<f64>> = s.corners().into_iter().take(n).collect();
     while starts.len() < n {
         starts.push(
             s.init

@@ -162,27 +162,34 @@ pub fn units_warning(net: &Network, states: &[Vec<f64>], range: (f64, f64)) -> O
 }
 
 impl ReachSettings {
-    /// [`units_warning`] at the initial set's corners (at most 64: the first six
-    /// parameters) and centre, against the run's clip (the actuator range
-    /// `samara_plant::EX_RANGE` without one).
-    pub fn units_warning(&self, net: &Network) -> Option<String> {
+    /// The corners of the initial box over its first six parameters (the states with a
+    /// non-zero width; at most 64 corners, the other states at their single value),
+    /// corner `c` taking the upper end of parameter `j` where bit `j` of `c` is set. The
+    /// falsification flights start here first ([`crate::sampling::simulate_samples`]),
+    /// and [`ReachSettings::units_warning`] evaluates the network here.
+    pub fn corners(&self) -> Vec<Vec<f64>> {
         let params: Vec<usize> = (0..self.init.len())
             .filter(|&i| self.init[i].1 > self.init[i].0)
             .take(6)
             .collect();
-        let mut states: Vec<Vec<f64>> = (0..1usize << params.len())
+        (0..1usize << params.len())
             .map(|corner| {
-                let mut x: Vec<f64> = self.init.iter().map(|b| 0.5 * (b.0 + b.1)).collect();
+                let mut x: Vec<f64> = self.init.iter().map(|b| b.0).collect();
                 for (j, &i) in params.iter().enumerate() {
-                    x[i] = if corner >> j & 1 == 1 {
-                        self.init[i].1
-                    } else {
-                        self.init[i].0
-                    };
+                    if corner >> j & 1 == 1 {
+                        x[i] = self.init[i].1;
+                    }
                 }
                 x
             })
-            .collect();
+            .collect()
+    }
+
+    /// [`units_warning`] at the initial set's [corners](ReachSettings::corners) and
+    /// centre, against the run's clip (the actuator range `samara_plant::EX_RANGE`
+    /// without one).
+    pub fn units_warning(&self, net: &Network) -> Option<String> {
+        let mut states = self.corners();
         states.push(self.init.iter().map(|b| 0.5 * (b.0 + b.1)).collect());
         units_warning(net, &states, self.clip.unwrap_or(samara_plant::EX_RANGE))
     }
