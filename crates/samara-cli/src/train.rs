@@ -55,6 +55,14 @@ pub struct TrainArgs {
     /// Weight of the Lipschitz or property term.
     #[arg(long)]
     pub weight: Option<f64>,
+    /// dl2/goedel: add the Lipschitz penalty of `lipschitz` (constant --lipschitz) with
+    /// this weight, as the case study's Goedel + Lipschitz and DL2 + Lipschitz networks
+    #[arg(long)]
+    pub lipschitz_weight: Option<f64>,
+    /// No ReLU on the output layer (a linear output, as the case study's 6-64-32-1
+    /// property-trained networks); the published 6-6-4-1 networks have one
+    #[arg(long)]
+    pub linear_output: bool,
     /// ystar of the case-study properties P1-P4 (models/alsomitra/alsomitra.spec) used
     /// by dl2/goedel without --spec.
     #[arg(long, default_value_t = 2.0)]
@@ -304,6 +312,9 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
         None => MinMax::of(&data),
     };
     if a.method == "closed-loop" {
+        if a.linear_output || a.lipschitz_weight.is_some() {
+            bail!("--linear-output and --lipschitz-weight do not apply to --method closed-loop (it trains the published 6-6-4-1 shape); leave them out");
+        }
         return run_closed_loop(a, &data, &mm, arch, &log_path);
     }
     let method = match a.method.as_str() {
@@ -356,8 +367,16 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
         progress: std::io::stderr().is_terminal() && !a.json,
         max_restarts: a.max_restarts,
         min_r2,
+        relu_output: !a.linear_output,
+        lipschitz: a.lipschitz_weight.map(|w| (a.lipschitz, w)),
         ..Default::default()
     };
+    if a.lipschitz_weight.is_some() && !matches!(o.method, Method::Properties { .. }) {
+        bail!(
+            "--lipschitz-weight: adds a Lipschitz penalty to --method dl2 or goedel; with --method {} leave it out (--method lipschitz takes --weight)",
+            a.method
+        );
+    }
     o.validate()?;
     // Create missing output folders now (a failed run removes them again).
     let out_dir = OutDir::prepare(parent(&a.out))?;

@@ -101,6 +101,11 @@ pub struct TrainOptions {
     /// reach; below it the attempt counts as degenerate. A network with R^2 <= 0 is
     /// refused whatever this is. In [0, 1); 0 by default.
     pub min_r2: f64,
+    /// A Lipschitz penalty `(L, weight)` added to the method's loss (the term of
+    /// [`Method::Lipschitz`]): the case study's property-trained networks with a
+    /// Lipschitz penalty (Goedel + Lipschitz, DL2 + Lipschitz) combine it with
+    /// [`Method::Properties`]. Ignored by [`Method::Lipschitz`], which has its own.
+    pub lipschitz: Option<(f64, f64)>,
 }
 
 impl Default for TrainOptions {
@@ -119,6 +124,7 @@ impl Default for TrainOptions {
             progress: false,
             max_restarts: DEFAULT_MAX_RESTARTS,
             min_r2: 0.0,
+            lipschitz: None,
         }
     }
 }
@@ -313,6 +319,14 @@ fn degenerate_message(r: &[Restart]) -> String {
 }
 
 impl TrainOptions {
+    /// The Lipschitz term in force, `(L, weight)`: the method's own or the added one.
+    pub fn lipschitz_term(&self) -> Option<(f64, f64)> {
+        match self.method {
+            Method::Lipschitz { l, weight } => Some((l, weight)),
+            _ => self.lipschitz,
+        }
+    }
+
     /// Check the settings.
     pub fn validate(&self) -> Result<(), TrainError> {
         let bad = |m: String| Err(TrainError::Settings(m));
@@ -370,6 +384,18 @@ impl TrainOptions {
             ));
         }
         let weight_ok = |w: f64| w >= 0.0 && w.is_finite();
+        if let Some((l, w)) = self.lipschitz {
+            if !(l > 0.0 && l.is_finite()) {
+                return bad(format!(
+                    "--lipschitz {l}: the Lipschitz constant must be a positive number, e.g. 0.5"
+                ));
+            }
+            if !weight_ok(w) {
+                return bad(format!(
+                    "--lipschitz-weight {w}: the penalty weight must be a finite number >= 0, e.g. 10"
+                ));
+            }
+        }
         match &self.method {
             Method::Lipschitz { l, weight } => {
                 if !(*l > 0.0 && l.is_finite()) {
@@ -774,8 +800,8 @@ fn run_attempt(
                 seen += 1;
                 net.backward(&mut cache, &d, scale, &mut grad, None);
             }
-            match &o.method {
-                Method::Lipschitz { l, weight } => {
+            if let Some((l, weight)) = o.lipschitz_term() {
+                {
                     let ws = weight / chunk.len() as f64;
                     for &i in chunk {
                         let x = &nd.z[i];
@@ -814,11 +840,14 @@ fn run_attempt(
                         }
                     }
                 }
-                Method::Properties {
-                    logic,
-                    props,
-                    weight,
-                } => {
+            }
+            if let Method::Properties {
+                logic,
+                props,
+                weight,
+            } = &o.method
+            {
+                {
                     for p in props {
                         if !p.region.is_nonempty() {
                             continue;
@@ -886,7 +915,6 @@ fn run_attempt(
                         }
                     }
                 }
-                _ => {}
             }
             adam.step(&mut net.params, &grad);
         }
@@ -1294,6 +1322,13 @@ mod tests {
                     ..Default::default()
                 },
                 "--min-r2",
+            ),
+            (
+                TrainOptions {
+                    lipschitz: Some((0.5, -1.0)),
+                    ..Default::default()
+                },
+                "--lipschitz-weight",
             ),
             (
                 TrainOptions {

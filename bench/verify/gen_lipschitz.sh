@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Networks of the kind the case study's global-property table verifies, trained here on
+# several seeds so the exact engine is measured on more than one file: 6-64-32-1 ReLU
+# networks with a LINEAR output, trained on the published data with the published
+# normalisation constants by a differentiable logic (DL2 or Goedel, P1-P4 of
+# models/alsomitra/alsomitra.spec at ystar = 2) plus a Lipschitz penalty, as the paper's
+# `GD_Lipschitz.onnx` (../shared/reference/goedel_lipschitz_norm.onnx) and its DL2 twin
+# (docs/training.md: --method dl2|goedel, --lipschitz-weight, --linear-output).
+# The networks are raw-unit ONNX files (normalisation layers inside); bench/verify/wide.sh
+# runs P1-P4 critical values on them beside the HiGHS MILP.
+# Usage: bench/verify/gen_lipschitz.sh OUTDIR [SEED ...]   (default seeds 1 2 3)
+# Environment: EPOCHS (default 300), LIPSCHITZ (0.5), LWEIGHT (10), LR (0.005).
+set -euo pipefail
+repo="$(cd "$(dirname "$0")/../.." && pwd)"
+out="${1:?usage: gen_lipschitz.sh OUTDIR [SEED ...]}"
+shift
+seeds=("$@")
+[ "${#seeds[@]}" -eq 0 ] && seeds=(1 2 3)
+ref="$repo/../shared/reference"
+cd "$repo"
+cargo build --release -q -p samara-cli
+mkdir -p "$out"
+for s in "${seeds[@]}"; do
+  for logic in dl2 goedel; do
+    f="$out/${logic}_lipschitz_s$s.onnx"
+    target/release/samara train --data "$ref/Training_Data.csv" \
+      --normalisation "$ref/Normalisation_Constants.csv" \
+      --method "$logic" --lipschitz "${LIPSCHITZ:-0.5}" --lipschitz-weight "${LWEIGHT:-10}" \
+      --linear-output --arch 6,64,32,1 --epochs "${EPOCHS:-300}" --lr "${LR:-0.005}" \
+      --seed "$s" --out "$f" >&2
+    echo "$f"
+  done
+done
