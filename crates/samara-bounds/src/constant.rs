@@ -157,8 +157,8 @@ impl Iv {
     }
 }
 
-/// `W x + b` over intervals.
-fn affine(m: &Affine, x: &[Iv]) -> Vec<Iv> {
+/// `W x + b` over intervals, each rounded outward only where the operation was inexact.
+pub fn affine(m: &Affine, x: &[Iv]) -> Vec<Iv> {
     (0..m.out)
         .map(|i| {
             let row = &m.w[i * m.inp..(i + 1) * m.inp];

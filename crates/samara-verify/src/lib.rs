@@ -44,6 +44,7 @@
 pub mod boxq;
 pub mod engine;
 pub mod exact;
+mod local;
 pub mod lp;
 #[cfg(feature = "highs")]
 pub mod milp;
@@ -565,6 +566,10 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
     prep.check(q)?;
     if let Some(value) = out_of_range(q) {
         return Ok(Verdict::Unknown(UnknownReason::OutOfRange { value }));
+    }
+    // A relational property around a fixed point, thin there (local Lipschitz bounds).
+    if let Some(v) = local::prove_near_point(q, prep, s) {
+        return v;
     }
     let (w, widened) = widen_rounding_boxes(q);
     let v = prove_checked(&w, prep, s)?;
