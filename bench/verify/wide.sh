@@ -3,13 +3,14 @@
 # by `samara critical` (exact, sound) beside the HiGHS big-M MILP (samara_verify::milp, a
 # floating-point cross-check), with times. Needs cmake and libclang-dev for the HiGHS build
 # (apt-get install -y cmake libclang-dev). Release builds. Output: a markdown table on stdout.
-# Usage: bench/verify/wide.sh [NET.onnx ...]
+# Usage: bench/verify/wide.sh [NET.onnx ...]   (default: the paper's goedel_lipschitz_norm.onnx and
+# the two samara-trained wide networks; bench/verify/gen_lipschitz.sh makes more of the paper's kind)
 set -euo pipefail
 repo="$(cd "$(dirname "$0")/../.." && pwd)"
 cd "$repo"
 nets=("$@")
 if [ "${#nets[@]}" -eq 0 ]; then
-  nets=(crates/samara-verify/tests/data/wide/dl2_6_64_32_1.onnx crates/samara-verify/tests/data/wide/goedel_6_64_32_1.onnx)
+  nets=(../shared/reference/goedel_lipschitz_norm.onnx crates/samara-verify/tests/data/wide/dl2_6_64_32_1.onnx crates/samara-verify/tests/data/wide/goedel_6_64_32_1.onnx)
 fi
 cargo build --release -q -p samara-cli
 cargo build --release -q -p samara-verify --features highs --example wide_milp
@@ -25,7 +26,11 @@ for n in "${nets[@]}"; do
   stem="$(basename "$n" .onnx)"
   for p in 1 2 3 4; do
     set +e
-    j="$(target/release/samara critical "$tmp/raw.spec" --property "p$p" --param ystar --network "f=$n" --timeout 600 --json)"
+    # *_norm.onnx networks take normalised inputs (the published convention): the
+    # shipped spec with its normalise lines; the others carry their own normalisation.
+    s="$tmp/raw.spec"
+    case "$stem" in *_norm) s="$repo/models/alsomitra/alsomitra.spec" ;; esac
+    j="$(target/release/samara critical "$s" --property "p$p" --param ystar --network "f=$n" --timeout 600 --json)"
     set -e
     crit="$(python3 -c 'import json,sys; d=json.loads(sys.argv[1]); print(d.get("critical"), d.get("complete"), "%.2f" % d.get("seconds", float("nan")))' "$j")"
     read -r value complete secs <<< "$crit"

@@ -31,8 +31,11 @@ fn main() {
             .to_string_lossy()
             .into_owned();
         // P1-P4 lowered from models/alsomitra/alsomitra.spec, with the network in raw units
-        // (these networks carry their own normalisation layers).
-        for q in p1_to_p4(true) {
+        // (networks that carry their own normalisation layers) or, for a `*_norm.onnx`
+        // file (normalised inputs and output, like the published ones), in the spec's
+        // normalised units.
+        let raw = !name.ends_with("_norm");
+        for q in p1_to_p4(raw) {
             let t = Instant::now();
             let ours = optimise(
                 &q,

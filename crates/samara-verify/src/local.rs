@@ -48,7 +48,7 @@ fn q(v: f64) -> Option<BigRational> {
 /// Relative tolerance (against the magnitude of the row's constant and of its terms at
 /// the point) within which a row's value at the point counts as the rounding of an exact
 /// 0 (the lowering folds the point's coordinates into constants in f64: a few ulps).
-pub const HOMOGENEOUS_TOLERANCE: f64 = 1e-12;
+pub(crate) const HOMOGENEOUS_TOLERANCE: f64 = 1e-12;
 
 /// One homogeneous row `g . d (cmp) 0`, `g` exact.
 struct Row {
