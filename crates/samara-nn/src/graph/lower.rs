@@ -21,7 +21,7 @@
 //! While lowering, the maps are kept by sparse columns; the layers emitted are dense (the
 //! chain IR's [`Affine`]): a layer of `m` neurons over a state of `n` takes `m n` f64.
 //! Lowering refuses, naming the node, any layer of more than [`MAX_DENSE`] entries
-//! (512 MB), e.g. a 16x32x32 convolution over a 16x32x32 state (CIFAR ResNets), and
+//! (1 GB), e.g. a 16x32x32 convolution over a 16x32x32 state (CIFAR ResNets), and
 //! live tensors storing more than `2 MAX_DENSE` entries in all.
 
 use super::Graph;
@@ -30,8 +30,8 @@ use crate::ops::elementwise::{BinOp, UnOp};
 use crate::ops::{pool, Op, Tensor};
 use std::collections::HashMap;
 
-/// Most entries of one dense map the lowering builds (2^26 f64, 512 MB).
-pub const MAX_DENSE: usize = 1 << 26;
+/// Most entries of one dense map the lowering builds (2^27 f64, 1 GB).
+pub const MAX_DENSE: usize = 1 << 27;
 
 /// A sparse column: (row, value) pairs, a row possibly repeated (values add up).
 type Col = Vec<(u32, f64)>;
@@ -194,7 +194,7 @@ impl Lower<'_> {
                 self.g,
                 node,
                 format!(
-                    "lowering to dense layers needs a {rows} x {cols} map, more than {MAX_DENSE} entries (512 MB); samara lowers networks whose layers fit in that size"
+                    "lowering to dense layers needs a {rows} x {cols} map, more than {MAX_DENSE} entries (1 GB); samara lowers networks whose layers fit in that size"
                 ),
             ));
         }
