@@ -4,9 +4,11 @@
 #![warn(missing_docs)]
 
 pub mod data;
+pub mod graph;
 pub mod ir;
 pub mod nnet;
 pub mod onnx;
+pub mod ops;
 
 pub use ir::{Activation, Affine, Layer, Network};
 

@@ -4,7 +4,9 @@ use prost::Message;
 use std::collections::HashMap;
 use std::path::Path;
 
-/// Operators the importer understands.
+/// Operators the importer understands (the chain importer's and the graph importer's;
+/// Sign, Softmax, Sin, Cos, Exp, Sqrt, Abs and Pow are evaluated but not lowered to the
+/// chain form the verifier reads).
 pub const SUPPORTED_OPS: &[&str] = &[
     "Gemm",
     "MatMul",
@@ -25,6 +27,30 @@ pub const SUPPORTED_OPS: &[&str] = &[
     "Unsqueeze",
     "Dropout",
     "Constant",
+    "ConvTranspose",
+    "BatchNormalization",
+    "MaxPool",
+    "AveragePool",
+    "GlobalAveragePool",
+    "Pad",
+    "Pow",
+    "Neg",
+    "LeakyRelu",
+    "PRelu",
+    "Sign",
+    "Sin",
+    "Cos",
+    "Exp",
+    "Sqrt",
+    "Abs",
+    "Softmax",
+    "Concat",
+    "Slice",
+    "Split",
+    "Gather",
+    "Shape",
+    "Cast",
+    "ConstantOfShape",
 ];
 
 /// Widest activation vector (inputs, outputs, hidden layers) the importer builds: the
@@ -85,23 +111,28 @@ pub enum OnnxError {
 
 /// A constant tensor in f64.
 #[derive(Clone, Debug)]
-struct Const {
-    dims: Vec<usize>,
-    data: Vec<f64>,
+pub(crate) struct Const {
+    pub(crate) dims: Vec<usize>,
+    pub(crate) data: Vec<f64>,
 }
 
 /// Load a network from an ONNX file.
 pub fn load(path: impl AsRef<Path>) -> Result<Network, OnnxError> {
-    let path = path.as_ref();
+    let (bytes, file) = read(path.as_ref())?;
+    from_bytes(&bytes, &file)
+}
+
+/// The file's bytes and its name for messages.
+fn read(path: &Path) -> Result<(Vec<u8>, String), OnnxError> {
     let file = path.display().to_string();
     let bytes = std::fs::read(path).map_err(|cause| OnnxError::Io {
         file: file.clone(),
         cause,
     })?;
-    from_bytes(&bytes, &file)
+    Ok((bytes, file))
 }
 
-fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, OnnxError> {
+pub(crate) fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, OnnxError> {
     let err = |m: String| OnnxError::Structure {
         file: file.into(),
         place: format!("tensor `{}`", t.name),
@@ -205,7 +236,7 @@ fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, OnnxError> {
     Ok(Const { dims, data })
 }
 
-fn attr<'a>(n: &'a NodeProto, name: &str) -> Option<&'a AttributeProto> {
+pub(crate) fn attr<'a>(n: &'a NodeProto, name: &str) -> Option<&'a AttributeProto> {
     n.attribute.iter().find(|a| a.name == name)
 }
 
@@ -276,48 +307,32 @@ fn numel(shape: &[usize]) -> Option<usize> {
 
 /// Multidirectional (numpy) broadcast of two shapes, `None` if they do not broadcast.
 fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Vec<usize>> {
-    let r = a.len().max(b.len());
-    let at = |s: &[usize], k: usize| {
-        if k + s.len() >= r {
-            s[k + s.len() - r]
-        } else {
-            1
-        }
-    };
-    (0..r)
-        .map(|k| match (at(a, k), at(b, k)) {
-            (x, y) if x == y => Some(x),
-            (1, y) => Some(y),
-            (x, 1) => Some(x),
-            _ => None,
-        })
-        .collect()
+    crate::ops::elementwise::broadcast_shapes(a, b).ok()
 }
 
-/// For each entry (row-major) of a tensor of shape `out`, the entry of a tensor of shape
-/// `src` that numpy broadcasting reads there (`src` right-aligned, size-1 dimensions
-/// repeated). `src` must broadcast to `out`; `out` must be small (its entries are listed).
-fn broadcast_gather(out: &[usize], src: &[usize]) -> Vec<usize> {
-    let r = out.len();
-    let off = r - src.len();
-    let mut strides = vec![0usize; src.len()];
-    let mut s = 1usize;
-    for k in (0..src.len()).rev() {
-        strides[k] = if src[k] == 1 { 0 } else { s };
-        s *= src[k];
-    }
-    let n = numel(out).unwrap_or(0);
-    (0..n)
-        .map(|flat| {
-            let (mut rem, mut idx) = (flat, 0);
-            for k in (0..r).rev() {
-                let i = rem % out[k];
-                rem /= out[k];
-                if k >= off {
-                    idx += i * strides[k - off];
-                }
+use crate::ops::elementwise::broadcast_index as broadcast_gather;
+
+/// The default-domain opset of a model (`i64::MAX`, the current semantics, if none).
+pub(crate) fn default_opset(model: &ModelProto) -> i64 {
+    model
+        .opset_import
+        .iter()
+        .find(|o| o.domain.is_empty() || o.domain == "ai.onnx")
+        .map(|o| o.version)
+        .unwrap_or(i64::MAX)
+}
+
+/// The shape of one sample of an input declared with `dims`: the first dimension of an
+/// input of rank 2 or more is the batch dimension (whatever size it declares) and
+/// counts as 1, as does a symbolic or unset dimension.
+pub(crate) fn sample_shape(dims: &[proto::Dimension]) -> Vec<usize> {
+    dims.iter()
+        .enumerate()
+        .map(|(k, d)| match d.dim_value {
+            Some(v) if v > 0 && !(k == 0 && dims.len() >= 2) => {
+                usize::try_from(v).unwrap_or(usize::MAX)
             }
-            idx
+            _ => 1,
         })
         .collect()
 }
@@ -339,7 +354,82 @@ fn norm_axis(a: i64, r: usize, inclusive: bool) -> Option<usize> {
 }
 
 /// Decode and convert an ONNX model held in memory; `file` names it in errors.
+///
+/// A chain of dense layers is read by the chain importer (which also folds input
+/// normalisation and output denormalisation into the network's distinguished layers).
+/// A model it does not read (an operator or a pattern it refuses: sliding-window
+/// convolutions, pooling, residual branches, a weight on the left of `MatMul`...) is read
+/// as a [`crate::graph::Graph`] and lowered to the chain form
+/// ([`crate::graph::lower`]); an error then names the node, the operator and, where
+/// one is at fault, the attribute.
 pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
+    match chain_from_bytes(bytes, file) {
+        Err(chain_err @ OnnxError::Unsupported { .. }) => {
+            let graph = match graph_from_bytes(bytes, file) {
+                Ok(g) => g,
+                Err(graph_err @ OnnxError::Unsupported { .. }) => {
+                    return Err(more_relevant(bytes, chain_err, graph_err))
+                }
+                Err(_) => return Err(chain_err),
+            };
+            crate::graph::lower::lower(&graph).map_err(|e| OnnxError::Unsupported {
+                file: file.into(),
+                node: e.node,
+                op: e.op,
+                detail: format!(": {}", e.message),
+            })
+        }
+        other => other,
+    }
+}
+
+/// Of the chain importer's and the graph importer's refusals, the one to show: the
+/// graph's, unless it refuses a node the chain importer read (an earlier node: e.g.
+/// legacy broadcasting, which only the chain importer reads) or the same node with the
+/// chain importer's more specific message (all but Conv, MatMul and Gemm, which the
+/// chain importer refuses whenever they are not a dense layer).
+fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> OnnxError {
+    let (OnnxError::Unsupported { node: cn, .. }, OnnxError::Unsupported { node: gn, op, .. }) =
+        (&chain_err, &graph_err)
+    else {
+        return graph_err;
+    };
+    let Ok(model) = ModelProto::decode(bytes) else {
+        return graph_err;
+    };
+    let nodes = model.graph.map(|g| g.node).unwrap_or_default();
+    let index = |name: &str| {
+        nodes.iter().enumerate().position(|(k, n)| {
+            n.name == name || (n.name.is_empty() && format!("#{k} ({})", n.op_type) == name)
+        })
+    };
+    match (index(cn), index(gn)) {
+        (Some(c), Some(g)) if g < c => chain_err,
+        (Some(c), Some(g)) if g == c && !matches!(op.as_str(), "Conv" | "MatMul" | "Gemm") => {
+            chain_err
+        }
+        _ => graph_err,
+    }
+}
+
+/// Read an ONNX model held in memory as a [`crate::graph::Graph`] (any DAG of the
+/// supported operators, piecewise linear or not); `file` names it in errors.
+pub fn graph_from_bytes(bytes: &[u8], file: &str) -> Result<crate::graph::Graph, OnnxError> {
+    let model = ModelProto::decode(bytes).map_err(|e| OnnxError::Decode {
+        file: file.into(),
+        message: e.to_string(),
+    })?;
+    crate::graph::import::from_model(&model, file)
+}
+
+/// Read an ONNX file as a [`crate::graph::Graph`].
+pub fn load_graph(path: impl AsRef<Path>) -> Result<crate::graph::Graph, OnnxError> {
+    let (bytes, file) = read(path.as_ref())?;
+    graph_from_bytes(&bytes, &file)
+}
+
+/// The chain importer: one live tensor through dense layers and activations.
+fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
     let model = ModelProto::decode(bytes).map_err(|e| OnnxError::Decode {
         file: file.into(),
         message: e.to_string(),
@@ -356,12 +446,7 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
     // The default-domain opset decides the semantics of the legacy attributes (opsets
     // 1 to 6: `broadcast`/`axis` of the binary operators and Gemm, Reshape's `shape`
     // attribute). A model without one is read with the current semantics.
-    let opset = model
-        .opset_import
-        .iter()
-        .find(|o| o.domain.is_empty() || o.domain == "ai.onnx")
-        .map(|o| o.version)
-        .unwrap_or(i64::MAX);
+    let opset = default_opset(&model);
     if opset < 1 {
         return Err(structure(
             "opset_import",
@@ -414,16 +499,7 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
     // batch dimension (whatever size it declares), and a symbolic or unset dimension is 1.
     // Samara's network is then the per-sample function; a constant that depends on the
     // batch size no longer broadcasts and is refused.
-    let in_shape: Vec<usize> = dims
-        .iter()
-        .enumerate()
-        .map(|(k, d)| match d.dim_value {
-            Some(v) if v > 0 && !(k == 0 && dims.len() >= 2) => {
-                usize::try_from(v).unwrap_or(usize::MAX)
-            }
-            _ => 1,
-        })
-        .collect();
+    let in_shape = sample_shape(dims);
     let in_dim = numel(&in_shape)
         .filter(|&d| d <= MAX_WIDTH)
         .ok_or_else(|| {
@@ -1082,28 +1158,8 @@ fn conv<'c>(
 /// The shape a `Reshape` to `target` gives a tensor of `shape` (`d` entries): `0` copies
 /// the input's dimension (unless `allowzero`), `-1` is inferred. `None` if invalid.
 fn reshape(shape: &[usize], target: &[i64], d: usize, allowzero: bool) -> Option<Vec<usize>> {
-    if target.len() > MAX_RANK {
+    if target.len() > MAX_RANK || numel(shape) != Some(d) {
         return None;
     }
-    let mut out = Vec::with_capacity(target.len());
-    let mut infer = None;
-    for (k, &t) in target.iter().enumerate() {
-        match t {
-            -1 if infer.is_none() => {
-                infer = Some(k);
-                out.push(1);
-            }
-            0 if !allowzero => out.push(*shape.get(k)?),
-            t if t >= 0 => out.push(usize::try_from(t).ok().filter(|&t| t <= d)?),
-            _ => return None,
-        }
-    }
-    let known = numel(&out)?;
-    if let Some(k) = infer {
-        if known == 0 || !d.is_multiple_of(known) {
-            return None;
-        }
-        out[k] = d / known;
-    }
-    (numel(&out)? == d).then_some(out)
+    crate::ops::shape::reshape_shape(shape, target, allowzero).ok()
 }

@@ -18,8 +18,8 @@
 //! operator, the node and the file, with the supported list.
 
 mod export;
-mod import;
+pub(crate) mod import;
 pub mod proto;
 
 pub use export::{export, save, ExportOptions};
-pub use import::{from_bytes, load, OnnxError, SUPPORTED_OPS};
+pub use import::{from_bytes, graph_from_bytes, load, load_graph, OnnxError, SUPPORTED_OPS};

@@ -1,0 +1,149 @@
+#!/usr/bin/env python3
+"""samara on one VNN-COMP benchmark folder, beside every tool of that year.
+
+Runs `samara vnncomp` on the benchmark's instances CSV (all of them, or the first
+--limit, or every --every-th), with the competition's timeouts scaled by
+--timeout-scale, then writes a markdown table: per instance samara's verdict and time
+beside each tool's published verdict (results_csv of stanleybak/vnncomp2021_results),
+the disagreements with a decided tool, the decided counts per tool over the same
+instances, and every `sat` counterexample re-checked with onnxruntime (the inputs
+through the ONNX file in float32, the whole VNN-LIB property evaluated at them).
+
+usage:
+  bench/vnncomp/run_benchmark.py BENCH_DIR [--results RESULTS_DIR] [--timeout-scale S]
+      [--limit N] [--every K] [--samara BIN] [--md OUT.md]
+BENCH_DIR: e.g. benchmarks/verivital of stanleybak/vnncomp2021 (its *_instances.csv);
+RESULTS_DIR: results_csv of stanleybak/vnncomp2021_results. Networks stored gzipped
+(nn4sys) are unzipped next to a copy of the instances CSV in a temporary folder.
+"""
+import argparse
+import csv
+import gzip
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_acasxu import confirm_with_onnxruntime, norm  # noqa: E402
+
+REPO = Path(__file__).resolve().parents[2]
+
+
+def read_peers(results_dir, bench_name):
+    peers = {}
+    for f in sorted(Path(results_dir).glob("*.csv")):
+        rows = {}
+        with open(f, newline="") as fh:
+            for r in csv.reader(fh):
+                if len(r) >= 6 and r[0] == bench_name:
+                    try:
+                        t = float(r[5])
+                    except ValueError:
+                        t = float("nan")
+                    rows[(os.path.basename(r[1]), os.path.basename(r[2]))] = (norm(r[4]), t)
+        if rows:
+            peers[f.stem] = rows
+    return peers
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("bench")
+    ap.add_argument("--results", default=os.environ.get("SAMARA_VNNCOMP_RESULTS"))
+    ap.add_argument("--timeout-scale", default="1")
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--every", type=int, default=1)
+    ap.add_argument("--samara", default=None)
+    ap.add_argument("--md", default=None, help="write the table here (default: stdout)")
+    a = ap.parse_args()
+    bench = Path(a.bench).resolve()
+    name = bench.name
+    insts = sorted(bench.glob("*_instances.csv"))
+    if not insts:
+        sys.exit(f"{bench}: no *_instances.csv")
+    rows = [r for r in csv.reader(open(insts[0])) if r]
+    rows = rows[:: a.every]
+    if a.limit:
+        rows = rows[: a.limit]
+    binary = a.samara
+    if binary is None:
+        subprocess.run(["cargo", "build", "--release", "-q", "-p", "samara-cli"], cwd=REPO, check=True)
+        binary = str(REPO / "target/release/samara")
+    tmp = Path(tempfile.mkdtemp(prefix=f"samara_{name}_"))
+    sel = []
+    for onnx, vnnlib, tmo in rows:
+        src = (bench / onnx).resolve()
+        if not src.exists() and Path(str(src) + ".gz").exists():
+            dst = tmp / (Path(onnx).name)
+            if not dst.exists():
+                with gzip.open(str(src) + ".gz", "rb") as f, open(dst, "wb") as g:
+                    shutil.copyfileobj(f, g)
+            src = dst
+        sel.append((str(src), str((bench / vnnlib).resolve()), tmo))
+    inst_csv = tmp / "instances.csv"
+    with open(inst_csv, "w", newline="") as f:
+        csv.writer(f).writerows(sel)
+    out_csv = tmp / "samara.csv"
+    t0 = time.time()
+    p = subprocess.run([binary, "vnncomp", str(inst_csv), "--out", str(out_csv),
+                        "--timeout-scale", a.timeout_scale, "--json"], stdout=subprocess.PIPE)
+    wall = time.time() - t0
+    if p.returncode not in (0, 1):
+        sys.exit(f"samara vnncomp exited {p.returncode}")
+    js = json.loads(p.stdout)
+    ours = {(os.path.basename(r["onnx"]), os.path.basename(r["vnnlib"])): r for r in js["instances"]}
+    peers = read_peers(a.results, name) if a.results else {}
+    names = sorted(peers)
+    out = []
+    w = out.append
+    w(f"## {name}: samara beside the VNN-COMP 2021 tools\n")
+    w(f"{len(ours)} instances of `{insts[0].name}`"
+      + (f" (every {a.every}th)" if a.every > 1 else "") + (f" (first {a.limit})" if a.limit else "")
+      + f"; competition timeouts x {a.timeout_scale}; this machine ({os.cpu_count()} cores, shared); "
+      f"wall {wall:.0f} s. Tools' verdicts and times: VNN-COMP 2021 (AWS hardware per tool).\n")
+    w("| network | property | samara | s | " + " | ".join(names) + " |")
+    w("|---|---|---|---|" + "---|" * len(names))
+    dis = []
+    for k, r in ours.items():
+        cells = []
+        for pn in names:
+            v, t = peers[pn].get(k, ("-", float("nan")))
+            cells.append(f"{v} {t:.0f}" if t == t else v)
+            if r["result"] in ("sat", "unsat") and v in ("sat", "unsat") and v != r["result"]:
+                dis.append((k, pn, r["result"], v))
+        w(f"| {k[0]} | {k[1]} | {r['result']} | {r['seconds']:.1f} | " + " | ".join(cells) + " |")
+    dec = sum(1 for r in ours.values() if r["result"] in ("sat", "unsat"))
+    w("")
+    w(f"Decided on these {len(ours)} instances: **samara {dec}** "
+      f"({sum(1 for r in ours.values() if r['result'] == 'unsat')} unsat, "
+      f"{sum(1 for r in ours.values() if r['result'] == 'sat')} sat)"
+      + "".join(f"; {pn} {sum(1 for k in ours if peers[pn].get(k, ('-',))[0] in ('sat', 'unsat'))}" for pn in names)
+      + ".\n")
+    w(f"Disagreements with a decided tool: {len(dis)}")
+    for d in dis:
+        w(f"- {d[0]}: samara {d[2]}, {d[1]} {d[3]}")
+    sats = [(k, r) for k, r in ours.items() if r["result"] == "sat"]
+    ok = 0
+    for k, r in sats:
+        good, y = confirm_with_onnxruntime(
+            [s for s in sel if os.path.basename(s[0]) == k[0]][0][0],
+            [s for s in sel if os.path.basename(s[1]) == k[1]][0][1],
+            r["counterexample"]["inputs"])
+        ok += good
+        if not good:
+            w(f"- NOT CONFIRMED by onnxruntime: {k}")
+    w(f"\n`sat` counterexamples confirmed by onnxruntime (float32, whole property): {ok}/{len(sats)}\n")
+    text = "\n".join(out) + "\n"
+    if a.md:
+        Path(a.md).write_text(text)
+    print(text)
+    return 1 if dis or ok != len(sats) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
