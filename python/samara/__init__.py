@@ -15,6 +15,7 @@ import math
 import os
 import tempfile
 import warnings
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
@@ -47,6 +48,30 @@ __all__ = [
 ]
 
 PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _count(name: str, v: Any, lo: int = 0, hi: int = 2**63 - 1) -> int:
+    """An integer argument, checked here so that the error names it: TypeError for a
+    non-integer, OverflowError outside [lo, hi] (as Python's own conversions)."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise TypeError(f"{name}={v!r}: expected an integer, got {type(v).__name__}")
+    v = int(v)
+    if not lo <= v <= hi:
+        raise OverflowError(f"{name}={v}: out of range; give an integer in [{lo}, {hi}]")
+    return v
+
+
+def _timeout(v: Any) -> float:
+    """A time limit in seconds (``math.inf``: none), named in its error."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise TypeError(f"timeout={v!r}: expected a number of seconds, got {type(v).__name__}")
+    return float(v)
+
+
+def _str(name: str, v: Any) -> str:
+    if not isinstance(v, str):
+        raise TypeError(f"{name}={v!r}: expected a str, got {type(v).__name__}")
+    return v
 
 
 def _rows(x: Any, width: int, what: str) -> Tuple[np.ndarray, bool]:
@@ -216,33 +241,83 @@ class _Result:
         return (type(self), (self._d,))
 
 
-class VerifyResult(_Result):
-    """One property instance of :meth:`Spec.verify` (fields of ``samara verify --json``):
-    ``property``, ``verdict`` ('proved' | 'violated' | 'unknown'), ``counterexample``
-    (``{'point': [{'network', 'values': {name: value}}], 'margin', 'exact_check'}`` or
-    None), ``seconds``, ``vacuous``, ``vacuity``, ``unknown_reason`` (``{'kind',
-    'message'}`` or None). ``witness`` is the counterexample's values as one dict."""
+class _Typed:
+    """Base of the typed results (frozen dataclasses built from the library's typed
+    values): fields are attributes (in ``dir()``, not assignable), ``as_dict()`` gives
+    them all as plain data, ``r["field"]`` reads one, and ``repr`` is one short line."""
+
+    _REPR: Tuple[str, ...] = ()
+
+    def as_dict(self) -> Dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def __getitem__(self, k: str) -> Any:
+        if k not in {f.name for f in dataclasses.fields(self)}:
+            raise KeyError(k)
+        return getattr(self, k)
+
+    def __repr__(self) -> str:
+        parts = ", ".join(f"{k}={getattr(self, k)!r}" for k in self._REPR)
+        return f"{type(self).__name__}({parts})"
+
+
+@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+class VerifyResult(_Typed):
+    """One property instance of :meth:`Spec.verify` (the library's verdict row, the
+    fields of ``samara verify --json``): ``property``, ``verdict`` ('proved' |
+    'violated' | 'unknown'), ``counterexample`` (``{'point': [{'network', 'values':
+    {name: value}}], 'margin', 'exact_check'}``, ``{'reason'}`` when unknown, or None),
+    ``seconds``, ``vacuous``, ``vacuity``, ``unknown_reason`` (``{'kind', 'message'}``
+    or None). ``witness`` is the counterexample's values as one dict."""
+
+    property: str
+    verdict: str
+    counterexample: Optional[Dict[str, Any]]
+    seconds: float
+    vacuous: bool
+    vacuity: Optional[str]
+    unknown_reason: Optional[Dict[str, str]]
+
+    _REPR = ("property", "verdict", "seconds")
 
     @property
     def witness(self) -> Optional[Dict[str, float]]:
-        cx = self._d.get("counterexample")
-        if not cx:
+        cx = self.counterexample
+        if not cx or "point" not in cx:
             return None
         return _flat_point(cx["point"])
 
 
-class CriticalResult(_Result):
-    """The result of :meth:`Spec.critical` (fields of ``samara critical --json``):
-    ``property``, ``parameter``, ``holds`` ('above' | 'below' | 'everywhere' | 'nowhere'
-    | 'unknown'), ``critical``, ``bound``, ``threshold``, ``attained``, ``vacuous``,
-    ``domain_extreme``, ``counterexample_range``, ``witness`` (as the CLI: a list of
+@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+class CriticalResult(_Typed):
+    """The result of :meth:`Spec.critical` (the library's critical value, the fields of
+    ``samara critical --json``): ``property``, ``parameter``, ``holds`` ('above' |
+    'below' | 'everywhere' | 'nowhere' | 'unknown'), ``critical``, ``bound``,
+    ``threshold``, ``attained``, ``vacuous``, ``domain_extreme``,
+    ``counterexample_range`` (inf, sup), ``witness`` (as the CLI: a list of
     ``{'network', 'values'}``), ``complete``, ``unknown_reason``, ``seconds``.
     ``witness_values`` is the witness as one dict."""
 
+    property: str
+    parameter: str
+    holds: str
+    critical: Optional[float]
+    bound: Optional[float]
+    threshold: Optional[float]
+    attained: bool
+    vacuous: bool
+    domain_extreme: Optional[float]
+    counterexample_range: Tuple[Optional[float], Optional[float]]
+    witness: Optional[List[Dict[str, Any]]]
+    complete: bool
+    unknown_reason: Optional[Dict[str, str]]
+    seconds: float
+
+    _REPR = ("property", "parameter", "holds", "critical", "threshold")
+
     @property
     def witness_values(self) -> Optional[Dict[str, float]]:
-        w = self._d.get("witness")
-        return None if w is None else _flat_point(w)
+        return None if self.witness is None else _flat_point(self.witness)
 
 
 class RobustnessResult(_Result):
@@ -323,6 +398,11 @@ def _warn(ws: Iterable[str]) -> None:
         warnings.warn(w, stacklevel=3)
 
 
+# The words a line of spec text starts with (a one-line string starting otherwise is
+# a path, so a missing file is FileNotFoundError, not a parse error of its name).
+_SPEC_STARTS = [[w] for w in ("network", "normalise", "normalize", "param", "dataset", "domain", "property", "loop", "#")]
+
+
 class Spec:
     """A specification in samara's property language, from text or a file path.
 
@@ -334,10 +414,17 @@ class Spec:
     """
 
     def __init__(self, text_or_path: PathLike, dir: Optional[PathLike] = None):
+        if not isinstance(text_or_path, (str, os.PathLike)):
+            raise TypeError(
+                f"text_or_path={text_or_path!r}: expected spec text or a path, got {type(text_or_path).__name__}"
+            )
         if isinstance(text_or_path, os.PathLike) or (
-            isinstance(text_or_path, str)
-            and "\n" not in text_or_path
-            and (text_or_path.endswith(".spec") or os.path.isfile(text_or_path))
+            "\n" not in text_or_path
+            and (
+                text_or_path.endswith(".spec")
+                or os.path.isfile(text_or_path)
+                or text_or_path.split(None, 1)[:1] not in _SPEC_STARTS
+            )
         ):
             p = Path(os.fspath(text_or_path))
             with open(p, "rb") as f:
@@ -382,11 +469,11 @@ class Spec:
         ``datasets`` maps a data-set name to a CSV/IDX path or a numpy array (inputs,
         then the label). ``timeout`` is per query in seconds (``math.inf``: none)."""
         with _Datasets(datasets) as ds:
-            text, ws = self._spec.verify(
-                _nets(networks), _params(params), ds, property, float(timeout), int(max_nodes), bool(lp_tighten)
+            rows, ws = self._spec.verify(
+                _nets(networks), _params(params), ds, property, _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
             )
         _warn(ws)
-        return [VerifyResult(d) for d in json.loads(text)]
+        return [VerifyResult(**d) for d in rows]
 
     def critical(
         self,
@@ -402,11 +489,12 @@ class Spec:
         """The critical value of parameter ``param`` (declared with a range) for
         ``property``, as ``samara critical --json``."""
         with _Datasets(datasets) as ds:
-            text, ws = self._spec.critical(
-                property, param, _nets(networks), _params(params), ds, float(timeout), int(max_nodes), bool(lp_tighten)
+            d, ws = self._spec.critical(
+                _str("property", property), _str("param", param), _nets(networks), _params(params), ds,
+                _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
             )
         _warn(ws)
-        return CriticalResult(json.loads(text))
+        return CriticalResult(**d)
 
     def __repr__(self) -> str:
         return f"Spec({self._spec.file!r}, properties={self.properties})"
