@@ -96,10 +96,12 @@ class Network:
     PyTorch module with :meth:`from_torch`, or from :func:`train`.
     """
 
-    __slots__ = ("_net",)
+    __slots__ = ("_net", "_source")
 
-    def __init__(self, _net: "_samara.Network"):
+    def __init__(self, _net: "_samara.Network", _source: str = "<memory>"):
         self._net = _net
+        # Where it came from (a path, "<bytes>", "<torch ...>"): ReachResult.settings.
+        self._source = _source
 
     @staticmethod
     def from_onnx(path_or_bytes: Union[PathLike, bytes, bytearray, memoryview]) -> "Network":
@@ -108,11 +110,11 @@ class Network:
         Raises FileNotFoundError for a missing file, ValueError for a file samara
         cannot import (the message names the operator or the problem)."""
         if isinstance(path_or_bytes, (bytes, bytearray, memoryview)):
-            return Network(_samara.Network.from_onnx_bytes(bytes(path_or_bytes), "<bytes>"))
+            return Network(_samara.Network.from_onnx_bytes(bytes(path_or_bytes), "<bytes>"), "<bytes>")
         p = os.fspath(path_or_bytes)
         with open(p, "rb") as f:
             data = f.read()
-        return Network(_samara.Network.from_onnx_bytes(data, p))
+        return Network(_samara.Network.from_onnx_bytes(data, p), p)
 
     @staticmethod
     def from_torch(module: Any, n_inputs: Optional[int] = None) -> "Network":
@@ -163,7 +165,8 @@ class Network:
                 torch.onnx.export(module, (torch.zeros(1, int(n_inputs), dtype=dtype),), buf, **kw)
         finally:
             module.train(was_training)
-        return Network(_samara.Network.from_onnx_bytes(buf.getvalue(), f"<torch {type(module).__name__}>"))
+        src = f"<torch {type(module).__name__}>"
+        return Network(_samara.Network.from_onnx_bytes(buf.getvalue(), src), src)
 
     def to_onnx(self, with_normalisation: bool = True, float64: bool = False) -> bytes:
         """The network as ONNX bytes (opset 13). ``with_normalisation=False`` gives the
@@ -206,18 +209,20 @@ class Network:
         return f"Network(n_inputs={self.n_inputs}, n_outputs={self.n_outputs})"
 
     def __reduce__(self):  # picklable (Ray ships networks to workers as ONNX bytes)
-        return (_network_from_bytes, (self.to_onnx(True, True),))
+        return (_network_from_bytes, (self.to_onnx(True, True), self._source))
 
 
-def _network_from_bytes(b: bytes) -> Network:
-    return Network.from_onnx(b)
+def _network_from_bytes(b: bytes, source: str = "<bytes>") -> Network:
+    n = Network.from_onnx(b)
+    n._source = source
+    return n
 
 
 class _Result:
     """Fields of the CLI's ``--json`` output as attributes; ``as_dict()`` gives them all."""
 
     def __init__(self, d: Dict[str, Any]):
-        self._d = d
+        self.__dict__["_d"] = d
 
     def as_dict(self) -> Dict[str, Any]:
         return dict(self._d)
@@ -235,7 +240,29 @@ class _Result:
         return isinstance(other, _Result) and type(other) is type(self) and other._d == self._d
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}({self._d!r})"
+        # One short line: the verdict and the scalar fields (the full data: as_dict()).
+        parts = []
+        for k, v in self._d.items():
+            if k == "verdict" and isinstance(v, dict):
+                v = v.get("verdict")
+            if v is None or isinstance(v, (str, bool, int, float)):
+                r = repr(v)
+                if len(r) <= 40:
+                    parts.append(f"{k}={r}")
+            if len(parts) == 6:
+                break
+        return f"{type(self).__name__}({', '.join(parts)}, ...)"
+
+    def __dir__(self) -> List[str]:
+        return sorted(set(super().__dir__()) | set(self._d))
+
+    def __setattr__(self, k: str, v: Any) -> None:
+        raise AttributeError(
+            f"{type(self).__name__} is read-only: its fields are results (copy as_dict() to change them)"
+        )
+
+    def __delattr__(self, k: str) -> None:
+        raise AttributeError(f"{type(self).__name__} is read-only")
 
     def __reduce__(self):
         return (type(self), (self._d,))
@@ -594,6 +621,15 @@ def simulate(
     return out
 
 
+def _interval(name: str, v: Any) -> Tuple[float, float]:
+    """An interval given as (lo, hi) or one value; anything longer is refused (a
+    three-value tuple is not an interval)."""
+    a = np.atleast_1d(np.asarray(v, dtype=np.float64))
+    if a.ndim != 1 or len(a) not in (1, 2):
+        raise ValueError(f"{name}={v!r}: give an interval as (lo, hi) or a single value, not {a.size} values")
+    return (float(a[0]), float(a[-1]))
+
+
 def _iv(v: Any) -> List[float]:
     return [math.nan if x is None else x for x in v]
 
@@ -672,25 +708,31 @@ def reach(
     max_leaves: Optional[int] = None,
     samples: Optional[int] = None,
     seed: Optional[int] = None,
+    threads: Optional[int] = None,
 ) -> ReachResult:
     """Sound reachable sets of the closed loop as ``samara reach`` computes them (no
     files written): the initial set is (1, 0, 0, 0, 0, y0[, 0]) with ``y0`` an interval
     (default the published [1.4286, 4.2857]) and ``init`` overriding other states
     (``{'theta': (-0.01, 0.01)}``). ``goal_ystar``: the goal |x + y| <= Y at the horizon
-    (or on [goal_from, horizon])."""
-    iv: Dict[str, Tuple[float, float]] = {}
-    y = np.atleast_1d(np.asarray(y0, dtype=np.float64))
-    iv["y"] = (float(y[0]), float(y[-1]))
+    (or on [goal_from, horizon]). ``threads``: worker threads (default all cores), as
+    ``samara reach --threads``; ``r.settings`` names it and the network's source."""
+    if not isinstance(network, Network):
+        raise TypeError(f"network={network!r}: expected samara.Network (samara.Network.from_onnx(path))")
+    iv: Dict[str, Tuple[float, float]] = {"y": _interval("y0", y0)}
     for k, v in (init or {}).items():
         if k == "y":
             raise ValueError("init['y']: give the height interval as y0")
-        a = np.atleast_1d(np.asarray(v, dtype=np.float64))
-        iv[k] = (float(a[0]), float(a[-1]))
+        iv[k] = _interval(f"init[{k!r}]", v)
     text = _samara.reach(
         network._net, model, iv, float(horizon), float(period),
         None if goal_ystar is None else float(goal_ystar),
         None if goal_from is None else float(goal_from),
-        bool(clip), max_leaves, samples, seed,
+        bool(clip),
+        None if max_leaves is None else _count("max_leaves", max_leaves),
+        None if samples is None else _count("samples", samples),
+        None if seed is None else _count("seed", seed, 0, 2**64 - 1),
+        network._source,
+        None if threads is None else _count("threads", threads, 1, 1024),
     )
     r = ReachResult(json.loads(text))
     # What `samara reach` prints on stderr: a network in the wrong units, an enclosure
@@ -781,7 +823,7 @@ def _reach_system_text(
     timeout: Optional[float] = None,
 ) -> SystemReachResult:
     out = _samara.reach_system(
-        text, name, network._net, {str(k): int(v) for k, v in (grid or {}).items()},
+        text, name, network._net, {str(k): _count(f"grid[{k!r}]", v, 1, 2**31) for k, v in (grid or {}).items()},
         None if cells is None else (int(cells[0]), int(cells[1])),
         int(order), str(network_error), int(lifted_weight), float(lift_at),
         int(max_leaves), int(samples), int(seed), None if timeout is None else float(timeout),
@@ -839,4 +881,4 @@ def train(
     )
     report = json.loads(text)
     report["log"] = np.array(report["log"], dtype=np.float64).reshape(-1, 3)
-    return Network(net), report
+    return Network(net, "<trained>"), report

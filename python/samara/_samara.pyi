@@ -92,6 +92,8 @@ def reach(
     max_leaves: Optional[int],
     samples: Optional[int],
     seed: Optional[int],
+    network_name: str,
+    threads: Optional[int],
 ) -> str: ...
 def reach_system(
     system: str,

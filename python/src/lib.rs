@@ -932,7 +932,7 @@ fn check_horizon_period(horizon: f64, period: f64, max_p: f64, max_k: f64) -> Py
 /// enclosures per control instant).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (network, model, init, horizon, period, goal_ystar, goal_from, clip, max_leaves, samples, seed))]
+#[pyo3(signature = (network, model, init, horizon, period, goal_ystar, goal_from, clip, max_leaves, samples, seed, network_name, threads))]
 fn reach(
     py: Python<'_>,
     network: PyRef<'_, PyNetwork>,
@@ -946,8 +946,16 @@ fn reach(
     max_leaves: Option<usize>,
     samples: Option<usize>,
     seed: Option<u64>,
+    network_name: String,
+    threads: Option<usize>,
 ) -> PyResult<String> {
     use samara_plant::{Model, STATE_NAMES};
+    if threads.is_some_and(|t| !(1..=1024).contains(&t)) {
+        return Err(PyValueError::new_err(format!(
+            "threads={}: give 1 to 1024 worker threads (None: all cores)",
+            threads.unwrap_or(0)
+        )));
+    }
     use samara_reach::{Goal, ReachSettings, Verdict as RV};
     let Some(m) = Model::from_name(model) else {
         return Err(PyValueError::new_err(format!(
@@ -1030,7 +1038,23 @@ fn reach(
         .into_iter()
         .collect();
     let r = py.allow_threads(move || -> R<String> {
-        let res = samara_reach::reach(&net, &s).map_err(|e| Error::Samara(e.to_string()))?;
+        // A pool of `threads` workers (as `samara reach --threads`), else the global one.
+        let pool = match threads {
+            Some(t) => Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(t)
+                    .build()
+                    .map_err(|e| Error::Samara(format!("threads={t}: {e}")))?,
+            ),
+            None => None,
+        };
+        let n_threads = threads.unwrap_or_else(rayon::current_num_threads);
+        let run = || samara_reach::reach(&net, &s);
+        let res = match &pool {
+            Some(p) => p.install(run),
+            None => run(),
+        }
+        .map_err(|e| Error::Samara(e.to_string()))?;
         let lost = samara_reach::verdict::lost_enclosure(&res.leaves, &s);
         let num = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
         let verdict = match &res.verdict {
@@ -1056,7 +1080,7 @@ fn reach(
                 "period": s.period, "clip": s.clip.map(|(lo, hi)| [lo, hi]),
                 "reset_filter": s.reset_filter, "goal": s.goal.as_ref().map(|g| json!({"ystar": g.ystar, "from": g.from})),
                 "max_leaves": s.max_leaves, "initial_splits": s.initial_splits,
-                "samples": s.samples, "seed": s.seed},
+                "samples": s.samples, "seed": s.seed, "network": network_name, "threads": n_threads},
             "verdict": verdict,
             "final_x_plus_y": [num(res.final_x_plus_y[0]), num(res.final_x_plus_y[1])],
             "sampled_x_plus_y": res.sampled_x_plus_y,

@@ -123,3 +123,31 @@ def test_stubs_match_the_native_module():
         if "__init__" in members:
             real.add("__init__")
         assert real == members, (name, real ^ members)
+
+
+def test_reach_settings_name_the_network_and_threads_and_repr_is_short():
+    path = reference("base_model_denorm.onnx")
+    net = samara.Network.from_onnx(path)
+    r = samara.reach(net, horizon=2.0, max_leaves=2, samples=5, threads=1)
+    assert r.settings["network"] == str(path) and r.settings["threads"] == 1
+    assert "verdict" in dir(r) and "leaves" in dir(r)
+    assert len(repr(r)) < 300, len(repr(r))
+    with pytest.raises(AttributeError):
+        r.critical = 3
+    with pytest.raises(OverflowError, match="threads=0"):
+        samara.reach(net, horizon=2.0, threads=0)
+
+
+def test_an_interval_of_three_values_is_refused():
+    net = samara.Network.from_onnx(reference("base_model_denorm.onnx"))
+    with pytest.raises(ValueError, match=r"y0=\(2.0, 5, 2.1\): give an interval"):
+        samara.reach(net, y0=(2.0, 5, 2.1))
+    with pytest.raises(ValueError, match=r"init\['theta'\]"):
+        samara.reach(net, init={"theta": (0.0, 0.1, 0.2)})
+
+
+def test_zero_pieces_is_a_named_error():
+    root = Path(__file__).resolve().parents[2]
+    net = samara.Network.from_onnx(root / "crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx")
+    with pytest.raises(OverflowError, match=r"grid\['x_lead'\]=0"):
+        samara.reach_system(root / "examples/archcomp/acc.sys", net, grid={"x_lead": 0})
