@@ -347,15 +347,25 @@ class CriticalResult(_Typed):
         return None if self.witness is None else _flat_point(self.witness)
 
 
-class RobustnessResult(_Result):
-    """The result of :func:`robustness` (fields of ``samara robustness --json``: ``form``,
-    ``points``, ``seconds``, ``table`` (rows eps, columns L: ``{'eps', 'L', 'proved',
-    'violated', 'unknown', 'success_rate'}``), plus ``per_point`` (the CSV of ``--out``
-    as dicts). ``success_rate`` is the table as a numpy array."""
+@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+class RobustnessResult(_Typed):
+    """The result of :func:`robustness` (the library's robustness table, the fields of
+    ``samara robustness --json``): ``form``, ``points``, ``seconds``, ``table`` (rows
+    eps, columns L: ``{'eps', 'L', 'proved', 'violated', 'unknown', 'success_rate'}``),
+    plus ``per_point`` (the CSV of ``--out`` as dicts, rows counted from 0).
+    ``success_rate`` is the table as a numpy array."""
+
+    form: str
+    points: int
+    seconds: float
+    table: List[List[Dict[str, Any]]]
+    per_point: List[Dict[str, Any]]
+
+    _REPR = ("form", "points", "seconds")
 
     @property
     def success_rate(self) -> np.ndarray:
-        return np.array([[c["success_rate"] for c in row] for row in self._d["table"]])
+        return np.array([[c["success_rate"] for c in row] for row in self.table])
 
 
 def _flat_point(apps: List[Dict[str, Any]]) -> Dict[str, float]:
@@ -552,7 +562,7 @@ def robustness(
     if a.ndim != 2:
         raise ValueError(f"data: shape {a.shape}, expected (rows, columns)")
     a = np.ascontiguousarray(a)
-    text = _samara.robustness(
+    d = _samara.robustness(
         network._net,
         a.tobytes(),
         a.shape[0],
@@ -561,10 +571,10 @@ def robustness(
         [float(v) for v in lipschitz],
         reference,
         form,
-        float(timeout),
-        int(max_nodes),
+        _timeout(timeout),
+        _count("max_nodes", max_nodes),
     )
-    return RobustnessResult(json.loads(text))
+    return RobustnessResult(**d)
 
 
 STATE_NAMES = ["v_xp", "v_yp", "omega", "theta", "x", "y", "E"]

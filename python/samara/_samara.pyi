@@ -1,6 +1,7 @@
 """Type stubs of the native module `samara._samara` (PyO3). Use the wrappers in
 `samara` (numpy in and out); this layer takes float64 row-major bytes and returns
-bytes, the fields of the library's typed results as dicts (verify, critical), or JSON
+bytes, the fields of the library's typed results as dicts (verify, critical,
+robustness), or JSON
 text (the others)."""
 
 from typing import Any, Dict, List, Optional, Tuple
@@ -67,7 +68,7 @@ def robustness(
     form: str,
     timeout: float,
     max_nodes: int,
-) -> str: ...
+) -> Dict[str, Any]: ...
 def read_table(path: str) -> Tuple[bytes, int, int]: ...
 def simulate(
     model: str,

@@ -495,8 +495,8 @@ fn critical_py<'py>(py: Python<'py>, c: &CriticalValue) -> PyResult<Bound<'py, P
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (network, rows, n, cols, eps, lipschitz, reference, form, timeout, max_nodes))]
-fn robustness(
-    py: Python<'_>,
+fn robustness<'py>(
+    py: Python<'py>,
     network: PyRef<'_, PyNetwork>,
     rows: &[u8],
     n: usize,
@@ -507,14 +507,17 @@ fn robustness(
     form: &str,
     timeout: f64,
     max_nodes: usize,
-) -> PyResult<String> {
+) -> PyResult<Bound<'py, PyDict>> {
     let net = network.net.clone();
     let data = f64s(rows);
     let reference = reference.to_string();
     let form = form.to_string();
-    let r = py.allow_threads(move || -> R<String> {
+    let (table, points) = interruptible(py, move || {
         if data.len() != n * cols {
-            return value(format!("data: {} values for {n} rows of {cols}", data.len()));
+            return value(format!(
+                "data: {} values for {n} rows of {cols}",
+                data.len()
+            ));
         }
         let mut es: Vec<f64> = Vec::new();
         for e in eps {
@@ -580,19 +583,62 @@ fn robustness(
         let secs = t0.elapsed().as_secs_f64();
         let form = samara_app::robustness::Form::parse(&form).expect("checked above");
         let table = samara_app::robustness::Table::of(form, &es, &ls, rows.len(), secs, &points);
-        let pts: Vec<Value> = points
-            .iter()
-            .map(|p| {
-                json!({"index": p.index, "eps": p.eps, "f_min": p.f_min, "f_max": p.f_max,
-                    "reference": p.reference, "max_deviation": p.max_deviation,
-                    "lipschitz_lower": p.lipschitz_lower, "lipschitz_upper": p.lipschitz_upper})
-            })
-            .collect();
-        let mut doc = serde_json::to_value(&table).map_err(|e| Error::Samara(e.to_string()))?;
-        doc["per_point"] = Value::Array(pts);
-        Ok(doc.to_string())
+        Ok((table, points))
     })?;
-    Ok(r)
+    robustness_py(py, &table, &points)
+}
+
+/// The fields of a robustness table (the typed [`samara_app::robustness::Table`]) and
+/// the per-point results, for `samara.RobustnessResult`.
+fn robustness_py<'py>(
+    py: Python<'py>,
+    t: &samara_app::robustness::Table,
+    points: &[samara_verify::robustness::PointBall],
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut rows = Vec::new();
+    for row in &t.table {
+        let mut cells = Vec::new();
+        for c in row {
+            cells.push(dict(
+                py,
+                vec![
+                    ("eps", obj(py, c.eps)?),
+                    ("L", obj(py, c.l)?),
+                    ("proved", obj(py, c.proved)?),
+                    ("violated", obj(py, c.violated)?),
+                    ("unknown", obj(py, c.unknown)?),
+                    ("success_rate", obj(py, c.success_rate)?),
+                ],
+            )?);
+        }
+        rows.push(PyList::new(py, cells)?);
+    }
+    let mut pts = Vec::new();
+    for p in points {
+        pts.push(dict(
+            py,
+            vec![
+                ("index", obj(py, p.index)?),
+                ("eps", obj(py, p.eps)?),
+                ("f_min", obj(py, p.f_min)?),
+                ("f_max", obj(py, p.f_max)?),
+                ("reference", obj(py, p.reference)?),
+                ("max_deviation", obj(py, p.max_deviation)?),
+                ("lipschitz_lower", obj(py, p.lipschitz_lower)?),
+                ("lipschitz_upper", obj(py, p.lipschitz_upper)?),
+            ],
+        )?);
+    }
+    dict(
+        py,
+        vec![
+            ("form", obj(py, t.form.text())?),
+            ("points", obj(py, t.points)?),
+            ("seconds", obj(py, t.seconds)?),
+            ("table", obj(py, PyList::new(py, rows)?)?),
+            ("per_point", obj(py, PyList::new(py, pts)?)?),
+        ],
+    )
 }
 
 /// Read a CSV or IDX table as samara does (`samara_nn::data::read_table`): row-major
