@@ -15,6 +15,7 @@ import math
 import os
 import tempfile
 import warnings
+import dataclasses
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
@@ -49,6 +50,30 @@ __all__ = [
 PathLike = Union[str, "os.PathLike[str]"]
 
 
+def _count(name: str, v: Any, lo: int = 0, hi: int = 2**63 - 1) -> int:
+    """An integer argument, checked here so that the error names it: TypeError for a
+    non-integer, OverflowError outside [lo, hi] (as Python's own conversions)."""
+    if isinstance(v, bool) or not isinstance(v, (int, np.integer)):
+        raise TypeError(f"{name}={v!r}: expected an integer, got {type(v).__name__}")
+    v = int(v)
+    if not lo <= v <= hi:
+        raise OverflowError(f"{name}={v}: out of range; give an integer in [{lo}, {hi}]")
+    return v
+
+
+def _timeout(v: Any) -> float:
+    """A time limit in seconds (``math.inf``: none), named in its error."""
+    if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
+        raise TypeError(f"timeout={v!r}: expected a number of seconds, got {type(v).__name__}")
+    return float(v)
+
+
+def _str(name: str, v: Any) -> str:
+    if not isinstance(v, str):
+        raise TypeError(f"{name}={v!r}: expected a str, got {type(v).__name__}")
+    return v
+
+
 def _rows(x: Any, width: int, what: str) -> Tuple[np.ndarray, bool]:
     """`x` as a C-contiguous float64 matrix of `width` columns; whether it was one row."""
     a = np.asarray(x, dtype=np.float64)
@@ -71,10 +96,12 @@ class Network:
     PyTorch module with :meth:`from_torch`, or from :func:`train`.
     """
 
-    __slots__ = ("_net",)
+    __slots__ = ("_net", "_source")
 
-    def __init__(self, _net: "_samara.Network"):
+    def __init__(self, _net: "_samara.Network", _source: str = "<memory>"):
         self._net = _net
+        # Where it came from (a path, "<bytes>", "<torch ...>"): ReachResult.settings.
+        self._source = _source
 
     @staticmethod
     def from_onnx(path_or_bytes: Union[PathLike, bytes, bytearray, memoryview]) -> "Network":
@@ -83,11 +110,11 @@ class Network:
         Raises FileNotFoundError for a missing file, ValueError for a file samara
         cannot import (the message names the operator or the problem)."""
         if isinstance(path_or_bytes, (bytes, bytearray, memoryview)):
-            return Network(_samara.Network.from_onnx_bytes(bytes(path_or_bytes), "<bytes>"))
+            return Network(_samara.Network.from_onnx_bytes(bytes(path_or_bytes), "<bytes>"), "<bytes>")
         p = os.fspath(path_or_bytes)
         with open(p, "rb") as f:
             data = f.read()
-        return Network(_samara.Network.from_onnx_bytes(data, p))
+        return Network(_samara.Network.from_onnx_bytes(data, p), p)
 
     @staticmethod
     def from_torch(module: Any, n_inputs: Optional[int] = None) -> "Network":
@@ -138,7 +165,8 @@ class Network:
                 torch.onnx.export(module, (torch.zeros(1, int(n_inputs), dtype=dtype),), buf, **kw)
         finally:
             module.train(was_training)
-        return Network(_samara.Network.from_onnx_bytes(buf.getvalue(), f"<torch {type(module).__name__}>"))
+        src = f"<torch {type(module).__name__}>"
+        return Network(_samara.Network.from_onnx_bytes(buf.getvalue(), src), src)
 
     def to_onnx(self, with_normalisation: bool = True, float64: bool = False) -> bytes:
         """The network as ONNX bytes (opset 13). ``with_normalisation=False`` gives the
@@ -181,18 +209,20 @@ class Network:
         return f"Network(n_inputs={self.n_inputs}, n_outputs={self.n_outputs})"
 
     def __reduce__(self):  # picklable (Ray ships networks to workers as ONNX bytes)
-        return (_network_from_bytes, (self.to_onnx(True, True),))
+        return (_network_from_bytes, (self.to_onnx(True, True), self._source))
 
 
-def _network_from_bytes(b: bytes) -> Network:
-    return Network.from_onnx(b)
+def _network_from_bytes(b: bytes, source: str = "<bytes>") -> Network:
+    n = Network.from_onnx(b)
+    n._source = source
+    return n
 
 
 class _Result:
     """Fields of the CLI's ``--json`` output as attributes; ``as_dict()`` gives them all."""
 
     def __init__(self, d: Dict[str, Any]):
-        self._d = d
+        self.__dict__["_d"] = d
 
     def as_dict(self) -> Dict[str, Any]:
         return dict(self._d)
@@ -210,50 +240,132 @@ class _Result:
         return isinstance(other, _Result) and type(other) is type(self) and other._d == self._d
 
     def __repr__(self) -> str:
-        return f"{type(self).__name__}({self._d!r})"
+        # One short line: the verdict and the scalar fields (the full data: as_dict()).
+        parts = []
+        for k, v in self._d.items():
+            if k == "verdict" and isinstance(v, dict):
+                v = v.get("verdict")
+            if v is None or isinstance(v, (str, bool, int, float)):
+                r = repr(v)
+                if len(r) <= 40:
+                    parts.append(f"{k}={r}")
+            if len(parts) == 6:
+                break
+        return f"{type(self).__name__}({', '.join(parts)}, ...)"
+
+    def __dir__(self) -> List[str]:
+        return sorted(set(super().__dir__()) | set(self._d))
+
+    def __setattr__(self, k: str, v: Any) -> None:
+        raise AttributeError(
+            f"{type(self).__name__} is read-only: its fields are results (copy as_dict() to change them)"
+        )
+
+    def __delattr__(self, k: str) -> None:
+        raise AttributeError(f"{type(self).__name__} is read-only")
 
     def __reduce__(self):
         return (type(self), (self._d,))
 
 
-class VerifyResult(_Result):
-    """One property instance of :meth:`Spec.verify` (fields of ``samara verify --json``):
-    ``property``, ``verdict`` ('proved' | 'violated' | 'unknown'), ``counterexample``
-    (``{'point': [{'network', 'values': {name: value}}], 'margin', 'exact_check'}`` or
-    None), ``seconds``, ``vacuous``, ``vacuity``, ``unknown_reason`` (``{'kind',
-    'message'}`` or None). ``witness`` is the counterexample's values as one dict."""
+class _Typed:
+    """Base of the typed results (frozen dataclasses built from the library's typed
+    values): fields are attributes (in ``dir()``, not assignable), ``as_dict()`` gives
+    them all as plain data, ``r["field"]`` reads one, and ``repr`` is one short line."""
+
+    _REPR: Tuple[str, ...] = ()
+
+    def as_dict(self) -> Dict[str, Any]:
+        return dataclasses.asdict(self)
+
+    def __getitem__(self, k: str) -> Any:
+        if k not in {f.name for f in dataclasses.fields(self)}:
+            raise KeyError(k)
+        return getattr(self, k)
+
+    def __repr__(self) -> str:
+        parts = ", ".join(f"{k}={getattr(self, k)!r}" for k in self._REPR)
+        return f"{type(self).__name__}({parts})"
+
+
+@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+class VerifyResult(_Typed):
+    """One property instance of :meth:`Spec.verify` (the library's verdict row, the
+    fields of ``samara verify --json``): ``property``, ``verdict`` ('proved' |
+    'violated' | 'unknown'), ``counterexample`` (``{'point': [{'network', 'values':
+    {name: value}}], 'margin', 'exact_check'}``, ``{'reason'}`` when unknown, or None),
+    ``seconds``, ``vacuous``, ``vacuity``, ``unknown_reason`` (``{'kind', 'message'}``
+    or None). ``witness`` is the counterexample's values as one dict."""
+
+    property: str
+    verdict: str
+    counterexample: Optional[Dict[str, Any]]
+    seconds: float
+    vacuous: bool
+    vacuity: Optional[str]
+    unknown_reason: Optional[Dict[str, str]]
+
+    _REPR = ("property", "verdict", "seconds")
 
     @property
     def witness(self) -> Optional[Dict[str, float]]:
-        cx = self._d.get("counterexample")
-        if not cx:
+        cx = self.counterexample
+        if not cx or "point" not in cx:
             return None
         return _flat_point(cx["point"])
 
 
-class CriticalResult(_Result):
-    """The result of :meth:`Spec.critical` (fields of ``samara critical --json``):
-    ``property``, ``parameter``, ``holds`` ('above' | 'below' | 'everywhere' | 'nowhere'
-    | 'unknown'), ``critical``, ``bound``, ``threshold``, ``attained``, ``vacuous``,
-    ``domain_extreme``, ``counterexample_range``, ``witness`` (as the CLI: a list of
+@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+class CriticalResult(_Typed):
+    """The result of :meth:`Spec.critical` (the library's critical value, the fields of
+    ``samara critical --json``): ``property``, ``parameter``, ``holds`` ('above' |
+    'below' | 'everywhere' | 'nowhere' | 'unknown'), ``critical``, ``bound``,
+    ``threshold``, ``attained``, ``vacuous``, ``domain_extreme``,
+    ``counterexample_range`` (inf, sup), ``witness`` (as the CLI: a list of
     ``{'network', 'values'}``), ``complete``, ``unknown_reason``, ``seconds``.
     ``witness_values`` is the witness as one dict."""
 
+    property: str
+    parameter: str
+    holds: str
+    critical: Optional[float]
+    bound: Optional[float]
+    threshold: Optional[float]
+    attained: bool
+    vacuous: bool
+    domain_extreme: Optional[float]
+    counterexample_range: Tuple[Optional[float], Optional[float]]
+    witness: Optional[List[Dict[str, Any]]]
+    complete: bool
+    unknown_reason: Optional[Dict[str, str]]
+    seconds: float
+
+    _REPR = ("property", "parameter", "holds", "critical", "threshold")
+
     @property
     def witness_values(self) -> Optional[Dict[str, float]]:
-        w = self._d.get("witness")
-        return None if w is None else _flat_point(w)
+        return None if self.witness is None else _flat_point(self.witness)
 
 
-class RobustnessResult(_Result):
-    """The result of :func:`robustness` (fields of ``samara robustness --json``: ``form``,
-    ``points``, ``seconds``, ``table`` (rows eps, columns L: ``{'eps', 'L', 'proved',
-    'violated', 'unknown', 'success_rate'}``), plus ``per_point`` (the CSV of ``--out``
-    as dicts). ``success_rate`` is the table as a numpy array."""
+@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+class RobustnessResult(_Typed):
+    """The result of :func:`robustness` (the library's robustness table, the fields of
+    ``samara robustness --json``): ``form``, ``points``, ``seconds``, ``table`` (rows
+    eps, columns L: ``{'eps', 'L', 'proved', 'violated', 'unknown', 'success_rate'}``),
+    plus ``per_point`` (the CSV of ``--out`` as dicts, rows counted from 0).
+    ``success_rate`` is the table as a numpy array."""
+
+    form: str
+    points: int
+    seconds: float
+    table: List[List[Dict[str, Any]]]
+    per_point: List[Dict[str, Any]]
+
+    _REPR = ("form", "points", "seconds")
 
     @property
     def success_rate(self) -> np.ndarray:
-        return np.array([[c["success_rate"] for c in row] for row in self._d["table"]])
+        return np.array([[c["success_rate"] for c in row] for row in self.table])
 
 
 def _flat_point(apps: List[Dict[str, Any]]) -> Dict[str, float]:
@@ -323,6 +435,11 @@ def _warn(ws: Iterable[str]) -> None:
         warnings.warn(w, stacklevel=3)
 
 
+# The words a line of spec text starts with (a one-line string starting otherwise is
+# a path, so a missing file is FileNotFoundError, not a parse error of its name).
+_SPEC_STARTS = [[w] for w in ("network", "normalise", "normalize", "param", "dataset", "domain", "property", "loop", "#")]
+
+
 class Spec:
     """A specification in samara's property language, from text or a file path.
 
@@ -334,10 +451,17 @@ class Spec:
     """
 
     def __init__(self, text_or_path: PathLike, dir: Optional[PathLike] = None):
+        if not isinstance(text_or_path, (str, os.PathLike)):
+            raise TypeError(
+                f"text_or_path={text_or_path!r}: expected spec text or a path, got {type(text_or_path).__name__}"
+            )
         if isinstance(text_or_path, os.PathLike) or (
-            isinstance(text_or_path, str)
-            and "\n" not in text_or_path
-            and (text_or_path.endswith(".spec") or os.path.isfile(text_or_path))
+            "\n" not in text_or_path
+            and (
+                text_or_path.endswith(".spec")
+                or os.path.isfile(text_or_path)
+                or text_or_path.split(None, 1)[:1] not in _SPEC_STARTS
+            )
         ):
             p = Path(os.fspath(text_or_path))
             with open(p, "rb") as f:
@@ -382,11 +506,11 @@ class Spec:
         ``datasets`` maps a data-set name to a CSV/IDX path or a numpy array (inputs,
         then the label). ``timeout`` is per query in seconds (``math.inf``: none)."""
         with _Datasets(datasets) as ds:
-            text, ws = self._spec.verify(
-                _nets(networks), _params(params), ds, property, float(timeout), int(max_nodes), bool(lp_tighten)
+            rows, ws = self._spec.verify(
+                _nets(networks), _params(params), ds, property, _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
             )
         _warn(ws)
-        return [VerifyResult(d) for d in json.loads(text)]
+        return [VerifyResult(**d) for d in rows]
 
     def critical(
         self,
@@ -402,11 +526,12 @@ class Spec:
         """The critical value of parameter ``param`` (declared with a range) for
         ``property``, as ``samara critical --json``."""
         with _Datasets(datasets) as ds:
-            text, ws = self._spec.critical(
-                property, param, _nets(networks), _params(params), ds, float(timeout), int(max_nodes), bool(lp_tighten)
+            d, ws = self._spec.critical(
+                _str("property", property), _str("param", param), _nets(networks), _params(params), ds,
+                _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
             )
         _warn(ws)
-        return CriticalResult(json.loads(text))
+        return CriticalResult(**d)
 
     def __repr__(self) -> str:
         return f"Spec({self._spec.file!r}, properties={self.properties})"
@@ -437,7 +562,7 @@ def robustness(
     if a.ndim != 2:
         raise ValueError(f"data: shape {a.shape}, expected (rows, columns)")
     a = np.ascontiguousarray(a)
-    text = _samara.robustness(
+    d = _samara.robustness(
         network._net,
         a.tobytes(),
         a.shape[0],
@@ -446,10 +571,10 @@ def robustness(
         [float(v) for v in lipschitz],
         reference,
         form,
-        float(timeout),
-        int(max_nodes),
+        _timeout(timeout),
+        _count("max_nodes", max_nodes),
     )
-    return RobustnessResult(json.loads(text))
+    return RobustnessResult(**d)
 
 
 STATE_NAMES = ["v_xp", "v_yp", "omega", "theta", "x", "y", "E"]
@@ -504,6 +629,15 @@ def simulate(
             }
         )
     return out
+
+
+def _interval(name: str, v: Any) -> Tuple[float, float]:
+    """An interval given as (lo, hi) or one value; anything longer is refused (a
+    three-value tuple is not an interval)."""
+    a = np.atleast_1d(np.asarray(v, dtype=np.float64))
+    if a.ndim != 1 or len(a) not in (1, 2):
+        raise ValueError(f"{name}={v!r}: give an interval as (lo, hi) or a single value, not {a.size} values")
+    return (float(a[0]), float(a[-1]))
 
 
 def _iv(v: Any) -> List[float]:
@@ -584,25 +718,31 @@ def reach(
     max_leaves: Optional[int] = None,
     samples: Optional[int] = None,
     seed: Optional[int] = None,
+    threads: Optional[int] = None,
 ) -> ReachResult:
     """Sound reachable sets of the closed loop as ``samara reach`` computes them (no
     files written): the initial set is (1, 0, 0, 0, 0, y0[, 0]) with ``y0`` an interval
     (default the published [1.4286, 4.2857]) and ``init`` overriding other states
     (``{'theta': (-0.01, 0.01)}``). ``goal_ystar``: the goal |x + y| <= Y at the horizon
-    (or on [goal_from, horizon])."""
-    iv: Dict[str, Tuple[float, float]] = {}
-    y = np.atleast_1d(np.asarray(y0, dtype=np.float64))
-    iv["y"] = (float(y[0]), float(y[-1]))
+    (or on [goal_from, horizon]). ``threads``: worker threads (default all cores), as
+    ``samara reach --threads``; ``r.settings`` names it and the network's source."""
+    if not isinstance(network, Network):
+        raise TypeError(f"network={network!r}: expected samara.Network (samara.Network.from_onnx(path))")
+    iv: Dict[str, Tuple[float, float]] = {"y": _interval("y0", y0)}
     for k, v in (init or {}).items():
         if k == "y":
             raise ValueError("init['y']: give the height interval as y0")
-        a = np.atleast_1d(np.asarray(v, dtype=np.float64))
-        iv[k] = (float(a[0]), float(a[-1]))
+        iv[k] = _interval(f"init[{k!r}]", v)
     text = _samara.reach(
         network._net, model, iv, float(horizon), float(period),
         None if goal_ystar is None else float(goal_ystar),
         None if goal_from is None else float(goal_from),
-        bool(clip), max_leaves, samples, seed,
+        bool(clip),
+        None if max_leaves is None else _count("max_leaves", max_leaves),
+        None if samples is None else _count("samples", samples),
+        None if seed is None else _count("seed", seed, 0, 2**64 - 1),
+        network._source,
+        None if threads is None else _count("threads", threads, 1, 1024),
     )
     r = ReachResult(json.loads(text))
     # What `samara reach` prints on stderr: a network in the wrong units, an enclosure
@@ -693,7 +833,7 @@ def _reach_system_text(
     timeout: Optional[float] = None,
 ) -> SystemReachResult:
     out = _samara.reach_system(
-        text, name, network._net, {str(k): int(v) for k, v in (grid or {}).items()},
+        text, name, network._net, {str(k): _count(f"grid[{k!r}]", v, 1, 2**31) for k, v in (grid or {}).items()},
         None if cells is None else (int(cells[0]), int(cells[1])),
         int(order), str(network_error), int(lifted_weight), float(lift_at),
         int(max_leaves), int(samples), int(seed), None if timeout is None else float(timeout),
@@ -751,4 +891,4 @@ def train(
     )
     report = json.loads(text)
     report["log"] = np.array(report["log"], dtype=np.float64).reshape(-1, 3)
-    return Network(net), report
+    return Network(net, "<trained>"), report

@@ -1,8 +1,10 @@
 """Type stubs of the native module `samara._samara` (PyO3). Use the wrappers in
 `samara` (numpy in and out); this layer takes float64 row-major bytes and returns
-bytes or JSON text."""
+bytes, the fields of the library's typed results as dicts (verify, critical,
+robustness), or JSON
+text (the others)."""
 
-from typing import Dict, List, Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 __version__: str
 
@@ -42,7 +44,7 @@ class Spec:
         timeout: float,
         max_nodes: int,
         lp_tighten: bool,
-    ) -> Tuple[str, List[str]]: ...
+    ) -> Tuple[List[Dict[str, Any]], List[str]]: ...
     def critical(
         self,
         property: str,
@@ -53,7 +55,7 @@ class Spec:
         timeout: float,
         max_nodes: int,
         lp_tighten: bool,
-    ) -> Tuple[str, List[str]]: ...
+    ) -> Tuple[Dict[str, Any], List[str]]: ...
 
 def robustness(
     network: Network,
@@ -66,7 +68,7 @@ def robustness(
     form: str,
     timeout: float,
     max_nodes: int,
-) -> str: ...
+) -> Dict[str, Any]: ...
 def read_table(path: str) -> Tuple[bytes, int, int]: ...
 def simulate(
     model: str,
@@ -91,6 +93,8 @@ def reach(
     max_leaves: Optional[int],
     samples: Optional[int],
     seed: Optional[int],
+    network_name: str,
+    threads: Optional[int],
 ) -> str: ...
 def reach_system(
     system: str,

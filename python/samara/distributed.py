@@ -119,7 +119,7 @@ def merge_robustness(parts: Sequence[Tuple[int, RobustnessResult]], points: int)
             c["success_rate"] = c["proved"] / max(points, 1)
     # shards in order: per-point rows by index, then eps, as one process gives them
     return RobustnessResult(
-        {"form": first["form"], "points": points, "seconds": seconds, "table": table, "per_point": per_point}
+        form=first["form"], points=points, seconds=seconds, table=table, per_point=per_point
     )
 
 

@@ -1,30 +1,29 @@
 //! `samara._samara`: the native part of the `samara` Python package.
 //!
 //! The Python layer (`python/samara/__init__.py`) does the numpy and file handling; this
-//! module takes plain bytes (float64, row-major), strings and dicts, and returns bytes
-//! or JSON text with the same fields as the CLI's `--json` output (the verification
-//! paths mirror `crates/samara-cli/src/verify.rs`). Long computations release the GIL.
+//! module takes plain bytes (float64, row-major), strings and dicts. Verification runs
+//! through `samara-app`, the library the CLI runs too (no logic is copied): its typed
+//! results come back as dicts of their fields, from which `samara` builds frozen
+//! dataclasses. Long computations release the GIL; `verify` and `critical` also answer
+//! Ctrl-C within a fraction of a second.
 
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::PyBytes;
-use samara_spec::lower::{nearest, NetDecl};
-use samara_spec::normal::{Goal, Query, Sense};
-use samara_spec::syntax::Binder;
-use samara_spec::{Bindings, Instance};
-use samara_verify::engine::Point;
-use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_with, Reference};
-use samara_verify::{
-    left_after, optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
-};
+use pyo3::types::{PyBytes, PyDict, PyList};
+use pyo3::BoundObject;
+use samara_app::verify::{NamedValues, RowCounterexample};
+use samara_app::{CriticalValue, Front, Loaded, VerdictRow};
+use samara_verify::robustness::{sweep_with, Reference};
+use samara_verify::{LpTighten, Settings};
 use serde_json::{json, Value};
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 create_exception!(
-    _samara,
+    samara,
     SamaraError,
     PyException,
     "A computation of samara failed (not a bad argument: those raise ValueError)."
@@ -41,6 +40,15 @@ impl From<Error> for PyErr {
         match e {
             Error::Value(m) => PyValueError::new_err(m),
             Error::Samara(m) => SamaraError::new_err(m),
+        }
+    }
+}
+
+impl From<samara_app::AppError> for Error {
+    fn from(e: samara_app::AppError) -> Error {
+        match e {
+            samara_app::AppError::Input(m) => Error::Value(m),
+            e => Error::Samara(e.to_string()),
         }
     }
 }
@@ -207,13 +215,14 @@ impl PySpec {
         self.spec.file.clone()
     }
 
-    /// Verify properties (all, or `property`); JSON text: a list with one object per
-    /// instance, fields as `samara verify --json`. Also returns warnings.
+    /// Verify properties (all, or `property`): one dict of a verdict row's fields per
+    /// instance (the typed rows of `samara_app::run_verify`, the fields of
+    /// `samara verify --json`), and the warnings. Ctrl-C interrupts it.
     #[allow(clippy::too_many_arguments)]
     #[pyo3(signature = (networks, params, datasets, property, timeout, max_nodes, lp_tighten))]
-    fn verify(
+    fn verify<'py>(
         &self,
-        py: Python<'_>,
+        py: Python<'py>,
         networks: HashMap<String, PyRef<'_, PyNetwork>>,
         params: HashMap<String, f64>,
         datasets: HashMap<String, String>,
@@ -221,27 +230,34 @@ impl PySpec {
         timeout: f64,
         max_nodes: usize,
         lp_tighten: bool,
-    ) -> PyResult<(String, Vec<String>)> {
+    ) -> PyResult<(Vec<Bound<'py, PyDict>>, Vec<String>)> {
         let nets: HashMap<String, samara_nn::Network> = networks
             .into_iter()
             .map(|(k, v)| (k, v.net.clone()))
             .collect();
-        let spec = &self.spec;
-        let r = py.allow_threads(move || {
-            let l = load(spec, nets, &params, None, &datasets)?;
-            run_verify(&l, property, settings(timeout, max_nodes, lp_tighten)?)
-                .map(|v| (v.to_string(), l.warnings))
+        let spec = self.spec.clone();
+        let (run, warnings) = interruptible(py, move || {
+            let start = Instant::now();
+            let l = bind(&spec, nets, &params, None, &datasets)?;
+            let s = settings(timeout, max_nodes, lp_tighten)?;
+            let run = samara_app::run_verify(&l, property.as_deref(), &s, start, false, |_| {})?;
+            Ok((run, l.warnings))
         })?;
-        Ok(r)
+        let rows = run
+            .rows()
+            .map(|r| row_py(py, r))
+            .collect::<PyResult<Vec<_>>>()?;
+        Ok((rows, warnings))
     }
 
-    /// The critical value of parameter `param` for `property`; JSON text with the fields
-    /// of `samara critical --json`.
+    /// The critical value of parameter `param` for `property`: the fields of the typed
+    /// `samara_app::CriticalValue` (as `samara critical --json`), and the warnings.
+    /// Ctrl-C interrupts it.
     #[allow(clippy::too_many_arguments)]
     #[pyo3(signature = (property, param, networks, params, datasets, timeout, max_nodes, lp_tighten))]
-    fn critical(
+    fn critical<'py>(
         &self,
-        py: Python<'_>,
+        py: Python<'py>,
         property: String,
         param: String,
         networks: HashMap<String, PyRef<'_, PyNetwork>>,
@@ -250,18 +266,19 @@ impl PySpec {
         timeout: f64,
         max_nodes: usize,
         lp_tighten: bool,
-    ) -> PyResult<(String, Vec<String>)> {
+    ) -> PyResult<(Bound<'py, PyDict>, Vec<String>)> {
         let nets: HashMap<String, samara_nn::Network> = networks
             .into_iter()
             .map(|(k, v)| (k, v.net.clone()))
             .collect();
-        let spec = &self.spec;
-        let r = py.allow_threads(move || {
-            let l = load(spec, nets, &params, Some(&param), &datasets)?;
+        let spec = self.spec.clone();
+        let (c, warnings) = interruptible(py, move || {
+            let l = bind(&spec, nets, &params, Some(&param), &datasets)?;
             let s = settings(timeout, max_nodes, lp_tighten)?;
-            critical_value(&l, &property, &param, &s).map(|v| (v.to_string(), l.warnings))
+            let c = samara_app::critical_value(&l, &property, &param, &s)?;
+            Ok((c, l.warnings))
         })?;
-        Ok(r)
+        Ok((critical_py(py, &c)?, warnings))
     }
 }
 
@@ -283,333 +300,194 @@ fn settings(timeout: f64, max_nodes: usize, lp_tighten: bool) -> R<Settings> {
     })
 }
 
-/// A spec with its bindings (as the CLI's `Loaded`).
-struct Loaded<'a> {
-    spec: &'a samara_spec::Spec,
-    nets: HashMap<String, samara_nn::Network>,
-    b: Bindings,
-    warnings: Vec<String>,
-}
-
-fn suggest<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str> + Clone) -> String {
-    match nearest(name, candidates.clone()) {
-        Some(c) => format!("did you mean `{c}`?"),
-        None => {
-            let mut all: Vec<&str> = candidates.into_iter().collect();
-            all.sort();
-            if all.is_empty() {
-                "it declares none".into()
-            } else {
-                format!("it declares {}", all.join(", "))
-            }
-        }
-    }
-}
-
-/// Check the bindings as `samara_cli::verify::load` does (same messages, argument names
-/// instead of flags).
-fn load<'a>(
+/// Bind a spec's networks, parameters and data sets with the library's checks
+/// ([`samara_app::Loaded`]), each named as the Python argument (`networks["f"]`,
+/// `params["ystar"]`, `datasets["train"]`). `free`: the parameter to search.
+fn bind<'a>(
     spec: &'a samara_spec::Spec,
     nets: HashMap<String, samara_nn::Network>,
     params: &HashMap<String, f64>,
     free: Option<&str>,
     datasets: &HashMap<String, String>,
 ) -> R<Loaded<'a>> {
-    let mut b = Bindings::default();
-    let mut warnings = Vec::new();
-    let mut names: Vec<&String> = nets.keys().collect();
-    names.sort();
-    for k in names {
-        let net = &nets[k];
-        let Some(nd) = spec.networks.iter().find(|n| &n.name == k) else {
-            return value(format!(
-                "networks[{k:?}]: the spec {} declares no network `{k}`; {}",
-                spec.file,
-                suggest(k, spec.networks.iter().map(|n| n.name.as_str()))
-            ));
-        };
-        if net.n_inputs() != nd.inputs.len() || net.n_outputs() != nd.outputs.len() {
-            return value(format!(
-                "networks[{k:?}]: dimension mismatch: the network has {} inputs and {} outputs but {} declares `{k}({})` with {} inputs and {} outputs; pass a network of that signature",
-                net.n_inputs(),
-                net.n_outputs(),
-                spec.file,
-                nd.inputs.join(", "),
-                nd.inputs.len(),
-                nd.outputs.len()
-            ));
-        }
-        units_check(spec, k, nd, net, &mut warnings)?;
-        b.network_dims
-            .insert(k.clone(), (net.n_inputs(), net.n_outputs()));
+    let mut l = Loaded::new(Cow::Borrowed(spec), spec.file.clone(), Front::Python);
+    let mut names: Vec<(String, samara_nn::Network)> = nets.into_iter().collect();
+    names.sort_by(|a, b| a.0.cmp(&b.0));
+    for (k, net) in names {
+        l.bind_network(&k, net, &format!("networks[{k:?}]"), None)?;
     }
     if let Some(k) = free {
-        if !spec.params.contains_key(k) {
-            return value(format!(
-                "param {k:?}: the spec {} declares no parameter `{k}`; {}",
-                spec.file,
-                suggest(k, spec.params.keys().map(String::as_str))
-            ));
-        }
+        l.declared_param(k, &format!("param {k:?}"))?;
     }
-    for (k, &x) in params {
-        if !spec.params.contains_key(k) {
-            return value(format!(
-                "params[{k:?}]: the spec {} declares no parameter `{k}`; {}",
-                spec.file,
-                suggest(k, spec.params.keys().map(String::as_str))
-            ));
-        }
-        if !x.is_finite() {
-            return value(format!(
-                "params[{k:?}] = {x}: not a finite number; pass a finite value"
-            ));
-        }
-        if Some(k.as_str()) == free {
-            return value(format!(
-                "params[{k:?}]: `{k}` is also the parameter to search (param={k:?}); drop one of them"
-            ));
-        }
-        b.params.insert(k.clone(), x);
+    let mut ps: Vec<(&String, &f64)> = params.iter().collect();
+    ps.sort_by(|a, b| a.0.cmp(b.0));
+    for (k, &x) in ps {
+        l.bind_param(k, x, &format!("params[{k:?}]"), free)?;
     }
-    for (k, v) in datasets {
-        if !spec.datasets.contains_key(k) {
-            return value(format!(
-                "datasets[{k:?}]: the spec {} declares no data set `{k}`; {}",
-                spec.file,
-                suggest(k, spec.datasets.keys().map(String::as_str))
-            ));
-        }
-        let p = PathBuf::from(v);
-        if !p.is_file() {
-            return value(format!(
-                "datasets[{k:?}] = {v:?}: no such file; pass the CSV or IDX file (or a numpy array) of data set `{k}`"
-            ));
-        }
-        b.datasets.insert(k.clone(), p);
+    let mut l = l.finish("params")?;
+    let mut ds: Vec<(&String, &String)> = datasets.iter().collect();
+    ds.sort();
+    for (k, v) in ds {
+        l.bind_dataset(k, Path::new(v), &format!("datasets[{k:?}] = {v:?}"))?;
     }
-    Ok(Loaded {
-        spec,
-        nets,
-        b,
-        warnings,
-    })
+    Ok(l)
 }
 
-fn units_check(
-    spec: &samara_spec::Spec,
-    name: &str,
-    nd: &NetDecl,
-    net: &samara_nn::Network,
-    warnings: &mut Vec<String>,
-) -> R<()> {
-    if nd.in_norm.is_some() && net.input_norm.is_some() {
-        return value(format!(
-            "networks[{name:?}]: units mismatch: the network normalises its own inputs (it has a raw-to-normalised input layer: a raw-unit network such as a `*_denorm` file) but {} declares `normalise {name} input`, i.e. `{name}` takes normalised inputs, so the inputs would be normalised twice; pass the network that takes normalised inputs (e.g. base_model_norm.onnx) or remove the `normalise {name}` lines from the spec",
-            spec.file
-        ));
-    }
-    if nd.out_norm.is_some() && net.output_denorm.is_some() {
-        return value(format!(
-            "networks[{name:?}]: units mismatch: the network denormalises its own output but {} declares `normalise {name} output`, so the output would be converted twice; pass the network with a normalised output or remove the `normalise {name} output` line",
-            spec.file
-        ));
-    }
-    if nd.in_norm.is_none() && net.input_norm.is_none() {
-        warnings.push(format!(
-            "networks[{name:?}]: {} declares `{name}` in raw units (no `normalise {name}` line) and the network carries no normalisation layer: samara cannot check that it takes raw inputs; if it takes normalised ones, add the `normalise {name} input ...` line",
-            spec.file
-        ));
-    }
-    Ok(())
-}
-
-fn missing_data(l: &Loaded, name: &str) -> Option<String> {
-    let p = l.spec.properties.iter().find(|p| p.name == name)?;
-    for bnd in &p.binders {
-        if let Binder::Data { dataset, .. } = bnd {
-            let path = match l.b.datasets.get(dataset) {
-                Some(p) => p.clone(),
-                None => match l.spec.datasets.get(dataset) {
-                    Some(p) if p.is_absolute() => p.clone(),
-                    Some(p) => l.spec.dir.join(p),
-                    None => continue,
-                },
-            };
-            if !path.is_file() {
-                return Some(format!(
-                    "property `{name}` quantifies over data set `{dataset}`, whose file {} (the spec's path, relative to the spec file) does not exist; pass datasets={{{dataset:?}: FILE or array}}",
-                    path.display()
-                ));
-            }
-        }
-    }
-    None
-}
-
-fn named_point(spec: &samara_spec::Spec, q: &Query, p: &Point) -> Value {
-    let mut apps = Vec::new();
-    for (ai, app) in q.applications.iter().enumerate() {
-        let Some(nd) = spec.networks.iter().find(|n| n.name == app.network) else {
-            continue;
-        };
-        let mut m = serde_json::Map::new();
-        for (k, name) in nd.inputs.iter().enumerate() {
-            let (c, s) = nd.input_map(k);
-            m.insert(name.clone(), json!(c + s * p.inputs[ai][k]));
-        }
-        for (k, name) in nd.outputs.iter().enumerate() {
-            let (c, s) = nd.output_map(k);
-            m.insert(name.clone(), json!(c + s * p.outputs[ai][k]));
-        }
-        apps.push(json!({"network": app.network, "values": m}));
-    }
-    json!(apps)
-}
-
-fn require_networks(l: &Loaded, qs: &[&Instance]) -> R<()> {
-    for i in qs {
-        for a in &i.query.applications {
-            if !l.nets.contains_key(&a.network) {
-                return value(format!(
-                    "property `{}` uses network `{}`; pass networks={{{:?}: Network}}",
-                    i.label, a.network, a.network
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
-fn reason_json(r: &UnknownReason) -> Value {
-    json!({"kind": r.kind(), "message": r.to_string()})
-}
-
-fn run_verify(l: &Loaded, property: Option<String>, settings: Settings) -> R<Value> {
-    // `timeout` is a deadline for the whole call (as the CLI's --timeout).
-    let start = Instant::now();
-    let names: Vec<String> = match &property {
-        Some(p) => vec![p.clone()],
-        None => l
-            .spec
-            .property_names()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
+/// Run `work` on a thread of its own while this one waits with the GIL released,
+/// checking for signals every 50 ms: Ctrl-C raises `KeyboardInterrupt` within a
+/// fraction of a second instead of after the computation. (The abandoned computation
+/// runs on until its own time limit; its result is dropped.)
+fn interruptible<T: Send + 'static>(
+    py: Python<'_>,
+    work: impl FnOnce() -> R<T> + Send + 'static,
+) -> PyResult<T> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = tx.send(work());
+    });
+    let rx = std::sync::Mutex::new(rx);
+    let wait = || {
+        rx.lock()
+            .expect("only this thread locks it")
+            .recv_timeout(std::time::Duration::from_millis(50))
     };
-    let mut lowered = Vec::new();
-    for n in &names {
-        if let Some(m) = missing_data(l, n) {
-            return value(m);
+    loop {
+        match py.allow_threads(wait) {
+            Ok(r) => return r.map_err(PyErr::from),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => {
+                return Err(SamaraError::new_err(
+                    "the computation's thread ended without a result (a panic: please report it)",
+                ))
+            }
         }
-        lowered.push(
-            l.spec
-                .lower_prove(n, &l.b)
-                .map_err(|e| Error::Value(e.to_string()))?,
-        );
     }
-    require_networks(l, &lowered.iter().flatten().collect::<Vec<_>>())?;
-    let prep = Prepared::new(&l.nets);
+}
+
+/// A Python object of a Rust value.
+fn obj<'py, T>(py: Python<'py>, v: T) -> PyResult<PyObject>
+where
+    T: IntoPyObject<'py>,
+    T::Error: Into<PyErr>,
+{
+    Ok(v.into_pyobject(py)
+        .map_err(Into::into)?
+        .into_bound()
+        .into_any()
+        .unbind())
+}
+
+/// A dict of `(key, value)` pairs.
+fn dict<'py>(py: Python<'py>, items: Vec<(&str, PyObject)>) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (k, v) in items {
+        d.set_item(k, v)?;
+    }
+    Ok(d)
+}
+
+/// A reason as `{'kind', 'message'}`.
+fn reason_py(py: Python<'_>, r: &Option<samara_app::Reason>) -> PyResult<PyObject> {
+    match r {
+        None => Ok(py.None()),
+        Some(r) => Ok(dict(
+            py,
+            vec![
+                ("kind", obj(py, r.kind.clone())?),
+                ("message", obj(py, r.message.clone())?),
+            ],
+        )?
+        .into_any()
+        .unbind()),
+    }
+}
+
+/// A named point as a list of `{'network', 'values': {name: value}}`.
+fn point_py(py: Python<'_>, p: &[NamedValues]) -> PyResult<PyObject> {
     let mut out = Vec::new();
-    for inst in &lowered {
-        for i in inst {
-            let q = &i.query;
-            let ti = Instant::now();
-            let left = left_after(&settings, start);
-            let verdict = if left.timeout > 0.0 {
-                prove(q, &prep, &left).map_err(|e| Error::Samara(e.to_string()))?
-            } else {
-                Verdict::Unknown(UnknownReason::Timeout { nodes: 0 })
-            };
-            let isecs = ti.elapsed().as_secs_f64();
-            let mut vac = Value::Null;
-            let mut reason = Value::Null;
-            let (tag, cx) = match &verdict {
-                Verdict::Proved => {
-                    // Shared with the CLI: an empty input box or an empty premise.
-                    let vs = Settings {
-                        timeout: left_after(&settings, start).timeout.min(10.0),
-                        ..settings
-                    };
-                    if let Some(why) =
-                        vacuity(q, &prep, &vs).map_err(|e| Error::Samara(e.to_string()))?
-                    {
-                        vac = json!(why);
-                    }
-                    ("proved", Value::Null)
-                }
-                Verdict::Violated(c) => (
-                    "violated",
-                    json!({"point": named_point(l.spec, q, &c.point), "margin": c.margin, "exact_check": c.exact}),
-                ),
-                Verdict::Unknown(r) => {
-                    reason = reason_json(r);
-                    ("unknown", json!({"reason": r.to_string()}))
-                }
-            };
-            out.push(json!({"property": i.label, "verdict": tag, "counterexample": cx,
-                "seconds": isecs, "vacuous": !vac.is_null(), "vacuity": vac, "unknown_reason": reason}));
+    for a in p {
+        let values = PyDict::new(py);
+        for (k, v) in &a.values {
+            values.set_item(k, v)?;
         }
+        out.push(dict(
+            py,
+            vec![
+                ("network", obj(py, a.network.clone())?),
+                ("values", values.into_any().unbind()),
+            ],
+        )?);
     }
-    Ok(Value::Array(out))
+    Ok(PyList::new(py, out)?.into_any().unbind())
 }
 
-/// As `samara_cli::verify::critical_value`.
-fn critical_value(l: &Loaded, property: &str, param: &str, settings: &Settings) -> R<Value> {
-    if let Some(m) = missing_data(l, property) {
-        return value(m);
-    }
-    let inst = l
-        .spec
-        .lower_critical(property, param, &l.b)
-        .map_err(|e| Error::Value(e.to_string()))?;
-    if inst.len() != 1 {
-        return value(format!("critical values are computed for properties without data-set quantifiers; `{property}` has {} instances", inst.len()));
-    }
-    require_networks(l, &inst.iter().collect::<Vec<_>>())?;
-    let prep = Prepared::new(&l.nets);
-    let t0 = Instant::now();
-    let q_max = inst[0].query.clone();
-    let mut q_min = q_max.clone();
-    if let Goal::Optimise { sense, .. } = &mut q_min.goal {
-        *sense = Sense::Min;
-    }
-    // `timeout` is a deadline for both searches together (as the CLI).
-    let sup = optimise(&q_max, &prep, settings).map_err(|e| Error::Samara(e.to_string()))?;
-    let inf = optimise(&q_min, &prep, &left_after(settings, t0))
-        .map_err(|e| Error::Samara(e.to_string()))?;
-    let Some((lo, hi)) = l.spec.params[param].range else {
-        return value(format!("parameter `{param}` has no range"));
+/// The fields of a verdict row (the typed [`VerdictRow`]), for `samara.VerifyResult`.
+fn row_py<'py>(py: Python<'py>, r: &VerdictRow) -> PyResult<Bound<'py, PyDict>> {
+    let cx = match &r.counterexample {
+        None => py.None(),
+        Some(RowCounterexample::Point {
+            point,
+            margin,
+            exact_check,
+        }) => dict(
+            py,
+            vec![
+                ("point", point_py(py, point)?),
+                ("margin", obj(py, *margin)?),
+                ("exact_check", obj(py, *exact_check)?),
+            ],
+        )?
+        .into_any()
+        .unbind(),
+        Some(RowCounterexample::Reason { reason }) => {
+            dict(py, vec![("reason", obj(py, reason.clone())?)])?
+                .into_any()
+                .unbind()
+        }
     };
-    let tol = 1e-9 * (1.0 + hi.abs().max(lo.abs()));
-    let unknown = sup.unknown.clone().or(inf.unknown.clone());
-    let (holds, chosen) = match (&unknown, inf.value, sup.value) {
-        (Some(_), _, _) => ("unknown", None),
-        (None, None, _) | (None, _, None) => ("everywhere", None),
-        (None, _, Some(s)) if s < hi - tol => ("above", Some(&sup)),
-        (None, Some(i), _) if i > lo + tol => ("below", Some(&inf)),
-        _ => ("nowhere", Some(&inf)),
+    dict(
+        py,
+        vec![
+            ("property", obj(py, r.property.clone())?),
+            ("verdict", obj(py, r.verdict.text())?),
+            ("counterexample", cx),
+            ("seconds", obj(py, r.seconds)?),
+            ("vacuous", obj(py, r.vacuous)?),
+            ("vacuity", obj(py, r.vacuity.clone())?),
+            ("unknown_reason", reason_py(py, &r.unknown_reason)?),
+        ],
+    )
+}
+
+/// The fields of a critical value (the typed [`CriticalValue`]), for
+/// `samara.CriticalResult`.
+fn critical_py<'py>(py: Python<'py>, c: &CriticalValue) -> PyResult<Bound<'py, PyDict>> {
+    let witness = match &c.witness {
+        Some(w) => point_py(py, w)?,
+        None => py.None(),
     };
-    let threshold = match holds {
-        "above" | "below" => chosen.map(|c| c.bound),
-        _ => None,
-    };
-    Ok(json!({
-        "property": property,
-        "parameter": param,
-        "holds": holds,
-        "critical": chosen.and_then(|c| c.value),
-        "bound": chosen.map(|c| c.bound),
-        "threshold": threshold,
-        "attained": chosen.map(|c| c.attained).unwrap_or(false),
-        "vacuous": chosen.map(|c| c.vacuous).unwrap_or(false),
-        "domain_extreme": chosen.and_then(|c| c.domain_extreme),
-        "counterexample_range": [inf.value, sup.value],
-        "witness": chosen.and_then(|c| c.witness.as_ref()).map(|w| named_point(l.spec, &q_max, w)),
-        "complete": unknown.is_none(),
-        "unknown_reason": unknown.as_ref().map(reason_json),
-        "seconds": t0.elapsed().as_secs_f64(),
-    }))
+    dict(
+        py,
+        vec![
+            ("property", obj(py, c.property.clone())?),
+            ("parameter", obj(py, c.parameter.clone())?),
+            ("holds", obj(py, c.holds.text())?),
+            ("critical", obj(py, c.critical)?),
+            ("bound", obj(py, c.bound)?),
+            ("threshold", obj(py, c.threshold)?),
+            ("attained", obj(py, c.attained)?),
+            ("vacuous", obj(py, c.vacuous)?),
+            ("domain_extreme", obj(py, c.domain_extreme)?),
+            (
+                "counterexample_range",
+                obj(py, (c.counterexample_range[0], c.counterexample_range[1]))?,
+            ),
+            ("witness", witness),
+            ("complete", obj(py, c.complete)?),
+            ("unknown_reason", reason_py(py, &c.unknown_reason)?),
+            ("seconds", obj(py, c.seconds)?),
+        ],
+    )
 }
 
 /// The robustness table of `samara robustness --json` (plus the per-point results):
@@ -617,8 +495,8 @@ fn critical_value(l: &Loaded, property: &str, param: &str, settings: &Settings) 
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (network, rows, n, cols, eps, lipschitz, reference, form, timeout, max_nodes))]
-fn robustness(
-    py: Python<'_>,
+fn robustness<'py>(
+    py: Python<'py>,
     network: PyRef<'_, PyNetwork>,
     rows: &[u8],
     n: usize,
@@ -629,14 +507,17 @@ fn robustness(
     form: &str,
     timeout: f64,
     max_nodes: usize,
-) -> PyResult<String> {
+) -> PyResult<Bound<'py, PyDict>> {
     let net = network.net.clone();
     let data = f64s(rows);
     let reference = reference.to_string();
     let form = form.to_string();
-    let r = py.allow_threads(move || -> R<String> {
+    let (table, points) = interruptible(py, move || {
         if data.len() != n * cols {
-            return value(format!("data: {} values for {n} rows of {cols}", data.len()));
+            return value(format!(
+                "data: {} values for {n} rows of {cols}",
+                data.len()
+            ));
         }
         let mut es: Vec<f64> = Vec::new();
         for e in eps {
@@ -700,32 +581,64 @@ fn robustness(
         let points = sweep_with(&net, &rows, &es, reference, None, &s)
             .map_err(|e| Error::Samara(e.to_string()))?;
         let secs = t0.elapsed().as_secs_f64();
-        let mut table = Vec::new();
-        for e in &es {
-            let mut row = Vec::new();
-            for l in &ls {
-                let c = if form == "published" {
-                    published_cell(&points, *e, *l)
-                } else {
-                    lipschitz_cell(&points, *e, *l)
-                };
-                row.push(json!({"eps": e, "L": l, "proved": c.proved, "violated": c.violated, "unknown": c.unknown,
-                    "success_rate": c.proved as f64 / rows.len().max(1) as f64}));
-            }
-            table.push(row);
-        }
-        let pts: Vec<Value> = points
-            .iter()
-            .map(|p| {
-                json!({"index": p.index, "eps": p.eps, "f_min": p.f_min, "f_max": p.f_max,
-                    "reference": p.reference, "max_deviation": p.max_deviation,
-                    "lipschitz_lower": p.lipschitz_lower, "lipschitz_upper": p.lipschitz_upper})
-            })
-            .collect();
-        Ok(json!({"form": form, "points": rows.len(), "seconds": secs, "table": table, "per_point": pts})
-            .to_string())
+        let form = samara_app::robustness::Form::parse(&form).expect("checked above");
+        let table = samara_app::robustness::Table::of(form, &es, &ls, rows.len(), secs, &points);
+        Ok((table, points))
     })?;
-    Ok(r)
+    robustness_py(py, &table, &points)
+}
+
+/// The fields of a robustness table (the typed [`samara_app::robustness::Table`]) and
+/// the per-point results, for `samara.RobustnessResult`.
+fn robustness_py<'py>(
+    py: Python<'py>,
+    t: &samara_app::robustness::Table,
+    points: &[samara_verify::robustness::PointBall],
+) -> PyResult<Bound<'py, PyDict>> {
+    let mut rows = Vec::new();
+    for row in &t.table {
+        let mut cells = Vec::new();
+        for c in row {
+            cells.push(dict(
+                py,
+                vec![
+                    ("eps", obj(py, c.eps)?),
+                    ("L", obj(py, c.l)?),
+                    ("proved", obj(py, c.proved)?),
+                    ("violated", obj(py, c.violated)?),
+                    ("unknown", obj(py, c.unknown)?),
+                    ("success_rate", obj(py, c.success_rate)?),
+                ],
+            )?);
+        }
+        rows.push(PyList::new(py, cells)?);
+    }
+    let mut pts = Vec::new();
+    for p in points {
+        pts.push(dict(
+            py,
+            vec![
+                ("index", obj(py, p.index)?),
+                ("eps", obj(py, p.eps)?),
+                ("f_min", obj(py, p.f_min)?),
+                ("f_max", obj(py, p.f_max)?),
+                ("reference", obj(py, p.reference)?),
+                ("max_deviation", obj(py, p.max_deviation)?),
+                ("lipschitz_lower", obj(py, p.lipschitz_lower)?),
+                ("lipschitz_upper", obj(py, p.lipschitz_upper)?),
+            ],
+        )?);
+    }
+    dict(
+        py,
+        vec![
+            ("form", obj(py, t.form.text())?),
+            ("points", obj(py, t.points)?),
+            ("seconds", obj(py, t.seconds)?),
+            ("table", obj(py, PyList::new(py, rows)?)?),
+            ("per_point", obj(py, PyList::new(py, pts)?)?),
+        ],
+    )
 }
 
 /// Read a CSV or IDX table as samara does (`samara_nn::data::read_table`): row-major
@@ -784,7 +697,7 @@ fn simulate<'py>(
             "integrator {integrator:?}: unknown integrator; choose ode45, tight, dp5 or rk4"
         )));
     };
-    check_horizon_period(horizon, period, 1e-3, 100.0, 100_000.0)?;
+    check_horizon_period(horizon, period, samara_app::bind::MAX_PERIOD, 100_000.0)?;
     let plant = Plant::new(model);
     let mut ctl: Box<dyn Controller + Send> = match controller {
         "pid" => {
@@ -1038,34 +951,24 @@ fn controller_net(n: &samara_nn::Network) -> PyResult<samara_nn::Network> {
         .map_err(|e| PyValueError::new_err(e.to_string()))
 }
 
-fn check_horizon_period(
-    horizon: f64,
-    period: f64,
-    min_p: f64,
-    max_p: f64,
-    max_k: f64,
-) -> PyResult<()> {
-    let bad = |m: String| Err(PyValueError::new_err(m));
-    if !(horizon.is_finite() && horizon > 0.0) {
-        return bad(format!(
-            "horizon {horizon}: the horizon must be positive (e.g. 20)"
-        ));
+/// The horizon and period of a closed-loop run: the library's checks
+/// ([`samara_app::check_horizon_period`], at most `max_k` periods), a period of at most
+/// `max_p` (reach: 10, simulate: the library's 100) and a whole number of periods.
+fn check_horizon_period(horizon: f64, period: f64, max_p: f64, max_k: f64) -> PyResult<()> {
+    samara_app::check_horizon_period(Front::Python, horizon, period).map_err(Error::from)?;
+    if period > max_p {
+        return Err(PyValueError::new_err(format!(
+            "period {period}: the control period must lie in [{}, {max_p}] (e.g. period=0.5)",
+            samara_app::bind::MIN_PERIOD
+        )));
     }
-    if !(period.is_finite() && (min_p..=max_p).contains(&period)) {
-        return bad(format!(
-            "period {period}: the control period must lie in [{min_p}, {max_p}] (e.g. 0.5)"
-        ));
-    }
+    samara_app::bind::check_period_count(Front::Python, horizon, period, max_k)
+        .map_err(Error::from)?;
     let k = horizon / period;
-    if k > max_k + 0.5 {
-        return bad(format!(
-            "horizon {horizon} / period {period} = {k} control periods; at most {max_k} are allowed"
-        ));
-    }
     if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
-        return bad(format!(
+        return Err(PyValueError::new_err(format!(
             "horizon {horizon} is not a positive multiple of period {period}"
-        ));
+        )));
     }
     Ok(())
 }
@@ -1075,7 +978,7 @@ fn check_horizon_period(
 /// enclosures per control instant).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (network, model, init, horizon, period, goal_ystar, goal_from, clip, max_leaves, samples, seed))]
+#[pyo3(signature = (network, model, init, horizon, period, goal_ystar, goal_from, clip, max_leaves, samples, seed, network_name, threads))]
 fn reach(
     py: Python<'_>,
     network: PyRef<'_, PyNetwork>,
@@ -1089,8 +992,16 @@ fn reach(
     max_leaves: Option<usize>,
     samples: Option<usize>,
     seed: Option<u64>,
+    network_name: String,
+    threads: Option<usize>,
 ) -> PyResult<String> {
     use samara_plant::{Model, STATE_NAMES};
+    if threads.is_some_and(|t| !(1..=1024).contains(&t)) {
+        return Err(PyValueError::new_err(format!(
+            "threads={}: give 1 to 1024 worker threads (None: all cores)",
+            threads.unwrap_or(0)
+        )));
+    }
     use samara_reach::{Goal, ReachSettings, Verdict as RV};
     let Some(m) = Model::from_name(model) else {
         return Err(PyValueError::new_err(format!(
@@ -1114,7 +1025,7 @@ fn reach(
         }
         s.init[i] = (lo, hi);
     }
-    check_horizon_period(horizon, period, 1e-3, 10.0, 10_000.0)?;
+    check_horizon_period(horizon, period, 10.0, 10_000.0)?;
     s.horizon = horizon;
     s.period = period;
     if !clip {
@@ -1173,7 +1084,23 @@ fn reach(
         .into_iter()
         .collect();
     let r = py.allow_threads(move || -> R<String> {
-        let res = samara_reach::reach(&net, &s).map_err(|e| Error::Samara(e.to_string()))?;
+        // A pool of `threads` workers (as `samara reach --threads`), else the global one.
+        let pool = match threads {
+            Some(t) => Some(
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(t)
+                    .build()
+                    .map_err(|e| Error::Samara(format!("threads={t}: {e}")))?,
+            ),
+            None => None,
+        };
+        let n_threads = threads.unwrap_or_else(rayon::current_num_threads);
+        let run = || samara_reach::reach(&net, &s);
+        let res = match &pool {
+            Some(p) => p.install(run),
+            None => run(),
+        }
+        .map_err(|e| Error::Samara(e.to_string()))?;
         let lost = samara_reach::verdict::lost_enclosure(&res.leaves, &s);
         let num = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
         let verdict = match &res.verdict {
@@ -1199,7 +1126,7 @@ fn reach(
                 "period": s.period, "clip": s.clip.map(|(lo, hi)| [lo, hi]),
                 "reset_filter": s.reset_filter, "goal": s.goal.as_ref().map(|g| json!({"ystar": g.ystar, "from": g.from})),
                 "max_leaves": s.max_leaves, "initial_splits": s.initial_splits,
-                "samples": s.samples, "seed": s.seed},
+                "samples": s.samples, "seed": s.seed, "network": network_name, "threads": n_threads},
             "verdict": verdict,
             "final_x_plus_y": [num(res.final_x_plus_y[0]), num(res.final_x_plus_y[1])],
             "sampled_x_plus_y": res.sampled_x_plus_y,

@@ -57,7 +57,8 @@ def test_p1_critical_matches_cli(net):
         check=True, capture_output=True, text=True, cwd=ROOT,
     )
     c = json.loads(out.stdout)
-    r = samara.Spec(SPEC).critical(property="p1", param="ystar", networks={"f": net}).as_dict()
+    # In JSON form (the pair counterexample_range is a tuple in Python, a list in JSON).
+    r = json.loads(json.dumps(samara.Spec(SPEC).critical(property="p1", param="ystar", networks={"f": net}).as_dict()))
     assert set(r) == set(c)
     for k in c:
         if k != "seconds":

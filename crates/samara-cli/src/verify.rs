@@ -8,21 +8,18 @@ pub use vnncomp::{run_vnncomp, VnncompArgs};
 pub mod shard;
 
 use anyhow::{anyhow, bail, Result};
-use samara_spec::lower::nearest;
-use samara_spec::lower::NetDecl;
-use samara_spec::normal::{Goal, Query, Sense, Var};
-use samara_spec::syntax::Binder;
-use samara_spec::{vnnlib, Bindings, Instance, Spec};
-use samara_verify::engine::Point;
-use samara_verify::robustness::{lipschitz_cell, published_cell, sweep_until, Reference};
-use samara_verify::{
-    left_after, optimise, prove, vacuity, LpTighten, Prepared, Settings, UnknownReason, Verdict,
-};
+use samara_app::robustness::{Form, Table};
+use samara_app::verify::{PropertyRun, RowCounterexample, VerdictTag};
+use samara_app::{Front, Holds, VerdictRow};
+use samara_spec::normal::Var;
+use samara_spec::{vnnlib, Spec};
+use samara_verify::robustness::{sweep_until, Reference};
+use samara_verify::{LpTighten, Settings, Verdict};
 use serde_json::{json, Value};
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
+use vnncomp::{decide, result_text, InstanceVerdict};
 
 /// Flags shared by the spec commands.
 #[derive(clap::Args, Debug, Clone)]
@@ -197,30 +194,11 @@ pub struct ExportArgs {
     pub property: Option<String>,
 }
 
-/// Where the published training points live (relative to a samara checkout).
-const PUBLISHED_DATA: &str = "../shared/reference/Training_Data_Normalised.csv";
-
 fn kv(s: &str, flag: &str) -> Result<(String, String)> {
     let (k, v) = s
         .split_once('=')
         .ok_or_else(|| anyhow!("--{flag} {s:?}: expected NAME=VALUE (e.g. --{flag} NAME=VALUE)"))?;
     Ok((k.trim().to_string(), v.trim().to_string()))
-}
-
-/// `did you mean` for a name among candidates, else the list.
-fn suggest<'a>(name: &str, candidates: impl IntoIterator<Item = &'a str> + Clone) -> String {
-    match nearest(name, candidates.clone()) {
-        Some(c) => format!("did you mean `{c}`?"),
-        None => {
-            let mut all: Vec<&str> = candidates.into_iter().collect();
-            all.sort();
-            if all.is_empty() {
-                "it declares none".into()
-            } else {
-                format!("it declares {}", all.join(", "))
-            }
-        }
-    }
 }
 
 /// Load an ONNX network, naming the flag on failure (the error's own text only: its
@@ -253,55 +231,33 @@ fn check_timeout(t: f64) -> Result<()> {
     Ok(())
 }
 
-/// Loaded spec, networks and bindings.
-pub struct Loaded {
-    /// The spec.
-    pub spec: Spec,
-    /// Networks by name.
-    pub nets: HashMap<String, samara_nn::Network>,
-    /// Bindings.
-    pub b: Bindings,
-    /// The network files by name (for output guards).
-    pub net_files: Vec<PathBuf>,
-}
+/// A spec with its networks, parameters and data sets bound (owned by the run).
+pub type Loaded = samara_app::Loaded<'static>;
 
 /// Load a spec and its bindings; every flag is checked here (exit 2 on a bad one).
 /// `free_params`: whether a bare `--param NAME` (no value) is allowed (`critical`).
+/// The checks are the library's ([`samara_app::Loaded`]); a units warning is printed
+/// as soon as its network is bound.
 pub fn load(a: &SpecArgs, free_params: bool) -> Result<Loaded> {
     let spec = Spec::read(&a.spec).map_err(|e| anyhow!("{e}"))?;
-    let mut b = Bindings::default();
-    let mut nets = HashMap::new();
-    let mut net_files = Vec::new();
+    let mut l = Loaded::new(
+        std::borrow::Cow::Owned(spec),
+        a.spec.display().to_string(),
+        Front::Cli,
+    );
+    let mut seen = std::collections::HashSet::new();
     for s in &a.networks {
         let (k, v) = kv(s, "network")?;
-        let Some(nd) = spec.networks.iter().find(|n| n.name == k) else {
-            bail!(
-                "--network {k}=...: the spec {} declares no network `{k}`; {}",
-                a.spec.display(),
-                suggest(&k, spec.networks.iter().map(|n| n.name.as_str()))
-            );
-        };
-        if nets.contains_key(&k) {
+        l.declared_network(&k, &format!("--network {k}=..."))?;
+        if !seen.insert(k.clone()) {
             bail!("--network {k}=...: given twice; bind each network once");
         }
         let file = PathBuf::from(&v);
         let net = load_network(&file, &format!("--network {k}="))?;
-        if net.n_inputs() != nd.inputs.len() || net.n_outputs() != nd.outputs.len() {
-            bail!(
-                "--network {k}={v}: dimension mismatch: the file has {} inputs and {} outputs but {} declares `{k}({})` with {} inputs and {} outputs; pass a network of that signature",
-                net.n_inputs(),
-                net.n_outputs(),
-                a.spec.display(),
-                nd.inputs.join(", "),
-                nd.inputs.len(),
-                nd.outputs.len()
-            );
+        l.bind_network(&k, net, &format!("--network {k}={v}"), Some(&file))?;
+        for w in l.warnings.drain(..) {
+            eprintln!("warning: {w}");
         }
-        units_check(&a.spec, &k, &v, nd, &net)?;
-        b.network_dims
-            .insert(k.clone(), (net.n_inputs(), net.n_outputs()));
-        nets.insert(k, net);
-        net_files.push(file);
     }
     for s in &a.params {
         if !s.contains('=') {
@@ -311,165 +267,31 @@ pub fn load(a: &SpecArgs, free_params: bool) -> Result<Loaded> {
                     "--param {k}: no value; pass --param {k}=VALUE (only `samara critical` takes a bare --param NAME: the parameter to search)"
                 );
             }
-            if !spec.params.contains_key(k) {
-                bail!(
-                    "--param {k}: the spec {} declares no parameter `{k}`; {}",
-                    a.spec.display(),
-                    suggest(k, spec.params.keys().map(String::as_str))
-                );
-            }
+            l.declared_param(k, &format!("--param {k}"))?;
             continue;
         }
         let (k, v) = kv(s, "param")?;
-        if !spec.params.contains_key(&k) {
-            bail!(
-                "--param {k}={v}: the spec {} declares no parameter `{k}`; {}",
-                a.spec.display(),
-                suggest(&k, spec.params.keys().map(String::as_str))
-            );
-        }
-        if b.params.contains_key(&k) {
+        let label = format!("--param {k}={v}");
+        l.declared_param(&k, &label)?;
+        if l.b.params.contains_key(&k) {
             bail!("--param {k}: given twice; bind each parameter once");
         }
         let x: f64 = v
             .parse()
             .map_err(|_| anyhow!("--param {k}={v}: not a number; pass e.g. --param {k}=2"))?;
-        if !x.is_finite() {
-            bail!("--param {k}={v}: not a finite number; pass a finite value, e.g. --param {k}=2");
-        }
-        if a.params.iter().any(|p| p.trim() == k) {
-            bail!(
-                "--param {k}={v}: `{k}` is also the parameter to search (--param {k}); drop one of them"
-            );
-        }
-        b.params.insert(k, x);
+        let searched = a.params.iter().any(|p| p.trim() == k).then_some(k.as_str());
+        l.bind_param(&k, x, &label, searched)?;
     }
     // Values outside a declared `param NAME in [lo, hi]` are refused here (exit 2).
-    spec.check_bindings(&b)
-        .map_err(|e| anyhow!("--param: {e}"))?;
+    let mut l = l.finish("--param")?;
     for s in &a.datasets {
         let (k, v) = kv(s, "dataset")?;
-        if !spec.datasets.contains_key(&k) {
-            bail!(
-                "--dataset {k}={v}: the spec {} declares no data set `{k}`; {}",
-                a.spec.display(),
-                suggest(&k, spec.datasets.keys().map(String::as_str))
-            );
-        }
-        if b.datasets.contains_key(&k) {
+        if l.b.datasets.contains_key(&k) {
             bail!("--dataset {k}=...: given twice; bind each data set once");
         }
-        let p = PathBuf::from(&v);
-        if !p.is_file() {
-            bail!(
-                "--dataset {k}={v}: no such file; pass the CSV or IDX file of data set `{k}` (the published training points are {PUBLISHED_DATA})"
-            );
-        }
-        b.datasets.insert(k, p);
+        l.bind_dataset(&k, Path::new(&v), &format!("--dataset {k}={v}"))?;
     }
-    Ok(Loaded {
-        spec,
-        nets,
-        b,
-        net_files,
-    })
-}
-
-/// A network whose file carries its own normalisation, bound to a network the spec
-/// declares with normalised units (or the reverse where the file says so) would have
-/// its units converted twice: refuse. Where the file carries no information, warn.
-fn units_check(
-    spec_file: &Path,
-    name: &str,
-    file: &str,
-    nd: &NetDecl,
-    net: &samara_nn::Network,
-) -> Result<()> {
-    if nd.in_norm.is_some() && net.input_norm.is_some() {
-        bail!(
-            "--network {name}={file}: units mismatch: the file normalises its own inputs (it has a raw-to-normalised input layer: a raw-unit network such as a `*_denorm` file) but {} declares `normalise {name} input`, i.e. `{name}` takes normalised inputs, so the inputs would be normalised twice; pass the network that takes normalised inputs (e.g. base_model_norm.onnx) or remove the `normalise {name}` lines from the spec",
-            spec_file.display()
-        );
-    }
-    if nd.out_norm.is_some() && net.output_denorm.is_some() {
-        bail!(
-            "--network {name}={file}: units mismatch: the file denormalises its own output but {} declares `normalise {name} output`, so the output would be converted twice; pass the network with a normalised output or remove the `normalise {name} output` line",
-            spec_file.display()
-        );
-    }
-    if nd.in_norm.is_none() && net.input_norm.is_none() {
-        eprintln!(
-            "warning: --network {name}={file}: {} declares `{name}` in raw units (no `normalise {name}` line) and the file carries no normalisation layer: samara cannot check that it takes raw inputs; if it takes normalised ones, add the `normalise {name} input ...` line",
-            spec_file.display()
-        );
-    }
-    Ok(())
-}
-
-/// The data sets property `name` quantifies over whose file is missing, as a message
-/// naming the flag to pass; `None` if it needs none or they exist.
-fn missing_data(l: &Loaded, name: &str) -> Option<String> {
-    let p = l.spec.properties.iter().find(|p| p.name == name)?;
-    for bnd in &p.binders {
-        if let Binder::Data { dataset, .. } = bnd {
-            let path = match l.b.datasets.get(dataset) {
-                Some(p) => p.clone(),
-                None => match l.spec.datasets.get(dataset) {
-                    Some(p) if p.is_absolute() => p.clone(),
-                    Some(p) => l.spec.dir.join(p),
-                    None => continue, // the lowering names it
-                },
-            };
-            if !path.is_file() {
-                return Some(format!(
-                    "property `{name}` quantifies over data set `{dataset}`, whose file {} (the spec's path, relative to the spec file) does not exist; pass --dataset {dataset}=FILE (the published training points are {PUBLISHED_DATA})",
-                    path.display()
-                ));
-            }
-        }
-    }
-    None
-}
-
-fn named_point(spec: &Spec, q: &Query, p: &Point) -> Value {
-    let mut apps = Vec::new();
-    for (ai, app) in q.applications.iter().enumerate() {
-        let Some(nd): Option<&NetDecl> = spec.networks.iter().find(|n| n.name == app.network)
-        else {
-            continue;
-        };
-        let mut m = serde_json::Map::new();
-        for (k, name) in nd.inputs.iter().enumerate() {
-            let (c, s) = nd.input_map(k);
-            m.insert(name.clone(), json!(c + s * p.inputs[ai][k]));
-        }
-        for (k, name) in nd.outputs.iter().enumerate() {
-            let (c, s) = nd.output_map(k);
-            m.insert(name.clone(), json!(c + s * p.outputs[ai][k]));
-        }
-        apps.push(json!({"network": app.network, "values": m}));
-    }
-    json!(apps)
-}
-
-fn require_networks(l: &Loaded, qs: &[&Instance]) -> Result<()> {
-    for i in qs {
-        for a in &i.query.applications {
-            if !l.nets.contains_key(&a.network) {
-                bail!(
-                    "property `{}` uses network `{}`; pass --network {}=FILE.onnx",
-                    i.label,
-                    a.network,
-                    a.network
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
-fn reason_json(r: &UnknownReason) -> Value {
-    json!({"kind": r.kind(), "message": r.to_string()})
+    Ok(l)
 }
 
 /// Run `samara check`: exit 2 on a bad flag or spec, 1 if a property cannot be lowered
@@ -493,7 +315,7 @@ pub fn run_check(a: &CheckArgs) -> Result<ExitCode> {
     }
     let mut failed = 0;
     for name in l.spec.property_names() {
-        if let Some(m) = missing_data(&l, name) {
+        if let Some(m) = l.missing_data(name) {
             println!("  property {name}: FAILED: {m}");
             failed += 1;
             continue;
@@ -521,169 +343,90 @@ pub fn run_check(a: &CheckArgs) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// Run `samara verify`.
+/// Run `samara verify`: the library's [`samara_app::run_verify`], one line per property
+/// (or the rows as JSON).
 pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
     check_timeout(a.timeout)?;
     // `--timeout` is a deadline for the whole command: every instance gets what is left.
     let start = Instant::now();
     let l = load(&a.s, false)?;
-    let names: Vec<String> = match &a.property {
-        Some(p) => vec![p.clone()],
-        None => l
-            .spec
-            .property_names()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
-    };
-    let mut lowered = Vec::new();
-    let mut skipped = Vec::new();
-    for n in &names {
-        if let Some(m) = missing_data(&l, n) {
-            if a.property.is_some() {
-                bail!("{m}");
-            }
-            // The other properties still run; the missing data set is reported at the
-            // end (exit 2).
-            skipped.push(m);
-            continue;
-        }
-        lowered.push((
-            n.clone(),
-            l.spec.lower_prove(n, &l.b).map_err(|e| anyhow!("{e}"))?,
-        ));
-    }
-    require_networks(
-        &l,
-        &lowered
-            .iter()
-            .flat_map(|(_, v)| v.iter())
-            .collect::<Vec<_>>(),
-    )?;
-    let prep = Prepared::new(&l.nets);
     let settings = Settings {
         timeout: a.timeout,
         max_nodes: a.max_nodes,
         lp_tighten: tighten_mode(a.lp_tighten),
         ..Default::default()
     };
-    // Deciding vacuity (is the premise empty over the domain?) is one root LP in
-    // practice; it gets at most 10 s of what the deadline leaves (undecided: not called
-    // vacuous).
-    let vacuity_settings = || Settings {
-        timeout: left_after(&settings, start).timeout.min(10.0),
-        ..settings
-    };
-    let mut all_proved = true;
-    let mut out = Vec::new();
-    for (name, inst) in &lowered {
-        let t0 = Instant::now();
-        let mut verdicts: Vec<(&Instance, Verdict, f64)> = Vec::new();
-        for i in inst {
-            let ti = Instant::now();
-            let left = left_after(&settings, start);
-            let v = if left.timeout > 0.0 {
-                prove(&i.query, &prep, &left)?
-            } else {
-                Verdict::Unknown(UnknownReason::Timeout { nodes: 0 })
-            };
-            verdicts.push((i, v, ti.elapsed().as_secs_f64()));
+    let json_out = a.json;
+    let run = samara_app::run_verify(&l, a.property.as_deref(), &settings, start, true, |p| {
+        if !json_out {
+            print_property(p);
         }
-        let secs = t0.elapsed().as_secs_f64();
-        let (mut p, mut v, mut u) = (0, 0, 0);
-        let mut vacuous = Vec::new();
-        let mut kinds: Vec<(&'static str, usize)> = Vec::new();
-        for (i, verdict, isecs) in &verdicts {
-            let q = &i.query;
-            let mut vac = Value::Null;
-            let mut reason = Value::Null;
-            let (tag, cx) = match verdict {
-                Verdict::Proved => {
-                    p += 1;
-                    if let Some(why) = vacuity(q, &prep, &vacuity_settings())? {
-                        vacuous.push(i.label.clone());
-                        vac = json!(why);
-                    }
-                    ("proved", Value::Null)
-                }
-                Verdict::Violated(c) => {
-                    v += 1;
-                    (
-                        "violated",
-                        json!({"point": named_point(&l.spec, q, &c.point), "margin": c.margin, "exact_check": c.exact}),
-                    )
-                }
-                Verdict::Unknown(r) => {
-                    u += 1;
-                    match kinds.iter_mut().find(|k| k.0 == r.kind()) {
-                        Some(k) => k.1 += 1,
-                        None => kinds.push((r.kind(), 1)),
-                    }
-                    reason = reason_json(r);
-                    ("unknown", json!({"reason": r.to_string()}))
-                }
-            };
-            out.push(json!({"property": i.label, "verdict": tag, "counterexample": cx,
-                "seconds": isecs, "vacuous": !vac.is_null(), "vacuity": vac, "unknown_reason": reason}));
-        }
-        all_proved &= v == 0 && u == 0;
-        if !a.json {
-            if verdicts.len() == 1 {
-                let last = out.last().expect("one");
-                let extra = match &verdicts[0].1 {
-                    Verdict::Violated(_) => {
-                        format!(" counterexample {}", last["counterexample"]["point"])
-                    }
-                    Verdict::Unknown(r) => format!(" ({}: {r})", r.kind()),
-                    Verdict::Proved if !vacuous.is_empty() => {
-                        format!(" VACUOUS: {}", last["vacuity"].as_str().unwrap_or(""))
-                    }
-                    Verdict::Proved => String::new(),
-                };
-                println!(
-                    "{name:<16} {:<9} {secs:>8.3} s{extra}",
-                    last["verdict"].as_str().unwrap_or("")
-                );
-            } else {
-                let kinds: Vec<String> = kinds.iter().map(|(k, n)| format!("{k}: {n}")).collect();
-                println!(
-                    "{name:<16} {} instances: {p} proved{}, {v} violated, {u} unknown{}  {secs:>8.3} s",
-                    verdicts.len(),
-                    if vacuous.is_empty() {
-                        String::new()
-                    } else {
-                        format!(" ({} vacuously)", vacuous.len())
-                    },
-                    if kinds.is_empty() {
-                        String::new()
-                    } else {
-                        format!(" ({})", kinds.join(", "))
-                    }
-                );
-            }
-        }
-        if !vacuous.is_empty() {
+        if !p.vacuous.is_empty() {
             eprintln!(
-                "warning: {name}: {} instance(s) proved only vacuously ({}): no point of the input domain meets the premise there (or a data point outside the declared domain has its ball clipped away), so the network was never checked; `samara robustness` evaluates the whole ball of a data point",
-                vacuous.len(),
-                vacuous.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
-            );
+                    "warning: {}: {} instance(s) proved only vacuously ({}): no point of the input domain meets the premise there (or a data point outside the declared domain has its ball clipped away), so the network was never checked; `samara robustness` evaluates the whole ball of a data point",
+                    p.name,
+                    p.vacuous.len(),
+                    p.vacuous.iter().take(5).cloned().collect::<Vec<_>>().join(", ")
+                );
         }
-    }
+    })?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        let rows: Vec<&VerdictRow> = run.rows().collect();
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::to_value(rows)?)?
+        );
     }
-    if !skipped.is_empty() {
-        for m in &skipped {
+    if !run.skipped.is_empty() {
+        for m in &run.skipped {
             eprintln!("error: {m}");
         }
         return Ok(ExitCode::from(2));
     }
-    Ok(if all_proved {
+    Ok(if run.all_proved() {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
     })
+}
+
+/// The human line of one property's verdicts.
+fn print_property(p: &PropertyRun) {
+    let (name, secs) = (&p.name, p.seconds);
+    if let [last] = p.rows.as_slice() {
+        let extra = match (&last.counterexample, &last.unknown_reason, &last.vacuity) {
+            (Some(RowCounterexample::Point { point, .. }), _, _) => {
+                format!(" counterexample {}", serde_json::json!(point))
+            }
+            (_, Some(r), _) => format!(" ({}: {})", r.kind, r.message),
+            (_, _, Some(why)) => format!(" VACUOUS: {why}"),
+            _ => String::new(),
+        };
+        println!("{name:<16} {:<9} {secs:>8.3} s{extra}", last.verdict.text());
+    } else {
+        let kinds: Vec<String> = p
+            .unknown_kinds
+            .iter()
+            .map(|(k, n)| format!("{k}: {n}"))
+            .collect();
+        println!(
+            "{name:<16} {} instances: {} proved{}, {} violated, {} unknown{}  {secs:>8.3} s",
+            p.rows.len(),
+            p.count(VerdictTag::Proved),
+            if p.vacuous.is_empty() {
+                String::new()
+            } else {
+                format!(" ({} vacuously)", p.vacuous.len())
+            },
+            p.count(VerdictTag::Violated),
+            p.count(VerdictTag::Unknown),
+            if kinds.is_empty() {
+                String::new()
+            } else {
+                format!(" ({})", kinds.join(", "))
+            }
+        );
+    }
 }
 
 fn tighten_mode(on: bool) -> LpTighten {
@@ -694,78 +437,9 @@ fn tighten_mode(on: bool) -> LpTighten {
     }
 }
 
-/// The critical value of a parameter, both ends of the counterexample set. `holds` is
-/// `unknown` (with `unknown_reason`) when either search was cut short: no claim is made
-/// from an incomplete search.
-pub fn critical_value(
-    l: &Loaded,
-    property: &str,
-    param: &str,
-    settings: &Settings,
-) -> Result<Value> {
-    if let Some(m) = missing_data(l, property) {
-        bail!("{m}");
-    }
-    let inst = l
-        .spec
-        .lower_critical(property, param, &l.b)
-        .map_err(|e| anyhow!("{e}"))?;
-    if inst.len() != 1 {
-        bail!("critical values are computed for properties without data-set quantifiers; `{property}` has {} instances", inst.len());
-    }
-    require_networks(l, &inst.iter().collect::<Vec<_>>())?;
-    let prep = Prepared::new(&l.nets);
-    let t0 = Instant::now();
-    let q_max = inst[0].query.clone();
-    let mut q_min = q_max.clone();
-    if let Goal::Optimise { sense, .. } = &mut q_min.goal {
-        *sense = Sense::Min;
-    }
-    // `--timeout` is a deadline for both searches together (the second gets what the
-    // first left).
-    let sup = optimise(&q_max, &prep, settings)?;
-    let inf = optimise(&q_min, &prep, &left_after(settings, t0))?;
-    let (lo, hi) = l.spec.params[param]
-        .range
-        .ok_or_else(|| anyhow!("parameter `{param}` has no range"))?;
-    let tol = 1e-9 * (1.0 + hi.abs().max(lo.abs()));
-    let unknown = sup.unknown.clone().or(inf.unknown.clone());
-    // Counterexamples exist for parameter values in [inf, sup] (within [lo, hi]); the
-    // property holds above sup if sup is inside the range, else below inf if inf is,
-    // else nowhere in the range. Only from complete searches.
-    let (holds, chosen) = match (&unknown, inf.value, sup.value) {
-        (Some(_), _, _) => ("unknown", None),
-        (None, None, _) | (None, _, None) => ("everywhere", None),
-        (None, _, Some(s)) if s < hi - tol => ("above", Some(&sup)),
-        (None, Some(i), _) if i > lo + tol => ("below", Some(&inf)),
-        _ => ("nowhere", Some(&inf)),
-    };
-    // The sound threshold: the property is proved beyond the search's bound (the
-    // critical value lies between the witness value and it).
-    let threshold = match holds {
-        "above" | "below" => chosen.map(|c| c.bound),
-        _ => None,
-    };
-    Ok(json!({
-        "property": property,
-        "parameter": param,
-        "holds": holds,
-        "critical": chosen.and_then(|c| c.value),
-        "bound": chosen.map(|c| c.bound),
-        "threshold": threshold,
-        "attained": chosen.map(|c| c.attained).unwrap_or(false),
-        "vacuous": chosen.map(|c| c.vacuous).unwrap_or(false),
-        "domain_extreme": chosen.and_then(|c| c.domain_extreme),
-        "counterexample_range": [inf.value, sup.value],
-        "witness": chosen.and_then(|c| c.witness.as_ref()).map(|w| named_point(&l.spec, &q_max, w)),
-        "complete": unknown.is_none(),
-        "unknown_reason": unknown.as_ref().map(reason_json),
-        "seconds": t0.elapsed().as_secs_f64(),
-    }))
-}
-
 /// Run `samara critical`: exit 0 with a result from complete searches, 1 when a
-/// search was cut short (`unknown`).
+/// search was cut short (`unknown`). The decision is the library's
+/// ([`samara_app::critical_value`]).
 pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
     check_timeout(a.timeout)?;
     let l = load(&a.s, true)?;
@@ -774,7 +448,7 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
         bail!("samara critical: name exactly one parameter to search with --param NAME (e.g. --param ystar); got {}", free.len());
     };
     let of = of.trim().to_string();
-    let v = critical_value(
+    let v = samara_app::critical_value(
         &l,
         &a.property,
         &of,
@@ -786,48 +460,55 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
         },
     )?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::to_value(&v)?)?
+        );
     } else {
-        let c = v["critical"].as_f64();
-        match (v["holds"].as_str(), c) {
-            (Some("unknown"), _) => println!(
-                "{}: unknown ({}: {}); no claim about {of}",
-                a.property,
-                v["unknown_reason"]["kind"].as_str().unwrap_or(""),
-                v["unknown_reason"]["message"].as_str().unwrap_or("")
-            ),
-            (Some("everywhere"), _) => println!("{}: holds for every {} in its range", a.property, of),
-            (Some("nowhere"), Some(c)) => println!(
+        match (v.holds, v.critical) {
+            (Holds::Unknown, _) => {
+                let r = v.unknown_reason.clone().unwrap_or(samara_app::Reason {
+                    kind: String::new(),
+                    message: String::new(),
+                });
+                println!(
+                    "{}: unknown ({}: {}); no claim about {of}",
+                    a.property, r.kind, r.message
+                )
+            }
+            (Holds::Everywhere, _) => {
+                println!("{}: holds for every {} in its range", a.property, of)
+            }
+            (Holds::Nowhere, Some(c)) => println!(
                 "{}: fails for every {of} in its declared range (counterexamples from {of} = {c:.3e} up){}",
                 a.property,
-                if v["vacuous"].as_bool() == Some(true) {
+                if v.vacuous {
                     "; VACUOUS: it holds only where the precondition is empty"
                 } else {
                     ""
                 }
             ),
-            (Some(h), Some(c)) => {
-                let t = v["threshold"].as_f64().unwrap_or(c);
-                let attained = v["attained"].as_bool() == Some(true);
+            (h @ (Holds::Above | Holds::Below), Some(c)) => {
+                let t = v.threshold.unwrap_or(c);
                 println!(
                     "{}: holds for {} {} {:.9}{}{}  ({:.3} s)",
                     a.property,
                     of,
-                    if h == "above" { ">" } else { "<" },
+                    if h == Holds::Above { ">" } else { "<" },
                     t,
-                    if attained {
+                    if v.attained {
                         String::new()
                     } else {
                         format!(" (sound bound; the critical value lies between {c:.9} and it, not attained)")
                     },
-                    if v["vacuous"].as_bool() == Some(true) { "  VACUOUS: the precondition is empty there" } else { "" },
-                    v["seconds"].as_f64().unwrap_or(0.0)
+                    if v.vacuous { "  VACUOUS: the precondition is empty there" } else { "" },
+                    v.seconds
                 )
             }
-            _ => println!("{}: {v}", a.property),
+            _ => println!("{}: {}", a.property, serde_json::to_value(&v)?),
         }
     }
-    Ok(if v["holds"] == "unknown" {
+    Ok(if v.holds == Holds::Unknown {
         ExitCode::from(1)
     } else {
         ExitCode::SUCCESS
@@ -1160,22 +841,13 @@ fn merge_robustness(
 /// The robustness table (stdout) and the per-point CSV (`out`).
 fn report_robustness(w: &Sweep) -> Result<ExitCode> {
     let (eps, ls, points, secs) = (w.eps, w.ls, w.points, w.secs);
-    let mut table = Vec::new();
-    let mut any_unknown = false;
-    for e in eps {
-        let mut row = Vec::new();
-        for l in ls {
-            let c = if w.form == "published" {
-                published_cell(points, *e, *l)
-            } else {
-                lipschitz_cell(points, *e, *l)
-            };
-            any_unknown |= c.unknown > 0;
-            row.push(json!({"eps": e, "L": l, "proved": c.proved, "violated": c.violated, "unknown": c.unknown,
-                "success_rate": c.proved as f64 / w.n_rows.max(1) as f64}));
-        }
-        table.push(row);
-    }
+    let form = Form::parse(w.form).ok_or_else(|| {
+        anyhow!(
+            "form {:?}: not a robustness form (published or lipschitz)",
+            w.form
+        )
+    })?;
+    let t = Table::of(form, eps, ls, w.n_rows, secs, points);
     if let Some(p) = w.out {
         let mut csv = String::from(
             "index,eps,f_min,f_max,reference,max_deviation,lipschitz_lower,lipschitz_upper\n",
@@ -1199,9 +871,7 @@ fn report_robustness(w: &Sweep) -> Result<ExitCode> {
     if w.json {
         println!(
             "{}",
-            serde_json::to_string_pretty(
-                &json!({"form": w.form, "points": w.n_rows, "seconds": secs, "table": table})
-            )?
+            serde_json::to_string_pretty(&serde_json::to_value(&t)?)?
         );
     } else {
         println!(
@@ -1213,17 +883,14 @@ fn report_robustness(w: &Sweep) -> Result<ExitCode> {
             print!("{l:>10.0e}");
         }
         println!();
-        for (e, row) in eps.iter().zip(&table) {
+        for (e, row) in eps.iter().zip(&t.table) {
             print!("{e:>10.0e}");
             for c in row {
-                print!(
-                    "{:>9.1}%",
-                    100.0 * c["success_rate"].as_f64().unwrap_or(0.0)
-                );
+                print!("{:>9.1}%", 100.0 * c.success_rate);
             }
             println!();
         }
-        if any_unknown {
+        if t.any_unknown() {
             println!("(some points are unknown, neither proved nor violated: see --json)");
         }
     }
@@ -1261,31 +928,27 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
         )?;
     }
     let (net, q) = vnncomp::load_instance(&a.network, &a.property, "--network", "--property")?;
-    let d = vnncomp::decide(net, &q, a.timeout, a.max_nodes)?;
+    let d = decide(net, &q, a.timeout, a.max_nodes)?;
+    if let Some(n) = &d.note {
+        eprintln!("note: {n}");
+    }
     if let Some(r) = &a.result {
-        samara_report::write_atomic(r, vnncomp::result_text(&d).as_bytes())
+        samara_report::write_atomic(r, result_text(&d).as_bytes())
             .map_err(|e| anyhow!("--result {}: {e}", r.display()))?;
     }
-    let tag = match &d.verdict {
-        Verdict::Proved => "unsat",
-        Verdict::Violated(_) => "sat",
-        Verdict::Unknown(_) => "unknown",
-    };
-    let (cx, reason) = vnncomp::verdict_json(&d);
+    let doc = InstanceVerdict::of(&d);
     if a.json {
-        println!(
-            "{}",
-            json!({"result": tag, "counterexample": cx, "seconds": d.seconds, "unknown_reason": reason, "engine": d.engine.tag()})
-        );
+        println!("{}", serde_json::to_value(&doc)?);
     } else {
         match &d.verdict {
-            Verdict::Violated(_) => print!("{}", vnncomp::result_text(&d)),
-            _ => println!("{tag}"),
+            Verdict::Violated(_) => print!("{}", result_text(&d)),
+            _ => println!("{}", doc.result),
         }
         if let Verdict::Unknown(r) = &d.verdict {
             eprintln!("unknown ({}): {r}", r.kind());
         }
     }
+    let tag = doc.result;
     Ok(if tag == "unsat" {
         ExitCode::SUCCESS
     } else {
@@ -1297,24 +960,16 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
 /// some were skipped (each named on stderr), 2 on bad input.
 pub fn run_export(a: &ExportArgs) -> Result<ExitCode> {
     let l = load(&a.s, false)?;
-    let names: Vec<String> = match &a.property {
-        Some(p) => {
-            if !l.spec.property_names().contains(&p.as_str()) {
-                bail!(
-                    "--property {p}: the spec {} declares no property `{p}`; {}",
-                    a.s.spec.display(),
-                    suggest(p, l.spec.property_names())
-                );
-            }
-            vec![p.clone()]
+    if let Some(p) = &a.property {
+        if !l.spec.property_names().contains(&p.as_str()) {
+            bail!(
+                "--property {p}: the spec {} declares no property `{p}`; {}",
+                a.s.spec.display(),
+                samara_app::suggest(p, l.spec.property_names())
+            );
         }
-        None => l
-            .spec
-            .property_names()
-            .iter()
-            .map(|s| s.to_string())
-            .collect(),
-    };
+    }
+    let names = l.selected(a.property.as_deref());
     // Output protection: never into (or over) an input, never mixed with old files.
     let mut inputs: Vec<(&str, &Path)> = vec![("the spec", a.s.spec.as_path())];
     for f in &l.net_files {
@@ -1340,7 +995,7 @@ pub fn run_export(a: &ExportArgs) -> Result<ExitCode> {
     let mut n = 0;
     let mut skipped: Vec<String> = Vec::new();
     for name in &names {
-        if let Some(m) = missing_data(&l, name) {
+        if let Some(m) = l.missing_data(name) {
             skipped.push(m);
             continue;
         }

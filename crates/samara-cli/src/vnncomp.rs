@@ -2,18 +2,17 @@
 //! engines ([`samara_verify::route`]), the competition's result-file format, and
 //! `samara vnncomp` (a whole benchmark from its instances CSV).
 
-use super::{check_timeout, load_network, reason_json, var_at, vnn_name};
+use super::{check_timeout, load_network, var_at, vnn_name};
 use anyhow::{anyhow, bail, Result};
+pub use samara_app::vnncomp::{decide, recheck, result_text, InstanceVerdict, Recheck};
+use samara_app::vnncomp::{InstanceResult as Part, Word};
 use samara_nn::Network;
 use samara_spec::normal::{Query, Var};
 use samara_spec::vnnlib;
-use samara_verify::engine::Point;
-use samara_verify::route::{prove_routed, Engine};
-use samara_verify::{Prepared, Settings, UnknownReason, Verdict};
+use samara_verify::route::Engine;
 use serde::{Deserialize, Serialize};
 use serde_json::{json, Value};
-use std::collections::{BTreeMap, HashMap};
-use std::fmt::Write as _;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -119,158 +118,6 @@ pub fn load_instance(
     Ok((net, q))
 }
 
-/// A decided instance.
-pub struct Decided {
-    /// The verdict (a `Violated` one re-evaluated, see [`decide`]).
-    pub verdict: Verdict,
-    /// The engine that decided.
-    pub engine: Engine,
-    /// Wall time of the decision.
-    pub seconds: f64,
-    /// For `Violated`: the outputs at the counterexample by the network's own f64
-    /// evaluator (`Network::eval_f64`), written to the result file.
-    pub outputs: Option<Vec<f64>>,
-}
-
-/// A counterexample re-checked concretely ([`recheck`]).
-pub enum Recheck {
-    /// The network's f64 outputs at the point satisfy the disjunct.
-    Holds(Vec<f64>),
-    /// f64 rounding puts the point outside the disjunct by `margin`, but exact rational
-    /// arithmetic confirms it (a `sat` still; the f64 outputs are the ones written).
-    ExactOnly(Vec<f64>, f64),
-    /// Neither f64 nor exact arithmetic confirms the point (`margin`: by how much the
-    /// f64 outputs miss the disjunct).
-    Fails(f64),
-}
-
-/// Re-check a counterexample `x` of disjunct `disjunct` of `q` by evaluating the network
-/// concretely: its plain f64 evaluator (`Network::eval_f64`), then, if that misses the
-/// region by rounding, exact rational arithmetic. The one check of `samara vnncomp`'s
-/// verdicts and of `samara merge vnncomp`'s `sat` parts.
-pub fn recheck(net: &Network, q: &Query, x: &[f64], disjunct: usize) -> Result<Recheck> {
-    let Some(cs) = q.region.get(disjunct) else {
-        bail!(
-            "disjunct {disjunct} does not exist (the property has {})",
-            q.region.len()
-        );
-    };
-    if x.len() != net.n_inputs() {
-        bail!(
-            "{} input values for a network of {} inputs",
-            x.len(),
-            net.n_inputs()
-        );
-    }
-    let y = net.eval_f64(x);
-    let again = Point {
-        inputs: vec![x.to_vec()],
-        outputs: vec![y.clone()],
-        free: vec![],
-    };
-    if again.satisfies(cs) {
-        return Ok(Recheck::Holds(y));
-    }
-    let margin = again.margin(cs);
-    let exact = samara_verify::net::PwlNet::from_network(net)
-        .ok()
-        .and_then(|pwl| samara_verify::exact::exact_satisfies(&[&pwl], &again, cs));
-    Ok(if exact == Some(true) {
-        Recheck::ExactOnly(y, margin)
-    } else {
-        Recheck::Fails(margin)
-    })
-}
-
-/// Decide one instance within `timeout` seconds. A counterexample is re-checked
-/// ([`recheck`]) before it is reported: a point that the f64 re-evaluation or exact
-/// rational arithmetic confirms stays `sat` (its f64 outputs are the ones written; a
-/// disagreement is said on stderr); any other becomes `unknown` (rounding).
-pub fn decide(net: Network, q: &Query, timeout: f64, max_nodes: usize) -> Result<Decided> {
-    let mut nets = HashMap::new();
-    nets.insert("f".to_string(), net);
-    let prep = Prepared::new(&nets);
-    let t0 = Instant::now();
-    let (mut verdict, engine) = prove_routed(
-        q,
-        &prep,
-        &Settings {
-            timeout,
-            max_nodes,
-            ..Default::default()
-        },
-    )?;
-    let mut outputs = None;
-    if let Verdict::Violated(c) = &verdict {
-        match recheck(&nets["f"], q, &c.point.inputs[0], c.disjunct)? {
-            Recheck::Holds(y) => outputs = Some(y),
-            Recheck::ExactOnly(y, margin) => {
-                eprintln!(
-                    "note: the counterexample holds in exact arithmetic but the f64 re-evaluation puts it outside the region by rounding (margin {margin:e})"
-                );
-                outputs = Some(y);
-            }
-            Recheck::Fails(margin) => {
-                verdict = Verdict::Unknown(UnknownReason::Rounding {
-                    margin,
-                    tolerance: 0.0,
-                });
-            }
-        }
-    }
-    Ok(Decided {
-        verdict,
-        engine,
-        seconds: t0.elapsed().as_secs_f64(),
-        outputs,
-    })
-}
-
-/// The competition's result word: `sat`, `unsat`, `timeout` (the time limit ran out) or
-/// `unknown` (any other reason).
-pub fn result_word(v: &Verdict) -> &'static str {
-    match v {
-        Verdict::Proved => "unsat",
-        Verdict::Violated(_) => "sat",
-        Verdict::Unknown(UnknownReason::Timeout { .. }) => "timeout",
-        Verdict::Unknown(_) => "unknown",
-    }
-}
-
-/// The result file's text (VNN-COMP 2021-2024): the word on the first line; after `sat`
-/// the assignment `((X_0 v)`, ` (X_1 v)`, ..., ` (Y_m v))`, one variable per line,
-/// values in the shortest decimal form that reads back to the same f64.
-pub fn result_text(d: &Decided) -> String {
-    let mut s = format!("{}\n", result_word(&d.verdict));
-    if let (Verdict::Violated(c), Some(y)) = (&d.verdict, &d.outputs) {
-        let x = &c.point.inputs[0];
-        let vars: Vec<(String, f64)> = x
-            .iter()
-            .enumerate()
-            .map(|(i, v)| (format!("X_{i}"), *v))
-            .chain(y.iter().enumerate().map(|(j, v)| (format!("Y_{j}"), *v)))
-            .collect();
-        for (k, (name, v)) in vars.iter().enumerate() {
-            let open = if k == 0 { "((" } else { " (" };
-            let close = if k + 1 == vars.len() { "))" } else { ")" };
-            let _ = writeln!(s, "{open}{name} {v}{close}");
-        }
-    }
-    s
-}
-
-/// The JSON of a decided instance's verdict (the `verify-vnnlib --json` fields).
-pub fn verdict_json(d: &Decided) -> (Value, Value) {
-    match &d.verdict {
-        Verdict::Proved => (Value::Null, Value::Null),
-        Verdict::Violated(c) => (
-            json!({"inputs": c.point.inputs[0], "outputs": d.outputs, "margin": c.margin, "exact_check": c.exact}),
-            Value::Null,
-        ),
-        Verdict::Unknown(r) => (json!(r.to_string()), reason_json(r)),
-    }
-}
-
 /// One line of an instances CSV.
 struct Line {
     onnx: String,
@@ -317,171 +164,6 @@ fn parse_instances(path: &Path, text: &str) -> Result<Vec<Line>> {
         );
     }
     Ok(out)
-}
-
-fn csv_field(s: &str) -> String {
-    if s.contains([',', '"', '\n']) {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
-}
-
-/// A result word of the results CSV, typed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
-enum Word {
-    Unsat,
-    Sat,
-    Timeout,
-    Unknown,
-}
-
-impl Word {
-    fn of(v: &Verdict) -> Word {
-        match v {
-            Verdict::Proved => Word::Unsat,
-            Verdict::Violated(_) => Word::Sat,
-            Verdict::Unknown(UnknownReason::Timeout { .. }) => Word::Timeout,
-            Verdict::Unknown(_) => Word::Unknown,
-        }
-    }
-
-    fn text(self) -> &'static str {
-        match self {
-            Word::Unsat => "unsat",
-            Word::Sat => "sat",
-            Word::Timeout => "timeout",
-            Word::Unknown => "unknown",
-        }
-    }
-}
-
-/// A `sat` instance's counterexample as a shard stores it.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-struct Cex {
-    /// The input point.
-    inputs: Vec<f64>,
-    /// The network's f64 outputs there (re-computed by the merge).
-    outputs: Vec<f64>,
-    /// The engine's margin (null when not finite).
-    margin: Option<f64>,
-    /// Whether exact arithmetic confirmed it (`exact_check`).
-    exact_check: Option<bool>,
-    /// Which disjunct of the property's region the point lies in.
-    disjunct: usize,
-}
-
-/// Why an instance is `timeout` or `unknown`.
-#[derive(Clone, Debug, Serialize, Deserialize)]
-struct Reason {
-    kind: String,
-    message: String,
-}
-
-/// One decided instance, typed: what a shard stores and what both the one-process run
-/// and the merge format the results-CSV line, the `--json` row and the progress line
-/// from (never a stored text copy).
-#[derive(Clone, Debug, Serialize, Deserialize)]
-struct Part {
-    /// The instances CSV's line number.
-    line: usize,
-    onnx: String,
-    vnnlib: String,
-    /// The instance's timeout times --timeout-scale.
-    timeout: f64,
-    result: Word,
-    seconds: f64,
-    /// The engine's tag (`route::Engine::tag`).
-    engine: String,
-    /// For `sat` only.
-    counterexample: Option<Cex>,
-    /// For `timeout` and `unknown` only.
-    unknown_reason: Option<Reason>,
-}
-
-impl Part {
-    fn of(l: &Line, t: f64, d: &Decided) -> Part {
-        let counterexample = match (&d.verdict, &d.outputs) {
-            (Verdict::Violated(c), Some(y)) => Some(Cex {
-                inputs: c.point.inputs[0].clone(),
-                outputs: y.clone(),
-                margin: Some(c.margin).filter(|m| m.is_finite()),
-                exact_check: c.exact,
-                disjunct: c.disjunct,
-            }),
-            _ => None,
-        };
-        Part {
-            line: l.lineno,
-            onnx: l.onnx.clone(),
-            vnnlib: l.vnnlib.clone(),
-            timeout: t,
-            result: Word::of(&d.verdict),
-            seconds: d.seconds,
-            engine: d.engine.tag().to_string(),
-            counterexample,
-            unknown_reason: match &d.verdict {
-                Verdict::Unknown(r) => Some(Reason {
-                    kind: r.kind().to_string(),
-                    message: r.to_string(),
-                }),
-                _ => None,
-            },
-        }
-    }
-
-    /// The results CSV's line.
-    fn csv_line(&self) -> String {
-        let detail = match (&self.unknown_reason, &self.counterexample) {
-            (Some(r), _) => r.kind.clone(),
-            (None, Some(c)) => format!(
-                "exact_check={}",
-                c.exact_check.map_or("none".into(), |b| b.to_string())
-            ),
-            (None, None) => String::new(),
-        };
-        format!(
-            "{},{},{},{},{:.3},{},{}\n",
-            csv_field(&self.onnx),
-            csv_field(&self.vnnlib),
-            self.timeout,
-            self.result.text(),
-            self.seconds,
-            self.engine,
-            csv_field(&detail)
-        )
-    }
-
-    /// The `--json` row (the `verify-vnnlib --json` fields).
-    fn row(&self) -> Result<String> {
-        let cx = match (&self.counterexample, &self.unknown_reason) {
-            (Some(c), _) => json!({"inputs": c.inputs, "outputs": c.outputs,
-                "margin": c.margin, "exact_check": c.exact_check}),
-            (None, Some(r)) => json!(r.message),
-            (None, None) => Value::Null,
-        };
-        let reason = self.unknown_reason.as_ref().map_or(
-            Value::Null,
-            |r| json!({"kind": r.kind, "message": r.message}),
-        );
-        Ok(serde_json::to_string(
-            &json!({"line": self.line, "onnx": self.onnx, "vnnlib": self.vnnlib,
-            "timeout": self.timeout, "result": self.result.text(), "seconds": self.seconds,
-            "engine": self.engine, "counterexample": cx, "unknown_reason": reason}),
-        )?)
-    }
-
-    /// The progress line on stdout.
-    fn progress(&self) -> String {
-        format!(
-            "{} {} {} {:.2}s",
-            self.onnx,
-            self.vnnlib,
-            self.result.text(),
-            self.seconds
-        )
-    }
 }
 
 /// What every shard of one `samara vnncomp` run shares (`run` of the shard file).
@@ -630,9 +312,12 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     for (l, (net, q, t)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
         let d = decide(net, &q, t, a.max_nodes)?;
-        let part = Part::of(l, t, &d);
+        if let Some(n) = &d.note {
+            bar.suspend(|| eprintln!("note: {n}"));
+        }
+        let part = Part::of(l.lineno, &l.onnx, &l.vnnlib, t, &d);
         *counts.entry(part.result).or_default() += 1;
-        let row = part.row()?;
+        let row = serde_json::to_string(&serde_json::to_value(part.row())?)?;
         let progress = part.progress();
         if let (Some(s), Some(run)) = (a.shard, &run) {
             shard_doc.parts.push(part);
@@ -902,7 +587,7 @@ pub fn merge_vnncomp(
             let p = check_part(file, &run, l, scale, p)?;
             *counts.entry(p.result).or_default() += 1;
             csv.push_str(&p.csv_line());
-            rows.push(p.row()?);
+            rows.push(serde_json::to_string(&serde_json::to_value(p.row())?)?);
             total += p.seconds;
             if !json_out {
                 println!("{}", p.progress());

@@ -1,0 +1,409 @@
+//! VNN-COMP instances: deciding one with the routed engines and the verdict policy
+//! (every counterexample re-checked concretely before it is reported, downgraded to
+//! `unknown` (rounding) when neither f64 nor exact arithmetic confirms it), the
+//! competition's result words and result file, and the typed per-instance result that
+//! results CSVs, `--json` rows and shard files are made from.
+
+use crate::{AppError, Reason};
+use samara_nn::Network;
+use samara_spec::normal::Query;
+use samara_verify::engine::Point;
+use samara_verify::route::{prove_routed, Engine};
+use samara_verify::{Prepared, Settings, UnknownReason, Verdict};
+use serde::{Deserialize, Serialize};
+use std::collections::HashMap;
+use std::fmt::Write as _;
+use std::time::Instant;
+
+/// A decided instance.
+pub struct Decided {
+    /// The verdict (a `Violated` one re-checked, see [`decide`]).
+    pub verdict: Verdict,
+    /// The engine that decided.
+    pub engine: Engine,
+    /// Wall time of the decision.
+    pub seconds: f64,
+    /// For `Violated`: the outputs at the counterexample by the network's own f64
+    /// evaluator (`Network::eval_f64`), written to the result file.
+    pub outputs: Option<Vec<f64>>,
+    /// A note for the user (the counterexample holds in exact arithmetic only).
+    pub note: Option<String>,
+}
+
+/// A counterexample re-checked concretely ([`recheck`]).
+pub enum Recheck {
+    /// The network's f64 outputs at the point satisfy the disjunct.
+    Holds(Vec<f64>),
+    /// f64 rounding puts the point outside the disjunct by `margin`, but exact rational
+    /// arithmetic confirms it (a `sat` still; the f64 outputs are the ones written).
+    ExactOnly(Vec<f64>, f64),
+    /// Neither f64 nor exact arithmetic confirms the point (`margin`: by how much the
+    /// f64 outputs miss the disjunct).
+    Fails(f64),
+}
+
+/// Re-check a counterexample `x` of disjunct `disjunct` of `q` by evaluating the network
+/// concretely: its plain f64 evaluator (`Network::eval_f64`), then, if that misses the
+/// region by rounding, exact rational arithmetic. The one check of deciding an instance
+/// and of merging shards' `sat` parts.
+pub fn recheck(net: &Network, q: &Query, x: &[f64], disjunct: usize) -> Result<Recheck, AppError> {
+    let Some(cs) = q.region.get(disjunct) else {
+        return crate::input(format!(
+            "disjunct {disjunct} does not exist (the property has {})",
+            q.region.len()
+        ));
+    };
+    if x.len() != net.n_inputs() {
+        return crate::input(format!(
+            "{} input values for a network of {} inputs",
+            x.len(),
+            net.n_inputs()
+        ));
+    }
+    let y = net.eval_f64(x);
+    let again = Point {
+        inputs: vec![x.to_vec()],
+        outputs: vec![y.clone()],
+        free: vec![],
+    };
+    if again.satisfies(cs) {
+        return Ok(Recheck::Holds(y));
+    }
+    let margin = again.margin(cs);
+    let exact = samara_verify::net::PwlNet::from_network(net)
+        .ok()
+        .and_then(|pwl| samara_verify::exact::exact_satisfies(&[&pwl], &again, cs));
+    Ok(if exact == Some(true) {
+        Recheck::ExactOnly(y, margin)
+    } else {
+        Recheck::Fails(margin)
+    })
+}
+
+/// Decide one instance (network `f` of `q`) within `timeout` seconds. A counterexample
+/// is re-checked ([`recheck`]) before it is reported: a point that the f64
+/// re-evaluation or exact rational arithmetic confirms stays `sat` (its f64 outputs are
+/// the ones written; a disagreement is said in [`Decided::note`]); any other becomes
+/// `unknown` (rounding).
+pub fn decide(
+    net: Network,
+    q: &Query,
+    timeout: f64,
+    max_nodes: usize,
+) -> Result<Decided, AppError> {
+    let mut nets = HashMap::new();
+    nets.insert("f".to_string(), net);
+    let prep = Prepared::new(&nets);
+    let t0 = Instant::now();
+    let (mut verdict, engine) = prove_routed(
+        q,
+        &prep,
+        &Settings {
+            timeout,
+            max_nodes,
+            ..Default::default()
+        },
+    )?;
+    let mut outputs = None;
+    let mut note = None;
+    if let Verdict::Violated(c) = &verdict {
+        match recheck(&nets["f"], q, &c.point.inputs[0], c.disjunct)? {
+            Recheck::Holds(y) => outputs = Some(y),
+            Recheck::ExactOnly(y, margin) => {
+                note = Some(format!(
+                    "the counterexample holds in exact arithmetic but the f64 re-evaluation puts it outside the region by rounding (margin {margin:e})"
+                ));
+                outputs = Some(y);
+            }
+            Recheck::Fails(margin) => {
+                verdict = Verdict::Unknown(UnknownReason::Rounding {
+                    margin,
+                    tolerance: 0.0,
+                });
+            }
+        }
+    }
+    Ok(Decided {
+        verdict,
+        engine,
+        seconds: t0.elapsed().as_secs_f64(),
+        outputs,
+        note,
+    })
+}
+
+/// A result word of the competition, typed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Word {
+    /// Proved (the property's counterexample region is empty).
+    Unsat,
+    /// A re-checked counterexample.
+    Sat,
+    /// The time limit ran out.
+    Timeout,
+    /// Any other reason for no verdict.
+    Unknown,
+}
+
+impl Word {
+    /// The word of a verdict.
+    pub fn of(v: &Verdict) -> Word {
+        match v {
+            Verdict::Proved => Word::Unsat,
+            Verdict::Violated(_) => Word::Sat,
+            Verdict::Unknown(UnknownReason::Timeout { .. }) => Word::Timeout,
+            Verdict::Unknown(_) => Word::Unknown,
+        }
+    }
+
+    /// `unsat`, `sat`, `timeout` or `unknown`.
+    pub fn text(self) -> &'static str {
+        match self {
+            Word::Unsat => "unsat",
+            Word::Sat => "sat",
+            Word::Timeout => "timeout",
+            Word::Unknown => "unknown",
+        }
+    }
+}
+
+/// The result file's text (VNN-COMP 2021-2024): the word on the first line; after `sat`
+/// the assignment `((X_0 v)`, ` (X_1 v)`, ..., ` (Y_m v))`, one variable per line,
+/// values in the shortest decimal form that reads back to the same f64.
+pub fn result_text(d: &Decided) -> String {
+    let mut s = format!("{}\n", Word::of(&d.verdict).text());
+    if let (Verdict::Violated(c), Some(y)) = (&d.verdict, &d.outputs) {
+        let x = &c.point.inputs[0];
+        let vars: Vec<(String, f64)> = x
+            .iter()
+            .enumerate()
+            .map(|(i, v)| (format!("X_{i}"), *v))
+            .chain(y.iter().enumerate().map(|(j, v)| (format!("Y_{j}"), *v)))
+            .collect();
+        for (k, (name, v)) in vars.iter().enumerate() {
+            let open = if k == 0 { "((" } else { " (" };
+            let close = if k + 1 == vars.len() { "))" } else { ")" };
+            let _ = writeln!(s, "{open}{name} {v}{close}");
+        }
+    }
+    s
+}
+
+/// The `counterexample` field of a VNN-COMP `--json` row: the point of a `sat`
+/// instance, or the reason text of any other.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum JsonCounterexample {
+    /// A `sat` instance's point.
+    Point {
+        /// The inputs.
+        inputs: Vec<f64>,
+        /// The network's f64 outputs there.
+        outputs: Option<Vec<f64>>,
+        /// The engine's margin (`null` when not finite).
+        margin: Option<f64>,
+        /// Whether exact arithmetic confirmed it.
+        exact_check: Option<bool>,
+    },
+    /// An unknown instance's reason text.
+    Message(String),
+}
+
+/// The counterexample and unknown reason of a decided instance, as `--json` shows them.
+pub fn verdict_fields(d: &Decided) -> (Option<JsonCounterexample>, Option<Reason>) {
+    match &d.verdict {
+        Verdict::Proved => (None, None),
+        Verdict::Violated(c) => (
+            Some(JsonCounterexample::Point {
+                inputs: c.point.inputs[0].clone(),
+                outputs: d.outputs.clone(),
+                margin: Some(c.margin).filter(|m| m.is_finite()),
+                exact_check: c.exact,
+            }),
+            None,
+        ),
+        Verdict::Unknown(r) => (
+            Some(JsonCounterexample::Message(r.to_string())),
+            Some(r.into()),
+        ),
+    }
+}
+
+/// One decided instance as `samara verify-vnnlib --json` shows it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct InstanceVerdict {
+    /// `unsat`, `sat` or `unknown` (a timeout is `unknown` here; its reason says so).
+    pub result: String,
+    /// The point (`sat`) or the reason text.
+    pub counterexample: Option<JsonCounterexample>,
+    /// Wall time.
+    pub seconds: f64,
+    /// Why it is unknown.
+    pub unknown_reason: Option<Reason>,
+    /// The engine's tag.
+    pub engine: String,
+}
+
+impl InstanceVerdict {
+    /// The verdict of a decided instance.
+    pub fn of(d: &Decided) -> Self {
+        let (counterexample, unknown_reason) = verdict_fields(d);
+        let result = match &d.verdict {
+            Verdict::Proved => "unsat",
+            Verdict::Violated(_) => "sat",
+            Verdict::Unknown(_) => "unknown",
+        };
+        InstanceVerdict {
+            result: result.to_string(),
+            counterexample,
+            seconds: d.seconds,
+            unknown_reason,
+            engine: d.engine.tag().to_string(),
+        }
+    }
+}
+
+/// A `sat` instance's counterexample as a shard stores it.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Cex {
+    /// The input point.
+    pub inputs: Vec<f64>,
+    /// The network's f64 outputs there (re-computed by the merge).
+    pub outputs: Vec<f64>,
+    /// The engine's margin (null when not finite).
+    pub margin: Option<f64>,
+    /// Whether exact arithmetic confirmed it (`exact_check`).
+    pub exact_check: Option<bool>,
+    /// Which disjunct of the property's region the point lies in.
+    pub disjunct: usize,
+}
+
+/// One decided instance of a benchmark, typed, with its counterexample in form `C`:
+/// [`InstanceResult`] (what a shard stores and what both the one-process run and the
+/// merge format the results-CSV line, the `--json` row and the progress line from) and
+/// [`JsonRow`] (the `--json` row).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Instance<C> {
+    /// The instances CSV's line number.
+    pub line: usize,
+    /// The network file as the CSV names it.
+    pub onnx: String,
+    /// The property file as the CSV names it.
+    pub vnnlib: String,
+    /// The instance's timeout (scaled).
+    pub timeout: f64,
+    /// The result word.
+    pub result: Word,
+    /// Wall time.
+    pub seconds: f64,
+    /// The engine's tag (`route::Engine::tag`).
+    pub engine: String,
+    /// For `sat` only (the `--json` row: the reason text for `timeout`/`unknown`).
+    pub counterexample: Option<C>,
+    /// For `timeout` and `unknown` only.
+    pub unknown_reason: Option<Reason>,
+}
+
+/// A decided instance as a shard stores it.
+pub type InstanceResult = Instance<Cex>;
+
+/// The `--json` row of an instance (the `verify-vnnlib --json` fields and where it is).
+pub type JsonRow = Instance<JsonCounterexample>;
+
+impl InstanceResult {
+    /// The result of a decided instance of CSV line `line`.
+    pub fn of(line: usize, onnx: &str, vnnlib: &str, timeout: f64, d: &Decided) -> Self {
+        let counterexample = match (&d.verdict, &d.outputs) {
+            (Verdict::Violated(c), Some(y)) => Some(Cex {
+                inputs: c.point.inputs[0].clone(),
+                outputs: y.clone(),
+                margin: Some(c.margin).filter(|m| m.is_finite()),
+                exact_check: c.exact,
+                disjunct: c.disjunct,
+            }),
+            _ => None,
+        };
+        InstanceResult {
+            line,
+            onnx: onnx.to_string(),
+            vnnlib: vnnlib.to_string(),
+            timeout,
+            result: Word::of(&d.verdict),
+            seconds: d.seconds,
+            engine: d.engine.tag().to_string(),
+            counterexample,
+            unknown_reason: match &d.verdict {
+                Verdict::Unknown(r) => Some(r.into()),
+                _ => None,
+            },
+        }
+    }
+
+    /// The results CSV's line.
+    pub fn csv_line(&self) -> String {
+        let detail = match (&self.unknown_reason, &self.counterexample) {
+            (Some(r), _) => r.kind.clone(),
+            (None, Some(c)) => format!(
+                "exact_check={}",
+                c.exact_check.map_or("none".into(), |b| b.to_string())
+            ),
+            (None, None) => String::new(),
+        };
+        format!(
+            "{},{},{},{},{:.3},{},{}\n",
+            csv_field(&self.onnx),
+            csv_field(&self.vnnlib),
+            self.timeout,
+            self.result.text(),
+            self.seconds,
+            self.engine,
+            csv_field(&detail)
+        )
+    }
+
+    /// The `--json` row.
+    pub fn row(&self) -> JsonRow {
+        let counterexample = match (&self.counterexample, &self.unknown_reason) {
+            (Some(c), _) => Some(JsonCounterexample::Point {
+                inputs: c.inputs.clone(),
+                outputs: Some(c.outputs.clone()),
+                margin: c.margin,
+                exact_check: c.exact_check,
+            }),
+            (None, Some(r)) => Some(JsonCounterexample::Message(r.message.clone())),
+            (None, None) => None,
+        };
+        JsonRow {
+            line: self.line,
+            onnx: self.onnx.clone(),
+            vnnlib: self.vnnlib.clone(),
+            timeout: self.timeout,
+            result: self.result,
+            seconds: self.seconds,
+            engine: self.engine.clone(),
+            counterexample,
+            unknown_reason: self.unknown_reason.clone(),
+        }
+    }
+
+    /// The progress line.
+    pub fn progress(&self) -> String {
+        format!(
+            "{} {} {} {:.2}s",
+            self.onnx,
+            self.vnnlib,
+            self.result.text(),
+            self.seconds
+        )
+    }
+}
+
+/// A field of a CSV line, quoted when it needs to be.
+pub fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_string()
+    }
+}
