@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 mod support;
+use support::reference;
 use support::sealing::write_shard;
 
 fn run(args: &[&OsStr]) -> (Option<i32>, String, String) {
@@ -22,10 +23,6 @@ fn run(args: &[&OsStr]) -> (Option<i32>, String, String) {
         String::from_utf8_lossy(&o.stdout).into_owned(),
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
-}
-
-fn reference() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference")
 }
 
 fn acasxu() -> PathBuf {
@@ -54,15 +51,10 @@ fn strip(mut v: Value) -> Value {
 
 #[test]
 fn robustness_shards_merge_to_the_unsharded_result() {
-    let r = reference();
     let (net, data) = (
-        r.join("base_model_norm.onnx"),
-        r.join("Training_Data_Normalised.csv"),
+        reference("base_model_norm.onnx"),
+        reference("Training_Data_Normalised.csv"),
     );
-    if !data.exists() {
-        eprintln!("skipped: {} not found", data.display());
-        return;
-    }
     let dir = tempfile::tempdir().unwrap();
     let common: Vec<&OsStr> = vec![
         "robustness".as_ref(),
@@ -260,7 +252,8 @@ fn vnncomp_shards_merge_to_the_unsharded_result() {
 
 #[test]
 fn bad_shard_values_are_usage_errors() {
-    let r = reference();
+    let r = support::reference("base_model_norm.onnx");
+    let r = r.parent().expect("a file in the reference folder");
     let (net, data) = (r.join("base_model_norm.onnx"), r.join("x.csv"));
     for bad in ["3/3", "0/0", "-1/3", "1", "a/b", "1/"] {
         for cmd in ["robustness", "vnncomp"] {
@@ -320,13 +313,7 @@ fn bad_shard_values_are_usage_errors() {
 
 /// The published raw-unit controller (the network of the reach tests).
 fn denorm_net() -> PathBuf {
-    let p = reference().join("base_model_denorm.onnx");
-    assert!(
-        p.exists(),
-        "{} not found: the reach tests read the published controller from ../shared/reference",
-        p.display()
-    );
-    p
+    reference("base_model_denorm.onnx")
 }
 
 /// `samara reach --network NET ARGS... --threads 2` plus `extra`.
@@ -524,13 +511,13 @@ fn reach_merge_refuses_shards_that_do_not_make_one_run() {
     let g1 = shard(&other, "1/2", "g1.json");
     let err = merge(&[&s0, &g1]);
     assert!(err.contains("different runs"), "{err}");
-    let adv = reference().join("adversarial_model_denorm.onnx");
-    if adv.exists() {
-        let f = dir.path().join("n1.json");
-        reach_shard(&adv, &args, "1/2", &f);
-        let err = merge(&[&s0, &f]);
-        assert!(err.contains("different runs"), "{err}");
-    }
+    // A shard of another network (the adversarially trained one) is of another run.
+    let adv = reference("adversarial_model_denorm.onnx");
+    let f = dir.path().join("n1.json");
+    reach_shard(&adv, &args, "1/2", &f);
+    let err = merge(&[&s0, &f]);
+    assert!(err.contains("different runs"), "{err}");
+
     // A shard of a 3-shard run among a 2-shard run's.
     let t1 = shard(&args, "1/3", "t1.json");
     let err = merge(&[&s0, &t1]);

@@ -91,7 +91,7 @@ fn full_base_contains_samples() {
 /// The soundness bar: 2,000 random starts over the whole published interval and
 /// horizon, both raw-unit networks, all three variants (minutes; run with --ignored).
 #[test]
-#[ignore]
+#[ignore = "2,000 starts x 2 networks x 3 variants: minutes; run with --ignored"]
 fn published_setting_contains_2000_samples() {
     for model in Model::ALL {
         for file in ["base_model_denorm.onnx", "adversarial_model_denorm.onnx"] {

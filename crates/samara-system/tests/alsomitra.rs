@@ -265,7 +265,7 @@ fn closed_loop_flights_are_bit_identical() {
 /// Time per right-hand side, file (with and without a reused buffer) vs built-in.
 /// `cargo test --release -p samara-system --test alsomitra -- --ignored --nocapture`
 #[test]
-#[ignore]
+#[ignore = "a timing report (prints, asserts nothing): run with --release -- --ignored --nocapture"]
 fn rhs_speed() {
     let sys = file("alsomitra_plate6.sys");
     let plant = Plant::new(Model::Plate6);

@@ -261,7 +261,7 @@ fn fuzz_ci() {
 }
 
 #[test]
-#[ignore]
+#[ignore = "10,000 fuzz cases (the CI runs 2,000 in fuzz_ci); run with --ignored"]
 fn fuzz_10k() {
     let (ok, bad, secs) = run(10_000, 2026);
     eprintln!("fuzz (10k): 10000 cases, {ok} accepted, {bad} rejected with an error, {secs:.2} s");

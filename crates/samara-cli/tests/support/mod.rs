@@ -14,10 +14,9 @@ pub const SPEC: &str = concat!(
 );
 
 /// A published reference file as a path string (fails, never skips, when it is
-/// missing: [`reference`]).
-pub fn reference_str(name: &str) -> String {
-    reference(name).display().to_string()
-}
+/// missing).
+#[allow(unused_imports)] // each test file uses its own subset
+pub use samara_testkit::reference_str;
 
 /// The `samara` binary built for these tests.
 pub fn samara() -> Command {
