@@ -3,6 +3,7 @@
 //! import and export ([`onnx`]), and the NNet text format of ACAS Xu ([`nnet`]).
 #![warn(missing_docs)]
 
+pub mod attack;
 pub mod data;
 pub mod graph;
 pub mod ir;
