@@ -249,3 +249,92 @@ fn operators_match_hand_computed_values() {
         vec![4.0, 0.0]
     );
 }
+
+fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
+    proto::ValueInfoProto {
+        name: name.into(),
+        r#type: Some(proto::TypeProto {
+            tensor_type: Some(proto::TypeProtoTensor {
+                elem_type: proto::FLOAT,
+                shape: Some(proto::TensorShapeProto {
+                    dim: dims
+                        .iter()
+                        .map(|&d| proto::Dimension {
+                            dim_value: Some(d),
+                            dim_param: None,
+                        })
+                        .collect(),
+                }),
+            }),
+        }),
+    }
+}
+
+fn op(op_type: &str, inputs: &[&str], out: &str, axis: Option<i64>) -> proto::NodeProto {
+    proto::NodeProto {
+        input: inputs.iter().map(|s| s.to_string()).collect(),
+        output: vec![out.into()],
+        name: format!("{op_type}_{out}"),
+        op_type: op_type.into(),
+        attribute: axis
+            .map(|a| {
+                vec![proto::AttributeProto {
+                    name: "axis".into(),
+                    i: a,
+                    r#type: 2,
+                    ..Default::default()
+                }]
+            })
+            .unwrap_or_default(),
+        ..Default::default()
+    }
+}
+
+/// A ReLU output concatenated with a negative constant is not non-negative: carried
+/// through a later ReLU layer it must keep its negative entry (a wrong "non-negative"
+/// mark would carry it by identity, and the ReLU would zero it).
+#[test]
+fn concat_with_a_negative_constant_is_carried_with_its_sign() {
+    let m = proto::ModelProto {
+        ir_version: 8,
+        opset_import: vec![proto::OperatorSetIdProto {
+            domain: String::new(),
+            version: 13,
+        }],
+        graph: Some(proto::GraphProto {
+            node: vec![
+                op("Relu", &["x"], "r", None),
+                op("Concat", &["r", "k"], "c", Some(0)),
+                op("Neg", &["x"], "n", None),
+                op("Relu", &["n"], "s", None),
+                op("Concat", &["c", "s"], "y", Some(0)),
+            ],
+            initializer: vec![proto::TensorProto {
+                dims: vec![1],
+                data_type: proto::FLOAT,
+                float_data: vec![-1.5],
+                name: "k".into(),
+                ..Default::default()
+            }],
+            input: vec![vinfo("x", &[2])],
+            output: vec![vinfo("y", &[5])],
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    let bytes = m.encode_to_vec();
+    let g = onnx::graph_from_bytes(&bytes, "neg.onnx").unwrap();
+    let chain = onnx::from_bytes(&bytes, "neg.onnx").unwrap();
+    for x in [[0.5f64, -2.0], [-1.0, 3.0], [0.0, 0.0]] {
+        // Hand-computed: [relu(x0), relu(x1), -1.5, relu(-x0), relu(-x1)].
+        let want = [
+            x[0].max(0.0),
+            x[1].max(0.0),
+            -1.5,
+            (-x[0]).max(0.0),
+            (-x[1]).max(0.0),
+        ];
+        assert_eq!(g.eval_f64(&x).unwrap(), want);
+        assert_eq!(chain.eval_f64(&x), want);
+    }
+}
