@@ -338,3 +338,49 @@ fn concat_with_a_negative_constant_is_carried_with_its_sign() {
         assert_eq!(chain.eval_f64(&x), want);
     }
 }
+
+/// An ordinary Clip lowers to `lo + relu(x - lo) - relu(x - hi)`; min above max is
+/// refused by the chain importer as before (the graph evaluation reads it as the
+/// constant max, onnxruntime's reading, and so does its lowering inside larger graphs).
+#[test]
+fn clip_lowering_matches_its_evaluation() {
+    let scalar = |name: &str, v: f32| proto::TensorProto {
+        dims: vec![],
+        data_type: proto::FLOAT,
+        float_data: vec![v],
+        name: name.into(),
+        ..Default::default()
+    };
+    for (lo, hi) in [(-0.5f32, 0.7f32), (1.0, -1.0)] {
+        let m = proto::ModelProto {
+            ir_version: 8,
+            opset_import: vec![proto::OperatorSetIdProto {
+                domain: String::new(),
+                version: 13,
+            }],
+            graph: Some(proto::GraphProto {
+                node: vec![op("Clip", &["x", "lo", "hi"], "y", None)],
+                initializer: vec![scalar("lo", lo), scalar("hi", hi)],
+                input: vec![vinfo("x", &[3])],
+                output: vec![vinfo("y", &[3])],
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let bytes = m.encode_to_vec();
+        let x = [-2.0, 0.25, 3.0];
+        let g = onnx::graph_from_bytes(&bytes, "clip.onnx").unwrap();
+        if lo > hi {
+            assert_eq!(g.eval_f64(&x).unwrap(), vec![hi as f64; 3]);
+            let e = onnx::from_bytes(&bytes, "clip.onnx")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("min must be <= max"), "{e}");
+        } else {
+            let chain = onnx::from_bytes(&bytes, "clip.onnx").unwrap();
+            let want = vec![lo as f64, 0.25, hi as f64];
+            assert_eq!(chain.eval_f64(&x), want);
+            assert_eq!(g.eval_f64(&x).unwrap(), want);
+        }
+    }
+}

@@ -793,6 +793,16 @@ impl Lower<'_> {
                     self.reps.insert(out0, x);
                     return Ok(());
                 }
+                if lo > hi {
+                    // Clip with min > max is the constant max (as evaluated).
+                    let l = Lin {
+                        cols: vec![None; self.zdim],
+                        c: vec![hi; n],
+                        nonneg: hi >= 0.0,
+                    };
+                    self.reps.insert(out0, l);
+                    return Ok(());
+                }
                 for (s, _) in shifted.iter().enumerate() {
                     // lo only: relu(x - lo); hi only: relu(-(x - hi)); both: both rows.
                     let sign = if !lo.is_finite() { -1.0 } else { 1.0 };
