@@ -11,7 +11,7 @@ through the ONNX file in float32, the whole VNN-LIB property evaluated at them).
 
 usage:
   bench/vnncomp/run_benchmark.py BENCH_DIR [--results RESULTS_DIR] [--timeout-scale S]
-      [--limit N] [--every K] [--samara BIN] [--md OUT.md]
+      [--limit N] [--every K] [--match NET] [--samara BIN] [--md OUT.md]
 BENCH_DIR: e.g. benchmarks/verivital of stanleybak/vnncomp2021 (its *_instances.csv);
 RESULTS_DIR: results_csv of stanleybak/vnncomp2021_results. Networks stored gzipped
 (nn4sys) are unzipped next to a copy of the instances CSV in a temporary folder.
@@ -58,6 +58,7 @@ def main():
     ap.add_argument("--timeout-scale", default="1")
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--every", type=int, default=1)
+    ap.add_argument("--match", default=None, help="only instances whose network path contains this")
     ap.add_argument("--samara", default=None)
     ap.add_argument("--md", default=None, help="write the table here (default: stdout)")
     a = ap.parse_args()
@@ -67,6 +68,8 @@ def main():
     if not insts:
         sys.exit(f"{bench}: no *_instances.csv")
     rows = [r for r in csv.reader(open(insts[0])) if r]
+    if a.match:
+        rows = [r for r in rows if a.match in r[0]]
     rows = rows[:: a.every]
     if a.limit:
         rows = rows[: a.limit]
@@ -102,7 +105,7 @@ def main():
     out = []
     w = out.append
     w(f"## {name}: samara beside the VNN-COMP 2021 tools\n")
-    w(f"{len(ours)} instances of `{insts[0].name}`"
+    w(f"{len(ours)} instances of `{insts[0].name}`" + (f" (networks matching `{a.match}`)" if a.match else "")
       + (f" (every {a.every}th)" if a.every > 1 else "") + (f" (first {a.limit})" if a.limit else "")
       + f"; competition timeouts x {a.timeout_scale}; this machine ({os.cpu_count()} cores, shared); "
       f"wall {wall:.0f} s. Tools' verdicts and times: VNN-COMP 2021 (AWS hardware per tool).\n")
@@ -124,7 +127,18 @@ def main():
       f"{sum(1 for r in ours.values() if r['result'] == 'sat')} sat)"
       + "".join(f"; {pn} {sum(1 for k in ours if peers[pn].get(k, ('-',))[0] in ('sat', 'unsat'))}" for pn in names)
       + ".\n")
-    w(f"Disagreements with a decided tool: {len(dis)}")
+    # The consensus: the verdict most decided tools give (ties: none).
+    against = 0
+    for k, r in ours.items():
+        votes = [peers[pn].get(k, ("-",))[0] for pn in names]
+        votes = [v for v in votes if v in ("sat", "unsat")]
+        if votes and r["result"] in ("sat", "unsat"):
+            top = max(set(votes), key=votes.count)
+            if votes.count(top) * 2 > len(votes) and top != r["result"]:
+                against += 1
+                w(f"- AGAINST THE CONSENSUS: {k}: samara {r['result']}, {votes.count(top)}/{len(votes)} tools {top}")
+    w(f"Verdicts against the consensus of the tools that decided: {against}\n")
+    w(f"Disagreements with some decided tool: {len(dis)}")
     for d in dis:
         w(f"- {d[0]}: samara {d[2]}, {d[1]} {d[3]}")
     sats = [(k, r) for k, r in ours.items() if r["result"] == "sat"]
@@ -142,7 +156,7 @@ def main():
     if a.md:
         Path(a.md).write_text(text)
     print(text)
-    return 1 if dis or ok != len(sats) else 0
+    return 1 if against or ok != len(sats) else 0
 
 
 if __name__ == "__main__":

@@ -1,8 +1,13 @@
 //! Neural networks for samara: an intermediate representation (a sequence of layers with
 //! named inputs and outputs), evaluation generic over [`samara_num::Scalar`], and ONNX
 //! import and export ([`onnx`]), and the NNet text format of ACAS Xu ([`nnet`]).
+//! Networks that are not such a chain (convolutions, pooling, residual blocks, the
+//! VNN-COMP operator set) are read as a DAG of operators ([`graph`], [`ops`]), evaluated
+//! in f64, and lowered to the chain where they are piecewise linear. [`attack`] searches
+//! an input box for a counterexample by projected signed-gradient steps.
 #![warn(missing_docs)]
 
+pub mod attack;
 pub mod data;
 pub mod graph;
 pub mod ir;

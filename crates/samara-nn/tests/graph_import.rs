@@ -249,3 +249,138 @@ fn operators_match_hand_computed_values() {
         vec![4.0, 0.0]
     );
 }
+
+fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
+    proto::ValueInfoProto {
+        name: name.into(),
+        r#type: Some(proto::TypeProto {
+            tensor_type: Some(proto::TypeProtoTensor {
+                elem_type: proto::FLOAT,
+                shape: Some(proto::TensorShapeProto {
+                    dim: dims
+                        .iter()
+                        .map(|&d| proto::Dimension {
+                            dim_value: Some(d),
+                            dim_param: None,
+                        })
+                        .collect(),
+                }),
+            }),
+        }),
+    }
+}
+
+fn op(op_type: &str, inputs: &[&str], out: &str, axis: Option<i64>) -> proto::NodeProto {
+    proto::NodeProto {
+        input: inputs.iter().map(|s| s.to_string()).collect(),
+        output: vec![out.into()],
+        name: format!("{op_type}_{out}"),
+        op_type: op_type.into(),
+        attribute: axis
+            .map(|a| {
+                vec![proto::AttributeProto {
+                    name: "axis".into(),
+                    i: a,
+                    r#type: 2,
+                    ..Default::default()
+                }]
+            })
+            .unwrap_or_default(),
+        ..Default::default()
+    }
+}
+
+/// A ReLU output concatenated with a negative constant is not non-negative: carried
+/// through a later ReLU layer it must keep its negative entry (a wrong "non-negative"
+/// mark would carry it by identity, and the ReLU would zero it).
+#[test]
+fn concat_with_a_negative_constant_is_carried_with_its_sign() {
+    let m = proto::ModelProto {
+        ir_version: 8,
+        opset_import: vec![proto::OperatorSetIdProto {
+            domain: String::new(),
+            version: 13,
+        }],
+        graph: Some(proto::GraphProto {
+            node: vec![
+                op("Relu", &["x"], "r", None),
+                op("Concat", &["r", "k"], "c", Some(0)),
+                op("Neg", &["x"], "n", None),
+                op("Relu", &["n"], "s", None),
+                op("Concat", &["c", "s"], "y", Some(0)),
+            ],
+            initializer: vec![proto::TensorProto {
+                dims: vec![1],
+                data_type: proto::FLOAT,
+                float_data: vec![-1.5],
+                name: "k".into(),
+                ..Default::default()
+            }],
+            input: vec![vinfo("x", &[2])],
+            output: vec![vinfo("y", &[5])],
+            ..Default::default()
+        }),
+        ..Default::default()
+    };
+    let bytes = m.encode_to_vec();
+    let g = onnx::graph_from_bytes(&bytes, "neg.onnx").unwrap();
+    let chain = onnx::from_bytes(&bytes, "neg.onnx").unwrap();
+    for x in [[0.5f64, -2.0], [-1.0, 3.0], [0.0, 0.0]] {
+        // Hand-computed: [relu(x0), relu(x1), -1.5, relu(-x0), relu(-x1)].
+        let want = [
+            x[0].max(0.0),
+            x[1].max(0.0),
+            -1.5,
+            (-x[0]).max(0.0),
+            (-x[1]).max(0.0),
+        ];
+        assert_eq!(g.eval_f64(&x).unwrap(), want);
+        assert_eq!(chain.eval_f64(&x), want);
+    }
+}
+
+/// An ordinary Clip lowers to `lo + relu(x - lo) - relu(x - hi)`; min above max is
+/// refused by the chain importer as before (the graph evaluation reads it as the
+/// constant max, onnxruntime's reading, and so does its lowering inside larger graphs).
+#[test]
+fn clip_lowering_matches_its_evaluation() {
+    let scalar = |name: &str, v: f32| proto::TensorProto {
+        dims: vec![],
+        data_type: proto::FLOAT,
+        float_data: vec![v],
+        name: name.into(),
+        ..Default::default()
+    };
+    for (lo, hi) in [(-0.5f32, 0.7f32), (1.0, -1.0)] {
+        let m = proto::ModelProto {
+            ir_version: 8,
+            opset_import: vec![proto::OperatorSetIdProto {
+                domain: String::new(),
+                version: 13,
+            }],
+            graph: Some(proto::GraphProto {
+                node: vec![op("Clip", &["x", "lo", "hi"], "y", None)],
+                initializer: vec![scalar("lo", lo), scalar("hi", hi)],
+                input: vec![vinfo("x", &[3])],
+                output: vec![vinfo("y", &[3])],
+                ..Default::default()
+            }),
+            ..Default::default()
+        };
+        let bytes = m.encode_to_vec();
+        let x = [-2.0, 0.25, 3.0];
+        let g = onnx::graph_from_bytes(&bytes, "clip.onnx").unwrap();
+        if lo > hi {
+            assert_eq!(g.eval_f64(&x).unwrap(), vec![hi as f64; 3]);
+            let e = onnx::from_bytes(&bytes, "clip.onnx")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("min must be <= max"), "{e}");
+        } else {
+            let chain = onnx::from_bytes(&bytes, "clip.onnx").unwrap();
+            let want = vec![lo as f64, 0.25, hi as f64];
+            assert_eq!(chain.eval_f64(&x), want);
+            assert_eq!(g.eval_f64(&x).unwrap(), want);
+        }
+    }
+}

@@ -651,12 +651,22 @@ impl Lower<'_> {
             .flatten()
             .filter(|i| self.reps.contains_key(i))
             .count();
+        // Non-negative data in, non-negative data out for the operators that move or
+        // average entries; a constant data operand (Concat) must be non-negative too.
         let all_nonneg = node
             .inputs
             .iter()
             .flatten()
-            .filter_map(|i| self.reps.get(i))
-            .all(|l| l.nonneg);
+            .all(|i| match self.reps.get(i) {
+                Some(l) => l.nonneg,
+                None => {
+                    !matches!(node.op, Op::Concat { .. })
+                        || g.values[*i]
+                            .konst
+                            .as_ref()
+                            .is_some_and(|t| t.data.iter().all(|&v| v >= 0.0))
+                }
+            });
         let out0 = node.outputs[0];
         let refuse = |why: &str| {
             Err(err(
@@ -781,6 +791,16 @@ impl Lower<'_> {
                 }
                 if shifted.is_empty() {
                     self.reps.insert(out0, x);
+                    return Ok(());
+                }
+                if lo > hi {
+                    // Clip with min > max is the constant max (as evaluated).
+                    let l = Lin {
+                        cols: vec![None; self.zdim],
+                        c: vec![hi; n],
+                        nonneg: hi >= 0.0,
+                    };
+                    self.reps.insert(out0, l);
                     return Ok(());
                 }
                 for (s, _) in shifted.iter().enumerate() {
