@@ -259,10 +259,16 @@ fn pgd(
     hi: &[f64],
     mut x: Vec<f64>,
     steps: usize,
+    deadline: Option<Instant>,
 ) -> Option<Vec<f64>> {
     let n = lo.len();
     let no = cs.first().map(|k| k.obj.c.len()).unwrap_or(0);
     for step in 0..=steps {
+        // A step of a wide network (a CIFAR convolution lowered to dense maps) takes
+        // tens of milliseconds: the deadline is checked at every one.
+        if deadline.is_some_and(|d| Instant::now() >= d) {
+            return None;
+        }
         let y = forward(maps, &x, None);
         if satisfies(cs, &y) {
             return Some(x);
@@ -298,8 +304,9 @@ fn pgd(
 }
 
 /// The attack: [`pgd`] from the centre and from seeded random starts, until
-/// `s.restarts` starts or `seconds` are spent. `round` varies the seed. Returns the point
-/// found and the gradient steps taken.
+/// `s.restarts` starts or `seconds` are spent (the first start runs its steps in full),
+/// and never past `deadline`. `round` varies the seed. Returns the point found and the
+/// gradient steps taken.
 fn attack(
     maps: &[(Affine, bool)],
     case: &Case,
@@ -307,6 +314,7 @@ fn attack(
     round: u64,
     seconds: f64,
     stop: &std::sync::atomic::AtomicBool,
+    deadline: Option<Instant>,
 ) -> (Option<Vec<f64>>, u64) {
     let t0 = Instant::now();
     let _guard = ProfGuard(t0);
@@ -316,6 +324,9 @@ fn attack(
     let mut steps = 0u64;
     for r in 0..s.restarts.max(1) {
         if r > 0 && (t0.elapsed().as_secs_f64() > seconds || stop.load(AtOrd::Relaxed)) {
+            break;
+        }
+        if deadline.is_some_and(|d| Instant::now() >= d) {
             break;
         }
         let x: Vec<f64> = (0..n)
@@ -328,7 +339,15 @@ fn attack(
             })
             .collect();
         steps += s.steps as u64;
-        if let Some(x) = pgd(maps, &case.constraints, &case.lo, &case.hi, x, s.steps) {
+        if let Some(x) = pgd(
+            maps,
+            &case.constraints,
+            &case.lo,
+            &case.hi,
+            x,
+            s.steps,
+            deadline,
+        ) {
             stop.store(true, AtOrd::Relaxed);
             return (Some(x), steps);
         }
@@ -345,12 +364,13 @@ fn attack_all(
     round: u64,
     seconds: f64,
     stats: &mut Stats,
+    deadline: Option<Instant>,
 ) -> Option<(usize, Vec<f64>)> {
     // A point of one case ends the other cases' attacks.
     let stop = std::sync::atomic::AtomicBool::new(false);
     let res: Vec<(Option<Vec<f64>>, u64)> = cases
         .par_iter()
-        .map(|c| attack(maps, c, s, round, seconds, &stop))
+        .map(|c| attack(maps, c, s, round, seconds, &stop, deadline))
         .collect();
     stats.attack_steps += res.iter().map(|r| r.1).sum::<u64>();
     res.into_iter()
@@ -759,7 +779,7 @@ fn examine(
     };
     // A short local attack from where the most promising bounds point.
     let start = pb.x.clone().unwrap_or_else(|| pf.argmin_corner(&lo, &hi));
-    if let Some(x) = pgd(maps, &cases[*pci].constraints, &lo, &hi, start, 10) {
+    if let Some(x) = pgd(maps, &cases[*pci].constraints, &lo, &hi, start, 10, deadline) {
         return Piece::Found(*pci, x);
     }
     prof_add(P_PGD, tp);
@@ -919,7 +939,8 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     let mut stats = Stats::default();
     let out_of_time = |t0: &Instant| s.timeout.is_some_and(|d| t0.elapsed() >= d);
     // Attack every case first (in parallel): a cheap refutation beats any proof.
-    if let Some((ci, x)) = attack_all(maps, cases, s, 0, s.attack_seconds, &mut stats) {
+    let deadline = s.timeout.map(|d| t0 + d);
+    if let Some((ci, x)) = attack_all(maps, cases, s, 0, s.attack_seconds, &mut stats, deadline) {
         let y = forward(maps, &x, None);
         return (Outcome::Point { case: ci, x, y }, stats);
     }
@@ -979,7 +1000,9 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
                 per_case = 10.0 * s.attack_seconds;
             }
             batches_burst += 1;
-            if let Some((ci, x)) = attack_all(maps, cases, s, batches, per_case, &mut stats) {
+            if let Some((ci, x)) =
+                attack_all(maps, cases, s, batches, per_case, &mut stats, deadline)
+            {
                 let y = forward(maps, &x, None);
                 return (Outcome::Point { case: ci, x, y }, stats);
             }

@@ -919,6 +919,7 @@ fn var_at(v: Var, index: usize) -> Var {
 /// counterexample) or `unknown`, as VNN-COMP tools do. Box-shaped properties go to the
 /// input-split engine, the rest to the ReLU-phase engine ([`samara_verify::route`]).
 pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
+    let start = std::time::Instant::now();
     check_timeout(a.timeout)?;
     if let Some(r) = &a.result {
         samara_report::guard::check_output_file(
@@ -928,7 +929,10 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
         )?;
     }
     let (net, q) = vnncomp::load_instance(&a.network, &a.property, "--network", "--property")?;
-    let d = decide(net, &q, a.timeout, a.max_nodes)?;
+    // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
+    // lowered to dense maps) takes seconds of it.
+    let left = (a.timeout - start.elapsed().as_secs_f64()).max(0.0);
+    let d = decide(net, &q, left, a.max_nodes)?;
     if let Some(n) = &d.note {
         eprintln!("note: {n}");
     }
