@@ -675,7 +675,7 @@ pub fn optimise(
         }
         let results: Vec<(Processed, usize)> = batch
             .into_par_iter()
-            .map(|n| process(&ctx, n, accept))
+            .map(|n| process(&ctx, n, accept, inc > f64::NEG_INFINITY))
             .collect();
         let mut late = false;
         for (r, evals) in results {
@@ -747,6 +747,7 @@ fn process(
     ctx: &Ctx,
     n: Node,
     accept: &(dyn Fn(&[f64]) -> Option<Accepted> + Sync),
+    has_incumbent: bool,
 ) -> (Processed, usize) {
     if n.unstable == 0 {
         // The LP is exact here: its primal, pushed further inside until accepted.
@@ -775,12 +776,15 @@ fn process(
             mid > xl[t] && mid < xh[t]
         })
         .collect();
-    let relu_split =
+    let relu_only =
         n.unstable <= ctx.s.phase_max_unstable || splittable.is_empty() || !n.fixes.is_empty();
     let mut children = Vec::new();
     let mut cands = Vec::new();
     let mut evals = 0;
-    if relu_split {
+    // The ReLU split: earliest layer with unstable neurons, the most balanced one.
+    let relu_split = || {
+        let mut cands = Vec::new();
+        let mut evals = 0;
         let un = unstable(ctx.p.maps, &n.pre);
         let j0 = un[0].0;
         let &(j, i) = un
@@ -794,6 +798,7 @@ fn process(
                 s(a).total_cmp(&s(b))
             })
             .expect("an unstable neuron");
+        let mut rkids = Vec::new();
         for on in [false, true] {
             let mut fixes = n.fixes.clone();
             fixes.push((j, i, on));
@@ -808,7 +813,7 @@ fn process(
                 SHRINK[0],
             ) {
                 cands.extend(e.cand.clone());
-                children.push(Node {
+                rkids.push(Node {
                     lo: n.lo.clone(),
                     hi: n.hi.clone(),
                     fixes,
@@ -821,8 +826,17 @@ fn process(
                 });
             }
         }
-        return (Processed::Split(children, cands), evals);
+        (rkids, cands, evals)
+    };
+    if relu_only {
+        let (kids, cands, evals) = relu_split();
+        return (Processed::Split(kids, cands), evals);
     }
+    // Strong branching over the inputs; when no input split lowers the larger bound of
+    // the halves below the node's (a corner of the box that no constraint cuts bounds
+    // both halves: only the network's relaxation is loose there), a ReLU split, once a
+    // point is known (before, input splits localise points: candidates of small boxes
+    // are feasible far more often).
     // Strong branching over the inputs.
     let mut best: Option<((f64, f64, f64), Vec<Node>, Vec<Vec<f64>>)> = None;
     for &t in &splittable {
@@ -880,7 +894,13 @@ fn process(
             cands.extend(kc);
         }
     }
-    let (_, kids, kc) = best.expect("a splittable input");
+    let (key, kids, kc) = best.expect("a splittable input");
+    if has_incumbent && key.0 >= n.upper - 1e-12 * (1.0 + n.upper.abs()) {
+        let (rk, rc, re) = relu_split();
+        cands.extend(kc);
+        cands.extend(rc);
+        return (Processed::Split(rk, cands), evals + re);
+    }
     children.extend(kids);
     cands.extend(kc);
     (Processed::Split(children, cands), evals)
