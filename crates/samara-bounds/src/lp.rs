@@ -292,15 +292,22 @@ fn pivot(tab: &mut [f64], cols: usize, last: usize, basis: &mut [usize], p: usiz
     for c in 0..cols {
         tab[p * cols + c] /= piv;
     }
+    // The pivot row's non-zero entries, so that each row update touches only those.
+    let nz: Vec<(usize, f64)> = tab[p * cols..(p + 1) * cols]
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| **v != 0.0)
+        .map(|(c, v)| (c, *v))
+        .collect();
     for i in 0..=last {
         if i == p {
             continue;
         }
         let f = tab[i * cols + q];
         if f != 0.0 {
-            for c in 0..cols {
-                let v = tab[p * cols + c];
-                tab[i * cols + c] -= f * v;
+            let row = &mut tab[i * cols..(i + 1) * cols];
+            for &(c, v) in &nz {
+                row[c] -= f * v;
             }
         }
     }

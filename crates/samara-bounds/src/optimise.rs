@@ -640,12 +640,13 @@ pub fn optimise(
         if trace && out.nodes >= next_trace {
             next_trace = out.nodes + 2000;
             eprintln!(
-                "opt: {} nodes, {} open, upper {:.9}, incumbent {inc:.9}, top unstable {} fixes {}",
+                "opt: {} nodes, {} open, upper {:.9}, incumbent {inc:.9}, top unstable {} fixes {} widths {:?}",
                 out.nodes,
                 heap.len(),
                 top.upper.max(closed),
                 top.unstable,
-                top.fixes.len()
+                top.fixes.len(),
+                top.lo.iter().zip(&top.hi).map(|(a, b)| b - a).collect::<Vec<_>>()
             );
         }
         let timed_out = ctx.late();
@@ -675,7 +676,7 @@ pub fn optimise(
         }
         let results: Vec<(Processed, usize)> = batch
             .into_par_iter()
-            .map(|n| process(&ctx, n, accept, inc > f64::NEG_INFINITY))
+            .map(|n| process(&ctx, n, accept, inc))
             .collect();
         let mut late = false;
         for (r, evals) in results {
@@ -747,7 +748,7 @@ fn process(
     ctx: &Ctx,
     n: Node,
     accept: &(dyn Fn(&[f64]) -> Option<Accepted> + Sync),
-    has_incumbent: bool,
+    incumbent: f64,
 ) -> (Processed, usize) {
     if n.unstable == 0 {
         // The LP is exact here: its primal, pushed further inside until accepted.
@@ -819,7 +820,7 @@ fn process(
                     fixes,
                     pre: e.pre,
                     phase_fs: e.phase_fs,
-                    upper: e.upper,
+                    upper: e.upper.min(n.upper),
                     unstable: e.unstable,
                     cand: e.cand,
                     id: 0,
@@ -838,7 +839,8 @@ fn process(
     // point is known (before, input splits localise points: candidates of small boxes
     // are feasible far more often).
     // Strong branching over the inputs.
-    let mut best: Option<((f64, f64, f64), Vec<Node>, Vec<Vec<f64>>)> = None;
+    type Try = ((f64, f64, f64), Vec<Node>, Vec<Vec<f64>>, usize);
+    let mut tries: Vec<Try> = Vec::new();
     for &t in &splittable {
         if ctx.late() {
             return (Processed::Late(n.upper), evals);
@@ -847,7 +849,14 @@ fn process(
         let mut kids = Vec::new();
         let mut kc = Vec::new();
         let mut score = f64::NEG_INFINITY;
-        let mut sum = 0.0;
+        // How much each half's bound lies below the node's (a half shown empty: the
+        // whole gap).
+        let full = if incumbent.is_finite() {
+            (n.upper - incumbent).max(0.0)
+        } else {
+            1.0 + n.upper.abs()
+        };
+        let mut gains = Vec::with_capacity(2);
         let mut rows = 0.0;
         for half in 0..2 {
             let (mut lo, mut hi) = (n.lo.clone(), n.hi.clone());
@@ -858,8 +867,9 @@ fn process(
             }
             evals += 1;
             if let Some(e) = ctx.eval(&lo, &hi, &[], Some(&n.pre), &n.phase_fs, false, SHRINK[0]) {
-                score = score.max(e.upper);
-                sum += e.upper;
+                // (The parent's bound holds on the half too.)
+                score = score.max(e.upper.min(n.upper));
+                gains.push((n.upper - e.upper).clamp(0.0, full));
                 rows += e.row_lb.max(-1e300);
                 kc.extend(e.cand.clone());
                 kids.push(Node {
@@ -868,40 +878,68 @@ fn process(
                     fixes: Vec::new(),
                     pre: e.pre,
                     phase_fs: e.phase_fs,
-                    upper: e.upper,
+                    upper: e.upper.min(n.upper),
                     unstable: e.unstable,
                     cand: e.cand,
                     id: 0,
                 });
             }
         }
-        // The smallest larger bound of the halves; on a tie (a corner of the box that no
-        // constraint cuts yet bounds both), the split whose halves' constraint bounds
-        // rose the most (closest to cutting).
-        let key = (score, -rows, sum);
-        if best.as_ref().is_none_or(|b| {
-            key.0
-                .total_cmp(&b.0 .0)
-                .then(key.1.total_cmp(&b.0 .1))
-                .then(key.2.total_cmp(&b.0 .2))
-                .is_lt()
-        }) {
-            if let Some(b) = best.take() {
-                cands.extend(b.2);
+        gains.resize(2, full);
+        // The product rule of strong branching (Achterberg, 2007): the split that lowers
+        // both halves' bounds, not one half's only (halving an input that the objective
+        // weighs directly lowers one half a lot and the relaxation's slack not at all);
+        // on a tie (a corner of the box that no constraint cuts yet bounds both halves),
+        // the split whose halves' constraint bounds rose the most (closest to cutting).
+        let eps = 1e-9 * (1.0 + n.upper.abs());
+        let prod = gains[0].max(eps) * gains[1].max(eps);
+        let key = (-prod, -rows, score);
+        tries.push((key, kids, kc, t));
+    }
+    let order = |a: &Try, b: &Try| {
+        a.0 .0
+            .total_cmp(&b.0 .0)
+            .then(a.0 .1.total_cmp(&b.0 .1))
+            .then(a.0 .2.total_cmp(&b.0 .2))
+            .then(a.3.cmp(&b.3))
+    };
+    let mut pick = (0..tries.len())
+        .min_by(|&i, &j| order(&tries[i], &tries[j]))
+        .expect("a splittable input");
+    // Progress: how much the chosen split lowers the larger bound of the halves below
+    // the node's. With a point known, a split that closes less than 1% of the node's gap to
+    // it is stalled (the bound there is the relaxation's, not the box's): a ReLU split.
+    // With none, a split that lowers nothing gives way to the widest input (relative to
+    // the problem's box), so that every side keeps shrinking.
+    let progress = n.upper - tries[pick].0 .2;
+    if incumbent.is_finite() {
+        if progress < 0.01 * (n.upper - incumbent) {
+            for t in tries {
+                cands.extend(t.2);
             }
-            best = Some((key, kids, kc));
-        } else {
-            cands.extend(kc);
+            let (rk, rc, re) = relu_split();
+            cands.extend(rc);
+            return (Processed::Split(rk, cands), evals + re);
         }
     }
-    let (key, kids, kc) = best.expect("a splittable input");
-    if has_incumbent && key.0 >= n.upper - 1e-12 * (1.0 + n.upper.abs()) {
-        let (rk, rc, re) = relu_split();
-        cands.extend(kc);
-        cands.extend(rc);
-        return (Processed::Split(rk, cands), evals + re);
+    // The widest input (relative to the problem's box) instead when no split lowers
+    // anything without a point known, or when the chosen input is already 64 times
+    // narrower than it: bounds tighten with every side of a box, and a search that
+    // keeps halving the same inputs never tightens the others.
+    let rel = |t: usize| (xh[t] - xl[t]) / (ctx.p.hi[t] - ctx.p.lo[t]);
+    let widest = (0..tries.len())
+        .max_by(|&i, &j| rel(tries[i].3).total_cmp(&rel(tries[j].3)).then(j.cmp(&i)))
+        .expect("a splittable input");
+    if (!incumbent.is_finite() && progress <= 1e-12 * (1.0 + n.upper.abs()))
+        || rel(tries[pick].3) * 64.0 < rel(tries[widest].3)
+    {
+        pick = widest;
     }
-    children.extend(kids);
-    cands.extend(kc);
+    for (k, t) in tries.into_iter().enumerate() {
+        if k == pick {
+            children.extend(t.1);
+        }
+        cands.extend(t.2);
+    }
     (Processed::Split(children, cands), evals)
 }

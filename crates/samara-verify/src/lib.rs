@@ -645,7 +645,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
         });
         p.floor = 0.0;
         p.stop_when = Some(original.clone());
-        let r = single::solve(p, limits(s, t0));
+        let r = single::solve_prove(p, limits(s, t0));
         if let Some((mut pt, _)) = r.best.clone() {
             pt.free.truncate(k);
             if pt.satisfies(&original) {

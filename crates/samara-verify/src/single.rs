@@ -25,6 +25,33 @@ pub fn solve(p: Problem<'_>, limits: Limits) -> BabResult {
     }
 }
 
+/// [`solve`] for the slack form of a `Prove` question (`p.floor` = 0, `p.stop_when`
+/// the region): the optimiser's answer when it is decisive (a witness of the region, or
+/// a completed search whose sound bound is below the floor); otherwise the ReLU-phase
+/// engine decides with the time left (its LP bound closes regions whose slack bound
+/// the optimiser leaves within rounding of 0).
+pub fn solve_prove(p: Problem<'_>, limits: Limits) -> BabResult {
+    let t0 = Instant::now();
+    if std::env::var_os("SAMARA_OPT_OFF").is_some() {
+        return p.solve(limits);
+    }
+    let Some(r) = solve_single(&p, limits) else {
+        return p.solve(limits);
+    };
+    let found = r.best.as_ref().is_some_and(|(pt, v)| {
+        *v >= p.floor && p.stop_when.as_ref().is_some_and(|cs| pt.satisfies(cs))
+    });
+    let empty = r.complete && r.upper < p.floor;
+    let left = limits.seconds - t0.elapsed().as_secs_f64();
+    if found || empty || !(left > 0.0) {
+        return r;
+    }
+    p.solve(Limits {
+        seconds: left,
+        ..limits
+    })
+}
+
 /// The row `e` as a function over `v = (x, t)` and the outputs.
 fn row(e: &LinExpr, nx: usize, nf: usize, ny: usize, sign: f64) -> LinearFn {
     let mut f = LinearFn {
