@@ -788,16 +788,33 @@ fn process(
         let mut evals = 0;
         let un = unstable(ctx.p.maps, &n.pre);
         let j0 = un[0].0;
+        // At the LP's point, the neuron whose relaxation there is loosest (the chord
+        // above, CROWN's lower line below); without a point, the most balanced one.
+        let z = n.cand.as_ref().map(|x| {
+            let a = crate::search::forward(&ctx.p.maps[..j0], &x[..ctx.nx], None);
+            let m = &ctx.p.maps[j0].0;
+            let mut z = vec![0.0; m.out];
+            m.apply_f64(&a, &mut z);
+            z
+        });
+        let score = |u: &(usize, usize)| {
+            let (l, h) = n.pre[u.0][u.1];
+            let balance = (-l).min(h);
+            match &z {
+                Some(z) => {
+                    let zc = z[u.1].clamp(l, h);
+                    let relu = zc.max(0.0);
+                    let chord = h * (zc - l) / (h - l);
+                    let lower = if h > -l { zc } else { 0.0 };
+                    (chord - relu) + (relu - lower) + 1e-9 * balance
+                }
+                None => balance,
+            }
+        };
         let &(j, i) = un
             .iter()
             .take_while(|u| u.0 == j0)
-            .max_by(|a, b| {
-                let s = |u: &(usize, usize)| {
-                    let (l, h) = n.pre[u.0][u.1];
-                    (-l).min(h)
-                };
-                s(a).total_cmp(&s(b))
-            })
+            .max_by(|a, b| score(a).total_cmp(&score(b)))
             .expect("an unstable neuron");
         let mut rkids = Vec::new();
         for on in [false, true] {

@@ -101,6 +101,22 @@ pub fn solve_single(p: &Problem<'_>, limits: Limits) -> Option<BabResult> {
     {
         return None;
     }
+    // No time or no nodes: no claim, as the phase engine (even for a problem settled at
+    // the root).
+    if limits.seconds <= 0.0 || limits.nodes == 0 {
+        return Some(BabResult {
+            best: None,
+            upper: f64::INFINITY,
+            complete: false,
+            nodes: 0,
+            thin_leaves: 0,
+            stop: Some(if limits.seconds <= 0.0 {
+                crate::UnknownReason::Timeout { nodes: 0 }
+            } else {
+                crate::UnknownReason::NodeLimit { nodes: 0 }
+            }),
+        });
+    }
     let bx = tighten(std::slice::from_ref(bx), &p.constraints).remove(0);
     let empty = BabResult {
         best: None,

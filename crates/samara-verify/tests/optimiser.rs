@@ -113,7 +113,11 @@ fn new_engine(c: &Case, pwl: &PwlNet) -> BabResult {
 fn agrees_with_the_phase_engine_and_sampling() {
     let mut compared = 0;
     for seed in 0..16u64 {
-        let dims: &[usize] = if seed % 2 == 0 { &[4, 12, 8, 1] } else { &[3, 16, 8, 1] };
+        let dims: &[usize] = if seed % 2 == 0 {
+            &[4, 12, 8, 1]
+        } else {
+            &[3, 16, 8, 1]
+        };
         let c = case(seed, dims);
         let pwl = PwlNet::from_network(&c.net).unwrap();
         let new = new_engine(&c, &pwl);
@@ -124,12 +128,23 @@ fn agrees_with_the_phase_engine_and_sampling() {
         let ov = old.best.as_ref().map(|b| b.1);
         // Each engine's bound is beaten by neither engine's witness.
         for v in [nv, ov].into_iter().flatten() {
-            assert!(v <= new.upper + 1e-9 * (1.0 + v.abs()), "seed {seed}: {v} > {}", new.upper);
-            assert!(v <= old.upper + 1e-9 * (1.0 + v.abs()), "seed {seed}: {v} > {}", old.upper);
+            assert!(
+                v <= new.upper + 1e-9 * (1.0 + v.abs()),
+                "seed {seed}: {v} > {}",
+                new.upper
+            );
+            assert!(
+                v <= old.upper + 1e-9 * (1.0 + v.abs()),
+                "seed {seed}: {v} > {}",
+                old.upper
+            );
         }
         match (nv, ov) {
             (Some(a), Some(b)) => {
-                assert!((a - b).abs() <= 1e-5 * (1.0 + b.abs()), "seed {seed}: {a} vs {b}");
+                assert!(
+                    (a - b).abs() <= 1e-5 * (1.0 + b.abs()),
+                    "seed {seed}: {a} vs {b}"
+                );
                 compared += 1;
             }
             (None, None) => {}
@@ -154,7 +169,11 @@ fn agrees_with_the_phase_engine_and_sampling() {
             };
             if p.satisfies(&c.constraints) {
                 let v = c.objective.eval(|x| p.value(x));
-                assert!(v <= new.upper, "seed {seed}: sample {v} above bound {}", new.upper);
+                assert!(
+                    v <= new.upper,
+                    "seed {seed}: sample {v} above bound {}",
+                    new.upper
+                );
             }
         }
     }
@@ -190,6 +209,9 @@ fn a_time_limit_holds() {
     let dt = t.elapsed().as_secs_f64();
     assert!(dt < 1.3, "took {dt} s for a 0.3 s limit");
     if !r.complete {
-        assert!(matches!(r.stop, Some(samara_verify::UnknownReason::Timeout { .. })));
+        assert!(matches!(
+            r.stop,
+            Some(samara_verify::UnknownReason::Timeout { .. })
+        ));
     }
 }
