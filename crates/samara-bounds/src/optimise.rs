@@ -289,8 +289,10 @@ impl Ctx<'_> {
         extend(&g, self.nv).combine(1.0, &ex, 1.0, lo, hi)
     }
 
-    /// Bound a node: its box `lo, hi`, its phases `fixes` (the last one new unless
-    /// `parent_pre` was computed for this node already: `fresh`).
+    /// Bound a node: its box `lo, hi`, its phases `fixes` (the last one new when
+    /// `new_fix`), from its parent's bounds and phase rows; the LP's primal point is
+    /// pushed inside the rows by `shrink` (relative).
+    #[allow(clippy::too_many_arguments)]
     fn eval(
         &self,
         lo: &[f64],
@@ -368,7 +370,7 @@ impl Ctx<'_> {
         let nv = self.nv;
         let mut rows: Vec<Linear> = phase_fs.iter().map(|f| extend(f, nv)).collect();
         for c in &self.p.constraints {
-            rows.push(self.lower_of(&c.f, 1.0, &pre, lo, hi));
+            rows.push(self.lower_of(&c.f, 1.0, pre, lo, hi));
         }
         let mut row_lb = f64::NEG_INFINITY;
         let nfix = phase_fs.len();
@@ -381,7 +383,7 @@ impl Ctx<'_> {
                 row_lb = row_lb.max(m);
             }
         }
-        let g = self.lower_of(&self.p.objective, -1.0, &pre, lo, hi);
+        let g = self.lower_of(&self.p.objective, -1.0, pre, lo, hi);
         let mut lb = g.min_over(lo, hi);
         let mut cand = None;
         if !rows.is_empty() {
@@ -428,7 +430,7 @@ impl Ctx<'_> {
             return None;
         }
         let unstable = if self.net {
-            unstable(maps, &pre).len()
+            unstable(maps, pre).len()
         } else {
             0
         };
@@ -527,7 +529,7 @@ fn attack(ctx: &Ctx, starts: usize, steps: usize) -> Vec<Vec<f64>> {
                     .enumerate()
                     .map(|(t, gt)| (gt * (hi[t] - lo[t])).abs())
                     .fold(0.0, f64::max);
-                if !(gmax > 0.0) {
+                if gmax.is_nan() || gmax <= 0.0 {
                     break;
                 }
                 let eta = 0.2 * (1.0 - step as f64 / steps as f64).powi(2) + 1e-6;
@@ -573,7 +575,11 @@ pub fn optimise(
         nodes: 0,
         thin: 0,
     };
-    if p.lo.iter().zip(&p.hi).any(|(l, h)| !(l <= h)) {
+    if p.lo
+        .iter()
+        .zip(&p.hi)
+        .any(|(l, h)| l.is_nan() || h.is_nan() || l > h)
+    {
         return out;
     }
     let none: Arc<Vec<Linear>> = Arc::new(Vec::new());
@@ -929,15 +935,13 @@ fn process(
     // With none, a split that lowers nothing gives way to the widest input (relative to
     // the problem's box), so that every side keeps shrinking.
     let progress = n.upper - tries[pick].0 .2;
-    if incumbent.is_finite() {
-        if progress < 0.01 * (n.upper - incumbent) {
-            for t in tries {
-                cands.extend(t.2);
-            }
-            let (rk, rc, re) = relu_split();
-            cands.extend(rc);
-            return (Processed::Split(rk, cands), evals + re);
+    if incumbent.is_finite() && progress < 0.01 * (n.upper - incumbent) {
+        for t in tries {
+            cands.extend(t.2);
         }
+        let (rk, rc, re) = relu_split();
+        cands.extend(rc);
+        return (Processed::Split(rk, cands), evals + re);
     }
     // The widest input (relative to the problem's box) instead when no split lowers
     // anything without a point known, or when the chosen input is already 64 times

@@ -43,7 +43,7 @@ pub fn solve_prove(p: Problem<'_>, limits: Limits) -> BabResult {
     });
     let empty = r.complete && r.upper < p.floor;
     let left = limits.seconds - t0.elapsed().as_secs_f64();
-    if found || empty || !(left > 0.0) {
+    if found || empty || left.is_nan() || left <= 0.0 {
         return r;
     }
     p.solve(Limits {
@@ -126,7 +126,8 @@ pub fn solve_single(p: &Problem<'_>, limits: Limits) -> Option<BabResult> {
         thin_leaves: 0,
         stop: None,
     };
-    if bx.iter().any(|(l, h)| !(l <= h)) || p.free.iter().any(|(l, h)| !(l <= h)) {
+    let bad = |(l, h): &(f64, f64)| l.is_nan() || h.is_nan() || l > h;
+    if bx.iter().any(bad) || p.free.iter().any(bad) {
         return Some(empty);
     }
     let mut constraints = Vec::new();

@@ -53,7 +53,11 @@ fn case(seed: u64, dims: &[usize]) -> Case {
                 terms: vec![(Var::Output { app: 0, index: 0 }, 1.0)],
                 constant: -thr,
             },
-            cmp: if seed % 2 == 0 { Cmp::Lt } else { Cmp::Le },
+            cmp: if seed.is_multiple_of(2) {
+                Cmp::Lt
+            } else {
+                Cmp::Le
+            },
         },
         Constraint {
             expr: LinExpr {
@@ -113,7 +117,7 @@ fn new_engine(c: &Case, pwl: &PwlNet) -> BabResult {
 fn agrees_with_the_phase_engine_and_sampling() {
     let mut compared = 0;
     for seed in 0..16u64 {
-        let dims: &[usize] = if seed % 2 == 0 {
+        let dims: &[usize] = if seed.is_multiple_of(2) {
             &[4, 12, 8, 1]
         } else {
             &[3, 16, 8, 1]
