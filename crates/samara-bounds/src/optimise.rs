@@ -28,13 +28,24 @@
 //! Search: best first (largest bound), in batches evaluated in parallel (rayon); the
 //! batch is a fixed number of nodes and incumbents are updated between batches in a
 //! fixed order, so the result does not depend on the number of threads. A node with at
-//! most [`Settings::phase_max_unstable`] unstable ReLUs is split on a ReLU (earliest
-//! layer, most balanced neuron, as in [`crate::phases`]); otherwise its input box is
-//! split at the midpoint of the input whose halves have the smallest larger bound
-//! (strong branching: both halves are bounded for every input, and the chosen halves
-//! keep their bounds). Nodes whose bound is within the gap of the incumbent are closed;
-//! the search stops when the global bound meets the incumbent, at the deadline or at the
-//! node limit.
+//! most [`Settings::phase_max_unstable`] unstable ReLUs, or with phases fixed already, is
+//! split on a ReLU: in the earliest layer with unstable neurons (so that every phase row
+//! is exact once all are fixed), the neuron whose relaxation is loosest at the node's LP
+//! point (the chord above, CROWN's lower line below; BaBSR-like, Bunel et al., JMLR
+//! 2020). Otherwise every input is tried (strong branching: both halves bounded, the
+//! chosen halves keep their bounds) and the product rule picks the split (Achterberg,
+//! 2007: the split that lowers both halves' bounds); when the best split closes less
+//! than 1% of the node's gap to the incumbent, the bound there is the relaxation's, not
+//! the box's, and the node is split on a ReLU instead; an input 64 times narrower than
+//! the widest (relative to the problem's box) gives way to the widest. Nodes whose bound
+//! is within the gap of the incumbent are closed; the search stops when the global bound
+//! meets the incumbent, at the deadline or at the node limit. An initial attack
+//! (projected steps from seeded starts) gives the first incumbent.
+
+// Measured on the Goedel + Lipschitz 6-64-32-1 network's P1 (normalised spec, 2 cores):
+// input splitting alone never lowers the global bound (45.91, the box's corner, which
+// every piece that keeps it still reaches); ReLU splitting from the root reaches the
+// exact value in 11,400 nodes; the rules above in about 12,000 nodes and 6 s.
 
 use crate::phases::unstable;
 use crate::symbolic::{self, Linear, Objective};
