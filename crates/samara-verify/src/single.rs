@@ -6,8 +6,14 @@
 //! as linear rows inside the bounding. Every witness is re-evaluated through the plain
 //! network (`Network::eval_f64`) and checked against the constraints in f64, as the old
 //! engine's are, so the contracts of [`crate::engine::BabResult`] hold unchanged.
-//! Problems it does not take (several applications, relational queries, infinite free
-//! bounds) stay with the ReLU-phase engine ([`crate::engine::Problem::solve`]).
+//!
+//! Order: [`solve`] (critical values) gives the ReLU-phase engine
+//! ([`crate::engine::Problem::solve`]) a first try of 40 nodes, which settles the
+//! queries of networks whose ReLUs the domain mostly fixes, then the optimiser has the
+//! time left; [`solve_prove`] (the slack form of `Prove`) runs the optimiser first and
+//! the phase engine after it when the optimiser is not decisive. Problems the optimiser
+//! does not take (several applications, relational queries, infinite free bounds) stay
+//! with the phase engine.
 
 use crate::engine::{repair_free, tighten, BabResult, Limits, Point, Problem};
 use samara_bounds::optimise::{self as opt, Accepted, LinearFn};
