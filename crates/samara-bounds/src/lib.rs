@@ -30,11 +30,15 @@
 //!   bounds over each phase set from a small LP certified by weak duality (nnenum's
 //!   exact star-set step, Bak et al., CAV 2020; the phase multipliers play the part of
 //!   beta-CROWN's, Wang et al., NeurIPS 2021); [`lp`] also gives those LP multipliers.
+//! - [`optimise`]: branch and bound for the maximum of a linear objective over one
+//!   network's graph under linear constraints on its inputs, outputs and extra variables
+//!   (critical values), input and ReLU splitting with LP bounds certified by weak duality.
 #![warn(missing_docs)]
 
 pub mod constant;
 pub mod linset;
 pub mod lp;
+pub mod optimise;
 pub mod phases;
 pub mod pwl;
 pub mod search;

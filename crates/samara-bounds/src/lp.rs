@@ -133,13 +133,44 @@ pub fn min_linear_duals(
     lo: &[f64],
     hi: &[f64],
 ) -> Option<Vec<f64>> {
+    if a.is_empty() && d.is_empty() {
+        return Some(Vec::new());
+    }
+    min_linear(c, a, d, lo, hi).map(|r| r.duals)
+}
+
+/// The result of [`min_linear`]: the LP's dual multipliers, a primal point, and whether
+/// that point is feasible in f64 (the artificial variable left the basis or ended at 0).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MinLinear {
+    /// Multipliers `lambda_p >= 0` of the constraint rows (see [`min_linear_duals`]).
+    pub duals: Vec<f64>,
+    /// The primal minimiser (clamped into the box); only a proposal, to be re-checked.
+    pub x: Vec<f64>,
+    /// Whether the simplex ended feasible (the constraints have a point in f64).
+    pub feasible: bool,
+}
+
+/// [`min_linear_duals`] with the primal point: `min c . x` over `{x in [lo, hi] :
+/// a_p . x + d_p <= 0}`. Plain f64; the caller certifies bounds from the multipliers and
+/// re-checks the point. `None` as for [`min_linear_duals`].
+pub fn min_linear(c: &[f64], a: &[&[f64]], d: &[f64], lo: &[f64], hi: &[f64]) -> Option<MinLinear> {
     let m = a.len();
     let n = lo.len();
     if d.len() != m {
         return None;
     }
     if m == 0 {
-        return Some(Vec::new());
+        let x = c
+            .iter()
+            .enumerate()
+            .map(|(t, ci)| if *ci < 0.0 { hi[t] } else { lo[t] })
+            .collect();
+        return Some(MinLinear {
+            duals: Vec::new(),
+            x,
+            feasible: true,
+        });
     }
     let w: Vec<f64> = lo.iter().zip(hi).map(|(l, h)| h - l).collect();
     // Scale each constraint row to unit size (the multipliers are scaled back).
@@ -207,11 +238,22 @@ pub fn min_linear_duals(
     if !solved || tab.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    Some(
-        (0..m)
+    let mut sv = vec![0.0; nv];
+    for (i, &b) in basis.iter().enumerate() {
+        if b < nv {
+            sv[b] = tab[i * cols + cols - 1];
+        }
+    }
+    let x = (0..n)
+        .map(|t| (lo[t] + w[t] * sv[t].clamp(0.0, 1.0)).clamp(lo[t], hi[t]))
+        .collect();
+    Some(MinLinear {
+        duals: (0..m)
             .map(|p| (tab[rows * cols + nv + p].max(0.0) / scale[p]).max(0.0))
             .collect(),
-    )
+        x,
+        feasible: sv[n] <= 1e-9,
+    })
 }
 
 /// The ratio test of a simplex step on the dense tableau `tab` (`cols` columns, `rows`
@@ -250,15 +292,22 @@ fn pivot(tab: &mut [f64], cols: usize, last: usize, basis: &mut [usize], p: usiz
     for c in 0..cols {
         tab[p * cols + c] /= piv;
     }
+    // The pivot row's non-zero entries, so that each row update touches only those.
+    let nz: Vec<(usize, f64)> = tab[p * cols..(p + 1) * cols]
+        .iter()
+        .enumerate()
+        .filter(|(_, v)| **v != 0.0)
+        .map(|(c, v)| (c, *v))
+        .collect();
     for i in 0..=last {
         if i == p {
             continue;
         }
         let f = tab[i * cols + q];
         if f != 0.0 {
-            for c in 0..cols {
-                let v = tab[p * cols + c];
-                tab[i * cols + c] -= f * v;
+            let row = &mut tab[i * cols..(i + 1) * cols];
+            for &(c, v) in &nz {
+                row[c] -= f * v;
             }
         }
     }

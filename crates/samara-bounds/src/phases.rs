@@ -301,7 +301,7 @@ fn min_over_set(g: &Linear, fs: &[Linear], lo: &[f64], hi: &[f64]) -> f64 {
 /// Tighten the bounds `nb` (valid on `S`) of the earliest layers with unstable neurons
 /// by [`min_over_set`], recomputing the later layers by CROWN after each; `None` when
 /// the bounds show `S` empty.
-fn tighten(
+pub(crate) fn tighten(
     maps: &[(Affine, bool)],
     nb: &mut Vec<Vec<(f64, f64)>>,
     fs: &[Linear],

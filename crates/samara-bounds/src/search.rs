@@ -206,7 +206,7 @@ pub(crate) fn forward(
 }
 
 /// Gradient of `c . f(x)` at `x` (the active linear piece).
-fn gradient(maps: &[(Affine, bool)], x: &[f64], c: &[f64]) -> Vec<f64> {
+pub(crate) fn gradient(maps: &[(Affine, bool)], x: &[f64], c: &[f64]) -> Vec<f64> {
     let mut masks = Vec::new();
     forward(maps, x, Some(&mut masks));
     let mut g = c.to_vec();
@@ -439,7 +439,7 @@ enum Piece {
 
 /// Full CROWN intermediate bounds of a piece, starting from bounds of a containing box.
 /// Past `deadline` the forward bounds are kept for the neurons CROWN has not reached.
-fn piece_bounds(
+pub(crate) fn piece_bounds(
     maps: &[(Affine, bool)],
     lo: &[f64],
     hi: &[f64],

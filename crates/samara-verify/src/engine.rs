@@ -610,47 +610,12 @@ impl Problem<'_> {
             outputs,
             free: x[n_net..].to_vec(),
         };
-        // Repair free variables: the objective's direction, limited by the constraints.
-        for k in 0..self.free.len() {
-            let dir = self
-                .objective
-                .as_ref()
-                .and_then(|o| {
-                    o.terms
-                        .iter()
-                        .find(|(v, _)| *v == Var::Free(k))
-                        .map(|t| t.1.signum())
-                })
-                .unwrap_or(0.0);
-            let (mut l, mut h) = self.free[k];
-            for c in &self.constraints {
-                let Some(a) = c
-                    .expr
-                    .terms
-                    .iter()
-                    .find(|(v, _)| *v == Var::Free(k))
-                    .map(|t| t.1)
-                else {
-                    continue;
-                };
-                let mut q = p.clone();
-                q.free[k] = 0.0;
-                let rest = c.expr.eval(|v| q.value(v));
-                // a t + rest <= 0
-                if a > 0.0 {
-                    h = h.min(-rest / a);
-                } else {
-                    l = l.max(-rest / a);
-                }
-            }
-            p.free[k] = if dir > 0.0 {
-                h
-            } else if dir < 0.0 {
-                l
-            } else {
-                p.free[k].clamp(l, h)
-            };
-        }
+        repair_free(
+            &mut p,
+            &self.free,
+            &self.constraints,
+            self.objective.as_ref(),
+        );
         p
     }
 
@@ -959,5 +924,54 @@ impl Problem<'_> {
             thin_leaves: thin,
             stop,
         }
+    }
+}
+
+/// Repair the free variables of a concrete point: each goes to the end of its range
+/// that the objective prefers (kept where it is without a preference), limited by the
+/// constraints it appears in given the point's other values.
+pub(crate) fn repair_free(
+    p: &mut Point,
+    free: &[(f64, f64)],
+    constraints: &[Constraint],
+    objective: Option<&LinExpr>,
+) {
+    for k in 0..free.len() {
+        let dir = objective
+            .and_then(|o| {
+                o.terms
+                    .iter()
+                    .find(|(v, _)| *v == Var::Free(k))
+                    .map(|t| t.1.signum())
+            })
+            .unwrap_or(0.0);
+        let (mut l, mut h) = free[k];
+        for c in constraints {
+            let Some(a) = c
+                .expr
+                .terms
+                .iter()
+                .find(|(v, _)| *v == Var::Free(k))
+                .map(|t| t.1)
+            else {
+                continue;
+            };
+            let mut q = p.clone();
+            q.free[k] = 0.0;
+            let rest = c.expr.eval(|v| q.value(v));
+            // a t + rest <= 0
+            if a > 0.0 {
+                h = h.min(-rest / a);
+            } else {
+                l = l.max(-rest / a);
+            }
+        }
+        p.free[k] = if dir > 0.0 {
+            h
+        } else if dir < 0.0 {
+            l
+        } else {
+            p.free[k].clamp(l, h)
+        };
     }
 }

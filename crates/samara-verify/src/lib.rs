@@ -6,8 +6,11 @@
 //! region empty?) or `Optimise` (its supremum/infimum of an objective: the critical
 //! value of a parameter).
 //!
-//! The engine ([`engine`]) is branch and bound over ReLU phases with LP relaxations
-//! solved by Clarabel; bounds are made sound from the dual ([`lp`]).
+//! One-network queries go to the branch-and-bound optimiser of `samara-bounds` through
+//! [`single`] (input and ReLU splitting, CROWN bounds, small LPs certified by weak
+//! duality); the rest (several network applications, infinite free bounds) to the older
+//! engine ([`engine`]): branch and bound over ReLU phases with LP relaxations solved by
+//! Clarabel, bounds made sound from the dual ([`lp`]).
 //!
 //! Tolerance policy (stated and tested):
 //! - A result is reported only from a completed argument: a search cut short by the time
@@ -53,6 +56,7 @@ pub mod milp;
 pub use samara_bounds::pwl as net;
 pub mod robustness;
 pub mod route;
+pub mod single;
 pub mod smooth;
 pub mod tighten;
 
@@ -646,7 +650,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
         });
         p.floor = 0.0;
         p.stop_when = Some(original.clone());
-        let r = p.solve(limits(s, t0));
+        let r = single::solve_prove(p, limits(s, t0));
         if let Some((mut pt, _)) = r.best.clone() {
             pt.free.truncate(k);
             if pt.satisfies(&original) {
@@ -749,7 +753,7 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
             Ok(p) => p,
             Err(e) => return Err(VerifyError::Goal(q.name.clone(), e)),
         };
-        let r = p.solve(limits(s, t0));
+        let r = single::solve(p, limits(s, t0));
         nodes += r.nodes;
         if !r.complete {
             unknown.get_or_insert(r.stop.clone().unwrap_or(UnknownReason::Timeout { nodes }));
@@ -772,7 +776,7 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
                 .iter()
                 .any(|(v, _)| matches!(v, Var::Output { .. }))
         });
-        let rd = pd.solve(limits(s, t0));
+        let rd = single::solve(pd, limits(s, t0));
         if !rd.complete {
             // Without the domain's extreme, vacuity is not decided.
             unknown.get_or_insert(rd.stop.clone().unwrap_or(UnknownReason::Timeout { nodes }));

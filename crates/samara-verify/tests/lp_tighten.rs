@@ -244,7 +244,7 @@ fn critical_values_and_verdicts_do_not_change() {
                 },
             };
             let off = optimise(&q, &prep, &Settings::default()).unwrap();
-            assert!(off.complete, "case {case}");
+            assert!(off.complete, "case {case}: {:?}", off.unknown);
             for t in modes() {
                 let on = optimise(&q, &prep, &with(t)).unwrap();
                 assert!(on.complete, "case {case} {t:?}");
@@ -284,7 +284,7 @@ fn critical_values_and_verdicts_do_not_change() {
                             (Verdict::Violated(_), Verdict::Violated(c)) => {
                                 assert!(f.eval_f64(&c.point.inputs[0])[0] > t)
                             }
-                            _ => panic!("case {case} {tm:?}: {v0:?} vs {v1:?}"),
+                            _ => panic!("case {case} {tm:?} t {t}: {v0:?} vs {v1:?}; critical {:?} bound {}", off.value, off.bound),
                         }
                     }
                 }
