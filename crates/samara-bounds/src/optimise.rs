@@ -41,6 +41,10 @@
 //! is within the gap of the incumbent are closed; the search stops when the global bound
 //! meets the incumbent, at the deadline or at the node limit. An initial attack
 //! (projected steps from seeded starts) gives the first incumbent.
+//!
+//! With the environment variable `SAMARA_OPT_TRACE` set, the search prints its bounds
+//! and node count to stderr every 2,000 nodes (as `SAMARA_SEARCH_PROFILE` does for
+//! [`crate::search`]).
 
 // Measured on the Goedel + Lipschitz 6-64-32-1 network's P1 (normalised spec, 2 cores):
 // input splitting alone never lowers the global bound (45.91, the box's corner, which

@@ -779,7 +779,15 @@ fn examine(
     };
     // A short local attack from where the most promising bounds point.
     let start = pb.x.clone().unwrap_or_else(|| pf.argmin_corner(&lo, &hi));
-    if let Some(x) = pgd(maps, &cases[*pci].constraints, &lo, &hi, start, 10, deadline) {
+    if let Some(x) = pgd(
+        maps,
+        &cases[*pci].constraints,
+        &lo,
+        &hi,
+        start,
+        10,
+        deadline,
+    ) {
         return Piece::Found(*pci, x);
     }
     prof_add(P_PGD, tp);

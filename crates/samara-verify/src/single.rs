@@ -22,9 +22,6 @@ use std::time::{Duration, Instant};
 
 /// Solve `p` by the optimiser when it fits (see the module doc), else by the old engine.
 pub fn solve(p: Problem<'_>, limits: Limits) -> BabResult {
-    if std::env::var_os("SAMARA_OPT_OFF").is_some() {
-        return p.solve(limits);
-    }
     let t0 = Instant::now();
     if solve_single(
         &p,
@@ -80,9 +77,6 @@ const PHASE_FIRST_NODES: usize = 40;
 /// the optimiser leaves within rounding of 0).
 pub fn solve_prove(p: Problem<'_>, limits: Limits) -> BabResult {
     let t0 = Instant::now();
-    if std::env::var_os("SAMARA_OPT_OFF").is_some() {
-        return p.solve(limits);
-    }
     let Some(r) = solve_single(&p, limits) else {
         return p.solve(limits);
     };
@@ -218,18 +212,6 @@ pub fn solve_single(p: &Problem<'_>, limits: Limits) -> Option<BabResult> {
         floor: p.floor,
         ..opt::Settings::default()
     };
-    // Development overrides (measuring the search's choices without a rebuild).
-    let env = |k: &str| std::env::var(k).ok().and_then(|v| v.parse::<usize>().ok());
-    let mut settings = settings;
-    if let Some(v) = env("SAMARA_OPT_PHASE") {
-        settings.phase_max_unstable = v;
-    }
-    if let Some(v) = env("SAMARA_OPT_ALPHA") {
-        settings.alpha_iters = v;
-    }
-    if let Some(v) = env("SAMARA_OPT_BATCH") {
-        settings.batch = v;
-    }
     let point = |v: &[f64]| {
         let inputs: Vec<f64> = v[..nx]
             .iter()
