@@ -9,6 +9,7 @@ mod reach;
 mod reach_system;
 mod reproduce;
 mod simulate;
+mod threads;
 mod train;
 mod verify;
 
@@ -139,12 +140,20 @@ fn main() -> ExitCode {
         Command::Reproduce(a) => reproduce::run(a),
         Command::Train(a) => train::run(a),
         Command::Check(a) => verify::run_check(a),
-        Command::Verify(a) => verify::run_verify(a),
-        Command::Critical(a) => verify::run_critical(a),
-        Command::Robustness(a) => verify::run_robustness(a),
+        Command::Verify(a) => threads::start(a.threads.threads).and_then(|_| verify::run_verify(a)),
+        Command::Critical(a) => {
+            threads::start(a.threads.threads).and_then(|_| verify::run_critical(a))
+        }
+        Command::Robustness(a) => {
+            threads::start(a.threads.threads).and_then(|_| verify::run_robustness(a))
+        }
         Command::ExportVnnlib(a) => verify::run_export(a),
-        Command::VerifyVnnlib(a) => verify::run_verify_vnnlib(a),
-        Command::Vnncomp(a) => verify::run_vnncomp(a),
+        Command::VerifyVnnlib(a) => {
+            threads::start(a.threads.threads).and_then(|_| verify::run_verify_vnnlib(a))
+        }
+        Command::Vnncomp(a) => {
+            threads::start(a.threads.threads).and_then(|_| verify::run_vnncomp(a))
+        }
         Command::Merge(a) => verify::shard::run_merge(a),
         Command::Completions { shell } => {
             use clap::CommandFactory;

@@ -36,8 +36,6 @@ const MAX_LEAVES: usize = 100_000;
 const MAX_SAMPLES: usize = 100_000;
 /// Most sampled points kept in memory (samples x horizon / 0.05).
 const MAX_SAMPLE_POINTS: f64 = 1e7;
-/// Most worker threads.
-const MAX_THREADS: usize = 1024;
 
 /// The published initial heights: y0 in [0.1/0.07, 0.3/0.07].
 const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
@@ -406,24 +404,12 @@ pub(crate) fn check_budget(a: &ReachArgs, default_leaves: usize) -> Result<()> {
             bail!("--samples {n}: at most {MAX_SAMPLES} trajectories are allowed (each is kept in memory; the default is 200)");
         }
     }
-    match a.threads {
-        Some(0) => bail!("--threads 0: give at least 1 (or leave it out to use all cores)"),
-        Some(n) if n > MAX_THREADS => bail!(
-            "--threads {n}: at most {MAX_THREADS} worker threads are allowed (more than the cores only costs memory); leave it out to use all cores"
-        ),
-        _ => Ok(()),
-    }
+    crate::threads::check(a.threads)
 }
 
 /// Start the global worker pool with `--threads` workers (all cores without it).
 pub(crate) fn start_threads(a: &ReachArgs) -> Result<()> {
-    if let Some(n) = a.threads {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-            .map_err(|e| anyhow!("--threads {n}: cannot start the thread pool: {e}"))?;
-    }
-    Ok(())
+    crate::threads::start(a.threads)
 }
 
 /// The files a run (and `samara merge reach`) writes into `--out`.

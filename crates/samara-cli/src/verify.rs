@@ -52,6 +52,9 @@ pub struct CheckArgs {
 #[derive(clap::Args, Debug)]
 pub struct VerifyArgs {
     #[command(flatten)]
+    /// Worker threads.
+    pub threads: crate::threads::ThreadsArg,
+    #[command(flatten)]
     /// Spec and bindings.
     pub s: SpecArgs,
     /// Only this property (default: all).
@@ -78,6 +81,9 @@ pub struct VerifyArgs {
 /// Flags of `samara critical`.
 #[derive(clap::Args, Debug)]
 pub struct CriticalArgs {
+    #[command(flatten)]
+    /// Worker threads.
+    pub threads: crate::threads::ThreadsArg,
     #[command(flatten)]
     /// Spec and bindings; `--param NAME` without a value names the parameter whose
     /// critical value is computed (it must be declared with a range).
@@ -106,6 +112,9 @@ pub struct CriticalArgs {
 /// Flags of `samara robustness`.
 #[derive(clap::Args, Debug)]
 pub struct RobustnessArgs {
+    #[command(flatten)]
+    /// Worker threads.
+    pub threads: crate::threads::ThreadsArg,
     /// The network (ONNX). Data and eps are in the units the network takes.
     #[arg(long)]
     pub network: PathBuf,
@@ -150,6 +159,9 @@ pub struct RobustnessArgs {
 /// Flags of `samara verify-vnnlib`.
 #[derive(clap::Args, Debug)]
 pub struct VerifyVnnlibArgs {
+    #[command(flatten)]
+    /// Worker threads.
+    pub threads: crate::threads::ThreadsArg,
     /// The network (ONNX).
     #[arg(long)]
     pub network: PathBuf,

@@ -24,6 +24,9 @@ use std::time::Instant;
     after_help = "Examples:\n  samara vnncomp benchmarks/acasxu/acasxu_instances.csv --out results.csv\n  samara vnncomp instances.csv --root benchmarks/acasxu --timeout-scale 0.5 --out r.csv --json\n\nExit codes: 0 the benchmark ran (its verdicts are data, in --out), 2 a usage or input error (the message names the CSV line, the file, the flag)."
 )]
 pub struct VnncompArgs {
+    #[command(flatten)]
+    /// Worker threads.
+    pub threads: crate::threads::ThreadsArg,
     /// The benchmark's instances CSV: lines `onnx,vnnlib,timeout` (paths relative to the
     /// CSV's folder, or to --root).
     pub instances: PathBuf,
