@@ -1,6 +1,6 @@
 //! P1-P4 critical values of raw-unit 6-input networks by samara's exact engine and by the
 //! HiGHS big-M MILP (`samara_verify::milp`), with times (bench/verify/wide.sh).
-//! Usage: cargo run --release -p samara-verify --features highs --example wide_milp -- NET.onnx...
+//! Usage: cargo run --release -p samara-verify --features highs --example wide_milp -- [--timeout S] NET.onnx...
 
 #[path = "../tests/support/case_study.rs"]
 mod case_study;
@@ -16,7 +16,14 @@ fn main() {
     println!(
         "network,property,samara_value,samara_bound,samara_complete,samara_s,highs_value,highs_s"
     );
-    for path in std::env::args().skip(1) {
+    // `--timeout S` (first) bounds samara's search per property (default 600 s).
+    let mut args: Vec<String> = std::env::args().skip(1).collect();
+    let mut timeout = 600.0;
+    if args.first().map(String::as_str) == Some("--timeout") && args.len() >= 2 {
+        timeout = args[1].parse().expect("--timeout S: a number of seconds");
+        args.drain(..2);
+    }
+    for path in args {
         let net = samara_nn::onnx::load(&path).expect("an ONNX network");
         let mut nets = HashMap::new();
         nets.insert("f".to_string(), net);
@@ -41,7 +48,7 @@ fn main() {
                 &q,
                 &prep,
                 &Settings {
-                    timeout: 600.0,
+                    timeout,
                     ..Default::default()
                 },
             )
