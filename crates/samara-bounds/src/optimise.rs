@@ -186,6 +186,23 @@ pub struct Outcome {
     pub thin: usize,
 }
 
+impl Outcome {
+    /// Keep an accepted point if it beats the best so far; when the caller asked to
+    /// stop at it, mark the early stop (no bound claimed) and say so.
+    fn take(&mut self, a: Accepted) -> bool {
+        let stop = a.stop;
+        if self.best.as_ref().is_none_or(|b| a.value > b.value) {
+            self.best = Some(a);
+        }
+        if stop {
+            self.stopped_early = true;
+            self.complete = false;
+            self.upper = f64::INFINITY;
+        }
+        stop
+    }
+}
+
 /// How far (relative to each row's magnitude) the LP pushes its primal point inside the
 /// rows: first a rounding-size margin, at a leaf more until a point is accepted (a point
 /// on a strict constraint's boundary is no witness; a deeper one loses objective value).
@@ -634,14 +651,7 @@ pub fn optimise(
         // Candidates in a fixed order.
         for c in cands.drain(..) {
             if let Some(a) = accept(&c) {
-                let stop = a.stop;
-                if out.best.as_ref().is_none_or(|b| a.value > b.value) {
-                    out.best = Some(a);
-                }
-                if stop {
-                    out.stopped_early = true;
-                    out.complete = false;
-                    out.upper = f64::INFINITY;
+                if out.take(a) {
                     return out;
                 }
             }
@@ -723,14 +733,7 @@ pub fn optimise(
                     closed = closed.max(u);
                     match got {
                         Some(a) => {
-                            let stop = a.stop;
-                            if out.best.as_ref().is_none_or(|b| a.value > b.value) {
-                                out.best = Some(a);
-                            }
-                            if stop {
-                                out.stopped_early = true;
-                                out.complete = false;
-                                out.upper = f64::INFINITY;
+                            if out.take(a) {
                                 return out;
                             }
                         }

@@ -9,7 +9,8 @@ use num_rational::BigRational;
 use num_traits::{Signed, Zero};
 use samara_spec::normal::{Cmp, Constraint, Var};
 
-fn q(v: f64) -> Option<BigRational> {
+/// An f64 as the rational it is exactly (`None` for non-finite values).
+pub(crate) fn q(v: f64) -> Option<BigRational> {
     BigRational::from_float(v)
 }
 

@@ -33,17 +33,13 @@
 //! box), goes to the ordinary engine unchanged.
 
 use crate::engine::Point;
-use crate::exact::exact_satisfies;
+use crate::exact::{exact_satisfies, q};
 use crate::net::PwlNet;
 use crate::{prove, Counterexample, Prepared, Settings, UnknownReason, Verdict, VerifyError};
 use num_rational::BigRational;
 use num_traits::{Signed, Zero};
 use samara_spec::normal::{Cmp, Goal, Query, Var};
 use std::time::Instant;
-
-fn q(v: f64) -> Option<BigRational> {
-    BigRational::from_float(v)
-}
 
 /// Relative tolerance (against the magnitude of the row's constant and of its terms at
 /// the point) within which a row's value at the point counts as the rounding of an exact

@@ -4,7 +4,7 @@
 //! others are evaluated once on zeros so that every tensor's shape is known.
 
 use super::{Graph, Node, Value};
-use crate::onnx::import::{attr, default_opset, sample_shape, tensor_to_const};
+use crate::onnx::import::{attr, default_opset, model_graph, sample_shape, tensor_to_const};
 use crate::onnx::proto::{ModelProto, NodeProto};
 use crate::onnx::OnnxError;
 use crate::ops::conv::AutoPad;
@@ -406,10 +406,7 @@ pub fn from_model(model: &ModelProto, file: &str) -> Result<Graph, OnnxError> {
         place: place.into(),
         message,
     };
-    let graph = model.graph.as_ref().ok_or_else(|| OnnxError::Decode {
-        file: file.into(),
-        message: "the model has no graph".into(),
-    })?;
+    let graph = model_graph(model, file)?;
     let opset = default_opset(model);
     let mut values: Vec<Value> = Vec::new();
     let mut ids: HashMap<String, usize> = HashMap::new();

@@ -312,6 +312,17 @@ fn broadcast_shapes(a: &[usize], b: &[usize]) -> Option<Vec<usize>> {
 
 use crate::ops::elementwise::broadcast_index as broadcast_gather;
 
+/// The model's graph, or the error naming `file` when it has none.
+pub(crate) fn model_graph<'m>(
+    model: &'m ModelProto,
+    file: &str,
+) -> Result<&'m proto::GraphProto, OnnxError> {
+    model.graph.as_ref().ok_or_else(|| OnnxError::Decode {
+        file: file.into(),
+        message: "the model has no graph".into(),
+    })
+}
+
 /// The default-domain opset of a model (`i64::MAX`, the current semantics, if none).
 pub(crate) fn default_opset(model: &ModelProto) -> i64 {
     model
@@ -439,10 +450,7 @@ fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
         place: place.into(),
         message,
     };
-    let graph = model.graph.as_ref().ok_or_else(|| OnnxError::Decode {
-        file: file.into(),
-        message: "the model has no graph".into(),
-    })?;
+    let graph = model_graph(&model, file)?;
     // The default-domain opset decides the semantics of the legacy attributes (opsets
     // 1 to 6: `broadcast`/`axis` of the binary operators and Gemm, Reshape's `shape`
     // attribute). A model without one is read with the current semantics.
