@@ -91,15 +91,16 @@ pub fn decide(
     timeout: f64,
     max_nodes: usize,
 ) -> Result<Decided, AppError> {
+    let t0 = Instant::now();
     let mut nets = HashMap::new();
     nets.insert("f".to_string(), net);
+    // Preparing the network (its piecewise-linear form) counts against the time limit.
     let prep = Prepared::new(&nets);
-    let t0 = Instant::now();
     let (mut verdict, engine) = prove_routed(
         q,
         &prep,
         &Settings {
-            timeout,
+            timeout: (timeout - t0.elapsed().as_secs_f64()).max(0.0),
             max_nodes,
             ..Default::default()
         },

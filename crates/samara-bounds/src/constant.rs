@@ -21,6 +21,7 @@
 
 use crate::search::OutputConstraint;
 use samara_nn::Affine;
+use std::time::Instant;
 
 /// Products or sums this small may have lost bits to underflow, which the error-free
 /// transformations do not see: such results are widened by this much instead.
@@ -159,19 +160,48 @@ impl Iv {
 
 /// `W x + b` over intervals, each rounded outward only where the operation was inexact.
 pub fn affine(m: &Affine, x: &[Iv]) -> Vec<Iv> {
-    (0..m.out)
-        .map(|i| {
-            let row = &m.w[i * m.inp..(i + 1) * m.inp];
+    affine_until(m, x, None).expect("no deadline")
+}
+
+/// Rows of a map larger than this many weights are bounded in parallel.
+const PARALLEL_WEIGHTS: usize = 1 << 16;
+
+/// [`affine`] that gives up (`None`) past `deadline`, checked between rows: on a
+/// CIFAR-size dense layer one pass takes a large part of a second.
+fn affine_until(m: &Affine, x: &[Iv], deadline: Option<Instant>) -> Option<Vec<Iv>> {
+    let late = || deadline.is_some_and(|d| Instant::now() >= d);
+    let row = |i: usize| {
+        if late() {
+            return None;
+        }
+        let row = &m.w[i * m.inp..(i + 1) * m.inp];
+        Some(
             row.iter()
                 .zip(x)
-                .fold(Iv::point(m.b[i]), |acc, (w, v)| acc.plus(v.scale(*w)))
-        })
-        .collect()
+                .fold(Iv::point(m.b[i]), |acc, (w, v)| acc.plus(v.scale(*w))),
+        )
+    };
+    if m.out * m.inp > PARALLEL_WEIGHTS {
+        use rayon::prelude::*;
+        (0..m.out).into_par_iter().map(row).collect()
+    } else {
+        (0..m.out).map(row).collect()
+    }
 }
 
 /// Intervals of the last hidden layer's activations (the last map's input; the box
 /// itself for a single map) and of the outputs, over the box `[lo, hi]`.
 pub fn layer_intervals(maps: &[(Affine, bool)], lo: &[f64], hi: &[f64]) -> (Vec<Iv>, Vec<Iv>) {
+    layer_intervals_until(maps, lo, hi, None).expect("no deadline")
+}
+
+/// [`layer_intervals`] that gives up (`None`) past `deadline`.
+pub fn layer_intervals_until(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    deadline: Option<Instant>,
+) -> Option<(Vec<Iv>, Vec<Iv>)> {
     let mut a: Vec<Iv> = lo
         .iter()
         .zip(hi)
@@ -182,13 +212,13 @@ pub fn layer_intervals(maps: &[(Affine, bool)], lo: &[f64], hi: &[f64]) -> (Vec<
         if k + 1 == maps.len() {
             last_in = a.clone();
         }
-        let mut z = affine(m, &a);
+        let mut z = affine_until(m, &a, deadline)?;
         if *r {
             z.iter_mut().for_each(|v| *v = v.relu());
         }
         a = z;
     }
-    (last_in, a)
+    Some((last_in, a))
 }
 
 /// A sound interval of `c . y + d` over the box, given [`layer_intervals`]: the
@@ -255,10 +285,26 @@ pub fn fates(
     if maps.is_empty() {
         return vec![Fate::Open; cs.len()];
     }
-    let (last_in, out) = layer_intervals(maps, lo, hi);
+    fates_given(maps, cs, &layer_intervals(maps, lo, hi))
+}
+
+/// [`fates`] given the box's [`layer_intervals`], so that the cases of one query that
+/// share a box (a VNN-LIB disjunction over the outputs on one input region, e.g. the nine
+/// "another class wins" cases of an image property) propagate the box through the
+/// network once, not once per case: on a CIFAR network lowered to dense layers that pass
+/// is the costliest step before the search.
+pub fn fates_given(
+    maps: &[(Affine, bool)],
+    cs: &[OutputConstraint],
+    intervals: &(Vec<Iv>, Vec<Iv>),
+) -> Vec<Fate> {
+    if maps.is_empty() {
+        return vec![Fate::Open; cs.len()];
+    }
+    let (last_in, out) = intervals;
     cs.iter()
         .map(|k| {
-            let g = constraint_interval(maps, k, &last_in, &out);
+            let g = constraint_interval(maps, k, last_in, out);
             if g.lo.is_nan() || g.hi.is_nan() {
                 Fate::Open
             } else if (k.strict && g.lo >= 0.0) || g.lo > 0.0 {

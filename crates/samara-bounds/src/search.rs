@@ -733,8 +733,12 @@ fn examine(
     if !left.is_empty() {
         let centre: Vec<f64> = lo.iter().zip(&hi).map(|(a, b)| 0.5 * (a + b)).collect();
         let mut everywhere = None;
+        // One interval pass for all the piece's cases, given up past the deadline
+        // (then the cases stay open; the caller sees the time limit).
+        let iv = crate::constant::layer_intervals_until(maps, &lo, &hi, deadline);
         left.retain(|(ci, _)| {
-            let f = crate::constant::fates(maps, &cases[*ci].constraints, &lo, &hi);
+            let Some(iv) = &iv else { return true };
+            let f = crate::constant::fates_given(maps, &cases[*ci].constraints, iv);
             if f.iter().all(|f| *f == crate::constant::Fate::Always) {
                 everywhere.get_or_insert(*ci);
             }

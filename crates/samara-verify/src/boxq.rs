@@ -138,12 +138,30 @@ pub fn to_cases(q: &Query) -> Option<Vec<(usize, Case)>> {
 fn settle_constant_constraints(
     maps: &[(samara_nn::Affine, bool)],
     cases: Vec<(usize, Case)>,
+    deadline: Option<std::time::Instant>,
 ) -> Vec<(usize, Case)> {
-    use samara_bounds::constant::{fates, Fate};
+    use samara_bounds::constant::{fates_given, layer_intervals_until, Fate, Iv};
+    // One interval pass per distinct box: the cases of a disjunction usually share it.
+    type Intervals = (Vec<Iv>, Vec<Iv>);
+    let mut seen: Vec<(Vec<f64>, Vec<f64>, Intervals)> = Vec::new();
     cases
         .into_iter()
         .filter_map(|(di, mut c)| {
-            let f = fates(maps, &c.constraints, &c.lo, &c.hi);
+            // Settling is only a shortcut: past the deadline the cases stay as they are.
+            if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                return Some((di, c));
+            }
+            let at = match seen.iter().position(|(l, h, _)| *l == c.lo && *h == c.hi) {
+                Some(i) => i,
+                None => {
+                    let Some(iv) = layer_intervals_until(maps, &c.lo, &c.hi, deadline) else {
+                        return Some((di, c));
+                    };
+                    seen.push((c.lo.clone(), c.hi.clone(), iv));
+                    seen.len() - 1
+                }
+            };
+            let f = fates_given(maps, &c.constraints, &seen[at].2);
             if f.contains(&Fate::Never) {
                 return None;
             }
@@ -158,14 +176,22 @@ fn settle_constant_constraints(
 }
 
 /// Decide a box-shaped query on `net` (`None` when the query is not box-shaped).
+/// `timeout` covers the whole call: the bound pass that settles constant constraints
+/// counts against it.
 pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxAnswer> {
-    let cases = settle_constant_constraints(&net.maps, to_cases(q)?);
+    let t0 = std::time::Instant::now();
+    if timeout.is_some_and(|t| t <= 0.0) {
+        return Some(BoxAnswer::Unknown(BoxUnknown::Stopped(StopReason::Timeout)));
+    }
+    let deadline = timeout.map(|t| t0 + Duration::from_secs_f64(t));
+    let cases = settle_constant_constraints(&net.maps, to_cases(q)?, deadline);
     if cases.is_empty() {
         return Some(BoxAnswer::Proved);
     }
     let plain: Vec<Case> = cases.iter().map(|c| c.1.clone()).collect();
+    let spent = t0.elapsed().as_secs_f64();
     let settings = search::Settings {
-        timeout: timeout.map(|t| Duration::from_secs_f64(t.max(0.0))),
+        timeout: timeout.map(|t| Duration::from_secs_f64((t - spent).max(0.0))),
         ..Default::default()
     };
     let (outcome, _) = search::solve(&net.maps, &plain, &settings);
