@@ -58,7 +58,7 @@ double_pendulum_more|double_pendulum_more_robust.sys|Double_Pendulum/controller_
 airplane|airplane.sys|Airplane/controller_airplane.onnx|falsified|Airplane|continuous (t in [0,2])
 attitude_control|attitude_control.sys|Aircraft/Attitude Control/attitude_control_3_64_torch.onnx;Attitude-Control/attitude_control_3_64_torch.onnx|verified|Attitude Control|avoid
 quadrotor|quadrotor.sys|Aircraft/QUAD/quad_controller_3_64_torch.onnx;QUAD/quad_controller_3_64_torch.onnx|verified|QUAD|reach
-quadrotor_competition|quadrotor_competition.sys|Aircraft/QUAD/quad_controller_3_64_torch.onnx;QUAD/quad_controller_3_64_torch.onnx|verified|QUAD|reach (dynamics.m, full initial set)
+quadrotor_competition|quadrotor_competition.sys|Aircraft/QUAD/quad_controller_3_64_torch.onnx;QUAD/quad_controller_3_64_torch.onnx|verified|QUAD|reach (dynamics.m, full initial set)|--order 2
 spacecraft_docking|spacecraft_docking.sys|Docking/model.onnx|verified|Docking|constraint
 nav_standard|nav.sys|NAV/networks/nn-nav-point.onnx|unknown|NAV|standard
 nav_robust|nav.sys|NAV/networks/nn-nav-set.onnx|verified|NAV|robust
