@@ -13,7 +13,8 @@ usage:
   bench/vnncomp/run_benchmark.py BENCH_DIR [--results RESULTS_DIR] [--timeout-scale S]
       [--limit N] [--every K] [--match NET] [--samara BIN] [--md OUT.md]
 BENCH_DIR: e.g. benchmarks/verivital of stanleybak/vnncomp2021 (its *_instances.csv);
-RESULTS_DIR: results_csv of stanleybak/vnncomp2021_results. Networks stored gzipped
+RESULTS_DIR: results_csv of stanleybak/vnncomp2021_results, or the root of
+ChristopherBrix/vnncomp2022_results (TOOL/BENCH/results.csv; pass --year 2022). Networks stored gzipped
 (nn4sys) are unzipped next to a copy of the instances CSV in a temporary folder.
 """
 import argparse
@@ -35,8 +36,12 @@ REPO = Path(__file__).resolve().parents[2]
 
 
 def read_peers(results_dir, bench_name):
+    """Each tool's verdict and time per (network, property): the 2021 layout (one CSV per
+    tool, `results_csv/TOOL.csv`) or the 2022 one (`TOOL/BENCH/results.csv`)."""
     peers = {}
-    for f in sorted(Path(results_dir).glob("*.csv")):
+    files = [(f.stem, f) for f in sorted(Path(results_dir).glob("*.csv"))]
+    files += [(f.parent.parent.name, f) for f in sorted(Path(results_dir).glob(f"*/{bench_name}/results.csv"))]
+    for tool, f in files:
         rows = {}
         with open(f, newline="") as fh:
             for r in csv.reader(fh):
@@ -47,7 +52,7 @@ def read_peers(results_dir, bench_name):
                         t = float("nan")
                     rows[(os.path.basename(r[1]), os.path.basename(r[2]))] = (norm(r[4]), t)
         if rows:
-            peers[f.stem] = rows
+            peers[tool] = rows
     return peers
 
 
@@ -61,12 +66,13 @@ def main():
     ap.add_argument("--match", default=None, help="only instances whose network path contains this")
     ap.add_argument("--samara", default=None)
     ap.add_argument("--md", default=None, help="write the table here (default: stdout)")
+    ap.add_argument("--year", default="2021", help="the competition year of --results (for the table's text)")
     a = ap.parse_args()
     bench = Path(a.bench).resolve()
     name = bench.name
-    insts = sorted(bench.glob("*_instances.csv"))
+    insts = sorted(bench.glob("*_instances.csv")) or sorted(bench.glob("instances.csv"))
     if not insts:
-        sys.exit(f"{bench}: no *_instances.csv")
+        sys.exit(f"{bench}: no *_instances.csv or instances.csv")
     rows = [r for r in csv.reader(open(insts[0])) if r]
     if a.match:
         rows = [r for r in rows if a.match in r[0]]
@@ -104,11 +110,11 @@ def main():
     names = sorted(peers)
     out = []
     w = out.append
-    w(f"## {name}: samara beside the VNN-COMP 2021 tools\n")
+    w(f"## {name}: samara beside the VNN-COMP {a.year} tools\n")
     w(f"{len(ours)} instances of `{insts[0].name}`" + (f" (networks matching `{a.match}`)" if a.match else "")
       + (f" (every {a.every}th)" if a.every > 1 else "") + (f" (first {a.limit})" if a.limit else "")
       + f"; competition timeouts x {a.timeout_scale}; this machine ({os.cpu_count()} cores, shared); "
-      f"wall {wall:.0f} s. Tools' verdicts and times: VNN-COMP 2021 (AWS hardware per tool).\n")
+      f"wall {wall:.0f} s. Tools' verdicts and times: VNN-COMP {a.year} (AWS hardware per tool).\n")
     w("| network | property | samara | s | " + " | ".join(names) + " |")
     w("|---|---|---|---|" + "---|" * len(names))
     dis = []
