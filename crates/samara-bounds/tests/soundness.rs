@@ -441,3 +441,67 @@ fn conjunctions_survive_sampling(seed: u64, settings: &Settings) {
         "both verdicts exercised: {empty} empty, {found} found"
     );
 }
+
+/// Image-size classifiers (100 inputs, so the attack runs jointly over the nine "class
+/// j beats the label" cases of one box, with sign steps): wherever sampling finds a
+/// point where another class wins, the search must report a point (never `Empty`), and
+/// the point must satisfy the case it is reported for, re-evaluated by the IR.
+#[test]
+fn joint_attack_points_on_many_inputs_are_real_and_name_their_case() {
+    let mut rng = ChaCha8Rng::seed_from_u64(2027);
+    let mut checked = 0;
+    for trial in 0..12 {
+        let net = Network::random_mlp(&[100, 32, 32, 10], Activation::Relu, 1.0, 0.5, &mut rng);
+        let maps = chain(&net);
+        let x0: Vec<f64> = (0..100).map(|_| rng.gen_range(0.0..1.0)).collect();
+        let y0 = net.eval_f64(&x0);
+        let label = (0..10).max_by(|a, b| y0[*a].total_cmp(&y0[*b])).unwrap();
+        let eps = 0.02 * (1 + trial % 4) as f64;
+        let lo: Vec<f64> = x0.iter().map(|v| v - eps).collect();
+        let hi: Vec<f64> = x0.iter().map(|v| v + eps).collect();
+        let cases: Vec<Case> = (0..10)
+            .filter(|j| *j != label)
+            .map(|j| {
+                let mut c = vec![0.0; 10];
+                c[label] = 1.0;
+                c[j] = -1.0;
+                Case {
+                    lo: lo.clone(),
+                    hi: hi.clone(),
+                    constraints: vec![OutputConstraint {
+                        obj: Objective { c, d: 0.0 },
+                        strict: false,
+                    }],
+                }
+            })
+            .collect();
+        let sampled_point = (0..2000).any(|k| {
+            let y = net.eval_f64(&sample(&mut rng, &lo, &hi, k));
+            (0..10).any(|j| j != label && y[j] >= y[label])
+        });
+        let (o, _) = solve(
+            &maps,
+            &cases,
+            &Settings {
+                timeout: Some(std::time::Duration::from_secs(5)),
+                ..Default::default()
+            },
+        );
+        match o {
+            Outcome::Point { case, x, .. } => {
+                let y = net.eval_f64(&x);
+                let k = &cases[case].constraints[0];
+                let g = k.obj.c.iter().zip(&y).map(|(c, v)| c * v).sum::<f64>();
+                assert!(g <= 1e-9, "trial {trial}: case {case} does not hold: {g}");
+                assert!(x
+                    .iter()
+                    .zip(lo.iter().zip(&hi))
+                    .all(|(v, (a, b))| a <= v && v <= b));
+                checked += 1;
+            }
+            Outcome::Empty => assert!(!sampled_point, "trial {trial}: Empty, yet sampled"),
+            Outcome::Unknown(r) => assert!(!sampled_point, "trial {trial}: {r:?}, yet sampled"),
+        }
+    }
+    assert!(checked >= 3, "points exercised: {checked}");
+}
