@@ -38,9 +38,9 @@
 //! followed by the halves taken, `0` the lower and `1` the upper (`"17.0110"`).
 
 use crate::system::{
-    bisect_sensitive, checked_settings, controller, coverage, cut_at, empty_leaf, falsify, fly_box,
-    leaf_hull, measure_ranges, past, Falsified, NetworkError, SystemLeaf, SystemReach,
-    SystemReachError, SystemReachSettings, SystemVerdict,
+    bisect_sensitive, checked_settings, controller, coverage, covered_volume, cut_at, empty_leaf,
+    falsify, fly_box, leaf_hull, measure_ranges, past, Falsified, NetworkError, SystemLeaf,
+    SystemReach, SystemReachError, SystemReachSettings, SystemVerdict,
 };
 use rayon::prelude::*;
 use samara_nn::Network;
@@ -69,6 +69,10 @@ pub struct AdaptiveSettings {
     pub pieces: Option<Vec<usize>>,
     /// Called with one line of progress after every round (the CLI prints it).
     pub on_round: Option<Progress>,
+    /// `Some((i, n))`: fly only the starting cells whose number is `i` mod `n` (shard `i`
+    /// of `n`; each shard flies all the flights, so every shard has the same band), and
+    /// `max_boxes` bounds this shard's cells. [`merge_adaptive`] joins the shards.
+    pub shard: Option<(usize, usize)>,
 }
 
 impl Default for AdaptiveSettings {
@@ -78,6 +82,7 @@ impl Default for AdaptiveSettings {
             measure: 0,
             pieces: None,
             on_round: None,
+            shard: None,
         }
     }
 }
@@ -113,6 +118,9 @@ pub struct AdaptiveReach {
     pub met: bool,
     /// Why not, when not.
     pub reason: Option<String>,
+    /// Why the splitting stopped before every cell was accepted (time, budget, a goal
+    /// refuted on the sets), if it did.
+    pub stopped: Option<String>,
     /// Rounds of flights.
     pub rounds: usize,
     /// Cells flown in all (the cut ones included).
@@ -211,6 +219,17 @@ pub fn reach_adaptive(
                 .collect()
         }
     };
+    if let Some((i, n)) = a.shard {
+        if n == 0 || i >= n {
+            return setting(format!("shard {i} of {n}: give 0 <= i < n"));
+        }
+        frontier.retain(|(id, _)| id.root % n == i);
+        if frontier.is_empty() {
+            return setting(format!(
+                "shard {i} of {n} has no starting cell: use at most as many shards as starting cells (--grid)"
+            ));
+        }
+    }
     if frontier.len() > s.max_boxes {
         return setting(format!(
             "the starting grid has {} cells, more than the budget of {} leaves: raise the budget or start coarser",
@@ -360,41 +379,21 @@ pub fn reach_adaptive(
             ));
         }
     }
-    done.sort_by(|p, q| p.0.cmp(&q.0));
-    let cells: Vec<AdaptiveCell> = done
-        .iter()
-        .map(|(id, _, ok)| AdaptiveCell {
-            id: id.label(),
-            accepted: *ok,
-        })
-        .collect();
-    let leaves: Vec<SystemLeaf> = done.into_iter().map(|d| d.1).collect();
-    let covered = coverage(&init, &leaves, steps);
-    let measures = measure_ranges(&s.measures, &leaves, &flights, covered);
-    let enclosure = measures[a.measure].enclosure;
-    let ratio = enclosure.map(|e| (e[1] - e[0]) / (hi - lo));
-    let met = ratio.is_some_and(|r| r <= a.target_ratio);
-    let not_accepted = cells.iter().filter(|c| !c.accepted).count();
-    let reason = (!met).then(|| {
-        let lost = leaves.iter().filter(|l| l.failure.is_some()).count();
-        let why = if timed_out {
-            format!("timeout after {:.1} s", t0.elapsed().as_secs_f64())
-        } else if budget_bound {
-            format!("the budget of {} leaves ran out", s.max_boxes)
-        } else {
-            "a goal was refuted on the sets first".to_string()
-        };
-        format!(
-            "{why}: {not_accepted} of {} cells short of the target ({lost} without sets to the horizon)",
-            cells.len()
-        )
-    });
-    // The verdict on the goals, as `reach_system` gives it.
-    let verdict = if let Some(v) = violation {
-        v
+    let stopped = if timed_out {
+        Some(format!("timeout after {:.1} s", t0.elapsed().as_secs_f64()))
+    } else if budget_bound {
+        Some(format!("the budget of {} leaves ran out", s.max_boxes))
+    } else {
+        refuted
+            .is_some()
+            .then(|| "a goal was refuted on the sets first".to_string())
+    };
+    // The verdict on the goals where the cells alone do not give it, as `reach_system`.
+    let goal_verdict = if let Some(v) = violation {
+        Some(v)
     } else if let Some((gi, centre)) = refuted {
         let eval = controller(net);
-        match fly(sys, &eval, &centre, 10) {
+        Some(match fly(sys, &eval, &centre, 10) {
             Ok(f) if goals_hold(sys, &f).iter().any(|h| !h) => SystemVerdict::Violated {
                 initial: centre,
                 goal: sys.goals[gi].text.clone(),
@@ -405,7 +404,126 @@ pub fn reach_adaptive(
                     sys.goals[gi].text
                 ),
             },
+        })
+    } else {
+        None
+    };
+    let cells = done
+        .into_iter()
+        .map(|(id, l, ok)| {
+            (
+                AdaptiveCell {
+                    id: id.label(),
+                    accepted: ok,
+                },
+                l,
+            )
+        })
+        .collect();
+    let sampled = measure_ranges(&s.measures, &[], &flights, 0.0)
+        .into_iter()
+        .map(|m| m.sampled)
+        .collect();
+    let mut r = assemble(
+        sys,
+        s,
+        a,
+        Joined {
+            cells,
+            sampled,
+            range: [lo, hi],
+            band,
+            goal_verdict,
+            stopped,
+            unflown,
+            rounds,
+            flown,
+            mode,
+        },
+    );
+    r.reach.flights = flights;
+    r.reach.seconds = t0.elapsed().as_secs_f64();
+    Ok(r)
+}
+
+/// What a run or a merge of shards has at the end, for [`assemble`].
+struct Joined {
+    cells: Vec<(AdaptiveCell, SystemLeaf)>,
+    /// Each measure's range over the flights.
+    sampled: Vec<Option<[f64; 2]>>,
+    range: [f64; 2],
+    band: [f64; 2],
+    goal_verdict: Option<SystemVerdict>,
+    stopped: Option<String>,
+    unflown: Option<String>,
+    rounds: usize,
+    flown: usize,
+    mode: NetworkError,
+}
+
+/// The sort key of a cell id: its starting cell, then its halves (a parent before its
+/// children, the lower half first).
+fn id_key(id: &str) -> (usize, &str) {
+    let (root, path) = id.split_once('.').unwrap_or((id, ""));
+    (root.parse().unwrap_or(usize::MAX), path)
+}
+
+/// The result of the final cells (sorted here by id): the hulls, the coverage, the
+/// measures, the ratio and the verdicts. No flights, `seconds` 0: the caller's.
+fn assemble(
+    sys: &System,
+    s: &SystemReachSettings,
+    a: &AdaptiveSettings,
+    j: Joined,
+) -> AdaptiveReach {
+    let Joined {
+        mut cells,
+        sampled,
+        range: [lo, hi],
+        band,
+        goal_verdict,
+        stopped,
+        unflown,
+        rounds,
+        flown,
+        mode,
+    } = j;
+    cells.sort_by(|p, q| id_key(&p.0.id).cmp(&id_key(&q.0.id)));
+    let (cells, leaves): (Vec<AdaptiveCell>, Vec<SystemLeaf>) = cells.into_iter().unzip();
+    let init: Vec<Interval> = sys
+        .init
+        .iter()
+        .map(|&(l, h)| Interval { lo: l, hi: h })
+        .collect();
+    // A shard's cells are part of the set: their share, never 1.
+    let covered = match a.shard {
+        Some((_, n)) if n > 1 => {
+            covered_volume(&init, &leaves, sys.steps()).min(1.0 - f64::EPSILON)
         }
+        _ => coverage(&init, &leaves, sys.steps()),
+    };
+    let mut measures = measure_ranges(&s.measures, &leaves, &[], covered);
+    for (m, smp) in measures.iter_mut().zip(sampled) {
+        m.sampled = smp;
+        m.ratio = match (m.enclosure, smp) {
+            (Some(e), Some(v)) if v[1] > v[0] => Some((e[1] - e[0]) / (v[1] - v[0])),
+            _ => None,
+        };
+    }
+    let enclosure = measures[a.measure].enclosure;
+    let ratio = enclosure.map(|e| (e[1] - e[0]) / (hi - lo));
+    let met = ratio.is_some_and(|r| r <= a.target_ratio);
+    let not_accepted = cells.iter().filter(|c| !c.accepted).count();
+    let reason = (!met).then(|| {
+        let lost = leaves.iter().filter(|l| l.failure.is_some()).count();
+        format!(
+            "{}: {not_accepted} of {} cells short of the target ({lost} without sets to the horizon)",
+            stopped.as_deref().unwrap_or("the splitting stopped"),
+            cells.len()
+        )
+    });
+    let verdict = if let Some(v) = goal_verdict {
+        v
     } else if sys.goals.is_empty() {
         SystemVerdict::NoGoal
     } else if leaves
@@ -433,12 +551,12 @@ pub fn reach_adaptive(
         covered,
         order: s.order,
         network_error: mode,
-        seconds: t0.elapsed().as_secs_f64(),
+        seconds: 0.0,
         leaves,
         measures,
-        flights,
+        flights: Vec::new(),
     };
-    Ok(AdaptiveReach {
+    AdaptiveReach {
         reach,
         cells,
         target_ratio: a.target_ratio,
@@ -447,9 +565,71 @@ pub fn reach_adaptive(
         ratio,
         met,
         reason,
+        stopped,
         rounds,
         flown,
-    })
+    }
+}
+
+/// Join the results of the shards `0..n` of one adaptive run (`AdaptiveSettings::shard`,
+/// the same system, settings and flights) into the result of the unsharded run: the
+/// cells of every shard in id order, and the hulls, ratio and verdicts over them. The
+/// same as the one-process run where no shard's budget or deadline binds (each shard's
+/// cells depend on their own boxes only). `rounds` is the most of any shard, `flown` and
+/// `seconds` their sums, a goal missed by a flight the first shard's.
+pub fn merge_adaptive(
+    sys: &System,
+    s: &SystemReachSettings,
+    a: &AdaptiveSettings,
+    parts: Vec<AdaptiveReach>,
+) -> Result<AdaptiveReach, SystemReachError> {
+    let Some(first) = parts.first() else {
+        return Err(SystemReachError::Setting("no shards to merge".into()));
+    };
+    let (range, band) = (first.sampled, first.band);
+    if let Some(k) = parts
+        .iter()
+        .position(|p| p.sampled != range || p.band != band)
+    {
+        return Err(SystemReachError::Setting(format!(
+            "shard {k} has the band {:?} from flights over {:?}, shard 0 {band:?} from {range:?}: the shards are of different runs",
+            parts[k].band, parts[k].sampled
+        )));
+    }
+    let sampled = first.reach.measures.iter().map(|m| m.sampled).collect();
+    let mode = first.reach.network_error;
+    let goal_verdict = parts
+        .iter()
+        .map(|p| &p.reach.verdict)
+        .find(|v| matches!(v, SystemVerdict::Violated { .. }))
+        .cloned();
+    let stopped = parts.iter().find_map(|p| p.stopped.clone());
+    let rounds = parts.iter().map(|p| p.rounds).max().unwrap_or(0);
+    let flown = parts.iter().map(|p| p.flown).sum();
+    let seconds = parts.iter().map(|p| p.reach.seconds).sum();
+    let cells = parts
+        .into_iter()
+        .flat_map(|p| p.cells.into_iter().zip(p.reach.leaves))
+        .collect();
+    let mut r = assemble(
+        sys,
+        s,
+        a,
+        Joined {
+            cells,
+            sampled,
+            range,
+            band,
+            goal_verdict,
+            stopped,
+            unflown: None,
+            rounds,
+            flown,
+            mode,
+        },
+    );
+    r.reach.seconds = seconds;
+    Ok(r)
 }
 
 /// The parameter whose range moves `m` at the horizon most over the box `b`: per

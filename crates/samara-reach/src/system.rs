@@ -722,10 +722,19 @@ pub(crate) fn measure_ranges(
 /// Exactly 1 when every leaf does (then `instants` runs to the horizon).
 pub(crate) fn coverage(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -> f64 {
     let whole =
-        |l: &&SystemLeaf| l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > steps;
-    if leaves.iter().all(|l| whole(&l)) {
+        |l: &SystemLeaf| l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > steps;
+    if leaves.iter().all(whole) {
         return 1.0;
     }
+    covered_volume(init, leaves, steps).min(1.0)
+}
+
+/// The volume share of `init` (over its parameters of nonzero width) of the `leaves`
+/// with sets at all `steps + 1` control instants, summed: [`coverage`] for leaves that
+/// need not tile the whole set (a shard's).
+pub(crate) fn covered_volume(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -> f64 {
+    let whole =
+        |l: &&SystemLeaf| l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > steps;
     leaves
         .iter()
         .filter(whole)
@@ -738,7 +747,6 @@ pub(crate) fn coverage(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -
                 .product::<f64>()
         })
         .fold(0.0, |a, v| a + v)
-        .min(1.0)
 }
 
 /// Where the refinement starts: a flight of the whole set already made (the ladder's

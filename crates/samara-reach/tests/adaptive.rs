@@ -13,7 +13,7 @@
 mod common;
 
 use rand::{Rng, SeedableRng};
-use samara_reach::adaptive::{reach_adaptive, AdaptiveReach, AdaptiveSettings};
+use samara_reach::adaptive::{merge_adaptive, reach_adaptive, AdaptiveReach, AdaptiveSettings};
 use samara_reach::grid;
 use samara_reach::system::{Measure, NetworkError, SystemReachSettings};
 use samara_system::sim::fly;
@@ -55,16 +55,20 @@ fn settings() -> SystemReachSettings {
 }
 
 fn run(threads: usize, s: &SystemReachSettings, ratio: f64) -> AdaptiveReach {
-    let (sys, net) = tora();
     let a = AdaptiveSettings {
         target_ratio: ratio,
         ..AdaptiveSettings::default()
     };
+    run_with(threads, s, &a)
+}
+
+fn run_with(threads: usize, s: &SystemReachSettings, a: &AdaptiveSettings) -> AdaptiveReach {
+    let (sys, net) = tora();
     rayon::ThreadPoolBuilder::new()
         .num_threads(threads)
         .build()
         .unwrap()
-        .install(|| reach_adaptive(&sys, &net, s, &a).unwrap())
+        .install(|| reach_adaptive(&sys, &net, s, a).unwrap())
 }
 
 fn close(v: f64, lo: f64, hi: f64) -> bool {
@@ -155,18 +159,56 @@ fn adaptive_cells_contain_3000_flights_and_meet_the_target_with_fewer_cells_than
     );
 }
 
+/// The result as JSON without the wall time.
+fn strip(r: &AdaptiveReach) -> serde_json::Value {
+    let mut v = serde_json::to_value(r).unwrap();
+    v["reach"]["seconds"] = serde_json::Value::Null;
+    v
+}
+
 #[test]
 fn one_and_two_threads_give_the_same_cells_and_sets() {
     let s = settings();
     let a = run(1, &s, 1.3);
     let b = run(2, &s, 1.3);
-    let strip = |r: &AdaptiveReach| {
-        let mut v = serde_json::to_value(r).unwrap();
-        v["reach"]["seconds"] = serde_json::Value::Null;
-        v
-    };
     assert!(a.cells.len() > 1);
     assert_eq!(strip(&a), strip(&b));
+}
+
+/// Shards 0/2 and 1/2 of a run that starts from 2 x 2 cells (each shard the starting
+/// cells of its residue), merged in either order, give the one-process result: the
+/// same cells, sets, ratio and verdict.
+#[test]
+fn two_shards_merge_to_the_one_process_result() {
+    let (sys, _) = tora();
+    let s = settings();
+    let a = AdaptiveSettings {
+        target_ratio: 1.3,
+        pieces: Some(vec![2, 1, 2, 1]),
+        ..AdaptiveSettings::default()
+    };
+    let whole = run_with(2, &s, &a);
+    assert!(whole.met);
+    let part = |i: usize| {
+        let sa = AdaptiveSettings {
+            shard: Some((i, 2)),
+            ..a.clone()
+        };
+        run_with(1, &s, &sa)
+    };
+    let (p0, p1) = (part(0), part(1));
+    assert!(p0
+        .cells
+        .iter()
+        .all(|c| c.id.starts_with('0') || c.id.starts_with('2')));
+    assert!(
+        !p0.met && p0.ratio.is_none(),
+        "a shard covers part of the set only"
+    );
+    for parts in [vec![p0.clone(), p1.clone()], vec![p1, p0]] {
+        let m = merge_adaptive(&sys, &s, &a, parts).unwrap();
+        assert_eq!(strip(&m), strip(&whole));
+    }
 }
 
 #[test]
