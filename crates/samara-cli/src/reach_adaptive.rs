@@ -63,6 +63,7 @@ pub(crate) fn run(
         measure: 0,
         pieces: pieces.clone(),
         on_round: Some(Arc::new(|line: &str| eprintln!("{line}"))),
+        shard: None,
     };
     let res =
         reach_adaptive(sys, net, &s, &settings).map_err(|e| anyhow!("{}: {e}", path.display()))?;
@@ -83,6 +84,10 @@ pub(crate) fn run(
     if a.json {
         let mut v = summary(&res.reach);
         v["adaptive"] = adaptive_json(&res);
+        // The per-cell list stays in reach.json (thousands of lines on a large set).
+        if let Some(o) = v["adaptive"].as_object_mut() {
+            o.remove("cells");
+        }
         println!("{}", serde_json::to_string_pretty(&v)?);
     } else {
         println!(
@@ -111,6 +116,7 @@ fn adaptive_json(r: &AdaptiveReach) -> serde_json::Value {
         "met": r.met,
         "ratio": r.ratio,
         "reason": r.reason,
+        "stopped": r.stopped,
         "leaves": r.cells.len(),
         "accepted": r.cells.iter().filter(|c| c.accepted).count(),
         "flown": r.flown,
