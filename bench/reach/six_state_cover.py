@@ -1,5 +1,7 @@
 #!/usr/bin/env python3
-"""The six-state criterion of issue 14, as one resumable run: cover the reduced glider's
+"""The six-state criterion of issue 14, as one resumable run (`samara reach ... --target-ratio
+2` now finds its own cells in one command, docs/reach.md "Adaptive splitting"; this script
+keeps the hand-chosen grid and its ledgers): cover the reduced glider's
 six-state initial set (+-0.01 on v_xp, v_yp, omega, theta; +-0.05 on x; y0 in the
 published interval [0.1, 0.3] m / chord) with a grid of Taylor-model reach runs, give
 the cells that are lost or too wide a second round as two halves, and compare the hull

@@ -6,6 +6,7 @@
 
 mod nnload;
 mod reach;
+mod reach_adaptive;
 mod reach_system;
 mod reproduce;
 mod simulate;

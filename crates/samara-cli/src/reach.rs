@@ -163,6 +163,13 @@ pub struct ReachArgs {
     /// budget (docs/reach.md, "Grids and shards"). What --shard divides
     #[arg(long, value_name = "NAME=K")]
     pub grid: Vec<String>,
+    /// Adaptive splitting toward a width target (Taylor-model sets): cut the initial set
+    /// where a cell's enclosure is lost or its x + y (a system file's first `goal band
+    /// ... at end`) at the horizon leaves the band that keeps the hull within R times
+    /// the spread of the --samples flights; --max-leaves bounds the cells, --grid gives
+    /// the starting cells (docs/reach.md, "Adaptive splitting").
+    #[arg(long, value_name = "R", allow_hyphen_values = true)]
+    pub target_ratio: Option<f64>,
 }
 
 /// Parse `A:B` or `A` into a finite, non-inverted interval; `what` names the flag and
@@ -500,7 +507,7 @@ fn check_zonotope_flags(a: &ReachArgs) -> Result<()> {
 pub fn run(a: &ReachArgs) -> Result<ExitCode> {
     // Taylor-model runs shard by their --grid (crate::reach_system); zonotope runs by
     // their initial pieces.
-    let taylor = a.system.is_some() || a.sets == "taylor";
+    let taylor = a.system.is_some() || a.sets == "taylor" || a.target_ratio.is_some();
     if let Some(sh) = a.shard.filter(|_| !taylor) {
         return run_shard(a, sh);
     }
@@ -509,6 +516,9 @@ pub fn run(a: &ReachArgs) -> Result<ExitCode> {
     }
     if let Some(sys) = &a.system {
         return crate::reach_system::run(a, sys);
+    }
+    if a.target_ratio.is_some() {
+        return run_taylor(a);
     }
     match a.sets.as_str() {
         "zonotope" => {
@@ -552,7 +562,9 @@ fn run_taylor(a: &ReachArgs) -> Result<ExitCode> {
     // setting in 46 s, where the automatic ladder climbs to order 3 on the whole set and
     // times out.
     let mut tuned = a.clone();
-    if a.order.is_none() && a.network_error.is_none() {
+    if a.target_ratio.is_some() {
+        crate::reach_adaptive::glider_defaults(&mut tuned);
+    } else if a.order.is_none() && a.network_error.is_none() {
         tuned.order = Some(2);
         tuned.network_error = Some("symbolic:7".into());
     }

@@ -89,6 +89,9 @@ pub fn run_system(
         s.samples = n;
     }
     let pieces = grid_pieces(a, sys)?;
+    if let Some(r) = a.target_ratio {
+        return crate::reach_adaptive::run(a, r, sys, path, net, s, pieces);
+    }
     let inputs = if path.is_file() {
         vec![("--system", path), ("--network", a.network.as_path())]
     } else {
@@ -124,7 +127,10 @@ pub fn run_system(
 }
 
 /// The settings recorded in reach.json.
-fn report_settings(s: &SystemReachSettings, pieces: Option<&[usize]>) -> serde_json::Value {
+pub(crate) fn report_settings(
+    s: &SystemReachSettings,
+    pieces: Option<&[usize]>,
+) -> serde_json::Value {
     let mut v =
         serde_json::json!({"order": s.order, "max_boxes": s.max_boxes, "samples": s.samples});
     if let Some(p) = pieces {
@@ -357,7 +363,7 @@ fn parse_network_error(v: &str) -> Result<Option<NetworkError>> {
     NetworkError::parse(v).map_err(|e| anyhow!("--network-error {v:?}: {e}"))
 }
 
-fn summary(r: &SystemReach) -> serde_json::Value {
+pub(crate) fn summary(r: &SystemReach) -> serde_json::Value {
     serde_json::json!({
         "system": r.system,
         "verdict": &r.verdict,
@@ -379,7 +385,7 @@ fn lost(r: &SystemReach) -> Option<String> {
     r.leaves.iter().find_map(|l| l.failure.clone())
 }
 
-fn human_line(system: &str, r: &SystemReach) -> String {
+pub(crate) fn human_line(system: &str, r: &SystemReach) -> String {
     let what = match &r.verdict {
         SystemVerdict::Proved => "proved: every goal holds on the sound enclosure".to_string(),
         SystemVerdict::Violated { initial, goal } => {

@@ -632,3 +632,98 @@ fn grid_is_checked_and_applies_to_taylor_models_only() {
         ),
     ]);
 }
+
+/// `--target-ratio R` (adaptive splitting toward a width target): R below 1, a system
+/// file without an end band to measure, and --shard are refused with exit 2 before
+/// anything is written. On TORA (the competition's controller, x1 and x3 intervals
+/// widened three times, 3 s horizon, the band `|x1 + x2| <= 100` at the end as the
+/// measure) a target of 1.3 is met: exit 0, and the JSON names the leaves, the ratio
+/// (at most the target) and the band, which holds every cell's enclosure.
+#[test]
+fn target_ratio_is_checked_and_cuts_cells_until_the_target_is_met() {
+    refused_before_writing(&[
+        (
+            vec!["--target-ratio", "0.5"],
+            "--target-ratio 0.5: give a number from 1",
+        ),
+        (
+            vec!["--target-ratio", "2", "--shard", "0/2", "--grid", "y=2"],
+            "--shard with --target-ratio",
+        ),
+    ]);
+    let dir = tempfile::tempdir().unwrap();
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+    let tora = std::fs::read_to_string(root.join("examples/archcomp/tora.sys")).unwrap();
+    let net = root.join("crates/samara-reach/tests/data/archcomp/controller_tora.onnx");
+    let run = |text: &str, args: &[&str]| {
+        let sys = dir.path().join("t.sys");
+        std::fs::write(&sys, text).unwrap();
+        let out = dir.path().join("run");
+        let _ = std::fs::remove_dir_all(&out);
+        let o = samara()
+            .arg("reach")
+            .arg("--system")
+            .arg(&sys)
+            .arg("--network")
+            .arg(&net)
+            .args(args)
+            .args(["--json", "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        (o, out)
+    };
+    // TORA's own goal is a box, not an end band: nothing to measure.
+    let (o, out) = run(&tora, &["--target-ratio", "2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("--target-ratio needs a measure"), "{err}");
+    assert!(!out.exists());
+    let widened: String = tora
+        .replace("horizon 20", "horizon 3")
+        .replace("init x1 in [0.6, 0.7]", "init x1 in [0.5, 0.8]")
+        .replace("init x3 in [-0.4, -0.3]", "init x3 in [-0.5, -0.2]")
+        .lines()
+        .filter(|l| !l.starts_with("goal"))
+        .map(|l| format!("{l}\n"))
+        .collect::<String>()
+        + "goal band |x1 + x2| <= 100 at end\n";
+    let (o, out) = run(
+        &widened,
+        &[
+            "--target-ratio",
+            "1.3",
+            "--order",
+            "3",
+            "--network-error",
+            "symbolic:20",
+            "--samples",
+            "500",
+            "--max-leaves",
+            "64",
+        ],
+    );
+    let s = json_of_success(&o);
+    assert_eq!(s["verdict"]["verdict"], "proved", "{s}");
+    let a = &s["adaptive"];
+    assert_eq!(a["met"], true, "{a}");
+    let q = a["ratio"].as_f64().unwrap();
+    assert!((1.0..=1.3).contains(&q), "{a}");
+    let leaves = a["leaves"].as_u64().unwrap();
+    assert!(leaves > 1 && leaves <= 64, "{a}");
+    assert_eq!(a["accepted"], a["leaves"]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("reach.json")).unwrap()).unwrap();
+    assert_eq!(report["settings"]["target_ratio"], 1.3);
+    let band = &report["adaptive"]["band"];
+    let (lo, hi) = (band[0].as_f64().unwrap(), band[1].as_f64().unwrap());
+    let cells = report["result"]["leaves"].as_array().unwrap();
+    assert_eq!(cells.len() as u64, leaves);
+    for c in cells {
+        let e = &c["end_measures"][0];
+        assert!(
+            lo <= e[0].as_f64().unwrap() && e[1].as_f64().unwrap() <= hi,
+            "{e}"
+        );
+    }
+}

@@ -23,6 +23,7 @@
 
 #![warn(missing_docs)]
 
+pub mod adaptive;
 pub mod driver;
 pub mod flow;
 pub mod grid;

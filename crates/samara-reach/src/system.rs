@@ -388,7 +388,7 @@ pub fn starts(sys: &System, n: usize, seed: u64) -> Vec<Vec<f64>> {
 }
 
 /// The network as the closed loop reads it (f64).
-fn controller(net: &Network) -> impl Fn(&[f64]) -> Vec<f64> + Sync + '_ {
+pub(crate) fn controller(net: &Network) -> impl Fn(&[f64]) -> Vec<f64> + Sync + '_ {
     move |x: &[f64]| net.eval_f64(x)
 }
 
@@ -400,68 +400,15 @@ pub fn reach_system(
     s: &SystemReachSettings,
 ) -> Result<SystemReach, SystemReachError> {
     let t0 = Instant::now();
-    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
-        return Err(SystemReachError::Shape {
-            n_in: net.n_inputs(),
-            n_out: net.n_outputs(),
-            obs: sys.n_observed(),
-            reads: sys.n_net_outputs,
-        });
-    }
-    if !(1..=8).contains(&s.order) {
-        return Err(SystemReachError::Setting(format!(
-            "the Taylor-model order must be 1 to 8 (got {}); 3-5 is usual",
-            s.order
-        )));
-    }
-    if s.max_boxes == 0 {
-        return Err(SystemReachError::Setting(
-            "the sub-box budget must be at least 1".into(),
-        ));
-    }
-    let mut s = s.clone();
-    s.flow.order = s.order as u32;
+    let (s, deadline) = checked_settings(sys, net, s, t0)?;
     let s = &s;
-    // The budget also bounds each sub-box's flight (one wide network can take minutes
-    // per box), not only the splitting rounds.
-    let deadline = s.timeout.and_then(|t| {
-        std::time::Duration::try_from_secs_f64(t)
-            .ok()
-            .and_then(|d| t0.checked_add(d))
-    });
     // Falsification first.
     let eval = controller(net);
-    let flights: Vec<(Vec<f64>, Result<SystemFlight, SimError>)> = starts(sys, s.samples, s.seed)
-        .into_par_iter()
-        .map(|x0| {
-            let f = fly_until(sys, &eval, &x0, 10, deadline);
-            (x0, f)
-        })
-        .collect();
-    let mut ok_flights = Vec::with_capacity(flights.len());
-    let mut violation = None;
-    // A flight the simulator cannot finish (its step collapsed on a switch, or the
-    // budget ran out) witnesses nothing; the sets do not need it.
-    let mut unflown: Option<String> = None;
-    for (x0, f) in flights {
-        let f = match f {
-            Ok(f) => f,
-            Err(e @ (SimError::StepCollapse { .. } | SimError::Timeout { .. })) => {
-                unflown.get_or_insert_with(|| format!("the flight from {x0:?} stopped: {e}"));
-                continue;
-            }
-            Err(e) => return Err(SystemReachError::Simulation(e.to_string())),
-        };
-        if violation.is_none() {
-            if let Some(gi) = goals_hold(sys, &f).iter().position(|h| !h) {
-                violation = Some(SystemVerdict::Violated {
-                    initial: x0.clone(),
-                    goal: sys.goals[gi].text.clone(),
-                });
-            }
-        }
-        ok_flights.push((x0, f));
-    }
+    let Falsified {
+        flights: ok_flights,
+        violation,
+        unflown,
+    } = falsify(sys, net, s, deadline)?;
     let init: Vec<Interval> = sys
         .init
         .iter()
@@ -588,26 +535,9 @@ pub fn reach_system(
             reason: "an enclosure was lost".into(),
         };
     }
-    let hull = |rows: &dyn Fn(&SystemLeaf) -> &Vec<Vec<[f64; 2]>>| -> Vec<Vec<[f64; 2]>> {
-        let n = leaves.iter().map(|l| rows(l).len()).min().unwrap_or(0);
-        (0..n)
-            .map(|k| {
-                (0..sys.dim())
-                    .map(|i| {
-                        leaves
-                            .iter()
-                            .fold([f64::INFINITY, f64::NEG_INFINITY], |a, l| {
-                                let v = rows(l)[k][i];
-                                [a[0].min(v[0]), a[1].max(v[1])]
-                            })
-                    })
-                    .collect()
-            })
-            .collect()
-    };
-    let instants = hull(&|l: &SystemLeaf| &l.instants);
+    let instants = leaf_hull(&leaves, sys.dim(), |l| &l.instants);
     let covered = coverage(&init, &leaves, sys.steps());
-    let periods = hull(&|l: &SystemLeaf| &l.periods);
+    let periods = leaf_hull(&leaves, sys.dim(), |l| &l.periods);
     let measures = measure_ranges(&s.measures, &leaves, &ok_flights, covered);
     Ok(SystemReach {
         system: sys.name.clone(),
@@ -625,9 +555,128 @@ pub fn reach_system(
     })
 }
 
+/// The checks every run makes before flying anything (the network fits the system, the
+/// order, the budget), the settings with the flow's order set, and the deadline of
+/// `s.timeout` counted from `t0`.
+pub(crate) fn checked_settings(
+    sys: &System,
+    net: &Network,
+    s: &SystemReachSettings,
+    t0: Instant,
+) -> Result<(SystemReachSettings, Option<Instant>), SystemReachError> {
+    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
+        return Err(SystemReachError::Shape {
+            n_in: net.n_inputs(),
+            n_out: net.n_outputs(),
+            obs: sys.n_observed(),
+            reads: sys.n_net_outputs,
+        });
+    }
+    if !(1..=8).contains(&s.order) {
+        return Err(SystemReachError::Setting(format!(
+            "the Taylor-model order must be 1 to 8 (got {}); 3-5 is usual",
+            s.order
+        )));
+    }
+    if s.max_boxes == 0 {
+        return Err(SystemReachError::Setting(
+            "the sub-box budget must be at least 1".into(),
+        ));
+    }
+    let mut s = s.clone();
+    s.flow.order = s.order as u32;
+    // The budget also bounds each sub-box's flight (one wide network can take minutes
+    // per box), not only the splitting rounds.
+    let deadline = s.timeout.and_then(|t| {
+        std::time::Duration::try_from_secs_f64(t)
+            .ok()
+            .and_then(|d| t0.checked_add(d))
+    });
+    Ok((s, deadline))
+}
+
+/// The falsification flights of a run: the flights that finished, the first that
+/// misses a goal (as the verdict), and why a flight could not be finished (the first).
+pub(crate) struct Falsified {
+    pub(crate) flights: Vec<(Vec<f64>, SystemFlight)>,
+    pub(crate) violation: Option<SystemVerdict>,
+    pub(crate) unflown: Option<String>,
+}
+
+/// Fly the falsification starts ([`starts`]: `s.samples` of them, seeded by `s.seed`)
+/// in parallel and look for a goal they miss.
+pub(crate) fn falsify(
+    sys: &System,
+    net: &Network,
+    s: &SystemReachSettings,
+    deadline: Option<Instant>,
+) -> Result<Falsified, SystemReachError> {
+    let eval = controller(net);
+    let flights: Vec<(Vec<f64>, Result<SystemFlight, SimError>)> = starts(sys, s.samples, s.seed)
+        .into_par_iter()
+        .map(|x0| {
+            let f = fly_until(sys, &eval, &x0, 10, deadline);
+            (x0, f)
+        })
+        .collect();
+    let mut ok_flights = Vec::with_capacity(flights.len());
+    let mut violation = None;
+    // A flight the simulator cannot finish (its step collapsed on a switch, or the
+    // budget ran out) witnesses nothing; the sets do not need it.
+    let mut unflown: Option<String> = None;
+    for (x0, f) in flights {
+        let f = match f {
+            Ok(f) => f,
+            Err(e @ (SimError::StepCollapse { .. } | SimError::Timeout { .. })) => {
+                unflown.get_or_insert_with(|| format!("the flight from {x0:?} stopped: {e}"));
+                continue;
+            }
+            Err(e) => return Err(SystemReachError::Simulation(e.to_string())),
+        };
+        if violation.is_none() {
+            if let Some(gi) = goals_hold(sys, &f).iter().position(|h| !h) {
+                violation = Some(SystemVerdict::Violated {
+                    initial: x0.clone(),
+                    goal: sys.goals[gi].text.clone(),
+                });
+            }
+        }
+        ok_flights.push((x0, f));
+    }
+    Ok(Falsified {
+        flights: ok_flights,
+        violation,
+        unflown,
+    })
+}
+
+/// The hull over `leaves` of one of their rows of boxes (`instants` or `periods`), up to
+/// the shortest leaf's rows.
+pub(crate) fn leaf_hull(
+    leaves: &[SystemLeaf],
+    dim: usize,
+    rows: impl Fn(&SystemLeaf) -> &Vec<Vec<[f64; 2]>>,
+) -> Vec<Vec<[f64; 2]>> {
+    let n = leaves.iter().map(|l| rows(l).len()).min().unwrap_or(0);
+    (0..n)
+        .map(|k| {
+            (0..dim)
+                .map(|i| {
+                    leaves
+                        .iter()
+                        .fold([f64::INFINITY, f64::NEG_INFINITY], |a, l| {
+                            let v = rows(l)[k][i];
+                            [a[0].min(v[0]), a[1].max(v[1])]
+                        })
+                })
+                .collect()
+        })
+        .collect()
+}
+
 /// Each measure over the sets at the horizon (hull over the sub-boxes, when every
 /// sub-box has sets there) and over the flights' final states.
-fn measure_ranges(
+pub(crate) fn measure_ranges(
     measures: &[Measure],
     leaves: &[SystemLeaf],
     flights: &[(Vec<f64>, SystemFlight)],
@@ -671,12 +720,21 @@ fn measure_ranges(
 /// The fraction of `init` (by volume over its parameters of nonzero width) whose
 /// leaves have sets at all `steps + 1` control instants.
 /// Exactly 1 when every leaf does (then `instants` runs to the horizon).
-fn coverage(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -> f64 {
+pub(crate) fn coverage(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -> f64 {
     let whole =
-        |l: &&SystemLeaf| l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > steps;
-    if leaves.iter().all(|l| whole(&l)) {
+        |l: &SystemLeaf| l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > steps;
+    if leaves.iter().all(whole) {
         return 1.0;
     }
+    covered_volume(init, leaves, steps).min(1.0)
+}
+
+/// The volume share of `init` (over its parameters of nonzero width) of the `leaves`
+/// with sets at all `steps + 1` control instants, summed: [`coverage`] for leaves that
+/// need not tile the whole set (a shard's).
+pub(crate) fn covered_volume(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -> f64 {
+    let whole =
+        |l: &&SystemLeaf| l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > steps;
     leaves
         .iter()
         .filter(whole)
@@ -689,7 +747,6 @@ fn coverage(init: &[Interval], leaves: &[SystemLeaf], steps: usize) -> f64 {
                 .product::<f64>()
         })
         .fold(0.0, |a, v| a + v)
-        .min(1.0)
 }
 
 /// Where the refinement starts: a flight of the whole set already made (the ladder's
@@ -802,15 +859,11 @@ fn refine(
             // nothing for the part of the set never flown.
             let mut st = ctx.state.lock().unwrap_or_else(|e| e.into_inner());
             st.unsettled += 1;
-            st.leaves.push(SystemLeaf {
-                init: to_pairs(&b),
-                instants: Vec::new(),
-                periods: Vec::new(),
-                failure: Some("not flown: a goal was refuted on another sub-box first".into()),
-                decided: vec![None; ctx.sys.goals.len()],
-                stopped_at: None,
-                end_measures: Vec::new(),
-            });
+            st.leaves.push(empty_leaf(
+                ctx.sys,
+                &b,
+                Some("not flown: a goal was refuted on another sub-box first".into()),
+            ));
             return;
         }
         let l = fly_box(ctx.sys, ctx.net, &b, ctx.s, ctx.mode, ctx.deadline);
@@ -866,7 +919,7 @@ fn progress(l: &SystemLeaf, sys: &System) -> usize {
 /// cancel). A parameter that barely matters (a height interval of 1e-4 beside an
 /// angular rate of 0.02) is then not cut only because its relative width ties. Falls
 /// back to [`bisect`] where a flight fails or nothing moves.
-fn bisect_sensitive(
+pub(crate) fn bisect_sensitive(
     sys: &System,
     net: &Network,
     b: &[Interval],
@@ -937,7 +990,7 @@ fn bisect(b: &[Interval], init: &[Interval]) -> (Vec<Interval>, Vec<Interval>) {
 }
 
 /// `b` cut in two at the midpoint of parameter `j`.
-fn cut_at(b: &[Interval], j: usize) -> (Vec<Interval>, Vec<Interval>) {
+pub(crate) fn cut_at(b: &[Interval], j: usize) -> (Vec<Interval>, Vec<Interval>) {
     let m = 0.5 * (b[j].lo + b[j].hi);
     let mut lo = b.to_vec();
     let mut hi = b.to_vec();
@@ -946,7 +999,7 @@ fn cut_at(b: &[Interval], j: usize) -> (Vec<Interval>, Vec<Interval>) {
     (lo, hi)
 }
 
-fn to_pairs(v: &[Interval]) -> Vec<[f64; 2]> {
+pub(crate) fn to_pairs(v: &[Interval]) -> Vec<[f64; 2]> {
     v.iter().map(|i| [i.lo, i.hi]).collect()
 }
 
@@ -1285,12 +1338,26 @@ fn mixed_monomials(full: usize, lifted: usize, order: usize, lw: u32) -> usize {
 }
 
 /// Whether the run's time budget (its deadline, if any) is spent.
-fn past(deadline: Option<Instant>) -> bool {
+pub(crate) fn past(deadline: Option<Instant>) -> bool {
     deadline.is_some_and(|d| Instant::now() > d)
 }
 
+/// A sub-box `b` without sets (yet): every goal undecided, `failure` saying why, if it
+/// stays so.
+pub(crate) fn empty_leaf(sys: &System, b: &[Interval], failure: Option<String>) -> SystemLeaf {
+    SystemLeaf {
+        init: to_pairs(b),
+        instants: Vec::new(),
+        periods: Vec::new(),
+        failure,
+        decided: vec![None; sys.goals.len()],
+        stopped_at: None,
+        end_measures: Vec::new(),
+    }
+}
+
 /// Fly one sub-box over the horizon and decide the goals on its sets.
-fn fly_box(
+pub(crate) fn fly_box(
     sys: &System,
     net: &Network,
     b: &[Interval],
@@ -1327,15 +1394,7 @@ fn fly_box(
         deadline,
         ..s.flow.clone()
     };
-    let mut leaf = SystemLeaf {
-        init: to_pairs(b),
-        instants: Vec::new(),
-        periods: Vec::new(),
-        failure: None,
-        decided: vec![None; sys.goals.len()],
-        stopped_at: None,
-        end_measures: Vec::new(),
-    };
+    let mut leaf = empty_leaf(sys, b, None);
     // Per goal: proved so far over the instants and periods seen (Always, End), or
     // met at some instant (Eventually).
     let mut ok: Vec<bool> = vec![true; sys.goals.len()];

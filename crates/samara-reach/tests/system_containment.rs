@@ -9,6 +9,8 @@
 //! Fixtures: ARCH-COMP AINNCS controllers (tests/data/archcomp/README.md) and the
 //! published Alsomitra controller (../shared/reference).
 
+mod common;
+
 use rand::{Rng, SeedableRng};
 use samara_reach::system::{
     reach_system, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
@@ -37,47 +39,15 @@ fn close(v: f64, lo: f64, hi: f64) -> bool {
     v >= lo - tol && v <= hi + tol
 }
 
-/// The sub-boxes of `r` tile the initial set, within the budget `max_boxes`: each lies
-/// inside it, no two overlap (in the parameters of nonzero width, every pair is
-/// separated along some axis), and their volumes add up to the whole (relative to the
-/// initial widths; bisection halves exactly). A proof over sub-boxes is a proof of the
-/// set only if they cover it, which the asynchronous splitting must keep.
+/// The sub-boxes of `r` tile the initial set ([`common::assert_tiles_leaves`]), within
+/// the budget `max_boxes`, which the asynchronous splitting must keep.
 fn assert_tiles(sys: &System, r: &SystemReach, max_boxes: usize) {
-    let dims: Vec<usize> = (0..sys.init.len())
-        .filter(|&i| sys.init[i].1 > sys.init[i].0)
-        .collect();
     assert!(
         !r.leaves.is_empty() && r.leaves.len() <= max_boxes,
         "{} sub-boxes",
         r.leaves.len()
     );
-    let mut volume = 0.0;
-    for (k, a) in r.leaves.iter().enumerate() {
-        let mut v = 1.0;
-        for (i, &(lo, hi)) in sys.init.iter().enumerate() {
-            assert!(
-                lo <= a.init[i][0] && a.init[i][1] <= hi,
-                "sub-box {k} leaves the set"
-            );
-            if hi > lo {
-                v *= (a.init[i][1] - a.init[i][0]) / (hi - lo);
-            }
-        }
-        volume += v;
-        for b in &r.leaves[k + 1..] {
-            assert!(
-                dims.iter()
-                    .any(|&i| a.init[i][1] <= b.init[i][0] || b.init[i][1] <= a.init[i][0]),
-                "sub-boxes overlap: {:?} and {:?}",
-                a.init,
-                b.init
-            );
-        }
-    }
-    assert!(
-        (volume - 1.0).abs() < 1e-12,
-        "the sub-boxes cover {volume} of the set"
-    );
+    common::assert_tiles_leaves(&sys.init, &r.leaves);
     assert_coverage(sys, r);
 }
 
@@ -159,16 +129,7 @@ fn check_contains(
     let mut checked = 0;
     for _ in 0..n {
         let x0 = random_start(sys, &mut rng);
-        let leaf = r
-            .leaves
-            .iter()
-            .find(|l| {
-                l.init
-                    .iter()
-                    .zip(&x0)
-                    .all(|(b, v)| b[0] <= *v && *v <= b[1])
-            })
-            .expect("the sub-boxes cover the initial set");
+        let leaf = common::leaf_of(&r.leaves, &x0);
         let f = fly(sys, &eval, &x0, per).unwrap();
         // Output times: row 0 is t = 0, then `per` rows per period.
         for (row, (t, x)) in f.t.iter().zip(&f.states).enumerate() {

@@ -1,0 +1,148 @@
+//! `samara reach ... --target-ratio R`: Taylor-model sets with adaptive splitting toward
+//! a width target (`samara_reach::adaptive`): the cells are cut where an enclosure is
+//! lost or the measure at the horizon (the glider's x + y, a system file's first
+//! `goal band ... at end`) leaves the band that keeps the hull within R times the
+//! flights' spread. Writes `DIR/reach.json` (the system run's report plus an `adaptive`
+//! object) and prints one line, or the JSON summary with `--json`.
+
+use crate::reach::ReachArgs;
+use crate::reach_system::{human_line, report_settings, summary};
+use anyhow::{anyhow, bail, Result};
+use samara_reach::adaptive::{reach_adaptive, AdaptiveReach, AdaptiveSettings};
+use samara_reach::system::{SystemReachSettings, SystemVerdict};
+use samara_report::write_atomic;
+use std::path::Path;
+use std::process::ExitCode;
+use std::sync::Arc;
+
+/// Most a target ratio may be (beyond it the target says nothing).
+const MAX_RATIO: f64 = 1e6;
+
+/// The built-in glider's settings for adaptive runs, unless --order or --network-error
+/// is given: those of the six-state covering run (order 4, `symbolic:40`, lifted
+/// parameters of weight 2; docs/reach.md, "Grids and shards"), whose cells of a third
+/// of the velocity and angle intervals reach the horizon.
+pub(crate) fn glider_defaults(a: &mut ReachArgs) {
+    if a.order.is_none() && a.network_error.is_none() {
+        a.order = Some(4);
+        a.network_error = Some("symbolic:40".into());
+        a.lifted_weight = a.lifted_weight.or(Some(2));
+    }
+}
+
+/// Run the adaptive mode on a checked system (`s`: the run's settings with their
+/// measures, `pieces`: --grid as the starting cells).
+pub(crate) fn run(
+    a: &ReachArgs,
+    ratio: f64,
+    sys: &samara_system::System,
+    path: &Path,
+    net: &samara_nn::Network,
+    s: SystemReachSettings,
+    pieces: Option<Vec<usize>>,
+) -> Result<ExitCode> {
+    if !(ratio.is_finite() && (1.0..=MAX_RATIO).contains(&ratio)) {
+        bail!("--target-ratio {ratio}: give a number from 1 to {MAX_RATIO:e}: the enclosure's width over the flights' spread, which is never below 1 (2 is issue 14's criterion)");
+    }
+    if a.shard.is_some() {
+        bail!("--shard with --target-ratio: adaptive runs are not sharded yet; run them in one process (--threads N), or shard a fixed --grid without --target-ratio");
+    }
+    if s.measures.is_empty() {
+        bail!("--target-ratio needs a measure at the horizon: {} has no `goal band |...| <= ... at end`; add one (its expression is what the target measures)", path.display());
+    }
+    crate::reach::start_threads(a)?;
+    let inputs = if path.is_file() {
+        vec![("--system", path), ("--network", a.network.as_path())]
+    } else {
+        vec![("--network", a.network.as_path())]
+    };
+    samara_report::guard::check_output_dir("--out", &a.out, &["reach.json"], &inputs)?;
+    let out = samara_report::guard::OutDir::prepare(&a.out)?;
+    let settings = AdaptiveSettings {
+        target_ratio: ratio,
+        measure: 0,
+        pieces: pieces.clone(),
+        on_round: Some(Arc::new(|line: &str| eprintln!("{line}"))),
+        shard: None,
+    };
+    let res =
+        reach_adaptive(sys, net, &s, &settings).map_err(|e| anyhow!("{}: {e}", path.display()))?;
+    let mut recorded = report_settings(&s, pieces.as_deref());
+    recorded["target_ratio"] = serde_json::json!(ratio);
+    let system = path.display().to_string();
+    let report = serde_json::json!({
+        "system": system,
+        "network": a.network.display().to_string(),
+        "settings": recorded,
+        "result": res.reach,
+        "adaptive": adaptive_json(&res),
+    });
+    write_atomic(
+        &a.out.join("reach.json"),
+        serde_json::to_string_pretty(&report)?.as_bytes(),
+    )?;
+    if a.json {
+        let mut v = summary(&res.reach);
+        v["adaptive"] = adaptive_json(&res);
+        // The per-cell list stays in reach.json (thousands of lines on a large set).
+        if let Some(o) = v["adaptive"].as_object_mut() {
+            o.remove("cells");
+        }
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        println!(
+            "{}; {}",
+            human_line(&system, &res.reach),
+            adaptive_text(&res)
+        );
+        eprintln!("wrote {}", a.out.display());
+    }
+    out.keep();
+    let goals_ok = matches!(
+        res.reach.verdict,
+        SystemVerdict::Proved | SystemVerdict::NoGoal
+    );
+    Ok(if res.met && goals_ok {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+/// The `adaptive` object of reach.json and of the JSON summary.
+fn adaptive_json(r: &AdaptiveReach) -> serde_json::Value {
+    serde_json::json!({
+        "target_ratio": r.target_ratio,
+        "met": r.met,
+        "ratio": r.ratio,
+        "reason": r.reason,
+        "stopped": r.stopped,
+        "leaves": r.cells.len(),
+        "accepted": r.cells.iter().filter(|c| c.accepted).count(),
+        "flown": r.flown,
+        "rounds": r.rounds,
+        "sampled": r.sampled,
+        "band": r.band,
+        "cells": r.cells,
+    })
+}
+
+/// `adaptive: N leaves (K cells flown in R rounds); ratio q (target R): met`.
+fn adaptive_text(r: &AdaptiveReach) -> String {
+    let ratio = r.ratio.map_or_else(
+        || "no ratio (not every cell has sets at the horizon)".to_string(),
+        |q| format!("ratio {q:.3}"),
+    );
+    let verdict = match &r.reason {
+        None if r.met => "target met".to_string(),
+        None => "target not met".to_string(),
+        Some(why) => format!("target not met: {why}"),
+    };
+    format!(
+        "adaptive: {} leaves ({} cells flown in {} rounds); {ratio} against the flights (target {}): {verdict}",
+        r.cells.len(),
+        r.flown,
+        r.rounds,
+        r.target_ratio
+    )
+}
