@@ -549,35 +549,29 @@ pub fn backward_lower_alpha(
     alpha: Option<&[Vec<f64>]>,
 ) -> Linear {
     let inmax = input_magnitudes(maps, pre, lo, hi, maps.len());
-    let rowmag = row_magnitudes(maps, &inmax);
-    backward_core(maps, pre, &obj.c, obj.d, alpha, &rowmag)
+    backward_core(maps, pre, &obj.c, obj.d, alpha, Mags::Inputs(&inmax))
 }
 
-/// `r_j[i] = sum_t |W_j[i, t]| * inmax_j[t]` for each map `j` with input bound
-/// `inmax_j` ([`input_magnitudes`]): with it the rounding bound of a pull-back through
-/// map `j`, `gamma * sum_t (sum_i |mu_i W_j[i, t]|) * inmax_j[t]`, is the same sum
-/// regrouped, `gamma * sum_i |mu_i| * r_j[i]` (all terms are non-negative, so the
-/// identity is exact; the f64 evaluation of `r` and of the sum is off by a relative
-/// `1e-13` at most, far inside [`inflate`]'s `1e-9`). Computed once per set of bounds,
-/// it spares every pull-back a second, absolute-value pass over the weights.
-fn row_magnitudes(maps: &[(Affine, bool)], inmaxes: &[Vec<f64>]) -> Vec<Vec<f64>> {
-    inmaxes
-        .iter()
-        .enumerate()
-        .map(|(j, inmax)| row_magnitude(&maps[j].0, inmax))
-        .collect()
+/// The magnitudes a pull-back's rounding bound needs: the [`row_magnitudes`], when many
+/// pull-backs share them (CROWN's intermediate bounds), or the input magnitudes
+/// ([`input_magnitudes`]), of which a single pull-back sums only the rows it uses.
+#[derive(Clone, Copy)]
+enum Mags<'a> {
+    Rows(&'a [Vec<f64>]),
+    Inputs(&'a [Vec<f64>]),
 }
 
-/// One map's [`row_magnitudes`].
+/// One map's row magnitudes `r[i] = sum_t |W[i, t]| * inmax[t]`, for the input bound
+/// `inmax` ([`input_magnitudes`]): with them the rounding bound of a pull-back through
+/// the map, `gamma * sum_t (sum_i |mu_i W[i, t]|) * inmax[t]`, is the same sum regrouped,
+/// `gamma * sum_i |mu_i| * r[i]` (all terms are non-negative, so the identity is exact;
+/// the f64 evaluation of `r` and of the sum is off by a relative `1e-13` at most, far
+/// inside [`inflate`]'s `1e-9`). Computed once per set of bounds, it spares every
+/// pull-back of CROWN's intermediate bounds a second, absolute-value pass over the
+/// weights.
 fn row_magnitude(m: &Affine, inmax: &[f64]) -> Vec<f64> {
     (0..m.out)
-        .map(|i| {
-            m.w[i * m.inp..(i + 1) * m.inp]
-                .iter()
-                .zip(inmax)
-                .map(|(w, x)| w.abs() * x)
-                .sum::<f64>()
-        })
+        .map(|i| coef_magnitude(&m.w[i * m.inp..(i + 1) * m.inp], inmax))
         .collect()
 }
 
@@ -611,15 +605,15 @@ pub(crate) fn input_magnitudes(
         .collect()
 }
 
-/// The pull-back of [`backward_lower_alpha`] with the [`row_magnitudes`] of the input
-/// magnitudes ([`input_magnitudes`]) precomputed; the objective is `c . y + d`.
+/// The pull-back of [`backward_lower_alpha`] with the magnitudes for its rounding bound
+/// given ([`Mags`]); the objective is `c . y + d`.
 fn backward_core(
     maps: &[(Affine, bool)],
     pre: &[Vec<(f64, f64)>],
     c: &[f64],
     d: f64,
     alpha: Option<&[Vec<f64>]>,
-    rowmags: &[Vec<f64>],
+    mags: Mags,
 ) -> Linear {
     let mut mu = c.to_vec();
     let mut cst = d;
@@ -627,7 +621,6 @@ fn backward_core(
     let mut nu: Vec<f64> = Vec::new();
     for j in (0..maps.len()).rev() {
         let m = &maps[j].0;
-        let rowmag = &rowmags[j];
         let k = m.out + 1;
         nu.clear();
         nu.resize(m.inp, 0.0);
@@ -644,8 +637,12 @@ fn backward_core(
             let p = mi * m.b[i];
             cst += p;
             cmag += p.abs();
-            wmag += mi.abs() * rowmag[i];
             let row = &m.w[i * m.inp..(i + 1) * m.inp];
+            wmag += mi.abs()
+                * match mags {
+                    Mags::Rows(r) => r[j][i],
+                    Mags::Inputs(x) => coef_magnitude(row, &x[j]),
+                };
             for (nt, &w) in nu.iter_mut().zip(row) {
                 *nt += mi * w;
             }
@@ -1000,10 +997,10 @@ fn crown_pre_core(
             c.clear();
             c.resize(m.out, 0.0);
             c[i] = 1.0;
-            let lf = backward_core(sub, &pre, &c, 0.0, None, &rowmag);
+            let lf = backward_core(sub, &pre, &c, 0.0, None, Mags::Rows(&rowmag));
             let l = lf.min_over(lo, hi);
             c[i] = -1.0;
-            let uf = backward_core(sub, &pre, &c, 0.0, None, &rowmag);
+            let uf = backward_core(sub, &pre, &c, 0.0, None, Mags::Rows(&rowmag));
             let u = -uf.min_over(lo, hi);
             bounds.push((l.max(fl), u.min(fu)));
             if lins.is_some() {
