@@ -113,6 +113,15 @@ fn magnitudes(lo: &[f64], hi: &[f64]) -> Vec<f64> {
         .collect()
 }
 
+/// `sum_t |c_t| * xmax_t`: with it the rounding bound of a sum of scaled linear
+/// functions, `gamma * sum_t (sum_i |w_i c_it|) * xmax_t`, is the same sum regrouped,
+/// `gamma * sum_i |w_i| * coef_magnitude(c_i)` (non-negative terms, so the identity is
+/// exact; its f64 evaluation is off by a relative `1e-13` at most, far inside
+/// [`inflate`]'s `1e-9`), and the inner loop of a layer is a plain multiply-add.
+fn coef_magnitude(c: &[f64], xmax: &[f64]) -> f64 {
+    c.iter().zip(xmax).map(|(c, x)| c.abs() * x).sum::<f64>()
+}
+
 /// `(k + 2) * EPSILON`, at least twice Higham's `gamma_k` for the `k` used here.
 fn gamma(k: usize) -> f64 {
     (k as f64 + 2.0) * f64::EPSILON
@@ -171,8 +180,8 @@ fn affine_row(
 ) -> Linear {
     let n = xmax.len();
     let mut out = Linear::zero(n);
-    let mut mag = vec![0.0; n];
     let mut mag_c = b.abs();
+    let mut wmag = 0.0;
     let mut slack = 0.0;
     out.cst = b;
     for (i, &wi) in w.iter().enumerate() {
@@ -184,23 +193,17 @@ fn affine_row(
         } else {
             &a.lower[i]
         };
-        for (t, &c) in src.coef.iter().enumerate() {
-            if c != 0.0 {
-                let p = wi * c;
-                out.coef[t] += p;
-                mag[t] += p.abs();
-            }
+        for (o, &c) in out.coef.iter_mut().zip(&src.coef) {
+            *o += wi * c;
         }
         let p = wi * src.cst;
         out.cst += p;
         mag_c += p.abs();
+        wmag += wi.abs() * coef_magnitude(&src.coef, xmax);
         slack += wi.abs() * src.slack;
     }
     let k = w.len() + 1;
-    let mut err = gamma(k) * mag_c;
-    for t in 0..n {
-        err += gamma(k) * mag[t] * xmax[t];
-    }
+    let mut err = gamma(k) * mag_c + gamma(k) * wmag;
     if let Some((we, be, amax)) = row_err {
         for i in 0..w.len() {
             err += we[i] * amax[i];
@@ -414,11 +417,17 @@ pub fn hidden_pre_until(
         slack: al.slack.clone(),
     };
     let mut pre = Vec::with_capacity(body.len());
-    let mut mag = vec![0.0; n];
     for (m, r) in body {
         let k = m.inp + 1;
         let mut zl = Flat::zeros(m.out, n);
         let mut zu = Flat::zeros(m.out, n);
+        // Each source row's `coef_magnitude`, once per layer (see there).
+        let cm = |f: &Flat| -> Vec<f64> {
+            (0..m.inp)
+                .map(|i| coef_magnitude(&f.coef[i * n..(i + 1) * n], &xmax))
+                .collect()
+        };
+        let (cml, cmu) = (cm(&al), cm(&au));
         for (upper, z) in [(false, &mut zl), (true, &mut zu)] {
             for o in 0..m.out {
                 if o % 16 == 0 && late() {
@@ -426,33 +435,30 @@ pub fn hidden_pre_until(
                 }
                 let w = &m.w[o * m.inp..(o + 1) * m.inp];
                 let out = &mut z.coef[o * n..(o + 1) * n];
-                mag.iter_mut().for_each(|v| *v = 0.0);
                 let mut cst = m.b[o];
                 let mut mag_c = m.b[o].abs();
+                let mut wmag = 0.0;
                 let mut slack = 0.0;
                 for (i, &wi) in w.iter().enumerate() {
                     if wi == 0.0 {
                         continue;
                     }
-                    let src = if (wi > 0.0) == upper { &au } else { &al };
+                    let (src, srcm) = if (wi > 0.0) == upper {
+                        (&au, &cmu)
+                    } else {
+                        (&al, &cml)
+                    };
                     let sc = &src.coef[i * n..(i + 1) * n];
-                    for t in 0..n {
-                        let c = sc[t];
-                        if c != 0.0 {
-                            let p = wi * c;
-                            out[t] += p;
-                            mag[t] += p.abs();
-                        }
+                    for (ot, &c) in out.iter_mut().zip(sc) {
+                        *ot += wi * c;
                     }
                     let p = wi * src.cst[i];
                     cst += p;
                     mag_c += p.abs();
+                    wmag += wi.abs() * srcm[i];
                     slack += wi.abs() * src.slack[i];
                 }
-                let mut err = gamma(k) * mag_c;
-                for t in 0..n {
-                    err += gamma(k) * mag[t] * xmax[t];
-                }
+                let err = gamma(k) * mag_c + gamma(k) * wmag;
                 z.cst[o] = cst;
                 z.slack[o] = inflate(slack + err);
             }
@@ -543,7 +549,30 @@ pub fn backward_lower_alpha(
     alpha: Option<&[Vec<f64>]>,
 ) -> Linear {
     let inmax = input_magnitudes(maps, pre, lo, hi, maps.len());
-    backward_core(maps, pre, &obj.c, obj.d, alpha, &inmax)
+    backward_core(maps, pre, &obj.c, obj.d, alpha, Mags::Inputs(&inmax))
+}
+
+/// The magnitudes a pull-back's rounding bound needs: the [`row_magnitudes`], when many
+/// pull-backs share them (CROWN's intermediate bounds), or the input magnitudes
+/// ([`input_magnitudes`]), of which a single pull-back sums only the rows it uses.
+#[derive(Clone, Copy)]
+enum Mags<'a> {
+    Rows(&'a [Vec<f64>]),
+    Inputs(&'a [Vec<f64>]),
+}
+
+/// One map's row magnitudes `r[i] = sum_t |W[i, t]| * inmax[t]`, for the input bound
+/// `inmax` ([`input_magnitudes`]): with them the rounding bound of a pull-back through
+/// the map, `gamma * sum_t (sum_i |mu_i W[i, t]|) * inmax[t]`, is the same sum regrouped,
+/// `gamma * sum_i |mu_i| * r[i]` (all terms are non-negative, so the identity is exact;
+/// the f64 evaluation of `r` and of the sum is off by a relative `1e-13` at most, far
+/// inside [`inflate`]'s `1e-9`). Computed once per set of bounds, it spares every
+/// pull-back of CROWN's intermediate bounds a second, absolute-value pass over the
+/// weights.
+fn row_magnitude(m: &Affine, inmax: &[f64]) -> Vec<f64> {
+    (0..m.out)
+        .map(|i| coef_magnitude(&m.w[i * m.inp..(i + 1) * m.inp], inmax))
+        .collect()
 }
 
 /// Bounds of `|input of map j|` for `j < upto`: the box's magnitudes for map 0, the
@@ -576,34 +605,31 @@ pub(crate) fn input_magnitudes(
         .collect()
 }
 
-/// The pull-back of [`backward_lower_alpha`] with the input magnitudes precomputed
-/// ([`input_magnitudes`]); the objective is `c . y + d`.
+/// The pull-back of [`backward_lower_alpha`] with the magnitudes for its rounding bound
+/// given ([`Mags`]); the objective is `c . y + d`.
 fn backward_core(
     maps: &[(Affine, bool)],
     pre: &[Vec<(f64, f64)>],
     c: &[f64],
     d: f64,
     alpha: Option<&[Vec<f64>]>,
-    inmaxes: &[Vec<f64>],
+    mags: Mags,
 ) -> Linear {
     let mut mu = c.to_vec();
     let mut cst = d;
     let mut err = 0.0;
     let mut nu: Vec<f64> = Vec::new();
-    let mut mag: Vec<f64> = Vec::new();
     for j in (0..maps.len()).rev() {
         let m = &maps[j].0;
-        // Bounds of |input of map j|.
-        let inmax = &inmaxes[j];
         let k = m.out + 1;
         nu.clear();
         nu.resize(m.inp, 0.0);
-        mag.clear();
-        mag.resize(m.inp, 0.0);
         // The running constant is the first term of this layer's sum: its magnitude
         // counts in the sum's rounding bound (a large constant carried from later
         // layers makes every addition round at its scale).
         let mut cmag = cst.abs();
+        // sum_t (sum_i |mu_i w_it|) |x_t|, regrouped (see `row_magnitudes`).
+        let mut wmag = 0.0;
         for (i, &mi) in mu.iter().enumerate() {
             if mi == 0.0 {
                 continue;
@@ -612,16 +638,16 @@ fn backward_core(
             cst += p;
             cmag += p.abs();
             let row = &m.w[i * m.inp..(i + 1) * m.inp];
-            for ((nt, mt), &w) in nu.iter_mut().zip(mag.iter_mut()).zip(row) {
-                let p = mi * w;
-                *nt += p;
-                *mt += p.abs();
+            wmag += mi.abs()
+                * match mags {
+                    Mags::Rows(r) => r[j][i],
+                    Mags::Inputs(x) => coef_magnitude(row, &x[j]),
+                };
+            for (nt, &w) in nu.iter_mut().zip(row) {
+                *nt += mi * w;
             }
         }
-        err += gamma(k) * cmag;
-        for t in 0..m.inp {
-            err += gamma(k) * mag[t] * inmax[t];
-        }
+        err += gamma(k) * (cmag + wmag);
         if j == 0 || !maps[j - 1].1 {
             std::mem::swap(&mut mu, &mut nu);
             if j == 0 {
@@ -856,7 +882,53 @@ pub fn crown_pre_until(
     fwd: &[Vec<(f64, f64)>],
     deadline: Option<std::time::Instant>,
 ) -> Vec<Vec<(f64, f64)>> {
-    crown_pre_core(maps, lo, hi, Some(fwd), 0, deadline)
+    crown_pre_core(maps, lo, hi, Some(fwd), 0, deadline, None)
+}
+
+/// The linear bounds behind [`crown_pre_lin_until`]'s concrete ones: for neuron `i` of
+/// map `k`, `Some((f, g))` when CROWN bounded it (`f(x) <= z_i(x) <= -g(x)` over the
+/// box, so over every box inside it), `None` when its forward bounds were kept.
+pub type PreLinear = Vec<Vec<Option<(Linear, Linear)>>>;
+
+/// [`crown_pre_until`] that also returns the linear functions whose minima are the
+/// bounds ([`PreLinear`]): on a sub-box their minima, [`reconcretise`], are sound bounds
+/// again, for the cost of a few multiply-adds per neuron instead of a backward pass.
+pub fn crown_pre_lin_until(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: &[Vec<(f64, f64)>],
+    deadline: Option<std::time::Instant>,
+) -> (Vec<Vec<(f64, f64)>>, PreLinear) {
+    let mut lins = Vec::new();
+    let pre = crown_pre_core(maps, lo, hi, Some(fwd), 0, deadline, Some(&mut lins));
+    (pre, lins)
+}
+
+/// Bounds over the sub-box `[lo, hi]` of a box with concrete bounds `pre` and their
+/// linear functions `lins` ([`crown_pre_lin_until`]): each neuron's bounds of the box,
+/// tightened by the minima of its linear functions over the sub-box. Sound because the
+/// functions bound the neuron on the whole box; looser than CROWN on the sub-box itself,
+/// whose relaxations of the earlier layers would be tighter too.
+pub fn reconcretise(
+    pre: &[Vec<(f64, f64)>],
+    lins: &PreLinear,
+    lo: &[f64],
+    hi: &[f64],
+) -> Vec<Vec<(f64, f64)>> {
+    pre.iter()
+        .zip(lins)
+        .map(|(layer, ls)| {
+            layer
+                .iter()
+                .zip(ls)
+                .map(|(&(l, u), f)| match f {
+                    Some((fl, fu)) => (l.max(fl.min_over(lo, hi)), u.min(-fu.min_over(lo, hi))),
+                    None => (l, u),
+                })
+                .collect()
+        })
+        .collect()
 }
 
 /// [`crown_pre`] that takes the bounds of the maps before `from` from `fwd` as they are
@@ -870,7 +942,7 @@ pub fn crown_pre_from(
     fwd: Option<&[Vec<(f64, f64)>]>,
     from: usize,
 ) -> Vec<Vec<(f64, f64)>> {
-    crown_pre_core(maps, lo, hi, fwd, from, None)
+    crown_pre_core(maps, lo, hi, fwd, from, None, None)
 }
 
 fn crown_pre_core(
@@ -880,40 +952,63 @@ fn crown_pre_core(
     fwd: Option<&[Vec<(f64, f64)>]>,
     from: usize,
     deadline: Option<std::time::Instant>,
+    mut lins: Option<&mut PreLinear>,
 ) -> Vec<Vec<(f64, f64)>> {
     // Past the deadline, neurons keep their forward bounds (only when those are given).
     let late = || fwd.is_some() && deadline.is_some_and(|d| std::time::Instant::now() >= d);
     let body = maps.len() - 1;
     let mut pre: Vec<Vec<(f64, f64)>> = Vec::with_capacity(body);
     let mut c = Vec::new();
+    // The row magnitudes of every map's input bound up to k (only the last one is new).
+    let mut rowmag: Vec<Vec<f64>> = Vec::with_capacity(body);
     for k in 0..body {
         if k < from {
             if let Some(f) = fwd {
                 pre.push(f[k].clone());
+                if let Some(v) = lins.as_deref_mut() {
+                    v.push(vec![None; f[k].len()]);
+                }
                 continue;
             }
         }
         let m = &maps[k].0;
         let sub = &maps[..=k];
-        // The magnitudes of every map's input up to k (only the last one is new).
-        let inmax = input_magnitudes(sub, &pre, lo, hi, k + 1);
+        if rowmag.len() <= k {
+            let inmax = input_magnitudes(sub, &pre, lo, hi, k + 1);
+            for (j, im) in inmax.iter().enumerate().skip(rowmag.len()) {
+                rowmag.push(row_magnitude(&maps[j].0, im));
+            }
+        }
         let mut bounds = Vec::with_capacity(m.out);
+        let mut ls = Vec::new();
         for i in 0..m.out {
             let (fl, fu) = fwd
                 .map(|f| f[k][i])
                 .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
-            // Layer 0 is exact under interval arithmetic already; skip stable neurons.
-            if k == 0 || fl >= 0.0 || fu <= 0.0 || late() {
+            // Layer 0 is exact under interval arithmetic already (its linear functions,
+            // when asked for, are its rows); skip stable neurons.
+            if (k == 0 && lins.is_none()) || fl >= 0.0 || fu <= 0.0 || late() {
                 bounds.push((fl, fu));
+                if lins.is_some() {
+                    ls.push(None);
+                }
                 continue;
             }
             c.clear();
             c.resize(m.out, 0.0);
             c[i] = 1.0;
-            let l = backward_core(sub, &pre, &c, 0.0, None, &inmax).min_over(lo, hi);
+            let lf = backward_core(sub, &pre, &c, 0.0, None, Mags::Rows(&rowmag));
+            let l = lf.min_over(lo, hi);
             c[i] = -1.0;
-            let u = -backward_core(sub, &pre, &c, 0.0, None, &inmax).min_over(lo, hi);
+            let uf = backward_core(sub, &pre, &c, 0.0, None, Mags::Rows(&rowmag));
+            let u = -uf.min_over(lo, hi);
             bounds.push((l.max(fl), u.min(fu)));
+            if lins.is_some() {
+                ls.push(Some((lf, uf)));
+            }
+        }
+        if let Some(v) = lins.as_deref_mut() {
+            v.push(ls);
         }
         pre.push(bounds);
     }

@@ -505,3 +505,62 @@ fn joint_attack_points_on_many_inputs_are_real_and_name_their_case() {
     }
     assert!(checked >= 3, "points exercised: {checked}");
 }
+
+#[test]
+fn reconcretised_crown_functions_bound_every_sub_box() {
+    // The look-ahead's cheap bounds of a half: the parent box's CROWN linear functions
+    // minimised over a sub-box. Every sampled pre-activation of the sub-box (the IR's
+    // evaluation) must lie inside them, and they must be inside the parent's bounds.
+    let mut rng = ChaCha8Rng::seed_from_u64(41);
+    let shapes: [&[usize]; 3] = [&[5, 12, 12, 12, 3], &[3, 8, 8, 2], &[2, 20, 10, 1]];
+    let mut tighter = 0;
+    for trial in 0..30 {
+        let dims = shapes[trial % shapes.len()];
+        let wscale = [0.5, 1.0, 3.0][trial % 3];
+        let net = Network::random_mlp(dims, Activation::Relu, wscale, 0.5 * wscale, &mut rng);
+        let maps = chain(&net);
+        let (lo, hi) = random_box(&mut rng, dims[0], [1.0, 1e-3, 10.0][trial % 3]);
+        let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
+        let (pre, lins) = symbolic::crown_pre_lin_until(&maps, &lo, &hi, &fwd, None);
+        // The concrete bounds equal crown_pre's (same pull-backs).
+        assert_eq!(
+            pre,
+            symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd)),
+            "trial {trial}"
+        );
+        // A random sub-box: each side cut at a random point, one of the two parts kept.
+        let (mut sl, mut sh) = (lo.clone(), hi.clone());
+        for t in 0..dims[0] {
+            let m = rng.gen_range(lo[t]..=hi[t]);
+            if rng.gen_bool(0.5) {
+                sh[t] = m;
+            } else {
+                sl[t] = m;
+            }
+        }
+        let sub = symbolic::reconcretise(&pre, &lins, &sl, &sh);
+        for (j, layer) in sub.iter().enumerate() {
+            for (i, &(l, u)) in layer.iter().enumerate() {
+                assert!(l >= pre[j][i].0 && u <= pre[j][i].1, "trial {trial}");
+                if l > pre[j][i].0 || u < pre[j][i].1 {
+                    tighter += 1;
+                }
+            }
+        }
+        for k in 0..2000 {
+            let x = sample(&mut rng, &sl, &sh, k);
+            let z = pre_activations(&net, &x);
+            for (j, layer) in sub.iter().enumerate() {
+                for (i, &(l, u)) in layer.iter().enumerate() {
+                    let v = z[j][i];
+                    assert!(
+                        l <= v && v <= u,
+                        "trial {trial}: map {j} neuron {i}: {v} outside [{l}, {u}]"
+                    );
+                }
+            }
+        }
+    }
+    // The sub-boxes' bounds are not just the parent's.
+    assert!(tighter > 100, "only {tighter} bounds tightened");
+}
