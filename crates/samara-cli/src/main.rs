@@ -172,6 +172,17 @@ fn main() -> ExitCode {
     }
 }
 
+/// The JSON text of a typed result as the CLI prints it: through `serde_json::Value`, so
+/// keys are sorted (the layout every `--json` document and output file has had).
+pub(crate) fn json_text<T: serde::Serialize>(v: &T, pretty: bool) -> anyhow::Result<String> {
+    let v = serde_json::to_value(v)?;
+    Ok(if pretty {
+        serde_json::to_string_pretty(&v)?
+    } else {
+        v.to_string()
+    })
+}
+
 /// Whether `text` is the message of a write into a closed pipe (`EPIPE`), as printed by
 /// `std::io::Error` ("Broken pipe (os error 32)") or by `println!`'s panic.
 fn mentions_broken_pipe(text: &str) -> bool {

@@ -1,6 +1,7 @@
 //! `samara simulate`.
 
 use anyhow::{anyhow, bail, Context, Result};
+use samara_app::simulate::{GoalViolation, SimulateSummary, StartSummary, SystemSimSummary};
 use samara_plant::{Model, Plant, EX_RANGE, STATE_NAMES};
 use samara_report::write_atomic;
 use samara_sim::dataset::{normalisation_csv, training_csv};
@@ -366,9 +367,8 @@ pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
     let wall = t0.elapsed().as_secs_f64();
     write_outputs(a, &plan, &flights, controller.name())?;
     if a.json {
-        let mut s = summary(a, &plan, &flights, wall);
-        s["warnings"] = serde_json::json!(warnings);
-        println!("{}", serde_json::to_string_pretty(&s)?);
+        let s = summary(a, &plan, &flights, wall, warnings);
+        println!("{}", crate::json_text(&s, true)?);
     } else {
         eprintln!(
             "simulated {} flight(s) of model {} in {:.3} s; wrote {}",
@@ -451,34 +451,26 @@ fn write_outputs(a: &SimulateArgs, plan: &Plan, flights: &[Flight], cname: Strin
     Ok(())
 }
 
-fn summary(a: &SimulateArgs, plan: &Plan, flights: &[Flight], wall: f64) -> serde_json::Value {
+/// The `--json` summary of a run.
+fn summary(
+    a: &SimulateArgs,
+    plan: &Plan,
+    flights: &[Flight],
+    wall: f64,
+    warnings: Vec<String>,
+) -> SimulateSummary {
     let dim = plan.plant.dim();
-    let starts: Vec<serde_json::Value> = flights
-        .iter()
-        .map(|f| {
-            let last = &f.steps.last().expect("at least one step").state_end;
-            let mut st = serde_json::Map::new();
-            for (i, v) in last.iter().enumerate().take(dim) {
-                st.insert(STATE_NAMES[i].to_string(), serde_json::json!(v));
-            }
-            serde_json::json!({
-                "y0": f.initial[5],
-                "final_state": st,
-                "final_x_plus_y": last[4] + last[5],
-                "rhs_evals": f.evals,
-            })
-        })
-        .collect();
-    serde_json::json!({
-        "model": plan.plant.model.name(),
-        "controller": a.controller,
-        "integrator": a.integrator,
-        "period": plan.settings.period,
-        "horizon": plan.settings.horizon,
-        "starts": starts,
-        "wall_seconds": wall,
-        "out": a.out.display().to_string(),
-    })
+    SimulateSummary {
+        model: plan.plant.model.name().to_string(),
+        controller: a.controller.clone(),
+        integrator: a.integrator.clone(),
+        period: plan.settings.period,
+        horizon: plan.settings.horizon,
+        starts: flights.iter().map(|f| StartSummary::of(f, dim)).collect(),
+        wall_seconds: wall,
+        out: a.out.display().to_string(),
+        warnings,
+    }
 }
 
 /// Files `simulate --system` writes.
@@ -587,18 +579,27 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
             .zip(samara_system::sim::goals_hold(&sys, &f))
         {
             if !ok {
-                violations.push(serde_json::json!({"start": k, "initial": x0, "goal": g.text}));
+                violations.push(GoalViolation {
+                    start: k,
+                    initial: x0.clone(),
+                    goal: g.text.clone(),
+                });
             }
         }
     }
     samara_report::write_atomic(&a.out.join("trajectories.csv"), csv.as_bytes())?;
     out.keep();
     let wall = t0.elapsed().as_secs_f64();
+    let all_hold = violations.is_empty();
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({"system": sys.name, "starts": starts.len(), "goals": sys.goals.iter().map(|g| g.text.clone()).collect::<Vec<_>>(), "violations": violations, "wall_seconds": wall})
-        );
+        let s = SystemSimSummary {
+            system: sys.name.clone(),
+            starts: starts.len(),
+            goals: sys.goals.iter().map(|g| g.text.clone()).collect(),
+            violations,
+            wall_seconds: wall,
+        };
+        println!("{}", crate::json_text(&s, false)?);
     } else {
         println!(
             "{}: {} flights, {} goal violations ({wall:.2} s); trajectories in {}",
@@ -608,10 +609,10 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
             a.out.join("trajectories.csv").display()
         );
         if let Some(v) = violations.first() {
-            println!("first violation: {v}");
+            println!("first violation: {}", crate::json_text(v, false)?);
         }
     }
-    Ok(if violations.is_empty() {
+    Ok(if all_hold {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
