@@ -60,61 +60,20 @@ pub struct TrainSummary {
     pub restart_log: Vec<RestartEntry>,
 }
 
-/// One round of closed-loop training.
+/// One round of closed-loop training: its record and its time in all.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RoundEntry {
-    /// Round number.
-    pub round: usize,
-    /// Gradient steps.
-    pub steps: usize,
-    /// Loss.
-    pub loss: f64,
-    /// Data MSE.
-    pub mse: f64,
-    /// Goal penalty.
-    pub penalty: f64,
-    /// R^2 against the data.
-    pub r2: f64,
-    /// Starts flown.
-    pub starts: usize,
-    /// Reach verdict.
-    pub verdict: String,
-    /// Its reason.
-    pub reason: String,
-    /// Enclosure of `x + y` at the horizon.
-    pub enclosure: [f64; 2],
-    /// Sampled range.
-    pub sampled: [f64; 2],
-    /// Sub-box budget.
-    pub max_leaves: usize,
-    /// Starts added.
-    pub added: Vec<f64>,
-    /// Training time.
-    pub train_seconds: f64,
-    /// Reach time.
-    pub reach_seconds: f64,
-    /// Their sum.
+    /// The round's record.
+    #[serde(flatten)]
+    pub round: samara_train::cegis::Round,
+    /// Training and reach time together.
     pub seconds: f64,
 }
 
 impl From<&samara_train::cegis::Round> for RoundEntry {
     fn from(r: &samara_train::cegis::Round) -> Self {
         RoundEntry {
-            round: r.round,
-            steps: r.steps,
-            loss: r.loss,
-            mse: r.mse,
-            penalty: r.penalty,
-            r2: r.r2,
-            starts: r.starts,
-            verdict: r.verdict.clone(),
-            reason: r.reason.clone(),
-            enclosure: r.enclosure,
-            sampled: r.sampled,
-            max_leaves: r.max_leaves,
-            added: r.added.clone(),
-            train_seconds: r.train_seconds,
-            reach_seconds: r.reach_seconds,
+            round: r.clone(),
             seconds: r.train_seconds + r.reach_seconds,
         }
     }

@@ -4,7 +4,6 @@
 //! Exit codes (as ripgrep): 0 success, 1 a property was violated or a check failed,
 //! 2 a usage or input error.
 
-mod nnload;
 mod reach;
 mod reach_system;
 mod reproduce;

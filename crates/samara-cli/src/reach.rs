@@ -467,7 +467,7 @@ fn controller(network: &Path, decl: Option<&NetDecl>) -> Result<samara_nn::Netwo
             network.display()
         );
     }
-    let net = crate::nnload::load_network(network).with_context(|| {
+    let net = crate::simulate::glider_network(network).with_context(|| {
         format!(
             "--network {}: cannot load the network; give an ONNX file samara can read",
             network.display()

@@ -22,19 +22,6 @@ use std::process::ExitCode;
 /// Files `reach --system` writes.
 const WRITES: [&str; 1] = ["reach.json"];
 
-/// Load a controller by its extension: `.nnet` (NNet text format), else ONNX.
-pub fn load_controller(path: &Path) -> Result<samara_nn::Network> {
-    let is_nnet = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("nnet"));
-    if is_nnet {
-        samara_nn::nnet::load(path).map_err(|e| anyhow!("{e}"))
-    } else {
-        samara_nn::onnx::load(path).map_err(|e| anyhow!("{e}"))
-    }
-    .with_context(|| format!("--network {}", path.display()))
-}
-
 /// Flags of the built-in glider setting that do not apply to a system file (which
 /// states its own initial set, period, horizon, clip and goals).
 fn refuse_builtin_flags(a: &ReachArgs) -> Result<()> {
@@ -66,7 +53,8 @@ pub fn run(a: &ReachArgs, path: &Path) -> Result<ExitCode> {
         bail!("--sets does not apply with --system: system files always use Taylor-model sets");
     }
     let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
-    let net = load_controller(&a.network)?;
+    let net = samara_nn::load(&a.network)
+        .with_context(|| format!("--network {}", a.network.display()))?;
     let measures = samara_reach::system::end_band_measures(&sys);
     run_system(a, &sys, path, &net, measures)
 }

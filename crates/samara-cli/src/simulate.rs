@@ -186,7 +186,7 @@ pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>>
                 path.display()
             );
         }
-        let net = crate_nn_load(path).with_context(|| {
+        let net = glider_network(path).with_context(|| {
             format!(
                 "--controller {}: cannot load the network; give an ONNX file samara can read",
                 path.display()
@@ -210,8 +210,14 @@ pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>>
     bail!("--controller {spec:?}: expected `pid`, `constant:EX` or the path of an .onnx network")
 }
 
-fn crate_nn_load(path: &Path) -> Result<samara_nn::Network> {
-    crate::nnload::load_network(path)
+/// A glider controller file (`samara_nn::load`: ONNX or `.nnet`); a 6-input, 1-output
+/// network gets the case study's state names (v_xp, v_yp, omega, theta, x, y) and `ex`.
+pub(crate) fn glider_network(path: &Path) -> Result<samara_nn::Network> {
+    let net = samara_nn::load(path)?;
+    if net.n_inputs() == 6 && net.n_outputs() == 1 {
+        return Ok(net.with_names(&samara_nn::STATE_INPUTS, &["ex"])?);
+    }
+    Ok(net)
 }
 
 /// Validated inputs of a run.
@@ -389,7 +395,7 @@ fn units_warnings(a: &SimulateArgs, plan: &Plan) -> Result<Vec<String>> {
     if a.controller == "pid" || a.controller.starts_with("constant:") {
         return Ok(Vec::new());
     }
-    let net = crate_nn_load(Path::new(&a.controller))?;
+    let net = glider_network(Path::new(&a.controller))?;
     let starts: Vec<Vec<f64>> = plan
         .starts
         .iter()
@@ -518,7 +524,7 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
         bail!("--system needs a network controller: --controller NET.onnx (inputs: the file's `observe` list, outputs: its net[i])");
     }
     let net_path = Path::new(&a.controller);
-    let net = samara_nn::onnx::load(net_path)
+    let net = samara_nn::load(net_path)
         .with_context(|| format!("--controller {}", net_path.display()))?;
     check_fits("--controller", net_path, &net, &sys, path)?;
     let rows = (a.samples as f64) * (sys.steps() as f64 * 10.0 + 1.0);

@@ -220,7 +220,7 @@ fn kv(s: &str, flag: &str) -> Result<(String, String)> {
 /// (`flag` ends with `=` for a `NAME=FILE` flag. The loaders' errors start with the
 /// file's path, so the message reads `--flag FILE: what`.)
 pub fn load_network(path: &Path, flag: &str) -> Result<samara_nn::Network> {
-    samara_nn::onnx::load(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
+    samara_nn::load(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
 }
 
 fn read_data(path: &Path, flag: &str) -> Result<samara_nn::data::Table> {
