@@ -150,6 +150,24 @@ fn json(v: &impl Serialize) -> Result<Value> {
     serde_json::to_value(v).map_err(|e| AppError::Input(format!("shard: {e}")))
 }
 
+/// A shard file: what one shard of a `--shard I/N` run writes.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct ShardFile<R, T> {
+    /// [`FORMAT`].
+    pub format: String,
+    /// The command: `robustness`, `vnncomp` or `reach`.
+    pub kind: String,
+    /// `[I, N]`.
+    pub shard: (usize, usize),
+    /// The inputs and settings every shard of the run shares.
+    pub run: R,
+    /// This shard's part of the result.
+    pub result: T,
+    /// The payload digest (of everything else).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub digest: Option<String>,
+}
+
 /// The text of a shard file of `kind` (`robustness`, `vnncomp`, `reach`): the document
 /// with its payload digest, pretty-printed with sorted keys.
 pub fn document(
@@ -158,8 +176,15 @@ pub fn document(
     run: &impl Serialize,
     result: &impl Serialize,
 ) -> Result<String> {
-    let mut doc = serde_json::json!({"format": FORMAT, "kind": kind,
-        "shard": [shard.i, shard.n], "run": json(run)?, "result": json(result)?});
+    let file = ShardFile {
+        format: FORMAT.into(),
+        kind: kind.into(),
+        shard: (shard.i, shard.n),
+        run,
+        result,
+        digest: None,
+    };
+    let mut doc = json(&file)?;
     doc["digest"] = Value::String(payload_digest(&doc));
     Ok(serde_json::to_string_pretty(&doc).expect("a JSON value prints"))
 }
