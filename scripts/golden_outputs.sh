@@ -14,7 +14,7 @@
 # counterexample on every run.
 #
 # The comparison masks only what differs between any two runs: wall times (the JSON
-# fields `seconds`, `total_seconds` and `elapsed_s` at any depth, the `seconds` column
+# fields `seconds`, `total_seconds`, `elapsed_s` and `wall_seconds` at any depth, the `seconds` column
 # of results CSVs, numbers followed by ` s` or `s` in human text), the shard files'
 # `digest` (their seal, a hash over content that includes the wall times) and the
 # output folder's own path (replaced by <OUT>). Everything else must be identical.
@@ -24,7 +24,7 @@ if [[ "${1:-}" == "--compare" ]]; then
     [[ $# -eq 3 ]] || { echo "usage: $0 --compare BEFORE AFTER" >&2; exit 2; }
     exec python3 - "$2" "$3" <<'PY'
 import json, os, re, sys
-KEYS = re.compile(r'("(?:seconds|total_seconds|elapsed_s|digest)"\s*:\s*)("[^"]*"|[-0-9.eE+]+|null)')
+KEYS = re.compile(r'("(?:seconds|total_seconds|elapsed_s|wall_seconds|digest)"\s*:\s*)("[^"]*"|[-0-9.eE+]+|null)')
 def masked(path, root):
     data = open(path, "rb").read().replace(os.path.abspath(root).encode(), b"<OUT>")
     name = os.path.basename(path)
@@ -122,4 +122,27 @@ run reach_merge merge reach "$OUT/reach_shard0.json" "$OUT/reach_shard1.json" \
 run reach_system reach --system examples/archcomp/acc.sys \
     --network crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx \
     --threads 1 --json --out "$OUT/reach_system"
+# The same system on a two-cell grid, sharded (Taylor-model shards) and merged.
+run reach_system_shard0 reach --system examples/archcomp/acc.sys \
+    --network crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx \
+    --threads 1 --grid x_lead=2 --shard 0/2 --json --out "$OUT/reach_system_shard0.json"
+run reach_system_shard1 reach --system examples/archcomp/acc.sys \
+    --network crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx \
+    --threads 1 --grid x_lead=2 --shard 1/2 --out "$OUT/reach_system_shard1.json"
+run reach_system_merge merge reach "$OUT/reach_system_shard0.json" \
+    "$OUT/reach_system_shard1.json" --json --out "$OUT/reach_system_merged"
+# Simulate (the built-in glider under a constant controller, and a system file under
+# its network) and train (a small plain run whose first seed restarts).
+run simulate simulate --controller constant:0.187 --y0 2,3 --horizon 10 --no-plot \
+    --out "$OUT/simulate" --json
+run simulate_human simulate --controller constant:0.187 --y0 2 --horizon 5 --no-plot \
+    --out "$OUT/simulate_human"
+run simulate_system simulate --system examples/archcomp/acc.sys \
+    --controller crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx \
+    --out "$OUT/simulate_system" --json
+head -n 301 "$REF/Training_Data.csv" >"$OUT/train_data.csv"
+run train train --data "$OUT/train_data.csv" --epochs 20 --seed 1 --min-r2 0 \
+    --out "$OUT/train.onnx" --json
+run train_human train --data "$OUT/train_data.csv" --epochs 5 --seed 2 --min-r2 0 \
+    --out "$OUT/train_human.onnx"
 echo "wrote $OUT" >&2

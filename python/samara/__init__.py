@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import tempfile
 import warnings
 import dataclasses
@@ -20,7 +21,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Dict, Iterable, List, Mapping, Optional, Sequence, Tuple, Union
 
-import json
 
 import numpy as np
 
@@ -403,12 +403,33 @@ class _Datasets:
     def __enter__(self) -> Dict[str, str]:
         return self.paths
 
-    def __exit__(self, *exc: Any) -> None:
+    def _words(self, msg: str) -> str:
+        """A message in the caller's words: a temporary file is the array it holds
+        (``datasets['d']``), and its line N (no header) is the array's row N - 1."""
+        for k, p in self.paths.items():
+            if p not in self._tmp:
+                continue
+            name = f"datasets[{k!r}]"
+
+            def row(m: "re.Match[str]") -> str:
+                return f"{name} row {int(m.group(1)) - 1}"
+
+            # `FILE:N` and `FILE: line N` (1-based lines of a file without header).
+            msg = re.sub(re.escape(p) + r"(?::| at)? ?(?:line )?(\d+)\b", row, msg)
+            msg = msg.replace(p, name)
+        return msg
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> None:
         for p in self._tmp:
             try:
                 os.remove(p)
             except OSError:
                 pass
+        if exc is not None and self._tmp:
+            text = str(exc)
+            words = self._words(text)
+            if words != text and isinstance(exc, (ValueError, SamaraError)):
+                raise type(exc)(words) from None
 
 
 def _nets(networks: Optional[Mapping[str, Network]]) -> Dict[str, "_samara.Network"]:
@@ -733,7 +754,7 @@ def reach(
         if k == "y":
             raise ValueError("init['y']: give the height interval as y0")
         iv[k] = _interval(f"init[{k!r}]", v)
-    text = _samara.reach(
+    d = _samara.reach(
         network._net, model, iv, float(horizon), float(period),
         None if goal_ystar is None else float(goal_ystar),
         None if goal_from is None else float(goal_from),
@@ -744,7 +765,7 @@ def reach(
         network._source,
         None if threads is None else _count("threads", threads, 1, 1024),
     )
-    r = ReachResult(json.loads(text))
+    r = ReachResult(d)
     # What `samara reach` prints on stderr: a network in the wrong units, an enclosure
     # lost before the horizon (then ``r['enclosure_lost']`` says where).
     for w in r["warnings"]:
@@ -768,8 +789,7 @@ class SystemReachResult(_Result):
         return np.asarray(self._d["instants"], dtype=np.float64).reshape(len(self._d["instants"]), -1, 2)
 
 
-def _system_result(text: str) -> SystemReachResult:
-    d = json.loads(text)
+def _system_result(d: Dict[str, Any]) -> SystemReachResult:
     r = dict(d["reach"])
     r["cells"] = d["cells"]
     r["total_cells"] = d["total_cells"]
@@ -884,11 +904,10 @@ def train(
         if m.ndim != 2 or m.shape[0] != 2:
             raise ValueError(f"normalisation: shape {m.shape}, expected (2, columns)")
         nm = (m[0].tolist(), m[1].tolist())
-    net, text = _samara.train(
+    net, report = _samara.train(
         a.tobytes(), a.shape[0], a.shape[1], nm, method, attack, [int(w) for w in arch],
         int(epochs), int(batch), float(lr), int(seed), float(eps), float(lipschitz),
         None if weight is None else float(weight), float(ystar), max_restarts, min_r2,
     )
-    report = json.loads(text)
     report["log"] = np.array(report["log"], dtype=np.float64).reshape(-1, 3)
     return Network(net, "<trained>"), report

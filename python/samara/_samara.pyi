@@ -1,8 +1,7 @@
 """Type stubs of the native module `samara._samara` (PyO3). Use the wrappers in
 `samara` (numpy in and out); this layer takes float64 row-major bytes and returns
-bytes, the fields of the library's typed results as dicts (verify, critical,
-robustness), or JSON
-text (the others)."""
+bytes, or the fields of the library's typed results as dicts and lists (no JSON
+text)."""
 
 from typing import Any, Dict, List, Optional, Tuple
 
@@ -95,7 +94,7 @@ def reach(
     seed: Optional[int],
     network_name: str,
     threads: Optional[int],
-) -> str: ...
+) -> Dict[str, Any]: ...
 def reach_system(
     system: str,
     file: str,
@@ -110,8 +109,8 @@ def reach_system(
     samples: int,
     seed: int,
     timeout: Optional[float],
-) -> str: ...
-def merge_reach_system(parts: List[str]) -> str: ...
+) -> Dict[str, Any]: ...
+def merge_reach_system(parts: List[Dict[str, Any]]) -> Dict[str, Any]: ...
 def train(
     rows: bytes,
     n: int,
@@ -130,4 +129,4 @@ def train(
     ystar: float,
     max_restarts: Optional[int],
     min_r2: Optional[float],
-) -> Tuple[Network, str]: ...
+) -> Tuple[Network, Dict[str, Any]]: ...

@@ -21,7 +21,6 @@ Every worker needs the ``samara`` wheel installed (the same version).
 from __future__ import annotations
 
 import contextlib
-import json
 import os
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
@@ -230,11 +229,11 @@ def merge_reach_system(parts: Sequence[SystemReachResult]) -> SystemReachResult:
     (in cell order, from cell 0) into the result of their union, exactly as one process
     flying all the cells gives it (``samara_reach::grid::merge_parts``; ``seconds`` is
     the parts' sum)."""
-    texts = []
+    results = []
     for p in parts:
         d = p.as_dict()
-        texts.append(json.dumps({"cells": d.pop("cells"), "total_cells": d.pop("total_cells"), "reach": d}))
-    return _system_result(_samara.merge_reach_system(texts))
+        results.append({"cells": d.pop("cells"), "total_cells": d.pop("total_cells"), "reach": d})
+    return _system_result(_samara.merge_reach_system(results))
 
 
 def _grid_task(text: str, name: str, net: Network, grid: Dict[str, int], cells: Tuple[int, int],

@@ -16,7 +16,7 @@ use samara_app::verify::{NamedValues, RowCounterexample};
 use samara_app::{CriticalValue, Front, Loaded, VerdictRow};
 use samara_verify::robustness::{sweep_with, Reference};
 use samara_verify::{LpTighten, Settings};
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -36,12 +36,108 @@ enum Error {
 }
 
 impl From<Error> for PyErr {
+    /// The message in Python's words ([`Front::words`]: the keyword arguments where a
+    /// library names the CLI's flags).
     fn from(e: Error) -> PyErr {
         match e {
-            Error::Value(m) => PyValueError::new_err(m),
-            Error::Samara(m) => SamaraError::new_err(m),
+            Error::Value(m) => PyValueError::new_err(Front::Python.words(&m)),
+            Error::Samara(m) => SamaraError::new_err(Front::Python.words(&m)),
         }
     }
+}
+
+/// A library error as Python's `ValueError`, in Python's words ([`Front::words`]).
+fn py_value_error(e: &impl std::fmt::Display) -> PyErr {
+    PyValueError::new_err(Front::Python.words(&e.to_string()))
+}
+
+/// A typed result as Python objects (dicts, lists, numbers, strings), built from its
+/// serde tree with no JSON text in between; non-finite numbers (which serde writes as
+/// `null`) become None.
+fn typed_py<T: serde::Serialize>(py: Python<'_>, v: &T) -> PyResult<PyObject> {
+    let v = serde_json::to_value(v).map_err(|e| SamaraError::new_err(e.to_string()))?;
+    value_py(py, &v)
+}
+
+/// Python objects (what [`typed_py`] gives) back as a serde tree, to read a typed result
+/// from; `where_` names the argument in messages.
+fn py_value(o: &Bound<'_, PyAny>, where_: &str) -> PyResult<Value> {
+    use pyo3::types::{PyBool, PyFloat, PyInt, PyString, PyTuple};
+    Ok(if o.is_none() {
+        Value::Null
+    } else if let Ok(b) = o.downcast::<PyBool>() {
+        Value::Bool(b.is_true())
+    } else if let Ok(i) = o.downcast::<PyInt>() {
+        match i.extract::<u64>() {
+            Ok(u) => Value::from(u),
+            Err(_) => Value::from(i.extract::<i64>()?),
+        }
+    } else if let Ok(x) = o.downcast::<PyFloat>() {
+        serde_json::Number::from_f64(x.value()).map_or(Value::Null, Value::Number)
+    } else if let Ok(t) = o.downcast::<PyString>() {
+        Value::String(t.extract::<String>()?)
+    } else if let Ok(d) = o.downcast::<PyDict>() {
+        let mut m = serde_json::Map::new();
+        for (k, v) in d.iter() {
+            let k: String = k.extract()?;
+            let at = format!("{where_}[{k:?}]");
+            m.insert(k, py_value(&v, &at)?);
+        }
+        Value::Object(m)
+    } else if let Ok(l) = o.downcast::<PyList>() {
+        let items = l
+            .iter()
+            .enumerate()
+            .map(|(i, v)| py_value(&v, &format!("{where_}[{i}]")));
+        Value::Array(items.collect::<PyResult<_>>()?)
+    } else if let Ok(t) = o.downcast::<PyTuple>() {
+        let items = t
+            .iter()
+            .enumerate()
+            .map(|(i, v)| py_value(&v, &format!("{where_}[{i}]")));
+        Value::Array(items.collect::<PyResult<_>>()?)
+    } else {
+        return Err(PyValueError::new_err(format!(
+            "{where_}: a {} is not part of a samara result",
+            o.get_type().name()?
+        )));
+    })
+}
+
+/// A result of `reach_system`: the cells `[start, end)` of a grid run (`None` without a
+/// grid), the grid's cell count and the cells' merged result.
+#[derive(serde::Serialize, serde::Deserialize)]
+struct GridPart {
+    cells: Option<(usize, usize)>,
+    total_cells: Option<usize>,
+    reach: samara_reach::system::SystemReach,
+}
+
+fn value_py(py: Python<'_>, v: &Value) -> PyResult<PyObject> {
+    Ok(match v {
+        Value::Null => py.None(),
+        Value::Bool(b) => obj(py, *b)?,
+        Value::Number(n) => match (n.as_u64(), n.as_i64()) {
+            (Some(u), _) => obj(py, u)?,
+            (None, Some(i)) => obj(py, i)?,
+            _ => obj(py, n.as_f64().unwrap_or(f64::NAN))?,
+        },
+        Value::String(t) => obj(py, t.as_str())?,
+        Value::Array(a) => {
+            let items = a
+                .iter()
+                .map(|x| value_py(py, x))
+                .collect::<PyResult<Vec<_>>>()?;
+            PyList::new(py, items)?.into_any().unbind()
+        }
+        Value::Object(m) => {
+            let d = PyDict::new(py);
+            for (k, x) in m {
+                d.set_item(k, value_py(py, x)?)?;
+            }
+            d.into_any().unbind()
+        }
+    })
 }
 
 impl From<samara_app::AppError> for Error {
@@ -75,7 +171,7 @@ impl PyNetwork {
         let name = name.to_string();
         let net = py
             .allow_threads(move || samara_nn::onnx::from_bytes(&data, &name))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+            .map_err(|e| py_value_error(&e))?;
         Ok(PyNetwork { net })
     }
 
@@ -178,8 +274,8 @@ impl PySpec {
     /// paths are resolved.
     #[new]
     fn new(text: &str, file: &str, dir: &str) -> PyResult<Self> {
-        let spec = samara_spec::Spec::parse(text, file, Path::new(dir))
-            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let spec =
+            samara_spec::Spec::parse(text, file, Path::new(dir)).map_err(|e| py_value_error(&e))?;
         Ok(PySpec { spec })
     }
 
@@ -651,7 +747,7 @@ fn read_table<'py>(py: Python<'py>, path: &str) -> PyResult<(Bound<'py, PyBytes>
             "{path}: no such file"
         )));
     }
-    let t = samara_nn::data::read_table(&p).map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let t = samara_nn::data::read_table(&p).map_err(|e| py_value_error(&e))?;
     let n = t.rows();
     let mut v = Vec::with_capacity(n * t.cols);
     for i in 0..n {
@@ -756,9 +852,7 @@ fn simulate<'py>(
         reset_filter: true,
         output_step,
     };
-    settings
-        .steps()
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    settings.steps().map_err(|e| py_value_error(&e))?;
     let flights = py.allow_threads(move || -> R<Vec<_>> {
         let mut out = Vec::with_capacity(starts.len());
         for &y in &starts {
@@ -784,7 +878,8 @@ fn simulate<'py>(
 
 /// Taylor-model reachable sets of a system file's closed loop, as `samara reach --system`
 /// computes them (with `--grid`, the cells `cells` of the grid; `samara_reach::grid`):
-/// JSON text `{"cells": [start, end] | null, "total_cells": C | null, "reach": result}`.
+/// `{"cells": (start, end) | None, "total_cells": C | None, "reach": result}` (a typed
+/// [`GridPart`] as Python objects).
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (system, file, network, grid, cells, order, network_error, lifted_weight, lift_at, max_leaves, samples, seed, timeout))]
@@ -803,12 +898,11 @@ fn reach_system(
     samples: usize,
     seed: u64,
     timeout: Option<f64>,
-) -> PyResult<String> {
+) -> PyResult<PyObject> {
     use samara_reach::grid as g;
     use samara_reach::system::{end_band_measures, NetworkError, SystemReachSettings};
-    let bad = |m: String| -> PyResult<String> { Err(PyValueError::new_err(m)) };
-    let sys = samara_system::System::parse(system, file)
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    let bad = |m: String| -> PyResult<PyObject> { Err(PyValueError::new_err(m)) };
+    let sys = samara_system::System::parse(system, file).map_err(|e| py_value_error(&e))?;
     let net = network.net.clone();
     if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
         return bad(format!(
@@ -890,51 +984,50 @@ fn reach_system(
         Some(r) => g::reach_cells(&sys, &net, &s, &pieces, r.clone()),
     });
     let r = r.map_err(|e| SamaraError::new_err(format!("{file}: {e}")))?;
-    Ok(json!({
-        "cells": range.map(|r| [r.start, r.end]),
-        "total_cells": total,
-        "reach": r,
-    })
-    .to_string())
+    let part = GridPart {
+        cells: range.map(|r| (r.start, r.end)),
+        total_cells: total,
+        reach: r,
+    };
+    typed_py(py, &part)
 }
 
-/// Merge the results (JSON of `reach_system`) of consecutive cell ranges, in cell order,
+/// Merge the results of `reach_system` over consecutive cell ranges, in cell order,
 /// into the result of their union (`samara_reach::grid::merge_parts`).
 #[pyfunction]
-fn merge_reach_system(parts: Vec<String>) -> PyResult<String> {
-    use samara_reach::system::SystemReach;
+fn merge_reach_system(py: Python<'_>, parts: Vec<Bound<'_, PyAny>>) -> PyResult<PyObject> {
     if parts.is_empty() {
         return Err(PyValueError::new_err("parts: give at least one result"));
     }
-    let mut out: Vec<(usize, SystemReach)> = Vec::new();
+    let mut out: Vec<(usize, samara_reach::system::SystemReach)> = Vec::new();
     let (mut next, mut total) = (None::<usize>, None);
-    for (i, text) in parts.iter().enumerate() {
-        let v: Value = serde_json::from_str(text)
-            .map_err(|e| PyValueError::new_err(format!("parts[{i}]: not a result: {e}")))?;
-        let range = v["cells"]
-            .as_array()
-            .and_then(|a| Some((a.first()?.as_u64()? as usize, a.get(1)?.as_u64()? as usize)));
-        let Some((a, b)) = range else {
+    for (i, p) in parts.iter().enumerate() {
+        let at = format!("parts[{i}]");
+        let v: GridPart = serde_json::from_value(py_value(p, &at)?)
+            .map_err(|e| PyValueError::new_err(format!("{at}: not a result: {e}")))?;
+        let Some((a, b)) = v.cells else {
             return Err(PyValueError::new_err(format!(
-                "parts[{i}]: not a grid result (no cells)"
+                "{at}: not a grid result (no cells)"
             )));
         };
         if next.is_some_and(|n| n != a)
             || (next.is_none() && a != 0)
-            || total.is_some_and(|t| t != v["total_cells"])
+            || total.is_some_and(|t| t != v.total_cells)
         {
             return Err(PyValueError::new_err(format!(
-                "parts[{i}]: cells {a}..{b} do not continue the parts before it; give the ranges of one grid in order from cell 0"
+                "{at}: cells {a}..{b} do not continue the parts before it; give the ranges of one grid in order from cell 0"
             )));
         }
         next = Some(b);
-        total = Some(v["total_cells"].clone());
-        let r: SystemReach = serde_json::from_value(v["reach"].clone())
-            .map_err(|e| PyValueError::new_err(format!("parts[{i}]: not a result: {e}")))?;
-        out.push((b - a, r));
+        total = Some(v.total_cells);
+        out.push((b - a, v.reach));
     }
-    let merged = samara_reach::grid::merge_parts(out);
-    Ok(json!({"cells": [0, next], "total_cells": total, "reach": merged}).to_string())
+    let merged = GridPart {
+        cells: next.map(|n| (0, n)),
+        total_cells: total.flatten(),
+        reach: samara_reach::grid::merge_parts(out),
+    };
+    typed_py(py, &merged)
 }
 
 /// A 6-input, 1-output controller network with the state names (as the CLI's loader).
@@ -948,7 +1041,7 @@ fn controller_net(n: &samara_nn::Network) -> PyResult<samara_nn::Network> {
     }
     n.clone()
         .with_names(&samara_nn::STATE_INPUTS, &["ex"])
-        .map_err(|e| PyValueError::new_err(e.to_string()))
+        .map_err(|e| py_value_error(&e))
 }
 
 /// The horizon and period of a closed-loop run: the library's checks
@@ -973,9 +1066,9 @@ fn check_horizon_period(horizon: f64, period: f64, max_p: f64, max_k: f64) -> Py
     Ok(())
 }
 
-/// A reachability analysis as `samara reach` runs it (no files): JSON text with the
-/// fields of `reach.json` (settings, verdict, final and sampled x + y, leaves with their
-/// enclosures per control instant).
+/// A reachability analysis as `samara reach` runs it (no files): the typed `reach.json`
+/// (`samara_app::reach::ReachReport`: settings, verdict, final and sampled x + y, leaves
+/// with their enclosures per control instant) as Python objects.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
 #[pyo3(signature = (network, model, init, horizon, period, goal_ystar, goal_from, clip, max_leaves, samples, seed, network_name, threads))]
@@ -994,7 +1087,7 @@ fn reach(
     seed: Option<u64>,
     network_name: String,
     threads: Option<usize>,
-) -> PyResult<String> {
+) -> PyResult<PyObject> {
     use samara_plant::{Model, STATE_NAMES};
     if threads.is_some_and(|t| !(1..=1024).contains(&t)) {
         return Err(PyValueError::new_err(format!(
@@ -1002,7 +1095,7 @@ fn reach(
             threads.unwrap_or(0)
         )));
     }
-    use samara_reach::{Goal, ReachSettings, Verdict as RV};
+    use samara_reach::{Goal, ReachSettings};
     let Some(m) = Model::from_name(model) else {
         return Err(PyValueError::new_err(format!(
             "model {model:?}: unknown model; choose one of reduced, plate6, full"
@@ -1074,8 +1167,7 @@ fn reach(
         s.seed = v;
     }
     let net = controller_net(&network.net)?;
-    s.validate(&net)
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    s.validate(&net).map_err(|e| py_value_error(&e))?;
     // The checks `samara reach` makes on its inputs and result, from the same library
     // calls: a network in the wrong units, an enclosure lost before the horizon.
     let warnings: Vec<String> = s
@@ -1083,7 +1175,7 @@ fn reach(
         .map(|w| format!("network: {w}"))
         .into_iter()
         .collect();
-    let r = py.allow_threads(move || -> R<String> {
+    let r = py.allow_threads(move || -> R<samara_app::reach::ReachReport> {
         // A pool of `threads` workers (as `samara reach --threads`), else the global one.
         let pool = match threads {
             Some(t) => Some(
@@ -1101,51 +1193,17 @@ fn reach(
             None => run(),
         }
         .map_err(|e| Error::Samara(e.to_string()))?;
-        let lost = samara_reach::verdict::lost_enclosure(&res.leaves, &s);
-        let num = |v: f64| if v.is_finite() { json!(v) } else { Value::Null };
-        let verdict = match &res.verdict {
-            RV::Proved => json!({ "verdict": "proved" }),
-            RV::NoGoal => json!({ "verdict": "none" }),
-            RV::Unknown { reason } => json!({ "verdict": "unknown", "reason": reason }),
-            RV::Violated {
-                initial,
-                t,
-                x_plus_y,
-            } => json!({
-                "verdict": "violated",
-                "reason": format!("the simulated trajectory from {initial:?} has x + y = {x_plus_y} at t = {t}, outside the goal band"),
-                "counterexample": { "initial": initial, "t": t, "x_plus_y": x_plus_y },
-            }),
-        };
-        let mut init = serde_json::Map::new();
-        for (i, (lo, hi)) in s.init.iter().enumerate() {
-            init.insert(STATE_NAMES[i].to_string(), json!([lo, hi]));
-        }
-        Ok(json!({
-            "settings": {"model": s.model.name(), "init": init, "horizon": s.horizon,
-                "period": s.period, "clip": s.clip.map(|(lo, hi)| [lo, hi]),
-                "reset_filter": s.reset_filter, "goal": s.goal.as_ref().map(|g| json!({"ystar": g.ystar, "from": g.from})),
-                "max_leaves": s.max_leaves, "initial_splits": s.initial_splits,
-                "samples": s.samples, "seed": s.seed, "network": network_name, "threads": n_threads},
-            "verdict": verdict,
-            "final_x_plus_y": [num(res.final_x_plus_y[0]), num(res.final_x_plus_y[1])],
-            "sampled_x_plus_y": res.sampled_x_plus_y,
-            "width_ratio": num(res.width_ratio()),
-            "subproblems": res.subproblems(),
-            "seconds": res.seconds,
-            "sampled_trajectories": res.samples.len(),
-            "state_names": &STATE_NAMES[..s.model.dim()],
-            "leaves": serde_json::to_value(&res.leaves).map_err(|e| Error::Samara(e.to_string()))?,
-            "warnings": warnings,
-            "enclosure_lost": lost,
-        })
-        .to_string())
+        let o = samara_app::reach::Outcome::of(&res, &s, warnings);
+        let echo = samara_app::reach::SettingsEcho::new(&network_name, n_threads, &s);
+        Ok(samara_app::reach::ReachReport::new(
+            echo, &s, &o, res.leaves,
+        ))
     })?;
-    Ok(r)
+    typed_py(py, &r)
 }
 
 /// Train a network as `samara train` does (methods plain, adversarial, lipschitz, dl2,
-/// goedel with the built-in P1-P4); returns the network and the report as JSON text
+/// goedel with the built-in P1-P4); returns the network and the typed report
 /// (the fields of `samara train --json`, plus the log). `rows`: row-major float64
 /// bytes, inputs then the output.
 #[pyfunction]
@@ -1170,7 +1228,7 @@ fn train(
     ystar: f64,
     max_restarts: Option<usize>,
     min_r2: Option<f64>,
-) -> PyResult<(PyNetwork, String)> {
+) -> PyResult<(PyNetwork, PyObject)> {
     use samara_train::{Attack, Logic, Method, MinMax, Table, TrainOptions};
     let values = f64s(rows);
     if values.len() != n * cols || cols < 2 {
@@ -1234,7 +1292,7 @@ fn train(
                 .map(|j| (data_mm.min[j], data_mm.min[j] + data_mm.range[j]))
                 .collect();
             let props = samara_train::spec_properties(&spec, &names, &b, &mm, Some(domain))
-                .map_err(|e| PyValueError::new_err(e.to_string()))?;
+                .map_err(|e| py_value_error(&e))?;
             Method::Properties {
                 logic: if method == "dl2" {
                     Logic::Dl2
@@ -1270,8 +1328,7 @@ fn train(
     if let Some(m) = max_restarts {
         o.max_restarts = m;
     }
-    o.validate()
-        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    o.validate().map_err(|e| py_value_error(&e))?;
     let method = method.to_string();
     let (net, report) = py.allow_threads(move || -> R<_> {
         let outcome =
@@ -1283,29 +1340,53 @@ fn train(
                 .map_err(|e| Error::Samara(e.to_string()))?;
         }
         let m = &outcome.metrics;
-        let restarts: Vec<Value> = outcome
-            .restarts
-            .iter()
-            .map(|r| {
-                json!({"attempt": r.attempt, "seed": r.seed, "epoch": r.epoch,
-                    "reason": r.reason.to_string()})
-            })
-            .collect();
-        let log: Vec<Value> = outcome
-            .log
-            .iter()
-            .map(|r| json!([r.epoch, r.loss, r.test_rmse]))
-            .collect();
-        let report = json!({
-            "method": method, "test_rows": m.n_test, "r2": m.r2, "r2_train": m.r2_train,
-            "rmse": m.rmse, "mae": m.mae, "eps": o.eps,
-            "attack_worst_deviation": m.attack_worst, "attack_mean_deviation": m.attack_mean,
-            "seed": o.seed, "init_seed": outcome.init_seed,
-            "restarts": outcome.restarts.len(), "restart_log": restarts, "log": log,
-        });
-        Ok((net, report.to_string()))
+        let report = TrainReport {
+            method,
+            test_rows: m.n_test,
+            r2: m.r2,
+            r2_train: m.r2_train,
+            rmse: m.rmse,
+            mae: m.mae,
+            eps: o.eps,
+            attack_worst_deviation: m.attack_worst,
+            attack_mean_deviation: m.attack_mean,
+            seed: o.seed,
+            init_seed: outcome.init_seed,
+            restarts: outcome.restarts.len(),
+            restart_log: outcome
+                .restarts
+                .iter()
+                .map(samara_app::train::RestartEntry::from)
+                .collect(),
+            log: outcome
+                .log
+                .iter()
+                .map(|r| (r.epoch, r.loss, r.test_rmse))
+                .collect(),
+        };
+        Ok((net, report))
     })?;
-    Ok((PyNetwork { net }, report))
+    Ok((PyNetwork { net }, typed_py(py, &report)?))
+}
+
+/// The report of [`train`]: the fields of `samara train --json` (without the file
+/// paths), the training R^2, and the log as (epoch, loss, test RMSE) rows.
+#[derive(serde::Serialize)]
+struct TrainReport {
+    method: String,
+    test_rows: usize,
+    r2: f64,
+    r2_train: f64,
+    rmse: f64,
+    mae: f64,
+    eps: f64,
+    attack_worst_deviation: f64,
+    attack_mean_deviation: f64,
+    seed: u64,
+    init_seed: u64,
+    restarts: usize,
+    restart_log: Vec<samara_app::train::RestartEntry>,
+    log: Vec<(usize, f64, f64)>,
 }
 
 #[pymodule]

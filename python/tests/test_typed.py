@@ -151,3 +151,39 @@ def test_zero_pieces_is_a_named_error():
     net = samara.Network.from_onnx(root / "crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx")
     with pytest.raises(OverflowError, match=r"grid\['x_lead'\]=0"):
         samara.reach_system(root / "examples/archcomp/acc.sys", net, grid={"x_lead": 0})
+
+
+def test_reach_and_train_return_typed_values_not_json_text():
+    """The native layer hands back the library's typed results as Python objects (no
+    JSON text in between): `reach.json`'s fields, the training report with its log."""
+    net = samara.Network.from_onnx(reference("base_model_denorm.onnx"))
+    d = _samara.reach(net._net, "reduced", {"y": (2.0, 2.1)}, 2.0, 0.5, 50.0, None, True, 2, 5,
+                      None, "n.onnx", 1)
+    assert isinstance(d, dict) and d["verdict"] == {"verdict": "proved"}
+    assert d["settings"]["network"] == "n.onnx" and isinstance(d["leaves"], list)
+    assert isinstance(d["leaves"][0]["steps"][0]["bbox"][0][0], float)
+    data = samara.read_table(reference("Training_Data.csv"))[:300]
+    _, rep = samara.train(data, epochs=3, seed=1, min_r2=0.0)
+    assert isinstance(rep, dict) and rep["log"].shape == (3, 3)
+    assert all(set(r) == {"attempt", "seed", "epoch", "reason"} for r in rep["restart_log"])
+
+
+def test_training_errors_name_the_python_argument():
+    data = samara.read_table(reference("Training_Data.csv"))[:300]
+    with pytest.raises(ValueError) as e:
+        samara.train(data, epochs=0)
+    assert "epochs 0 is out of range" in str(e.value) and "--" not in str(e.value), e.value
+    with pytest.raises(ValueError) as e:
+        samara.train(data, epochs=3, min_r2=1.5)
+    assert "min_r2 1.5:" in str(e.value) and "--" not in str(e.value), e.value
+
+
+def test_temporary_csv_names_are_not_shown(net):
+    """A data set given as an array is written to a temporary CSV for the library; a
+    message about it names the array (`datasets['train']`), not the file."""
+    spec = samara.Spec(SPEC)
+    bad = [[0.5] * 6 + [float("nan")]]
+    with pytest.raises(ValueError) as e:
+        spec.verify(networks={"f": net}, datasets={"train": bad}, property="p5")
+    msg = str(e.value)
+    assert "datasets['train']" in msg and "samara-train-" not in msg and ".csv" not in msg, msg

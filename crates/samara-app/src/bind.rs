@@ -40,6 +40,38 @@ impl Front {
         }
     }
 
+    /// A message of a lower library in this front's words: on the CLI as it is; for
+    /// Python every command-line flag it names (`--min-r2`, "raise --timeout") becomes
+    /// the keyword argument of the same meaning (`min_r2`, "raise timeout"), since
+    /// samara's Python functions name their arguments after the flags.
+    pub fn words(self, msg: &str) -> String {
+        if self == Front::Cli {
+            return msg.to_string();
+        }
+        let b = msg.as_bytes();
+        let mut out = String::with_capacity(msg.len());
+        let mut i = 0;
+        while i < msg.len() {
+            let flag_start = b[i] == b'-'
+                && b.get(i + 1) == Some(&b'-')
+                && b.get(i + 2).is_some_and(u8::is_ascii_lowercase)
+                && (i == 0 || !(b[i - 1].is_ascii_alphanumeric() || b[i - 1] == b'-'));
+            if flag_start {
+                let mut j = i + 2;
+                while j < b.len() && (b[j].is_ascii_alphanumeric() || b[j] == b'-') {
+                    j += 1;
+                }
+                out.push_str(&msg[i + 2..j].replace('-', "_"));
+                i = j;
+            } else {
+                let c = msg[i..].chars().next().expect("in bounds");
+                out.push(c);
+                i += c.len_utf8();
+            }
+        }
+        out
+    }
+
     /// An example setting: `--horizon 20` / `horizon=20`.
     pub fn eg(self, name: &str, value: &str) -> String {
         match self {
@@ -408,4 +440,23 @@ pub fn check_period_count(
         ));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Front;
+
+    #[test]
+    fn python_words_name_keyword_arguments_instead_of_flags() {
+        let m = "R^2 on the training rows is 0.5, below the required 0.9 (--min-r2); --epochs 0 is out of range; time limit reached (raise --timeout)";
+        assert_eq!(
+            Front::Python.words(m),
+            "R^2 on the training rows is 0.5, below the required 0.9 (min_r2); epochs 0 is out of range; time limit reached (raise timeout)"
+        );
+        assert_eq!(Front::Cli.words(m), m);
+        // Not a flag: a negative number, a dash inside a word, an em dash, a lone `--`.
+        for keep in ["x in [-1, 2]", "a--b", "range 1 -- 2", "Gödel — --", "ε--"] {
+            assert_eq!(Front::Python.words(keep), keep);
+        }
+    }
 }

@@ -8,6 +8,10 @@
 //! - [`verify`]: proving every instance of the selected properties ([`run_verify`]) and
 //!   the two-sided critical value of a parameter ([`critical_value`]);
 //! - [`robustness`]: the robustness table of a sweep;
+//! - [`reach`]: reachability results (`reach.json`, summaries, the human lines) and the
+//!   reach shard files with their merge;
+//! - [`shard`]: the shard files of `--shard I/N` runs and their checks;
+//! - [`simulate`], [`train`]: the summaries of simulation and training runs;
 //! - [`vnncomp`]: deciding one VNN-COMP instance with the counterexample re-check and
 //!   downgrade policy, and the competition's result words and files.
 //!
@@ -15,7 +19,11 @@
 //! map with sorted keys) is the `--json` document of the CLI.
 
 pub mod bind;
+pub mod reach;
 pub mod robustness;
+pub mod shard;
+pub mod simulate;
+pub mod train;
 pub mod verify;
 pub mod vnncomp;
 

@@ -408,3 +408,18 @@ pub fn csv_field(s: &str) -> String {
         s.to_string()
     }
 }
+
+/// The `--json` line of a VNN-COMP shard.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ShardLine {
+    /// `[I, N]`.
+    pub shard: (usize, usize),
+    /// The shard's range of instances.
+    pub instances: (usize, usize),
+    /// Its counts by result word.
+    pub counts: std::collections::BTreeMap<String, usize>,
+    /// Wall time.
+    pub total_seconds: f64,
+    /// The shard file.
+    pub out: std::path::PathBuf,
+}

@@ -4,7 +4,6 @@
 //! Exit codes (as ripgrep): 0 success, 1 a property was violated or a check failed,
 //! 2 a usage or input error.
 
-mod nnload;
 mod reach;
 mod reach_adaptive;
 mod reach_system;
@@ -171,6 +170,17 @@ fn main() -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+/// The JSON text of a typed result as the CLI prints it: through `serde_json::Value`, so
+/// keys are sorted (the layout every `--json` document and output file has had).
+pub(crate) fn json_text<T: serde::Serialize>(v: &T, pretty: bool) -> anyhow::Result<String> {
+    let v = serde_json::to_value(v)?;
+    Ok(if pretty {
+        serde_json::to_string_pretty(&v)?
+    } else {
+        v.to_string()
+    })
 }
 
 /// Whether `text` is the message of a write into a closed pipe (`EPIPE`), as printed by

@@ -11,17 +11,20 @@
 //! and writes what one process writes (see [`merge_reach`]).
 
 use anyhow::{anyhow, bail, Context, Result};
+use samara_app::reach::{
+    merge_zonotope, Outcome, ReachReport, ReachSummary, SettingsEcho, ShardLine, ShardSource,
+    ZonotopeRun, ZonotopeShard,
+};
 use samara_plant::{Model, STATE_NAMES};
-use samara_reach::parts::{self, Flown, LeafRecord};
-use samara_reach::{Goal, ReachResult, ReachSettings, StepSet, Verdict};
-use samara_report::{write_atomic, Curve};
+use samara_reach::parts;
+use samara_reach::{Goal, ReachSettings};
+use samara_report::write_atomic;
 use samara_spec::lower::NetDecl;
-use serde_json::{json, Value};
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
+use crate::json_text;
 use crate::simulate::{limits, num as fmt_num};
 use crate::verify::shard::{self, Shard};
 
@@ -471,7 +474,7 @@ fn controller(network: &Path, decl: Option<&NetDecl>) -> Result<samara_nn::Netwo
             network.display()
         );
     }
-    let net = crate::nnload::load_network(network).with_context(|| {
+    let net = crate::simulate::glider_network(network).with_context(|| {
         format!(
             "--network {}: cannot load the network; give an ONNX file samara can read",
             network.display()
@@ -615,20 +618,15 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
     let res = res.map_err(|e| anyhow!("{e}"))?;
 
     let o = Outcome::of(&res, &plan.settings, warnings);
-    let settings = settings_json(
+    let settings = SettingsEcho::new(
         &a.network.display().to_string(),
         a.threads.unwrap_or_else(rayon::current_num_threads),
         &plan.settings,
     );
-    let report = report_json(
-        settings,
-        &plan.settings,
-        &o,
-        serde_json::to_value(&res.leaves)?,
-    );
+    let report = ReachReport::new(settings, &plan.settings, &o, res.leaves.clone());
     write_atomic(
         &a.out.join("reach.json"),
-        serde_json::to_string_pretty(&report)?.as_bytes(),
+        json_text(&report, true)?.as_bytes(),
     )?;
     samara_report::reach::figure(
         &res,
@@ -636,9 +634,9 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
         plan.settings.goal.as_ref().map(|g| g.ystar),
     )
     .render(&a.out.join("reach.png"), &a.out.join("reach.svg"))?;
-    let unknown = matches!(o.verdict, Verdict::Unknown { .. }) || o.lost.is_some();
+    let unknown = o.no_result();
     if unknown && quiet_unknown {
-        eprintln!("{}", human_line(&plan.settings, &o));
+        eprintln!("{}", o.human_line(&plan.settings));
         out.keep();
         return Ok((ExitCode::from(1), true));
     }
@@ -654,17 +652,16 @@ fn finish(
     out: samara_report::guard::OutDir,
 ) -> Result<ExitCode> {
     if json_out {
-        println!("{}", serde_json::to_string_pretty(&summary(o, dir))?);
+        println!("{}", json_text(&ReachSummary::new(o, dir), true)?);
     } else {
-        println!("{}", human_line(s, o));
+        println!("{}", o.human_line(s));
         eprintln!("wrote {}", dir.display());
     }
     out.keep();
-    Ok(match o.verdict {
-        // No goal, but a sub-box lost its enclosure: no result over the horizon.
-        Verdict::NoGoal if o.lost.is_some() => ExitCode::from(1),
-        Verdict::Proved | Verdict::NoGoal => ExitCode::SUCCESS,
-        Verdict::Violated { .. } | Verdict::Unknown { .. } => ExitCode::from(1),
+    Ok(if o.success() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
     })
 }
 
@@ -682,185 +679,6 @@ fn progress(s: &ReachSettings) -> Option<indicatif::ProgressBar> {
     ));
     p.enable_steady_tick(std::time::Duration::from_millis(120));
     Some(p)
-}
-
-fn width(iv: [f64; 2]) -> f64 {
-    iv[1] - iv[0]
-}
-
-/// A number for JSON: non-finite values (an unbounded enclosure) become null.
-fn num(v: f64) -> serde_json::Value {
-    if v.is_finite() {
-        serde_json::json!(v)
-    } else {
-        serde_json::Value::Null
-    }
-}
-
-fn verdict_details(v: &Verdict) -> serde_json::Value {
-    match v {
-        Verdict::Proved => serde_json::json!({ "verdict": "proved" }),
-        Verdict::NoGoal => serde_json::json!({ "verdict": "none" }),
-        Verdict::Unknown { reason } => {
-            serde_json::json!({ "verdict": "unknown", "reason": reason })
-        }
-        Verdict::Violated {
-            initial,
-            t,
-            x_plus_y,
-        } => serde_json::json!({
-            "verdict": "violated",
-            "reason": format!("the simulated trajectory from {initial:?} has x + y = {x_plus_y} at t = {t}, outside the goal band"),
-            "counterexample": { "initial": initial, "t": t, "x_plus_y": x_plus_y },
-        }),
-    }
-}
-
-fn settings_json(network: &str, threads: usize, s: &ReachSettings) -> serde_json::Value {
-    let mut init = serde_json::Map::new();
-    for (i, (lo, hi)) in s.init.iter().enumerate() {
-        init.insert(STATE_NAMES[i].to_string(), serde_json::json!([lo, hi]));
-    }
-    serde_json::json!({
-        "network": network,
-        "model": s.model.name(),
-        "init": init,
-        "horizon": s.horizon,
-        "period": s.period,
-        "clip": s.clip.map(|(lo, hi)| [lo, hi]),
-        "reset_filter": s.reset_filter,
-        "goal": s.goal,
-        "max_leaves": s.max_leaves,
-        "initial_splits": s.initial_splits,
-        "samples": s.samples,
-        "seed": s.seed,
-        "threads": threads,
-    })
-}
-
-/// What the report, the summary and the human line say of a run (one process, or merged
-/// shards).
-struct Outcome<'a> {
-    verdict: &'a Verdict,
-    final_x_plus_y: [f64; 2],
-    sampled_x_plus_y: [f64; 2],
-    subproblems: usize,
-    seconds: f64,
-    sampled_trajectories: usize,
-    /// Where a sub-box lost its enclosure, if one did
-    /// (`samara_reach::verdict::lost_enclosure`).
-    lost: Option<String>,
-    /// Warnings on the inputs ([`units_warnings`]), in the JSON as `warnings`.
-    warnings: Vec<String>,
-}
-
-impl<'a> Outcome<'a> {
-    fn of(res: &'a ReachResult, s: &ReachSettings, warnings: Vec<String>) -> Self {
-        Outcome {
-            warnings,
-            lost: samara_reach::verdict::lost_enclosure(&res.leaves, s),
-            verdict: &res.verdict,
-            final_x_plus_y: res.final_x_plus_y,
-            sampled_x_plus_y: res.sampled_x_plus_y,
-            subproblems: res.subproblems(),
-            seconds: res.seconds,
-            sampled_trajectories: res.samples.len(),
-        }
-    }
-
-    /// As `ReachResult::width_ratio`.
-    fn width_ratio(&self) -> f64 {
-        (self.final_x_plus_y[1] - self.final_x_plus_y[0])
-            / (self.sampled_x_plus_y[1] - self.sampled_x_plus_y[0])
-    }
-}
-
-/// `reach.json`: `settings` from [`settings_json`], `leaves` the serialised sub-boxes.
-fn report_json(settings: Value, s: &ReachSettings, res: &Outcome, leaves: Value) -> Value {
-    serde_json::json!({
-        "settings": settings,
-        "verdict": verdict_details(res.verdict),
-        "final_x_plus_y": [num(res.final_x_plus_y[0]), num(res.final_x_plus_y[1])],
-        "sampled_x_plus_y": res.sampled_x_plus_y,
-        "width_ratio": num(res.width_ratio()),
-        "subproblems": res.subproblems,
-        "seconds": res.seconds,
-        "sampled_trajectories": res.sampled_trajectories,
-        "enclosure_lost": res.lost,
-        "warnings": res.warnings,
-        "state_names": &STATE_NAMES[..s.model.dim()],
-        "leaves": leaves,
-    })
-}
-
-fn summary(res: &Outcome, out: &Path) -> serde_json::Value {
-    let mut v = verdict_details(res.verdict);
-    let m = v.as_object_mut().expect("object");
-    m.insert(
-        "final_x_plus_y".into(),
-        serde_json::json!([num(res.final_x_plus_y[0]), num(res.final_x_plus_y[1])]),
-    );
-    m.insert("final_width".into(), num(width(res.final_x_plus_y)));
-    m.insert(
-        "sampled_x_plus_y".into(),
-        serde_json::json!(res.sampled_x_plus_y),
-    );
-    m.insert("sampled_width".into(), num(width(res.sampled_x_plus_y)));
-    m.insert("width_ratio".into(), num(res.width_ratio()));
-    m.insert("subproblems".into(), serde_json::json!(res.subproblems));
-    m.insert("seconds".into(), serde_json::json!(res.seconds));
-    m.insert("enclosure_lost".into(), serde_json::json!(res.lost));
-    m.insert("warnings".into(), serde_json::json!(res.warnings));
-    m.insert("out".into(), serde_json::json!(out.display().to_string()));
-    v
-}
-
-fn human_line(s: &ReachSettings, res: &Outcome) -> String {
-    let f = res.final_x_plus_y;
-    let sm = res.sampled_x_plus_y;
-    let goal = match &s.goal {
-        Some(g) => match g.from {
-            Some(t0) => format!(" (goal |x + y| <= {} on [{t0}, {}])", g.ystar, s.horizon),
-            None => format!(" (goal |x + y| <= {} at t = {})", g.ystar, s.horizon),
-        },
-        None => String::new(),
-    };
-    let detail = match res.verdict {
-        Verdict::Unknown { reason } => format!("; reason: {reason}"),
-        Verdict::NoGoal => match &res.lost {
-            Some(why) => format!("; no result: {why}"),
-            None => String::new(),
-        },
-        Verdict::Violated {
-            initial,
-            t,
-            x_plus_y,
-        } => format!("; counterexample: from {initial:?}, x + y = {x_plus_y} at t = {t}"),
-        _ => String::new(),
-    };
-    // No finite sampled trajectory (e.g. a state where the model is singular): say so
-    // instead of printing the empty range [inf, -inf].
-    let sampled = if sm[0] <= sm[1] {
-        format!(
-            "sampled [{:.6}, {:.6}] (width {:.6}); ratio {:.3}",
-            sm[0],
-            sm[1],
-            width(sm),
-            res.width_ratio()
-        )
-    } else {
-        "sampled: none (no simulated trajectory stayed finite); ratio n/a".to_string()
-    };
-    format!(
-        "{}{goal}: x + y at t = {} in [{:.6}, {:.6}] (width {:.6}); {sampled}; {} sub-boxes; {:.2} s{detail}",
-        res.verdict.name(),
-        s.horizon,
-        f[0],
-        f[1],
-        width(f),
-        res.subproblems,
-        res.seconds
-    )
 }
 
 /// The figure's title: the network's name and the model.
@@ -907,38 +725,25 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     if let Some(p) = &a.spec {
         inputs.push(("--spec".to_string(), p.as_path(), "--spec".to_string()));
     }
-    let run = run_json(s, shard::digest_inputs(inputs)?, prep.pieces());
-    let mut result = json!({
-        "pieces": [range.start, range.end],
-        "shared": shared_json(&prep),
-        "network": a.network.display().to_string(),
-        // Where the merge reads the controller back to re-check a counterexample.
-        "network_file": shard::resolved(&a.network),
-        "spec_file": a.spec.as_deref().map(shard::resolved),
-        "loop": a.loop_name,
-        "warnings": warnings,
-        "threads": a.threads.unwrap_or_else(rayon::current_num_threads),
-        "seconds": secs,
-        "subboxes": flown.iter().map(flown_json).collect::<Vec<_>>(),
-    });
-    // The figure's sampled trajectories (the same in every shard): kept once, in shard 0.
-    if sh.i == 0 {
-        let (curves, group_label) = samara_report::reach::sample_curves(&prep.samples);
-        result["figure"] = json!({
-            "group_label": group_label,
-            "curves": curves.iter().map(|c| json!({
-                "label": c.label,
-                "points": c.points.iter().map(|&(x, y)| [shard::f(x), shard::f(y)]).collect::<Vec<_>>(),
-            })).collect::<Vec<_>>(),
-        });
-    }
-    shard::write(&a.out, "reach", sh, run, result)?;
+    let run = ZonotopeRun::new(s, shard::digest_inputs(inputs)?, prep.pieces());
+    let src = ShardSource {
+        network: a.network.display().to_string(),
+        network_file: shard::resolved(&a.network),
+        spec_file: a.spec.as_deref().map(shard::resolved),
+        loop_name: a.loop_name.clone(),
+        warnings,
+        threads: a.threads.unwrap_or_else(rayon::current_num_threads),
+    };
+    let result = ZonotopeShard::new(sh, &prep, range.clone(), &flown, secs, src);
+    shard::write(&a.out, "reach", sh, &run, &result)?;
     if a.json {
-        println!(
-            "{}",
-            json!({"shard": [sh.i, sh.n], "pieces": [range.start, range.end],
-                "subboxes": flown.len(), "out": a.out})
-        );
+        let line = ShardLine {
+            shard: (sh.i, sh.n),
+            pieces: (range.start, range.end),
+            subboxes: flown.len(),
+            out: a.out.clone(),
+        };
+        println!("{}", json_text(&line, false)?);
     } else {
         println!(
             "shard {}/{}: pieces {}..{} of {} ({} sub-boxes flown), {secs:.3} s; partial result in {} (merge with `samara merge reach`)",
@@ -954,462 +759,48 @@ fn run_shard(a: &ReachArgs, sh: Shard) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The exact text of an interval.
-fn pair(v: [f64; 2]) -> Value {
-    json!([shard::f(v[0]), shard::f(v[1])])
-}
-
-/// Read back a [`pair`]; `what` names it in messages.
-fn read_pair(v: &Value, what: &str) -> Result<[f64; 2]> {
-    let x = |i: usize| v[i].as_str().and_then(|t| t.parse::<f64>().ok());
-    match (v.as_array().map(Vec::len), x(0), x(1)) {
-        (Some(2), Some(a), Some(b)) => Ok([a, b]),
-        _ => bail!("{what}: expected two number texts, found {v}"),
-    }
-}
-
-/// Read back a [`shard::f`] value.
-fn read_f(v: &Value, what: &str) -> Result<f64> {
-    v.as_str()
-        .and_then(|t| t.parse().ok())
-        .ok_or_else(|| anyhow!("{what}: expected a number text, found {v}"))
-}
-
-/// The inputs (content digests of `--network` and `--spec`) and settings every shard of
-/// one run shares (`run` of the shard file): numbers as exact text, so the merge rebuilds the settings bit for bit.
-fn run_json(s: &ReachSettings, inputs: Value, pieces: usize) -> Value {
-    json!({
-        "inputs": inputs,
-        "samara": env!("CARGO_PKG_VERSION"),
-        "model": s.model.name(),
-        "init": s.init.iter().map(|&(lo, hi)| pair([lo, hi])).collect::<Vec<_>>(),
-        "horizon": shard::f(s.horizon),
-        "period": shard::f(s.period),
-        "clip": s.clip.map(|(lo, hi)| pair([lo, hi])),
-        "reset_filter": s.reset_filter,
-        "goal": s.goal.as_ref().map(|g| json!({"ystar": shard::f(g.ystar), "from": g.from.map(shard::f)})),
-        "max_leaves": s.max_leaves,
-        "initial_splits": s.initial_splits,
-        "samples": s.samples,
-        "seed": s.seed,
-        "pieces": pieces,
-    })
-}
-
-/// The settings of a run from its [`run_json`].
-fn settings_from_run(run: &Value) -> Result<ReachSettings> {
-    let bad = |what: &str| anyhow!("shard files: bad `run.{what}` ({})", run[what]);
-    let model = run["model"]
-        .as_str()
-        .and_then(Model::from_name)
-        .ok_or_else(|| bad("model"))?;
-    let mut s = ReachSettings::published(model);
-    let init = run["init"].as_array().ok_or_else(|| bad("init"))?;
-    if init.len() != model.dim() {
-        return Err(bad("init"));
-    }
-    s.init = init
-        .iter()
-        .map(|v| read_pair(v, "run.init").map(|[a, b]| (a, b)))
-        .collect::<Result<_>>()?;
-    s.horizon = read_f(&run["horizon"], "run.horizon")?;
-    s.period = read_f(&run["period"], "run.period")?;
-    s.clip = match &run["clip"] {
-        Value::Null => None,
-        v => Some(read_pair(v, "run.clip").map(|[a, b]| (a, b))?),
-    };
-    s.reset_filter = run["reset_filter"]
-        .as_bool()
-        .ok_or_else(|| bad("reset_filter"))?;
-    s.goal = match &run["goal"] {
-        Value::Null => None,
-        g => Some(Goal {
-            ystar: read_f(&g["ystar"], "run.goal.ystar")?,
-            from: match &g["from"] {
-                Value::Null => None,
-                f => Some(read_f(f, "run.goal.from")?),
-            },
-        }),
-    };
-    let int = |what: &str| {
-        run[what]
-            .as_u64()
-            .ok_or_else(|| bad(what))
-            .and_then(|n| usize::try_from(n).map_err(|_| bad(what)))
-    };
-    s.max_leaves = int("max_leaves")?;
-    s.initial_splits = int("initial_splits")?;
-    s.samples = int("samples")?;
-    s.seed = run["seed"].as_u64().ok_or_else(|| bad("seed"))?;
-    Ok(s)
-}
-
-/// What every shard computes alike from the samples; the merge checks they agree.
-fn shared_json(p: &parts::Prepared) -> Value {
-    let violation = match &p.violation {
-        Some(Verdict::Violated {
-            initial,
-            t,
-            x_plus_y,
-        }) => json!({
-            "initial": initial.iter().map(|x| shard::f(*x)).collect::<Vec<_>>(),
-            "t": shard::f(*t),
-            "x_plus_y": shard::f(*x_plus_y),
-        }),
-        _ => Value::Null,
-    };
-    json!({
-        "sampled_trajectories": p.samples.len(),
-        "sampled_x_plus_y": pair(p.sampled_x_plus_y),
-        "tol_noise": shard::f(p.tol_noise),
-        "violation": violation,
-    })
-}
-
-/// A flown sub-box in a shard file: numbers as exact text.
-fn flown_json(f: &Flown) -> Value {
-    let l = &f.leaf;
-    let steps: Vec<Value> = l
-        .steps
-        .iter()
-        .map(|st| {
-            json!({
-                "t": shard::f(st.t),
-                "bbox": st.bbox.iter().map(|b| pair(*b)).collect::<Vec<_>>(),
-                "x_plus_y": pair(st.x_plus_y),
-                "x_plus_y_period": pair(st.x_plus_y_period),
-                "ex": st.ex.map(pair),
-            })
-        })
-        .collect();
-    json!({
-        "key": f.key,
-        "want": f.want,
-        "split": f.split,
-        "goal": f.goal,
-        "leaf": {
-            "init": l.init.iter().map(|b| pair(*b)).collect::<Vec<_>>(),
-            "params": l.params,
-            "steps": steps,
-            "failure": l.failure,
-            "flow_steps": [l.flow_steps.0, l.flow_steps.1],
-            "max_dev": shard::f(l.max_dev),
-        },
-    })
-}
-
-/// Read back a [`flown_json`].
-fn read_flown(v: &Value, file: &Path) -> Result<Flown> {
-    let key = v["key"].as_str().unwrap_or("?").to_string();
-    let what = format!("{}: sub-box {key}", file.display());
-    let bad = |field: &str| anyhow!("{what}: bad `{field}` ({})", v[field]);
-    let l = &v["leaf"];
-    let pairs = |x: &Value, field: &str| -> Result<Vec<[f64; 2]>> {
-        x.as_array()
-            .ok_or_else(|| anyhow!("{what}: bad `{field}`"))?
-            .iter()
-            .map(|b| read_pair(b, &format!("{what}: {field}")))
-            .collect()
-    };
-    let idx = |x: &Value| x.as_u64().and_then(|n| usize::try_from(n).ok());
-    let steps = l["steps"]
-        .as_array()
-        .ok_or_else(|| anyhow!("{what}: bad `steps`"))?
-        .iter()
-        .map(|st| {
-            Ok(StepSet {
-                t: read_f(&st["t"], &format!("{what}: t"))?,
-                bbox: pairs(&st["bbox"], "bbox")?,
-                x_plus_y: read_pair(&st["x_plus_y"], &format!("{what}: x_plus_y"))?,
-                x_plus_y_period: read_pair(
-                    &st["x_plus_y_period"],
-                    &format!("{what}: x_plus_y_period"),
-                )?,
-                ex: match &st["ex"] {
-                    Value::Null => None,
-                    e => Some(read_pair(e, &format!("{what}: ex"))?),
-                },
-                set: None,
-            })
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let leaf = LeafRecord {
-        init: pairs(&l["init"], "init")?,
-        params: l["params"]
-            .as_array()
-            .and_then(|ps| ps.iter().map(idx).collect::<Option<Vec<_>>>())
-            .ok_or_else(|| anyhow!("{what}: bad `params`"))?,
-        steps,
-        failure: match &l["failure"] {
-            Value::Null => None,
-            x => Some(
-                x.as_str()
-                    .ok_or_else(|| anyhow!("{what}: bad `failure`"))?
-                    .to_string(),
-            ),
-        },
-        flow_steps: match (idx(&l["flow_steps"][0]), idx(&l["flow_steps"][1])) {
-            (Some(a), Some(b)) => (a, b),
-            _ => bail!("{what}: bad `flow_steps`"),
-        },
-        max_dev: read_f(&l["max_dev"], &format!("{what}: max_dev"))?,
-    };
-    let split = match &v["split"] {
-        Value::Null => None,
-        j => Some(
-            idx(j)
-                .filter(|j| *j < leaf.params.len())
-                .ok_or_else(|| bad("split"))?,
-        ),
-    };
-    if leaf.failure.is_none() && leaf.steps.is_empty() {
-        bail!("{what}: no enclosure recorded");
-    }
-    Ok(Flown {
-        key,
-        want: v["want"].as_bool().ok_or_else(|| bad("want"))?,
-        split,
-        goal: match &v["goal"] {
-            Value::Null => None,
-            g => Some(g.as_bool().ok_or_else(|| bad("goal"))?),
-        },
-        leaf,
-    })
-}
-
-/// The error of a merge that needs sub-box `key`, which its shard did not fly.
-fn missing(
-    key: &str,
-    shards: &[(PathBuf, Value)],
-    n_pieces: usize,
-    max_leaves: usize,
-) -> anyhow::Error {
-    let n = shards.len();
-    let (piece, path) = key.split_once(':').unwrap_or((key, ""));
-    let p: usize = piece.parse().unwrap_or(0);
-    let i = (0..n)
-        .find(|&i| Shard { i, n }.range(n_pieces).contains(&p))
-        .unwrap_or(0);
-    let file = shards[i].0.display();
-    if path.is_empty() {
-        return anyhow!("{file}: piece {key} of shard {i}/{n} is missing (a damaged shard file?); run that shard again");
-    }
-    let parent = &key[..key.len() - 1];
-    anyhow!(
-        "the run splits sub-box {parent} into {key}, which shard {i}/{n} ({file}) did not fly: the sub-box budget (--max-leaves {max_leaves}) ran out during the refinement, and that shard, which cannot see the other shards' sub-boxes, spent part of the budget's extra quarter (for sub-boxes that lost their enclosure) on sub-boxes the run does not split; this run cannot be merged exactly: run it without --shard, or with a larger --max-leaves"
-    )
-}
-
-/// The merge's re-check of the shards' counterexample (a sampled trajectory that misses
-/// the goal): the controller read back from where shard 0 found it (with its --spec),
-/// which must be the files the shards digested, and the trajectory flown again
-/// ([`samara_reach::verdict::recheck_violation`], the run's own falsification test).
-fn recheck_counterexample(
-    run: &Value,
-    r0: &Value,
-    file0: &Path,
-    s: &ReachSettings,
-    v: &Verdict,
-) -> Result<()> {
-    let at = format!("{}: the counterexample", file0.display());
-    let path = |k: &str| -> Result<Option<PathBuf>> {
-        match &r0[k] {
-            Value::Null => Ok(None),
-            Value::String(p) => Ok(Some(PathBuf::from(p))),
-            x => bail!("{}: bad `{k}` ({x})", file0.display()),
-        }
-    };
-    let network =
-        path("network_file")?.ok_or_else(|| anyhow!("{}: no `network_file`", file0.display()))?;
-    let spec = path("spec_file")?;
-    for (flag, p) in [("--network", Some(&network)), ("--spec", spec.as_ref())] {
-        let Some(p) = p else { continue };
-        let now = shard::digest_file(p, &format!("{at}: re-checking it needs {flag}"))?;
-        if run["inputs"][flag] != now.as_str() {
-            bail!(
-                "{at}: input `{flag}` ({}) changed since the shards ran (content digest {} then, {now} now); run every shard again",
-                p.display(),
-                run["inputs"][flag]
-            );
-        }
-    }
-    let decl = match &spec {
-        Some(p) => Some(spec_settings(p, r0["loop"].as_str())?.1),
-        None => None,
-    };
-    let net = controller(&network, decl.as_ref())?;
-    samara_reach::verdict::recheck_violation(&net, s, v).map_err(|e| {
-        anyhow!(
-            "{at} does not hold: {e}; the shard is damaged or tampered with, run the shards again"
-        )
-    })
-}
-
-/// `samara merge reach`: the N shards' flown sub-boxes, the run's refinement replayed
-/// over them (`samara_reach::parts::refine`: the same rounds and sub-box budget as one
-/// process), then `DIR/reach.json` and the figures as one process writes them. The
-/// verdict, the enclosures, the sub-boxes and the counterexample (a sampled trajectory,
-/// the same in every shard) are the one-process run's; `seconds` is the sum of the
-/// shards', `network` and `threads` are shard 0's. Refused (exit 2) when a sub-box the
-/// run flies was not flown by its shard (rare; see `samara_reach::parts`).
+/// `samara merge reach` of zonotope shards (`samara_app::reach::merge_zonotope`), then
+/// `DIR/reach.json` and the figures as one process writes them. The counterexample is
+/// re-checked under the controller read back from where shard 0 found it (with its
+/// --spec).
 pub fn merge_reach(
-    run: &Value,
-    shards: &[(PathBuf, Value)],
+    shards: &samara_app::shard::Shards,
     out: &Path,
     json_out: bool,
 ) -> Result<ExitCode> {
-    let s = settings_from_run(run)?;
-    let n_pieces = run["pieces"]
-        .as_u64()
-        .and_then(|n| usize::try_from(n).ok())
-        .ok_or_else(|| anyhow!("shard files: bad `run.pieces` ({})", run["pieces"]))?;
-    let n = shards.len();
-    let (file0, r0) = &shards[0];
-    let mut nodes: HashMap<String, Flown> = HashMap::new();
-    let mut seconds = 0.0;
-    for (i, (file, r)) in shards.iter().enumerate() {
-        let range = Shard { i, n }.range(n_pieces);
-        if r["pieces"] != json!([range.start, range.end]) {
-            bail!(
-                "{}: pieces {}, expected {}..{} of {n_pieces} for shard {i}/{n}",
-                file.display(),
-                r["pieces"],
-                range.start,
-                range.end
-            );
-        }
-        if r["shared"] != r0["shared"] {
-            bail!(
-                "{} and {}: the shards' simulated samples differ (different samara builds?): {} vs {}",
-                file0.display(),
-                file.display(),
-                r0["shared"],
-                r["shared"]
-            );
-        }
-        seconds += r["seconds"].as_f64().unwrap_or(0.0);
-        let list = r["subboxes"]
-            .as_array()
-            .ok_or_else(|| anyhow!("{}: no `subboxes` list", file.display()))?;
-        for v in list {
-            let f = read_flown(v, file)?;
-            let piece = f
-                .key
-                .split_once(':')
-                .and_then(|(p, _)| p.parse::<usize>().ok());
-            if !piece.is_some_and(|p| range.contains(&p)) {
-                bail!(
-                    "{}: sub-box {} is not of this shard's pieces {}..{}",
-                    file.display(),
-                    f.key,
-                    range.start,
-                    range.end
-                );
-            }
-            if nodes.contains_key(&f.key) {
-                bail!("{}: sub-box {} given twice", file.display(), f.key);
-            }
-            nodes.insert(f.key.clone(), f);
-        }
-    }
-    // The one-process rounds over the recorded flights.
-    let start: Vec<String> = (0..n_pieces).map(parts::piece_key).collect();
-    let mut done = parts::refine(
-        start,
-        0,
-        s.max_leaves,
-        |keys: Vec<String>| {
-            keys.iter()
-                .map(|k| {
-                    nodes
-                        .get(k)
-                        .ok_or_else(|| missing(k, shards, n_pieces, s.max_leaves))
-                })
-                .collect::<Result<Vec<&Flown>>>()
-        },
-        |f| (parts::child_key(&f.key, 0), parts::child_key(&f.key, 1)),
-    )?;
-    let sh = &r0["shared"];
-    let violation = match &sh["violation"] {
-        Value::Null => None,
-        v => Some(Verdict::Violated {
-            initial: v["initial"]
-                .as_array()
-                .ok_or_else(|| anyhow!("{}: bad `violation`", file0.display()))?
-                .iter()
-                .map(|x| read_f(x, "violation.initial"))
-                .collect::<Result<_>>()?,
-            t: read_f(&v["t"], "violation.t")?,
-            x_plus_y: read_f(&v["x_plus_y"], "violation.x_plus_y")?,
-        }),
-    };
-    if let Some(v) = &violation {
-        recheck_counterexample(run, r0, file0, &s, v)?;
-    }
-    let (verdict, fin) = parts::finish(&s, violation, &mut done);
-    let o = Outcome {
-        lost: samara_reach::verdict::lost_enclosure(done.iter().map(|f| &f.leaf), &s),
-        warnings: serde_json::from_value(r0["warnings"].clone())
-            .map_err(|e| anyhow!("{}: bad `warnings`: {e}", file0.display()))?,
-        verdict: &verdict,
-        final_x_plus_y: fin,
-        sampled_x_plus_y: read_pair(&sh["sampled_x_plus_y"], "sampled_x_plus_y")?,
-        subproblems: done.len(),
-        seconds,
-        sampled_trajectories: sh["sampled_trajectories"]
-            .as_u64()
-            .and_then(|n| usize::try_from(n).ok())
-            .ok_or_else(|| anyhow!("{}: bad `sampled_trajectories`", file0.display()))?,
-    };
-    for w in &o.warnings {
+    let run: ZonotopeRun = shards.run_as()?;
+    let results = shards.results_as::<ZonotopeShard>()?;
+    let merged = merge_zonotope(&run, &results, |r| {
+        r.run(&run, |network, spec, loop_name| {
+            let decl = match spec {
+                Some(p) => Some(spec_settings(p, loop_name).map_err(app_input)?.1),
+                None => None,
+            };
+            controller(network, decl.as_ref()).map_err(app_input)
+        })
+    })?;
+    for w in &merged.outcome.warnings {
         eprintln!("warning: {w}");
     }
-    let network = r0["network"]
-        .as_str()
-        .ok_or_else(|| anyhow!("{}: bad `network`", file0.display()))?;
-    let threads = r0["threads"]
-        .as_u64()
-        .and_then(|n| usize::try_from(n).ok())
-        .ok_or_else(|| anyhow!("{}: bad `threads`", file0.display()))?;
-    let leaves: Vec<&LeafRecord> = done.iter().map(|f| &f.leaf).collect();
-    let fig = &r0["figure"];
-    let curves = fig["curves"]
-        .as_array()
-        .ok_or_else(|| anyhow!("{}: no `figure` (shard 0 keeps it)", file0.display()))?
-        .iter()
-        .map(|c| {
-            Ok(Curve {
-                label: c["label"].as_str().unwrap_or("").to_string(),
-                points: c["points"]
-                    .as_array()
-                    .ok_or_else(|| anyhow!("{}: bad figure curve", file0.display()))?
-                    .iter()
-                    .map(|p| read_pair(p, "figure point").map(|[x, y]| (x, y)))
-                    .collect::<Result<_>>()?,
-            })
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let group_label = fig["group_label"].as_str().map(str::to_string);
-
+    let s = &merged.settings;
     let dir = samara_report::guard::OutDir::prepare(out)?;
-    let report = report_json(
-        settings_json(network, threads, &s),
-        &s,
-        &o,
-        serde_json::to_value(&leaves)?,
-    );
     write_atomic(
         &out.join("reach.json"),
-        serde_json::to_string_pretty(&report)?.as_bytes(),
+        json_text(&merged.report(), true)?.as_bytes(),
     )?;
     samara_report::reach::draw(
-        &figure_title(Path::new(network), &s),
-        &verdict,
-        &leaves,
-        curves,
-        group_label,
+        &figure_title(Path::new(&merged.network), s),
+        &merged.outcome.verdict,
+        &merged.leaves,
+        merged.curves.clone(),
+        merged.group_label.clone(),
         s.goal.as_ref().map(|g| g.ystar),
     )
     .render(&out.join("reach.png"), &out.join("reach.svg"))?;
-    finish(&o, &s, out, json_out, dir)
+    finish(&merged.outcome, s, out, json_out, dir)
+}
+
+/// A CLI error as the library's input error (its message, causes included).
+fn app_input(e: anyhow::Error) -> samara_app::AppError {
+    samara_app::AppError::Input(crate::error_chain(&e))
 }

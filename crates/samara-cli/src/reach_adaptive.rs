@@ -5,10 +5,14 @@
 //! flights' spread. Writes `DIR/reach.json` (the system run's report plus an `adaptive`
 //! object) and prints one line, or the JSON summary with `--json`.
 
+use crate::json_text;
 use crate::reach::ReachArgs;
-use crate::reach_system::{human_line, report_settings, summary};
 use anyhow::{anyhow, bail, Result};
-use samara_reach::adaptive::{reach_adaptive, AdaptiveReach, AdaptiveSettings};
+use samara_app::reach::adaptive::{
+    adaptive_text, AdaptiveEcho, AdaptiveReport, AdaptiveSettingsEcho, AdaptiveSummary,
+};
+use samara_app::reach::system::{human_line, SystemSettingsEcho, SystemSummary};
+use samara_reach::adaptive::{reach_adaptive, AdaptiveSettings};
 use samara_reach::system::{SystemReachSettings, SystemVerdict};
 use samara_report::write_atomic;
 use std::path::Path;
@@ -67,28 +71,27 @@ pub(crate) fn run(
     };
     let res =
         reach_adaptive(sys, net, &s, &settings).map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let mut recorded = report_settings(&s, pieces.as_deref());
-    recorded["target_ratio"] = serde_json::json!(ratio);
     let system = path.display().to_string();
-    let report = serde_json::json!({
-        "system": system,
-        "network": a.network.display().to_string(),
-        "settings": recorded,
-        "result": res.reach,
-        "adaptive": adaptive_json(&res),
-    });
+    let report = AdaptiveReport {
+        system: system.clone(),
+        network: a.network.display().to_string(),
+        settings: AdaptiveSettingsEcho {
+            run: SystemSettingsEcho::new(&s, pieces.as_deref()),
+            target_ratio: ratio,
+        },
+        result: res.reach.clone(),
+        adaptive: AdaptiveEcho::new(&res, true),
+    };
     write_atomic(
         &a.out.join("reach.json"),
-        serde_json::to_string_pretty(&report)?.as_bytes(),
+        json_text(&report, true)?.as_bytes(),
     )?;
     if a.json {
-        let mut v = summary(&res.reach);
-        v["adaptive"] = adaptive_json(&res);
-        // The per-cell list stays in reach.json (thousands of lines on a large set).
-        if let Some(o) = v["adaptive"].as_object_mut() {
-            o.remove("cells");
-        }
-        println!("{}", serde_json::to_string_pretty(&v)?);
+        let summary = AdaptiveSummary {
+            run: SystemSummary::new(&res.reach),
+            adaptive: AdaptiveEcho::new(&res, false),
+        };
+        println!("{}", json_text(&summary, true)?);
     } else {
         println!(
             "{}; {}",
@@ -107,42 +110,4 @@ pub(crate) fn run(
     } else {
         ExitCode::from(1)
     })
-}
-
-/// The `adaptive` object of reach.json and of the JSON summary.
-fn adaptive_json(r: &AdaptiveReach) -> serde_json::Value {
-    serde_json::json!({
-        "target_ratio": r.target_ratio,
-        "met": r.met,
-        "ratio": r.ratio,
-        "reason": r.reason,
-        "stopped": r.stopped,
-        "leaves": r.cells.len(),
-        "accepted": r.cells.iter().filter(|c| c.accepted).count(),
-        "flown": r.flown,
-        "rounds": r.rounds,
-        "sampled": r.sampled,
-        "band": r.band,
-        "cells": r.cells,
-    })
-}
-
-/// `adaptive: N leaves (K cells flown in R rounds); ratio q (target R): met`.
-fn adaptive_text(r: &AdaptiveReach) -> String {
-    let ratio = r.ratio.map_or_else(
-        || "no ratio (not every cell has sets at the horizon)".to_string(),
-        |q| format!("ratio {q:.3}"),
-    );
-    let verdict = match &r.reason {
-        None if r.met => "target met".to_string(),
-        None => "target not met".to_string(),
-        Some(why) => format!("target not met: {why}"),
-    };
-    format!(
-        "adaptive: {} leaves ({} cells flown in {} rounds); {ratio} against the flights (target {}): {verdict}",
-        r.cells.len(),
-        r.flown,
-        r.rounds,
-        r.target_ratio
-    )
 }

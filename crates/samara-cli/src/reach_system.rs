@@ -4,32 +4,23 @@
 //! state at each control instant and over each period, the sub-boxes) and prints one
 //! line, or the JSON summary with `--json`.
 
+use crate::json_text;
 use crate::reach::ReachArgs;
 use crate::verify::shard::{self, Shard};
 use anyhow::{anyhow, bail, Context, Result};
-use samara_reach::grid;
-use samara_reach::system::{
-    reach_system, Measure, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
+use samara_app::reach::system::{
+    human_line, merge_taylor, percent, success, SystemReport, SystemSettingsEcho, SystemSummary,
+    TaylorRun, TaylorShard, TaylorShardLine,
 };
+use samara_app::shard::Shards;
+use samara_reach::grid;
+use samara_reach::system::{reach_system, Measure, NetworkError, SystemReachSettings};
 use samara_report::write_atomic;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 
 /// Files `reach --system` writes.
 const WRITES: [&str; 1] = ["reach.json"];
-
-/// Load a controller by its extension: `.nnet` (NNet text format), else ONNX.
-pub fn load_controller(path: &Path) -> Result<samara_nn::Network> {
-    let is_nnet = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("nnet"));
-    if is_nnet {
-        samara_nn::nnet::load(path).map_err(|e| anyhow!("{e}"))
-    } else {
-        samara_nn::onnx::load(path).map_err(|e| anyhow!("{e}"))
-    }
-    .with_context(|| format!("--network {}", path.display()))
-}
 
 /// Flags of the built-in glider setting that do not apply to a system file (which
 /// states its own initial set, period, horizon, clip and goals).
@@ -62,7 +53,8 @@ pub fn run(a: &ReachArgs, path: &Path) -> Result<ExitCode> {
         bail!("--sets does not apply with --system: system files always use Taylor-model sets");
     }
     let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
-    let net = load_controller(&a.network)?;
+    let net = samara_nn::load(&a.network)
+        .with_context(|| format!("--network {}", a.network.display()))?;
     let measures = samara_reach::system::end_band_measures(&sys);
     run_system(a, &sys, path, &net, measures)
 }
@@ -114,62 +106,32 @@ pub fn run_system(
         }
     }
     .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let code = write_report(
-        &a.out,
-        a.json,
-        &path.display().to_string(),
-        &a.network.display().to_string(),
-        report_settings(&s, pieces.as_deref()),
-        &res,
-    )?;
+    let report = SystemReport {
+        system: path.display().to_string(),
+        network: a.network.display().to_string(),
+        settings: SystemSettingsEcho::new(&s, pieces.as_deref()),
+        result: res,
+    };
+    let code = write_report(&a.out, a.json, &report)?;
     out.keep();
     Ok(code)
 }
 
-/// The settings recorded in reach.json.
-pub(crate) fn report_settings(
-    s: &SystemReachSettings,
-    pieces: Option<&[usize]>,
-) -> serde_json::Value {
-    let mut v =
-        serde_json::json!({"order": s.order, "max_boxes": s.max_boxes, "samples": s.samples});
-    if let Some(p) = pieces {
-        v["grid"] = serde_json::json!(p);
-    }
-    v
-}
-
 /// Write `out/reach.json` and print the human line (or the JSON summary); the exit code
 /// of the verdict. Shared by runs and `samara merge reach` of Taylor-model shards.
-fn write_report(
-    out: &Path,
-    json: bool,
-    system: &str,
-    network: &str,
-    settings: serde_json::Value,
-    res: &SystemReach,
-) -> Result<ExitCode> {
-    let report = serde_json::json!({
-        "system": system,
-        "network": network,
-        "settings": settings,
-        "result": res,
-    });
-    write_atomic(
-        &out.join("reach.json"),
-        serde_json::to_string_pretty(&report)?.as_bytes(),
-    )?;
+fn write_report(out: &Path, json: bool, report: &SystemReport) -> Result<ExitCode> {
+    write_atomic(&out.join("reach.json"), json_text(report, true)?.as_bytes())?;
+    let res = &report.result;
     if json {
-        println!("{}", serde_json::to_string_pretty(&summary(res))?);
+        println!("{}", json_text(&SystemSummary::new(res), true)?);
     } else {
-        println!("{}", human_line(system, res));
+        println!("{}", human_line(&report.system, res));
         eprintln!("wrote {}", out.display());
     }
-    Ok(match res.verdict {
-        SystemVerdict::Proved => ExitCode::SUCCESS,
-        // Without a goal, success means sets to the horizon.
-        SystemVerdict::NoGoal if lost(res).is_none() => ExitCode::SUCCESS,
-        _ => ExitCode::from(1),
+    Ok(if success(res) {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
     })
 }
 
@@ -212,40 +174,6 @@ fn grid_pieces(a: &ReachArgs, sys: &samara_system::System) -> Result<Option<Vec<
     Ok(Some(pieces))
 }
 
-/// What every shard of one grid run shares (`run` of the shard file): the system (its
-/// text's digest and parameter values), the network's digest, the grid and the settings
-/// that change results. The wall-clock budget is not part of it (each shard has its own).
-fn run_record(
-    a: &ReachArgs,
-    sys: &samara_system::System,
-    s: &SystemReachSettings,
-    pieces: &[usize],
-    cells: usize,
-) -> Result<serde_json::Value> {
-    Ok(serde_json::json!({
-        "sets": "taylor",
-        "system": shard::digest(sys.source().as_bytes()),
-        "params": sys.params.iter().map(|(n, v)| serde_json::json!([n, shard::f(*v)])).collect::<Vec<_>>(),
-        "init": sys.init.iter().map(|(l, h)| [shard::f(*l), shard::f(*h)]).collect::<Vec<_>>(),
-        "network": shard::digest_file(&a.network, "--network")?,
-        "grid": pieces,
-        "cells": cells,
-        "order": s.order,
-        "max_boxes": s.max_boxes,
-        "samples": s.samples,
-        "seed": s.seed,
-        "network_error": s.network_error,
-        "lift_at": shard::f(s.flow.lift_at),
-        "lifted_weight": s.flow.lifted_weight,
-        "precondition": s.precondition,
-        "measures": s.measures.iter().map(|m| serde_json::json!({
-            "name": m.name,
-            "coef": m.coef.iter().map(|c| shard::f(*c)).collect::<Vec<_>>(),
-            "offset": shard::f(m.offset),
-        })).collect::<Vec<_>>(),
-    }))
-}
-
 /// `--shard I/N` of a Taylor-model grid run: cells `Shard::range` of the grid's, written
 /// as a shard file.
 #[allow(clippy::too_many_arguments)]
@@ -270,23 +198,32 @@ fn run_shard(
             sh.n
         );
     }
-    let run = run_record(a, sys, s, pieces, total)?;
+    let network = shard::digest_inputs([(
+        "--network".to_string(),
+        a.network.as_path(),
+        "--network".to_string(),
+    )])?;
+    let run = TaylorRun::new(sys, network["--network"].clone(), s, pieces, total);
     crate::reach::start_threads(a)?;
     let res = grid::reach_cells(sys, net, s, pieces, range.clone())
         .map_err(|e| anyhow!("{}: {e}", path.display()))?;
-    let result = serde_json::json!({
-        "cells": [range.start, range.end],
-        "system_name": path.display().to_string(),
-        "network_name": a.network.display().to_string(),
-        "reach": &res,
-    });
-    shard::write(&a.out, "reach", sh, run, result)?;
+    let result = TaylorShard {
+        cells: (range.start, range.end),
+        system_name: path.display().to_string(),
+        network_name: a.network.display().to_string(),
+        reach: res,
+    };
+    shard::write(&a.out, "reach", sh, &run, &result)?;
+    let res = &result.reach;
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({"shard": [sh.i, sh.n], "cells": [range.start, range.end],
-                "verdict": &res.verdict, "covered": res.covered, "out": a.out})
-        );
+        let line = TaylorShardLine {
+            shard: (sh.i, sh.n),
+            cells: (range.start, range.end),
+            verdict: res.verdict.clone(),
+            covered: res.covered,
+            out: a.out.clone(),
+        };
+        println!("{}", json_text(&line, false)?);
     } else {
         println!(
             "shard {}/{}: cells {}..{} of {total}: {} ({} sub-boxes, {:.2} s, sets to the horizon for {} of these cells); partial result in {} (merge with `samara merge reach`)",
@@ -304,56 +241,14 @@ fn run_shard(
     Ok(ExitCode::SUCCESS)
 }
 
-/// `samara merge reach` of Taylor-model grid shards: the shards' cells checked to be the
-/// grid's ranges in order, their results merged (`samara_reach::grid::merge_parts`) and
-/// written as the one-process run writes them.
-pub fn merge_shards(
-    run: &serde_json::Value,
-    shards: &[(PathBuf, serde_json::Value)],
-    out: &Path,
-    json: bool,
-) -> Result<ExitCode> {
-    let total = run["cells"]
-        .as_u64()
-        .and_then(|n| usize::try_from(n).ok())
-        .ok_or_else(|| anyhow!("shard files: bad `run.cells` ({})", run["cells"]))?;
-    let n = shards.len();
-    let mut parts = Vec::with_capacity(n);
-    for (i, (file, r)) in shards.iter().enumerate() {
-        let range = Shard { i, n }.range(total);
-        if r["cells"] != serde_json::json!([range.start, range.end]) {
-            bail!(
-                "{}: cells {}, expected {}..{} of {total} for shard {i}/{n}",
-                file.display(),
-                r["cells"],
-                range.start,
-                range.end
-            );
-        }
-        let res: SystemReach = serde_json::from_value(r["reach"].clone()).map_err(|e| {
-            anyhow!(
-                "{}: `result.reach` is not a reach result: {e}",
-                file.display()
-            )
-        })?;
-        parts.push((range.len(), res));
-    }
-    let merged = grid::merge_parts(parts);
-    let name = |k: &str| shards[0].1[k].as_str().unwrap_or("").to_string();
-    // As the one-process run records them.
-    let settings = serde_json::json!({
-        "order": run["order"], "max_boxes": run["max_boxes"], "samples": run["samples"],
-        "grid": run["grid"],
-    });
+/// `samara merge reach` of Taylor-model grid shards
+/// (`samara_app::reach::system::merge_taylor`), written as the one-process run writes
+/// them.
+pub fn merge_shards(shards: &Shards, out: &Path, json: bool) -> Result<ExitCode> {
+    let run: TaylorRun = shards.run_as()?;
+    let report = merge_taylor(&run, &shards.results_as::<TaylorShard>()?)?;
     let dir = samara_report::guard::OutDir::prepare(out)?;
-    let code = write_report(
-        out,
-        json,
-        &name("system_name"),
-        &name("network_name"),
-        settings,
-        &merged,
-    )?;
+    let code = write_report(out, json, &report)?;
     dir.keep();
     Ok(code)
 }
@@ -361,99 +256,6 @@ pub fn merge_shards(
 /// `--network-error`: `interval`, `symbolic`, `symbolic:N` or `auto`.
 fn parse_network_error(v: &str) -> Result<Option<NetworkError>> {
     NetworkError::parse(v).map_err(|e| anyhow!("--network-error {v:?}: {e}"))
-}
-
-pub(crate) fn summary(r: &SystemReach) -> serde_json::Value {
-    serde_json::json!({
-        "system": r.system,
-        "verdict": &r.verdict,
-        "boxes": r.boxes,
-        "covered": r.covered,
-        "order": r.order,
-        "network_error": r.network_error,
-        "seconds": r.seconds,
-        // The hull at the horizon only when every sub-box has sets there: else the
-        // last row of `instants` is an earlier instant.
-        "final": if r.covered == 1.0 { r.instants.last() } else { None },
-        "lost": lost(r),
-        "measures": &r.measures,
-    })
-}
-
-/// Why a sub-box's sets stop before the horizon (enclosure lost, time budget spent), if one does.
-fn lost(r: &SystemReach) -> Option<String> {
-    r.leaves.iter().find_map(|l| l.failure.clone())
-}
-
-pub(crate) fn human_line(system: &str, r: &SystemReach) -> String {
-    let what = match &r.verdict {
-        SystemVerdict::Proved => "proved: every goal holds on the sound enclosure".to_string(),
-        SystemVerdict::Violated { initial, goal } => {
-            format!("violated: the flight from {initial:?} misses `{goal}`")
-        }
-        SystemVerdict::Unknown { reason } => format!("unknown: {reason}"),
-        SystemVerdict::NoGoal => match lost(r) {
-            None => "no goal in the file; sets computed to the horizon".to_string(),
-            Some(f) => format!(
-                "no goal in the file; the sets stop before the horizon: {f} (reach.json has the instants reached)"
-            ),
-        },
-    };
-    let ne = match r.network_error {
-        NetworkError::Interval => "interval".to_string(),
-        NetworkError::Symbolic { extra } => format!("symbolic:{extra}"),
-    };
-    // A count of enclosed sub-boxes says little when they are the small ones: the
-    // share of the initial set they cover does.
-    let cover = if r.covered < 1.0 && !matches!(r.verdict, SystemVerdict::Violated { .. }) {
-        format!(
-            "; sets to the horizon for {} of the initial set",
-            percent(r.covered)
-        )
-    } else {
-        String::new()
-    };
-    let mut line = format!(
-        "{system}: {what} ({} sub-boxes, Taylor models of order {}, network error {ne}, {:.2} s{cover})",
-        r.boxes,
-        r.order,
-        r.seconds
-    );
-    for m in &r.measures {
-        line.push_str(&measure_text(m));
-    }
-    line
-}
-
-/// `; NAME at the horizon in [a, b] (width w); flights [c, d] (width v); ratio q`.
-fn measure_text(m: &samara_reach::system::MeasureRange) -> String {
-    let range = |v: [f64; 2]| format!("[{:.6}, {:.6}] (width {:.6})", v[0], v[1], v[1] - v[0]);
-    // The enclosure printed outward (6 decimals), so that the line never shows it
-    // narrower than it is.
-    let outward = |e: [f64; 2]| [(e[0] * 1e6).floor() / 1e6, (e[1] * 1e6).ceil() / 1e6];
-    let sets = m.enclosure.map_or_else(
-        || "not enclosed by every sub-box".to_string(),
-        |e| format!("in {}", range(outward(e))),
-    );
-    let flights = m
-        .sampled
-        .map_or_else(String::new, |v| format!("; flights {}", range(v)));
-    let ratio = m
-        .ratio
-        .map_or_else(String::new, |q| format!("; ratio {q:.3}"));
-    format!("; {} at the horizon {sets}{flights}{ratio}", m.name)
-}
-
-/// A fraction as a percentage that never rounds a part to 0 % or 100 %.
-fn percent(f: f64) -> String {
-    let p = 100.0 * f;
-    if p > 0.0 && p < 0.01 {
-        format!("{p:.1e} %")
-    } else if p > 99.99 && p < 100.0 {
-        "99.99+ %".to_string()
-    } else {
-        format!("{p:.2} %")
-    }
 }
 
 /// The built-in glider setting (`--model`, `--y0`, `--init`, `--period`, `--horizon`,

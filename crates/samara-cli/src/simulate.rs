@@ -1,6 +1,7 @@
 //! `samara simulate`.
 
 use anyhow::{anyhow, bail, Context, Result};
+use samara_app::simulate::{GoalViolation, SimulateSummary, StartSummary, SystemSimSummary};
 use samara_plant::{Model, Plant, EX_RANGE, STATE_NAMES};
 use samara_report::write_atomic;
 use samara_sim::dataset::{normalisation_csv, training_csv};
@@ -185,7 +186,7 @@ pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>>
                 path.display()
             );
         }
-        let net = crate_nn_load(path).with_context(|| {
+        let net = glider_network(path).with_context(|| {
             format!(
                 "--controller {}: cannot load the network; give an ONNX file samara can read",
                 path.display()
@@ -209,8 +210,14 @@ pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>>
     bail!("--controller {spec:?}: expected `pid`, `constant:EX` or the path of an .onnx network")
 }
 
-fn crate_nn_load(path: &Path) -> Result<samara_nn::Network> {
-    crate::nnload::load_network(path)
+/// A glider controller file (`samara_nn::load`: ONNX or `.nnet`); a 6-input, 1-output
+/// network gets the case study's state names (v_xp, v_yp, omega, theta, x, y) and `ex`.
+pub(crate) fn glider_network(path: &Path) -> Result<samara_nn::Network> {
+    let net = samara_nn::load(path)?;
+    if net.n_inputs() == 6 && net.n_outputs() == 1 {
+        return Ok(net.with_names(&samara_nn::STATE_INPUTS, &["ex"])?);
+    }
+    Ok(net)
 }
 
 /// Validated inputs of a run.
@@ -366,9 +373,8 @@ pub fn run(a: &SimulateArgs) -> Result<ExitCode> {
     let wall = t0.elapsed().as_secs_f64();
     write_outputs(a, &plan, &flights, controller.name())?;
     if a.json {
-        let mut s = summary(a, &plan, &flights, wall);
-        s["warnings"] = serde_json::json!(warnings);
-        println!("{}", serde_json::to_string_pretty(&s)?);
+        let s = summary(a, &plan, &flights, wall, warnings);
+        println!("{}", crate::json_text(&s, true)?);
     } else {
         eprintln!(
             "simulated {} flight(s) of model {} in {:.3} s; wrote {}",
@@ -389,7 +395,7 @@ fn units_warnings(a: &SimulateArgs, plan: &Plan) -> Result<Vec<String>> {
     if a.controller == "pid" || a.controller.starts_with("constant:") {
         return Ok(Vec::new());
     }
-    let net = crate_nn_load(Path::new(&a.controller))?;
+    let net = glider_network(Path::new(&a.controller))?;
     let starts: Vec<Vec<f64>> = plan
         .starts
         .iter()
@@ -451,34 +457,26 @@ fn write_outputs(a: &SimulateArgs, plan: &Plan, flights: &[Flight], cname: Strin
     Ok(())
 }
 
-fn summary(a: &SimulateArgs, plan: &Plan, flights: &[Flight], wall: f64) -> serde_json::Value {
+/// The `--json` summary of a run.
+fn summary(
+    a: &SimulateArgs,
+    plan: &Plan,
+    flights: &[Flight],
+    wall: f64,
+    warnings: Vec<String>,
+) -> SimulateSummary {
     let dim = plan.plant.dim();
-    let starts: Vec<serde_json::Value> = flights
-        .iter()
-        .map(|f| {
-            let last = &f.steps.last().expect("at least one step").state_end;
-            let mut st = serde_json::Map::new();
-            for (i, v) in last.iter().enumerate().take(dim) {
-                st.insert(STATE_NAMES[i].to_string(), serde_json::json!(v));
-            }
-            serde_json::json!({
-                "y0": f.initial[5],
-                "final_state": st,
-                "final_x_plus_y": last[4] + last[5],
-                "rhs_evals": f.evals,
-            })
-        })
-        .collect();
-    serde_json::json!({
-        "model": plan.plant.model.name(),
-        "controller": a.controller,
-        "integrator": a.integrator,
-        "period": plan.settings.period,
-        "horizon": plan.settings.horizon,
-        "starts": starts,
-        "wall_seconds": wall,
-        "out": a.out.display().to_string(),
-    })
+    SimulateSummary {
+        model: plan.plant.model.name().to_string(),
+        controller: a.controller.clone(),
+        integrator: a.integrator.clone(),
+        period: plan.settings.period,
+        horizon: plan.settings.horizon,
+        starts: flights.iter().map(|f| StartSummary::of(f, dim)).collect(),
+        wall_seconds: wall,
+        out: a.out.display().to_string(),
+        warnings,
+    }
 }
 
 /// Files `simulate --system` writes.
@@ -526,7 +524,7 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
         bail!("--system needs a network controller: --controller NET.onnx (inputs: the file's `observe` list, outputs: its net[i])");
     }
     let net_path = Path::new(&a.controller);
-    let net = samara_nn::onnx::load(net_path)
+    let net = samara_nn::load(net_path)
         .with_context(|| format!("--controller {}", net_path.display()))?;
     check_fits("--controller", net_path, &net, &sys, path)?;
     let rows = (a.samples as f64) * (sys.steps() as f64 * 10.0 + 1.0);
@@ -587,18 +585,27 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
             .zip(samara_system::sim::goals_hold(&sys, &f))
         {
             if !ok {
-                violations.push(serde_json::json!({"start": k, "initial": x0, "goal": g.text}));
+                violations.push(GoalViolation {
+                    start: k,
+                    initial: x0.clone(),
+                    goal: g.text.clone(),
+                });
             }
         }
     }
     samara_report::write_atomic(&a.out.join("trajectories.csv"), csv.as_bytes())?;
     out.keep();
     let wall = t0.elapsed().as_secs_f64();
+    let all_hold = violations.is_empty();
     if a.json {
-        println!(
-            "{}",
-            serde_json::json!({"system": sys.name, "starts": starts.len(), "goals": sys.goals.iter().map(|g| g.text.clone()).collect::<Vec<_>>(), "violations": violations, "wall_seconds": wall})
-        );
+        let s = SystemSimSummary {
+            system: sys.name.clone(),
+            starts: starts.len(),
+            goals: sys.goals.iter().map(|g| g.text.clone()).collect(),
+            violations,
+            wall_seconds: wall,
+        };
+        println!("{}", crate::json_text(&s, false)?);
     } else {
         println!(
             "{}: {} flights, {} goal violations ({wall:.2} s); trajectories in {}",
@@ -608,10 +615,10 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
             a.out.join("trajectories.csv").display()
         );
         if let Some(v) = violations.first() {
-            println!("first violation: {v}");
+            println!("first violation: {}", crate::json_text(v, false)?);
         }
     }
-    Ok(if violations.is_empty() {
+    Ok(if all_hold {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)

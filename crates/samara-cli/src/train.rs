@@ -1,6 +1,9 @@
 //! `samara train`.
 
 use anyhow::{anyhow, bail, Context, Result};
+use samara_app::train::{
+    ClosedLoopSummary, LoopGoal, Pretrain, RestartEntry, RoundEntry, TrainSummary,
+};
 use samara_report::guard::{check_output_file, resolve, OutDir};
 use samara_train::{
     read_table, train, Attack, Logic, Method, MinMax, Restart, TrainError, TrainOptions,
@@ -403,18 +406,24 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
     out_dir.keep();
     log_dir.keep();
     let m = &outcome.metrics;
-    let restarts = restart_log(&outcome.restarts);
     if a.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "method": a.method, "out": a.out.display().to_string(), "log": log_path.display().to_string(),
-                "test_rows": m.n_test, "r2": m.r2, "rmse": m.rmse, "mae": m.mae,
-                "eps": a.eps, "attack_worst_deviation": m.attack_worst, "attack_mean_deviation": m.attack_mean,
-                "seed": a.seed, "init_seed": outcome.init_seed,
-                "restarts": outcome.restarts.len(), "restart_log": restarts,
-            }))?
-        );
+        let s = TrainSummary {
+            method: a.method.clone(),
+            out: a.out.display().to_string(),
+            log: log_path.display().to_string(),
+            test_rows: m.n_test,
+            r2: m.r2,
+            rmse: m.rmse,
+            mae: m.mae,
+            eps: a.eps,
+            attack_worst_deviation: m.attack_worst,
+            attack_mean_deviation: m.attack_mean,
+            seed: a.seed,
+            init_seed: outcome.init_seed,
+            restarts: outcome.restarts.len(),
+            restart_log: outcome.restarts.iter().map(RestartEntry::from).collect(),
+        };
+        println!("{}", crate::json_text(&s, true)?);
     } else {
         print_restarts(&outcome.restarts);
         let restarted = match outcome.restarts.len() {
@@ -441,17 +450,6 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
 }
 
 /// The figure of the closed-loop rounds: `<--out stem>.rounds.png` and `.svg`.
-/// The restarts of a training run as the JSON output's `restart_log`.
-fn restart_log(restarts: &[Restart]) -> Vec<serde_json::Value> {
-    restarts
-        .iter()
-        .map(|r| {
-            serde_json::json!({"attempt": r.attempt, "seed": r.seed, "epoch": r.epoch,
-                "reason": r.reason.to_string()})
-        })
-        .collect()
-}
-
 /// One line on stderr per restart of a training run.
 fn print_restarts(restarts: &[Restart]) {
     for r in restarts {
@@ -642,37 +640,41 @@ fn run_closed_loop(
     let enc = outcome.reach.final_x_plus_y;
     let training_seconds = outcome.seconds;
     if t.json {
-        let rounds: Vec<_> = outcome
-            .rounds
-            .iter()
-            .map(|r| {
-                serde_json::json!({"round": r.round, "steps": r.steps, "loss": r.loss, "mse": r.mse,
-                    "penalty": r.penalty, "r2": r.r2, "starts": r.starts, "verdict": r.verdict,
-                    "reason": r.reason, "enclosure": r.enclosure, "sampled": r.sampled,
-                    "max_leaves": r.max_leaves, "added": r.added,
-                    "train_seconds": r.train_seconds, "reach_seconds": r.reach_seconds,
-                    "seconds": r.train_seconds + r.reach_seconds})
-            })
-            .collect();
-        let restarts = restart_log(&outcome.restarts);
         let m = &outcome.pretrain_metrics;
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({
-                "method": "closed-loop", "out": t.out.display().to_string(),
-                "log": log_path.display().to_string(), "figure": png.display().to_string(),
-                "goal": {"ystar": goal, "from": o.loss.from, "horizon": o.loss.horizon,
-                    "y0": [y0.0, y0.1], "model": "reduced", "clip": o.loss.clip.map(|c| [c.0, c.1])},
-                "proved": outcome.proved, "verdict": verdict, "enclosure": enc,
-                "sampled": outcome.reach.sampled_x_plus_y,
-                "r2": outcome.r2, "rmse": outcome.rmse, "data_rows": data.rows(),
-                "pretrain": {"test_r2": m.r2, "test_rmse": m.rmse, "epochs": t.epochs,
-                    "seconds": outcome.pretrain_seconds},
-                "rounds": rounds, "seconds": training_seconds,
-                "seed": t.seed, "init_seed": outcome.init_seed,
-                "restarts": outcome.restarts.len(), "restart_log": restarts,
-            }))?
-        );
+        let s = ClosedLoopSummary {
+            method: "closed-loop".into(),
+            out: t.out.display().to_string(),
+            log: log_path.display().to_string(),
+            figure: png.display().to_string(),
+            goal: LoopGoal {
+                ystar: goal,
+                from: o.loss.from,
+                horizon: o.loss.horizon,
+                y0: [y0.0, y0.1],
+                model: "reduced".into(),
+                clip: o.loss.clip.map(|c| [c.0, c.1]),
+            },
+            proved: outcome.proved,
+            verdict: verdict.to_string(),
+            enclosure: enc,
+            sampled: outcome.reach.sampled_x_plus_y,
+            r2: outcome.r2,
+            rmse: outcome.rmse,
+            data_rows: data.rows(),
+            pretrain: Pretrain {
+                test_r2: m.r2,
+                test_rmse: m.rmse,
+                epochs: t.epochs,
+                seconds: outcome.pretrain_seconds,
+            },
+            rounds: outcome.rounds.iter().map(RoundEntry::from).collect(),
+            seconds: training_seconds,
+            seed: t.seed,
+            init_seed: outcome.init_seed,
+            restarts: outcome.restarts.len(),
+            restart_log: outcome.restarts.iter().map(RestartEntry::from).collect(),
+        };
+        println!("{}", crate::json_text(&s, true)?);
     } else {
         print_restarts(&outcome.restarts);
         eprintln!(

@@ -8,14 +8,16 @@ pub use vnncomp::{run_vnncomp, VnncompArgs};
 pub mod shard;
 
 use anyhow::{anyhow, bail, Result};
-use samara_app::robustness::{Form, Table};
+use samara_app::robustness::{
+    merge_sweep, Form, PointText, SweepRun, SweepShard, SweepShardLine, Table,
+};
+use samara_app::shard::Exact;
 use samara_app::verify::{PropertyRun, RowCounterexample, VerdictTag};
 use samara_app::{Front, Holds, VerdictRow};
 use samara_spec::normal::Var;
 use samara_spec::{vnnlib, Spec};
 use samara_verify::robustness::{sweep_until, Reference};
 use samara_verify::{LpTighten, Settings, Verdict};
-use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -218,7 +220,7 @@ fn kv(s: &str, flag: &str) -> Result<(String, String)> {
 /// (`flag` ends with `=` for a `NAME=FILE` flag. The loaders' errors start with the
 /// file's path, so the message reads `--flag FILE: what`.)
 pub fn load_network(path: &Path, flag: &str) -> Result<samara_nn::Network> {
-    samara_nn::onnx::load(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
+    samara_nn::load(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
 }
 
 fn read_data(path: &Path, flag: &str) -> Result<samara_nn::data::Table> {
@@ -408,7 +410,10 @@ fn print_property(p: &PropertyRun) {
     if let [last] = p.rows.as_slice() {
         let extra = match (&last.counterexample, &last.unknown_reason, &last.vacuity) {
             (Some(RowCounterexample::Point { point, .. }), _, _) => {
-                format!(" counterexample {}", serde_json::json!(point))
+                format!(
+                    " counterexample {}",
+                    serde_json::to_string(point).unwrap_or_default()
+                )
             }
             (_, Some(r), _) => format!(" ({}: {})", r.kind, r.message),
             (_, _, Some(why)) => format!(" VACUOUS: {why}"),
@@ -647,41 +652,36 @@ pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
     }
     let secs = t0.elapsed().as_secs_f64();
     if let (Some(s), Some(out)) = (a.shard, &a.out) {
-        let run = json!({
-            "inputs": shard::digest_inputs([
-                ("--network".to_string(), a.network.as_path(), "--network".to_string()),
+        let run = SweepRun {
+            inputs: shard::digest_inputs([
+                (
+                    "--network".to_string(),
+                    a.network.as_path(),
+                    "--network".to_string(),
+                ),
                 ("--data".to_string(), a.data.as_path(), "--data".to_string()),
             ])?,
-            "points": rows.len(),
-            "eps": eps.iter().map(|e| shard::f(*e)).collect::<Vec<_>>(),
-            "lipschitz": ls.iter().map(|l| shard::f(*l)).collect::<Vec<_>>(),
-            "reference": a.reference, "form": a.form,
-            "timeout": shard::f(a.timeout), "max_nodes": a.max_nodes,
-        });
-        let pts: Vec<Value> = points
-            .iter()
-            .map(|p| {
-                json!({"index": p.index, "eps": shard::f(p.eps), "f_min": shard::f(p.f_min),
-                "f_max": shard::f(p.f_max), "reference": shard::f(p.reference),
-                "max_deviation": shard::f(p.max_deviation),
-                "witnessed_deviation": shard::f(p.witnessed_deviation),
-                "lipschitz_lower": shard::f(p.lipschitz_lower),
-                "lipschitz_upper": shard::f(p.lipschitz_upper),
-                "unknown": p.unknown.as_ref().map(|r| r.kind().to_string())})
-            })
-            .collect();
-        shard::write(
-            out,
-            "robustness",
-            s,
-            run,
-            json!({"rows": [range.start, range.end], "seconds": secs, "points": pts}),
-        )?;
+            points: rows.len(),
+            eps: eps.iter().map(|e| Exact(*e)).collect(),
+            lipschitz: ls.iter().map(|l| Exact(*l)).collect(),
+            reference: a.reference.clone(),
+            form: a.form.clone(),
+            timeout: Exact(a.timeout),
+            max_nodes: a.max_nodes,
+        };
+        let result = SweepShard {
+            rows: (range.start, range.end),
+            seconds: secs,
+            points: points.iter().map(PointText::from).collect(),
+        };
+        shard::write(out, "robustness", s, &run, &result)?;
         if a.json {
-            println!(
-                "{}",
-                json!({"shard": [s.i, s.n], "rows": [range.start, range.end], "out": out})
-            );
+            let line = SweepShardLine {
+                shard: (s.i, s.n),
+                rows: (range.start, range.end),
+                out: out.clone(),
+            };
+            println!("{}", crate::json_text(&line, false)?);
         } else {
             println!(
                 "shard {}/{}: rows {}..{} of {} ({} points x {} radii), {secs:.3} s; partial result in {} (merge with `samara merge robustness`)",
@@ -721,130 +721,22 @@ struct Sweep<'a> {
     json: bool,
 }
 
-/// `samara merge robustness`: the shards' points in order, then the one-process report.
+/// `samara merge robustness`: the shards' points in order
+/// (`samara_app::robustness::merge_sweep`), then the one-process report.
 fn merge_robustness(
-    run: &Value,
-    shards: &[(PathBuf, Value)],
+    shards: &samara_app::shard::Shards,
     out: Option<&Path>,
     json_out: bool,
 ) -> Result<ExitCode> {
-    let nums = |key: &str| -> Result<Vec<f64>> {
-        run[key]
-            .as_array()
-            .ok_or_else(|| anyhow!("shard files: no `{key}` list"))?
-            .iter()
-            .map(|v| {
-                v.as_str()
-                    .and_then(|s| s.parse().ok())
-                    .ok_or_else(|| anyhow!("shard files: bad `{key}` value {v}"))
-            })
-            .collect()
-    };
-    let eps = nums("eps")?;
-    let ls = nums("lipschitz")?;
-    let n_rows = run["points"].as_u64().unwrap_or(0) as usize;
-    let form = run["form"].as_str().unwrap_or("published").to_string();
-    let mut points = Vec::new();
-    let mut secs = 0.0;
-    let mut next = 0usize;
-    for (file, r) in shards {
-        let rows = (r["rows"][0].as_u64(), r["rows"][1].as_u64());
-        if rows.0 != Some(next as u64) {
-            bail!(
-                "{}: rows {}..{}, expected to start at {next} (the shards do not tile the data set)",
-                file.display(),
-                r["rows"][0],
-                r["rows"][1]
-            );
-        }
-        let end = rows.1.unwrap_or(0) as usize;
-        if end < next || end > n_rows {
-            bail!(
-                "{}: rows {}..{} of a {n_rows}-row data set",
-                file.display(),
-                r["rows"][0],
-                r["rows"][1]
-            );
-        }
-        let range = next..end;
-        next = end;
-        secs += r["seconds"].as_f64().unwrap_or(0.0);
-        // Every (row, radius) of the shard's rows exactly once.
-        let mut seen = std::collections::HashSet::new();
-        let first = points.len();
-        for p in r["points"].as_array().into_iter().flatten() {
-            let g = |k: &str| shard::get_f(p, k, file);
-            points.push(samara_verify::robustness::PointBall {
-                index: p["index"]
-                    .as_u64()
-                    .ok_or_else(|| anyhow!("{}: a point without index", file.display()))?
-                    as usize,
-                eps: g("eps")?,
-                f_min: g("f_min")?,
-                f_max: g("f_max")?,
-                reference: g("reference")?,
-                max_deviation: g("max_deviation")?,
-                witnessed_deviation: g("witnessed_deviation")?,
-                unknown: None,
-                lipschitz_upper: g("lipschitz_upper")?,
-                lipschitz_lower: g("lipschitz_lower")?,
-            });
-            let q = points.last().expect("pushed");
-            if !range.contains(&q.index) || !eps.contains(&q.eps) {
-                bail!(
-                    "{}: a point of row {} radius {} is not of this shard's rows {}..{} and the run's radii",
-                    file.display(),
-                    q.index,
-                    q.eps,
-                    range.start,
-                    range.end
-                );
-            }
-            if !seen.insert((q.index, q.eps.to_bits())) {
-                bail!(
-                    "{}: row {} radius {} appears more than once (the shard is damaged or tampered with); run it again",
-                    file.display(),
-                    q.index,
-                    q.eps
-                );
-            }
-            // Sound bounds and witnesses cannot cross (NaN fails too).
-            if !(q.f_min <= q.f_max
-                && q.witnessed_deviation <= q.max_deviation
-                && q.lipschitz_lower <= q.lipschitz_upper)
-            {
-                bail!(
-                    "{}: row {} radius {}: its bounds contradict each other (f_min {} > f_max {}, a witnessed deviation above the bound, or a Lipschitz lower bound above the upper); the shard is damaged or tampered with, run it again",
-                    file.display(),
-                    q.index,
-                    q.eps,
-                    q.f_min,
-                    q.f_max
-                );
-            }
-        }
-        if points.len() - first != range.len() * eps.len() {
-            bail!(
-                "{}: {} points for rows {}..{} and {} radii (expected {}): the shard was cut short or damaged; run it again",
-                file.display(),
-                points.len() - first,
-                range.start,
-                range.end,
-                eps.len(),
-                range.len() * eps.len()
-            );
-        }
-    }
-    if next != n_rows {
-        bail!("the shards cover rows 0..{next} of {n_rows}");
-    }
+    let run: SweepRun = shards.run_as()?;
+    let m = merge_sweep(&run, &shards.results_as::<SweepShard>()?)?;
     report_robustness(&Sweep {
-        form: &form,
-        eps: &eps,
-        ls: &ls,
-        n_rows,
-        secs,
-        points: &points,
+        form: &m.form,
+        eps: &m.eps,
+        ls: &m.ls,
+        n_rows: m.n_rows,
+        secs: m.seconds,
+        points: &m.points,
         out,
         json: json_out,
     })

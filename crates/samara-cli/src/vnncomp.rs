@@ -11,7 +11,7 @@ use samara_spec::normal::{Query, Var};
 use samara_spec::vnnlib;
 use samara_verify::route::Engine;
 use serde::{Deserialize, Serialize};
-use serde_json::{json, Value};
+use serde_json::Value;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -215,11 +215,11 @@ fn vnncomp_run(a: &VnncompArgs, text: &str, all: &[Line], root: &Path) -> Result
         instances_file: super::shard::resolved(&a.instances),
         n_instances: all.len(),
         root: super::shard::resolved(root),
-        inputs: super::shard::digest_inputs(
+        inputs: serde_json::to_value(super::shard::digest_inputs(
             files
                 .iter()
                 .map(|(n, p, f)| (n.clone(), p.as_path(), f.clone())),
-        )?,
+        )?)?,
         timeout_scale: format!("{:?}", a.timeout_scale),
         max_nodes: a.max_nodes,
     })
@@ -304,13 +304,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     if let (Some(s), Some(run)) = (a.shard, &run) {
         // At once, so a shard with no instances (N above their number) still leaves its
         // file, and a cut-short shard leaves one that the merge refuses.
-        super::shard::write(
-            &a.out,
-            "vnncomp",
-            s,
-            run.clone(),
-            serde_json::to_value(&shard_doc)?,
-        )?;
+        super::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
     }
     for (l, (net, q, t)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
@@ -325,13 +319,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         if let (Some(s), Some(run)) = (a.shard, &run) {
             shard_doc.parts.push(part);
             shard_doc.done = shard_doc.parts.len();
-            super::shard::write(
-                &a.out,
-                "vnncomp",
-                s,
-                run.clone(),
-                serde_json::to_value(&shard_doc)?,
-            )?;
+            super::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
         } else {
             csv.push_str(&part.csv_line());
             samara_report::write_atomic(&a.out, csv.as_bytes())
@@ -347,11 +335,17 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     let total = t0.elapsed().as_secs_f64();
     if let Some(s) = a.shard {
         if a.json {
-            println!(
-                "{}",
-                json!({"shard": [s.i, s.n], "instances": [range.start, range.end], "counts": word_counts(&counts),
-                    "total_seconds": total, "out": a.out})
-            );
+            let line = samara_app::vnncomp::ShardLine {
+                shard: (s.i, s.n),
+                instances: (range.start, range.end),
+                counts: word_counts(&counts)
+                    .into_iter()
+                    .map(|(w, n)| (w.to_string(), n))
+                    .collect(),
+                total_seconds: total,
+                out: a.out.clone(),
+            };
+            println!("{}", crate::json_text(&line, false)?);
         } else {
             println!(
                 "shard {}/{}: instances {}..{} of {}; {total:.1} s; partial result in {} (merge with `samara merge vnncomp`)",
@@ -365,7 +359,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         }
         return Ok(ExitCode::SUCCESS);
     }
-    summary(lines.len(), &counts, &rows, total, &a.out, a.json);
+    summary(lines.len(), &counts, &rows, total, &a.out, a.json)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -386,7 +380,7 @@ fn summary(
     total: f64,
     out: &Path,
     json_out: bool,
-) {
+) -> Result<()> {
     let summary: Vec<String> = [Word::Unsat, Word::Sat, Word::Timeout, Word::Unknown]
         .iter()
         .map(|w| format!("{} {}", w.text(), counts.get(w).copied().unwrap_or(0)))
@@ -396,10 +390,10 @@ fn summary(
         // were serialised, so merged shards print the same numbers digit for digit.
         println!(
             "{{\"counts\":{},\"instances\":[{}],\"out\":{},\"total_seconds\":{}}}",
-            json!(word_counts(counts)),
+            serde_json::to_string(&word_counts(counts))?,
             rows.join(","),
-            json!(out),
-            json!(total)
+            serde_json::to_string(out)?,
+            serde_json::to_string(&total)?
         );
     } else {
         println!(
@@ -408,6 +402,7 @@ fn summary(
             out.display()
         );
     }
+    Ok(())
 }
 
 /// Check one part of a shard against the run: it is the instance of its line (the same
@@ -600,6 +595,6 @@ pub fn merge_vnncomp(
     }
     samara_report::write_atomic(out, csv.as_bytes())
         .map_err(|e| anyhow!("--out {}: {e}", out.display()))?;
-    summary(n, &counts, &rows, total, out, json_out);
+    summary(n, &counts, &rows, total, out, json_out)?;
     Ok(ExitCode::SUCCESS)
 }

@@ -17,5 +17,31 @@ pub mod ops;
 
 pub use ir::{Activation, Affine, Layer, Network};
 
+/// Why a network file could not be read: the error of its format.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// An ONNX file ([`onnx::load`]).
+    #[error(transparent)]
+    Onnx(#[from] onnx::OnnxError),
+    /// An NNet file ([`nnet::load`]).
+    #[error(transparent)]
+    Nnet(#[from] nnet::NnetError),
+}
+
+/// A network file read by its extension: `.nnet` (any case) in the NNet text format of
+/// ACAS Xu, anything else as ONNX. Every command reads its network files here, so each
+/// takes both formats.
+pub fn load(path: impl AsRef<std::path::Path>) -> Result<Network, LoadError> {
+    let path = path.as_ref();
+    let nnet = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("nnet"));
+    Ok(if nnet {
+        nnet::load(path)?
+    } else {
+        onnx::load(path)?
+    })
+}
+
 /// The case study's input names, in order.
 pub const STATE_INPUTS: [&str; 6] = ["v_xp", "v_yp", "omega", "theta", "x", "y"];

@@ -93,7 +93,7 @@ impl Default for CegisOptions {
 }
 
 /// One round.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Round {
     /// 1-based.
     pub round: usize,
