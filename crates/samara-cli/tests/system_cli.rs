@@ -258,3 +258,82 @@ fn sets_lost_without_a_goal_exit_1_and_say_where() {
         "the line states the share enclosed: {stdout}"
     );
 }
+
+/// `simulate --system` reads an NNet controller as `reach --system` does (one
+/// `samara_nn::load` for every command): the single pendulum's controller written out as
+/// NNet (no clipping, mean 0 and range 1, so the same function) flies the same
+/// trajectories as its ONNX file.
+#[test]
+fn simulate_system_reads_nnet_controllers_like_onnx() {
+    let dir = tempfile::tempdir().unwrap();
+    let sys = repo().join("examples/archcomp/single_pendulum.sys");
+    let onnx =
+        repo().join("crates/samara-reach/tests/data/archcomp/controller_single_pendulum.onnx");
+    let net = samara_nn::load(&onnx).unwrap();
+    let maps: Vec<samara_nn::Affine> = net
+        .raw_layers()
+        .into_iter()
+        .filter_map(|l| match l {
+            samara_nn::Layer::Affine(a) => Some(a),
+            _ => None,
+        })
+        .collect();
+    let sizes: Vec<usize> = std::iter::once(maps[0].inp)
+        .chain(maps.iter().map(|m| m.out))
+        .collect();
+    let n_in = sizes[0];
+    let list = |v: Vec<String>| v.join(",") + ",\n";
+    let mut t = format!(
+        "// the single pendulum controller\n{},{},{},{},\n",
+        maps.len(),
+        n_in,
+        sizes[sizes.len() - 1],
+        sizes.iter().max().unwrap()
+    );
+    t += &list(sizes.iter().map(|s| s.to_string()).collect());
+    t += "0,\n";
+    t += &list(vec!["-inf".into(); n_in]);
+    t += &list(vec!["inf".into(); n_in]);
+    t += &list(vec!["0.0".into(); n_in + 1]);
+    t += &list(vec!["1.0".into(); n_in + 1]);
+    for m in &maps {
+        for r in 0..m.out {
+            t += &list(
+                m.w[r * m.inp..(r + 1) * m.inp]
+                    .iter()
+                    .map(|v| format!("{v:?}"))
+                    .collect(),
+            );
+        }
+        for b in &m.b {
+            t += &format!("{b:?},\n");
+        }
+    }
+    let nnet = dir.path().join("controller.nnet");
+    std::fs::write(&nnet, t).unwrap();
+    let fly = |ctl: &Path, name: &str| {
+        let out = dir.path().join(name);
+        let (code, _, stderr) = run(&[
+            "simulate",
+            "--system",
+            sys.to_str().unwrap(),
+            "--controller",
+            ctl.to_str().unwrap(),
+            "--samples",
+            "4",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(code == 0 || code == 1, "{name}: {stderr}");
+        std::fs::read_to_string(out.join("trajectories.csv")).unwrap()
+    };
+    let (a, b) = (fly(&onnx, "onnx"), fly(&nnet, "nnet"));
+    assert!(a.lines().count() > 100, "{a}");
+    assert_eq!(a.lines().count(), b.lines().count());
+    for (la, lb) in a.lines().zip(b.lines()).skip(1) {
+        for (x, y) in la.split(',').zip(lb.split(',')) {
+            let (x, y): (f64, f64) = (x.parse().unwrap(), y.parse().unwrap());
+            assert!((x - y).abs() <= 1e-12 * x.abs().max(1.0), "{la} vs {lb}");
+        }
+    }
+}
