@@ -282,9 +282,6 @@ pub fn fates(
     lo: &[f64],
     hi: &[f64],
 ) -> Vec<Fate> {
-    if maps.is_empty() {
-        return vec![Fate::Open; cs.len()];
-    }
     fates_given(maps, cs, &layer_intervals(maps, lo, hi))
 }
 

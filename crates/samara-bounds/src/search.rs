@@ -370,6 +370,22 @@ fn pgd_any(
     None
 }
 
+/// The cases grouped by their box (indices in order; groups in order of their first
+/// case): the search's pieces and, on many inputs, the attack are shared by a group.
+fn box_groups(cases: &[Case]) -> Vec<Vec<usize>> {
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, c) in cases.iter().enumerate() {
+        match groups
+            .iter_mut()
+            .find(|g| cases[g[0]].lo == c.lo && cases[g[0]].hi == c.hi)
+        {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    groups
+}
+
 /// What one attack found (the case and the point) and the gradient steps it took.
 type Attacked = (Option<(usize, Vec<f64>)>, u64);
 
@@ -449,17 +465,11 @@ fn attack_all(
     let joint = cases
         .first()
         .is_some_and(|c| c.lo.len() >= SIGN_STEP_INPUTS);
-    let mut groups: Vec<Vec<usize>> = Vec::new();
-    for (i, c) in cases.iter().enumerate() {
-        match groups
-            .iter_mut()
-            .filter(|_| joint)
-            .find(|g| cases[g[0]].lo == c.lo && cases[g[0]].hi == c.hi)
-        {
-            Some(g) => g.push(i),
-            None => groups.push(vec![i]),
-        }
-    }
+    let groups = if joint {
+        box_groups(cases)
+    } else {
+        (0..cases.len()).map(|i| vec![i]).collect()
+    };
     let workers = rayon::current_num_threads()
         .max(1)
         .div_ceil(groups.len().max(1)) as u64;
@@ -856,15 +866,17 @@ fn examine(
     // against a strict inequality, two identical outputs compared): the bounds above
     // always widen by a possible rounding and never close them; bounds rounded only
     // where inexact ([`crate::constant`]) decide them.
-    if !left.is_empty() {
+    // One interval pass for all the piece's cases, given up past the deadline (then the
+    // cases stay open; the caller sees the time limit).
+    let settled = match left.is_empty() {
+        true => None,
+        false => crate::constant::layer_intervals_until(maps, &lo, &hi, deadline),
+    };
+    if let Some(iv) = settled {
         let centre: Vec<f64> = lo.iter().zip(&hi).map(|(a, b)| 0.5 * (a + b)).collect();
         let mut everywhere = None;
-        // One interval pass for all the piece's cases, given up past the deadline
-        // (then the cases stay open; the caller sees the time limit).
-        let iv = crate::constant::layer_intervals_until(maps, &lo, &hi, deadline);
         left.retain(|(ci, _)| {
-            let Some(iv) = &iv else { return true };
-            let f = crate::constant::fates_given(maps, &cases[*ci].constraints, iv);
+            let f = crate::constant::fates_given(maps, &cases[*ci].constraints, &iv);
             if f.iter().all(|f| *f == crate::constant::Fate::Always) {
                 everywhere.get_or_insert(*ci);
             }
@@ -1135,16 +1147,8 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
         return (Outcome::Unknown(StopReason::Timeout), stats);
     }
     // Cases with the same box share its pieces.
-    let mut groups: Vec<(usize, Vec<usize>)> = Vec::new();
-    for (ci, case) in cases.iter().enumerate() {
-        match groups
-            .iter_mut()
-            .find(|g| cases[g.0].lo == case.lo && cases[g.0].hi == case.hi)
-        {
-            Some(g) => g.1.push(ci),
-            None => groups.push((ci, vec![ci])),
-        }
-    }
+    let groups: Vec<(usize, Vec<usize>)> =
+        box_groups(cases).into_iter().map(|g| (g[0], g)).collect();
     // Depth first over the pieces of every box together, the most promising first.
     let mut stuck = false;
     let mut thin = false;

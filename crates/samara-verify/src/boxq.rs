@@ -147,13 +147,10 @@ fn settle_constant_constraints(
     cases
         .into_iter()
         .filter_map(|(di, mut c)| {
-            // Settling is only a shortcut: past the deadline the cases stay as they are.
-            if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
-                return Some((di, c));
-            }
             let at = match seen.iter().position(|(l, h, _)| *l == c.lo && *h == c.hi) {
                 Some(i) => i,
                 None => {
+                    // Settling is only a shortcut: past the deadline the case stays as it is.
                     let Some(iv) = layer_intervals_until(maps, &c.lo, &c.hi, deadline) else {
                         return Some((di, c));
                     };
@@ -180,10 +177,7 @@ fn settle_constant_constraints(
 /// counts against it.
 pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxAnswer> {
     let t0 = std::time::Instant::now();
-    if timeout.is_some_and(|t| t <= 0.0) {
-        return Some(BoxAnswer::Unknown(BoxUnknown::Stopped(StopReason::Timeout)));
-    }
-    let deadline = timeout.map(|t| t0 + Duration::from_secs_f64(t));
+    let deadline = timeout.map(|t| t0 + Duration::from_secs_f64(t.max(0.0)));
     let cases = settle_constant_constraints(&net.maps, to_cases(q)?, deadline);
     if cases.is_empty() {
         return Some(BoxAnswer::Proved);
