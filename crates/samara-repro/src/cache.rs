@@ -2,8 +2,18 @@
 //! everything it depends on (its options, the samara version, the keys of the stages it
 //! reads). A re-run whose key matches and whose output files exist reuses the result.
 
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
+
+/// One stored stage: its key, the files it wrote (relative to the output directory) and
+/// its result (the stage's typed result as JSON; see [`crate::results`]).
+#[derive(Serialize, Deserialize)]
+struct Entry {
+    files: Vec<String>,
+    key: String,
+    result: Value,
+}
 
 /// FNV-1a 64-bit hash (stable across runs and platforms, unlike `DefaultHasher`).
 pub fn fnv1a(parts: &[&str]) -> String {
@@ -38,18 +48,11 @@ impl Cache {
             return None;
         }
         let text = std::fs::read_to_string(self.dir.join(format!("{stage}.json"))).ok()?;
-        let v: Value = serde_json::from_str(&text).ok()?;
-        if v.get("key")?.as_str()? != key {
+        let e: Entry = serde_json::from_str(&text).ok()?;
+        if e.key != key || e.files.iter().any(|p| !out.join(p).exists()) {
             return None;
         }
-        let files = v.get("files")?.as_array()?;
-        if files
-            .iter()
-            .any(|f| f.as_str().map(|p| !out.join(p).exists()).unwrap_or(true))
-        {
-            return None;
-        }
-        v.get("result").cloned()
+        Some(e.result)
     }
 
     /// Store a finished stage (atomically).
@@ -61,12 +64,14 @@ impl Cache {
         result: &Value,
     ) -> std::io::Result<()> {
         std::fs::create_dir_all(&self.dir)?;
-        let v = serde_json::json!({ "key": key, "files": files, "result": result });
-        samara_report::write_atomic(
-            &self.dir.join(format!("{stage}.json")),
-            v.to_string().as_bytes(),
-        )
-        .map_err(|e| std::io::Error::other(e.to_string()))
+        let e = Entry {
+            files: files.to_vec(),
+            key: key.to_string(),
+            result: result.clone(),
+        };
+        let text = serde_json::to_string(&e).map_err(std::io::Error::other)?;
+        samara_report::write_atomic(&self.dir.join(format!("{stage}.json")), text.as_bytes())
+            .map_err(|e| std::io::Error::other(e.to_string()))
     }
 }
 

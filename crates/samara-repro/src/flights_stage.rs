@@ -1,18 +1,18 @@
 //! Stage 5 of the reproduction: every raw-unit controller flown from the published
 //! starts (plate6 model, sample and hold).
 
+use crate::results::{reals, FlightsResult, FlownController, Real, Stages};
 use crate::stages::{flights_figure, stage_err};
 use crate::verify_stage::subjects;
-use crate::{Ctx, ReproError, StageOutput};
+use crate::{Ctx, ReproError};
 use samara_plant::{Model, Plant};
 use samara_sim::{
     fly, initial_state, published_starts, LoopSettings, NetworkController, PidController,
 };
-use serde_json::{json, Value};
 
 /// Stage 5: every controller flown in the closed loop (plate6, ode45, clipped).
-pub fn closed_loop(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
-    let subs = subjects(ctx, up)?;
+pub fn closed_loop(ctx: &Ctx, st: &mut Stages) -> Result<Vec<String>, ReproError> {
+    let subs = subjects(ctx, st)?;
     let plant = Plant::new(Model::Plate6);
     let settings = LoopSettings::default();
     let mut out = Vec::new();
@@ -41,8 +41,11 @@ pub fn closed_loop(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
                 labels.push(s.label.clone());
             }
         }
-        out.push(json!({"controller": s.label, "final_x_plus_y": finals,
-            "worst": finals.iter().map(|v| v.abs()).fold(0.0, f64::max)}));
+        out.push(FlownController {
+            controller: s.label.clone(),
+            worst: Real(finals.iter().map(|v| v.abs()).fold(0.0, f64::max)),
+            final_x_plus_y: reals(&finals),
+        });
     }
     let mut fig = flights_figure(
         &format!("Closed loop from y0 = {mid:.4} (plate6, clipped controllers)"),
@@ -57,11 +60,12 @@ pub fn closed_loop(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
         &ctx.path("figures/closed_loop.svg"),
     )
     .map_err(|e| stage_err("closed_loop", e))?;
-    Ok(StageOutput {
-        result: json!({"controllers": out, "starts": published_starts()}),
-        files: vec![
-            "figures/closed_loop.png".into(),
-            "figures/closed_loop.svg".into(),
-        ],
-    })
+    st.closed_loop = Some(FlightsResult {
+        controllers: out,
+        starts: reals(&published_starts()),
+    });
+    Ok(vec![
+        "figures/closed_loop.png".into(),
+        "figures/closed_loop.svg".into(),
+    ])
 }

@@ -16,6 +16,7 @@ pub mod cache;
 pub mod doc;
 mod flights_stage;
 mod reach_stage;
+pub mod results;
 mod sections;
 mod spec_check;
 #[cfg(test)]
@@ -27,8 +28,8 @@ mod verify_stage;
 use cache::Cache;
 use doc::{Block, Document};
 use indicatif::{MultiProgress, ProgressBar, ProgressDrawTarget, ProgressStyle};
+use results::{Results, SpecDigest, Stages};
 use samara_spec::Spec;
-use serde_json::{json, Value};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -141,15 +142,6 @@ impl ReproError {
     }
 }
 
-/// What a stage hands back: JSON results, files written (relative to the output
-/// directory), and report blocks.
-pub struct StageOutput {
-    /// Numbers for results.json.
-    pub result: Value,
-    /// Files written, relative to the output directory.
-    pub files: Vec<String>,
-}
-
 /// Context shared by stages.
 pub struct Ctx<'a> {
     /// Options.
@@ -185,15 +177,18 @@ impl Ctx<'_> {
 /// Outcome of a run.
 #[derive(Debug)]
 pub struct Outcome {
-    /// Every number of the run.
-    pub results: Value,
+    /// Every number of the run (`results.json`).
+    pub results: Results,
     /// Stages taken from the cache.
     pub reused: Vec<String>,
     /// Wall time.
     pub seconds: f64,
 }
 
-type StageFn = fn(&Ctx, &Value) -> Result<StageOutput, ReproError>;
+/// A stage: reads the results of the stages before it, stores its own in the
+/// [`Stages`] it is given, and returns the files it wrote (relative to the output
+/// directory).
+type StageFn = fn(&Ctx, &mut Stages) -> Result<Vec<String>, ReproError>;
 
 fn mode(opts: &ReproduceOptions) -> &'static str {
     if opts.quick {
@@ -253,40 +248,42 @@ pub fn run(opts: &ReproduceOptions) -> Result<Outcome, ReproError> {
     let version = env!("CARGO_PKG_VERSION");
     let mode = mode(opts);
 
-    let stages: Vec<(&str, StageFn)> = stages::all();
-    let mut results = serde_json::Map::new();
+    let mut results = Stages::default();
     let mut reused = Vec::new();
     let mut prev_key = String::new();
-    let overall = ctx.bar(stages.len() as u64, "reproduce");
-    for (name, f) in stages {
+    let all = stages::all();
+    let overall = ctx.bar(all.len() as u64, "reproduce");
+    for (name, f) in all {
         overall.set_message(format!("stage {name}"));
         let key = stage_key(opts, name, &prev_key);
-        let res = if let Some(r) = cache.get(name, &key, &opts.out) {
+        // A cached entry that no longer has its stage's shape is recomputed.
+        let cached = cache
+            .get(name, &key, &opts.out)
+            .is_some_and(|r| results.restore(name, r));
+        if cached {
             reused.push(name.to_string());
-            r
         } else {
-            let upstream = Value::Object(results.clone());
-            let out = f(&ctx, &upstream)?;
+            let files = f(&ctx, &mut results)?;
             cache
-                .put(name, &key, &out.files, &out.result)
+                .put(name, &key, &files, &results.entry_json(name))
                 .map_err(|e| io(&opts.out.join(".cache"), &e))?;
-            out.result
-        };
-        results.insert(name.to_string(), res);
+        }
         prev_key = key;
         overall.inc(1);
     }
     overall.finish_and_clear();
     let seconds = t0.elapsed().as_secs_f64();
-    let results = Value::Object(results);
-    let full = json!({
-        "samara_version": version,
-        "command_line": opts.command_line,
-        "mode": mode,
-        "spec": {"file": opts.spec.file(), "fnv1a": cache::fnv1a(&[opts.spec.text()])},
-        "seconds": seconds,
-        "stages": results,
-    });
+    let full = Results {
+        command_line: opts.command_line.clone(),
+        mode: mode.to_string(),
+        samara_version: version.to_string(),
+        seconds,
+        spec: SpecDigest {
+            file: opts.spec.file().to_string(),
+            fnv1a: cache::fnv1a(&[opts.spec.text()]),
+        },
+        stages: results,
+    };
     let doc = stages::report(&full, opts);
     // Refuse to publish a report that points at missing files.
     for img in doc.images() {
@@ -323,15 +320,11 @@ pub fn table(header: &[&str], rows: Vec<Vec<String>>) -> Block {
 }
 
 /// Helper: an empty report document with the run's header.
-pub fn new_report(full: &Value) -> Document {
+pub fn new_report(full: &Results) -> Document {
     let mut d = Document::new("samara: the Alsomitra case study, reproduced");
     d.push(Block::Para(format!(
         "Produced by `{}` (samara {}, {} mode) in {:.1} s, P1-P4 as `{}` states them. Every number below is computed by this run; `results.json` holds them all.",
-        full["command_line"].as_str().unwrap_or("samara reproduce"),
-        full["samara_version"].as_str().unwrap_or("?"),
-        full["mode"].as_str().unwrap_or("?"),
-        full["seconds"].as_f64().unwrap_or(0.0),
-        full["spec"]["file"].as_str().unwrap_or("?")
+        full.command_line, full.samara_version, full.mode, full.seconds, full.spec.file
     )));
     d
 }

@@ -1,20 +1,20 @@
 //! Stage 6 of the reproduction: sound reachable sets of every raw-unit controller on
 //! the spec's closed loop.
 
+use crate::results::{pair, ReachStageResult, ReachedNetwork, Real, Stages};
 use crate::spec_check::published_loop;
 use crate::stages::stage_err;
 use crate::verify_stage::{subjects, Subject};
-use crate::{Ctx, ReproError, StageOutput};
-use serde_json::{json, Value};
+use crate::{Ctx, ReproError};
 
 /// Stage 6: sound reachable sets of every raw-unit controller on the spec's closed loop
 /// (the shipped spec's `published`: reduced model, the published interval of y0, clipped
 /// as in simulation, goal |x + y| <= 2 at t = 20): verdict, width against the sampled
 /// range, figure.
-pub fn reach(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
+pub fn reach(ctx: &Ctx, st: &mut Stages) -> Result<Vec<String>, ReproError> {
     let lp = published_loop(ctx.spec()).map_err(|e| stage_err("reach", e))?;
     let goal = lp.goal.as_ref().map_or(f64::NAN, |g| g.bound);
-    let subs = subjects(ctx, up)?;
+    let subs = subjects(ctx, st)?;
     let subs: Vec<&Subject> = subs.iter().filter(|s| s.raw_controller.is_some()).collect();
     let pb = ctx.bar(subs.len() as u64, "reachability");
     let mut out = Vec::new();
@@ -43,28 +43,34 @@ pub fn reach(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
             .filter(|l| l.failure.is_some())
             .filter_map(|l| l.steps.last().map(|st| st.t))
             .collect();
-        out.push(json!({
-            "controller": s.label,
-            "stopped": stopped.len(),
-            "stopped_at": stopped.iter().cloned().fold(f64::INFINITY, f64::min),
-            "verdict": r.verdict.name(),
-            "reason": reason,
-            "final_x_plus_y": r.final_x_plus_y,
-            "sampled_x_plus_y": r.sampled_x_plus_y,
-            "ratio": r.width_ratio(),
-            "subproblems": r.subproblems(),
-            "seconds": r.seconds,
-            "figure": png,
-        }));
+        out.push(ReachedNetwork {
+            controller: s.label.clone(),
+            figure: png.clone(),
+            final_x_plus_y: pair(r.final_x_plus_y),
+            ratio: Real(r.width_ratio()),
+            reason,
+            sampled_x_plus_y: pair(r.sampled_x_plus_y),
+            seconds: Real(r.seconds),
+            stopped: stopped.len(),
+            stopped_at: Real(stopped.iter().cloned().fold(f64::INFINITY, f64::min)),
+            subproblems: r.subproblems(),
+            verdict: r.verdict.name().to_string(),
+        });
         files.push(png);
         files.push(svg);
         pb.inc(1);
     }
     pb.finish_and_clear();
-    Ok(StageOutput {
-        result: json!({"networks": out, "model": lp.model.name(), "y0": lp.start[5],
-            "horizon": lp.horizon, "period": lp.period, "goal_ystar": goal,
-            "goal_from": lp.goal.as_ref().and_then(|g| g.from), "clip": lp.clip, "loop": lp.name}),
-        files,
-    })
+    st.reach = Some(ReachStageResult {
+        clip: lp.clip.map(|(a, b)| [Real(a), Real(b)]),
+        goal_from: Real::of(lp.goal.as_ref().and_then(|g| g.from)),
+        goal_ystar: Real(goal),
+        horizon: Real(lp.horizon),
+        loop_name: lp.name.clone(),
+        model: lp.model.name().to_string(),
+        networks: out,
+        period: Real(lp.period),
+        y0: [Real(lp.start[5].0), Real(lp.start[5].1)],
+    });
+    Ok(files)
 }

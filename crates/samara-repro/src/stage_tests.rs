@@ -1,10 +1,11 @@
 //! Tests of the stages (2-6) and the spec checks: shared helpers (a linear network with
 //! known critical values, edited copies of the spec) in one place.
 
+use crate::results::{reals, CriticalRow, Real, Stages, TrainResult};
 use crate::stages::{METHODS, P1_TO_P4};
 use crate::train_stage::*;
 use crate::verify_stage::*;
-use crate::{Ctx, ReproError, StageOutput};
+use crate::{Ctx, ReproError};
 use samara_nn::Network;
 use samara_plant::{Model, Plant};
 use samara_sim::{fly, initial_state, LoopSettings, NetworkController};
@@ -12,7 +13,6 @@ use samara_spec::normal::{Goal, Sense};
 use samara_spec::Spec;
 use samara_train::{with_units, MinMax};
 use samara_verify::{Prepared, Settings};
-use serde_json::{json, Value};
 use std::collections::HashMap;
 
 use crate::ReproSpec;
@@ -37,12 +37,12 @@ fn crit(value: Option<f64>, unknown: Option<UnknownReason>, attained: bool) -> C
 
 #[test]
 fn an_incomplete_search_reads_unknown_with_its_reason_never_holds() {
-    let c = critical_json(
+    let c = critical_row(
         "p1",
         &crit(None, Some(UnknownReason::Timeout { nodes: 7 }), false),
     );
-    assert_eq!(c["complete"], json!(false));
-    assert_eq!(c["unknown_reason"]["kind"], json!("timeout"));
+    assert!(!c.complete);
+    assert_eq!(c.unknown_reason.as_ref().unwrap().kind, "timeout");
     let cell = critical_cell(&c);
     assert!(
         cell.starts_with("unknown (timeout: time limit reached after 7 nodes"),
@@ -50,7 +50,7 @@ fn an_incomplete_search_reads_unknown_with_its_reason_never_holds() {
     );
     assert!(!cell.contains("holds"), "{cell}");
     // With a witness but the gap open: both ends, and the reason.
-    let c = critical_json(
+    let c = critical_row(
         "p3",
         &crit(
             Some(1.25),
@@ -64,21 +64,30 @@ fn an_incomplete_search_reads_unknown_with_its_reason_never_holds() {
         "{cell}"
     );
     assert!(cell.contains("witness 1.2500, bound 3.5000"), "{cell}");
-    // A result without `complete` makes no claim either.
-    assert!(critical_cell(&json!({"critical": null})).starts_with("unknown"));
+    // An incomplete result without a reason makes no claim either.
+    let bare: CriticalRow = serde_json::from_str(
+        r#"{"attained": false, "bound": null, "complete": false, "critical": null,
+            "domain_extreme": null, "property": "p1", "unknown_reason": null, "vacuous": false}"#,
+    )
+    .unwrap();
+    assert!(critical_cell(&bare).starts_with("unknown"));
 }
 
 #[test]
 fn a_complete_search_reads_its_value_or_holds() {
-    let c = critical_json("p1", &crit(None, None, false));
-    assert_eq!(c["unknown_reason"], Value::Null);
+    let c = critical_row("p1", &crit(None, None, false));
+    assert!(c.unknown_reason.is_none());
+    assert_eq!(
+        serde_json::to_value(&c).unwrap()["unknown_reason"],
+        serde_json::Value::Null
+    );
     assert_eq!(critical_cell(&c), "holds for every ystar");
     assert_eq!(
-        critical_cell(&critical_json("p1", &crit(Some(3.5), None, true))),
+        critical_cell(&critical_row("p1", &crit(Some(3.5), None, true))),
         "3.5000"
     );
     assert_eq!(
-        critical_cell(&critical_json("p1", &crit(Some(3.25), None, false))),
+        critical_cell(&critical_row("p1", &crit(Some(3.25), None, false))),
         "3.2500 (gap open: sound bound 3.5000)"
     );
 }
@@ -108,9 +117,9 @@ fn p1_critical(spec: &Spec) -> f64 {
     let prep = Prepared::new(&nets);
     let spec = with_units(spec, None, None, None);
     let c = critical_values(&spec, &prep, &Settings::default()).unwrap();
-    assert_eq!(c[0]["property"], json!("p1"));
-    assert_eq!(c[0]["complete"], json!(true));
-    c[0]["critical"].as_f64().unwrap()
+    assert_eq!(c[0].property, "p1");
+    assert!(c[0].complete);
+    c[0].critical.get().unwrap()
 }
 
 #[test]
@@ -158,8 +167,8 @@ fn edited_p1_to_p4() -> String {
 fn run_stage(
     spec: ReproSpec,
     tag: &str,
-    stage: fn(&Ctx, &Value) -> Result<StageOutput, ReproError>,
-) -> Value {
+    stage: fn(&Ctx, &mut Stages) -> Result<Vec<String>, ReproError>,
+) -> Stages {
     let out = std::env::temp_dir().join(format!("samara-repro-stage-{tag}-{}", std::process::id()));
     std::fs::create_dir_all(out.join("networks")).unwrap();
     std::fs::create_dir_all(out.join("data")).unwrap();
@@ -184,12 +193,17 @@ fn run_stage(
     )
     .unwrap();
     let domain = &samara_train::case_study_spec().networks[0].domain;
-    let up = json!({"train": {
-        "domain_lo": domain.iter().map(|d| d.0).collect::<Vec<_>>(),
-        "domain_hi": domain.iter().map(|d| d.1).collect::<Vec<_>>(),
-        "norm_min": [1.0, -0.6, -0.4, -1.0, 0.0, -42.0, 0.18],
-        "norm_range": [2.5, 0.6, 0.5, 1.0, 42.0, 46.0, 0.01],
-    }});
+    let mut up = Stages {
+        train: Some(TrainResult {
+            closed_loop: None,
+            domain_lo: domain.iter().map(|d| Real(d.0)).collect(),
+            domain_hi: domain.iter().map(|d| Real(d.1)).collect(),
+            networks: vec![],
+            norm_min: reals(&[1.0, -0.6, -0.4, -1.0, 0.0, -42.0, 0.18]),
+            norm_range: reals(&[2.5, 0.6, 0.5, 1.0, 42.0, 46.0, 0.01]),
+        }),
+        ..Stages::default()
+    };
     let opts = crate::ReproduceOptions {
         out: out.clone(),
         quick: true,
@@ -204,20 +218,17 @@ fn run_stage(
         opts: &opts,
         bars: &bars,
     };
-    let r = stage(&ctx, &up).unwrap().result;
+    stage(&ctx, &mut up).unwrap();
     std::fs::remove_dir_all(&out).unwrap();
-    r
+    up
 }
 
 /// The critical values of P1-P4 as the verify stage writes them into results.json,
 /// for a run whose spec is `spec` ([`run_stage`]).
-fn verify_stage_criticals(spec: ReproSpec, tag: &str) -> Vec<Vec<Value>> {
-    let r = run_stage(spec, tag, verify);
-    let nets = r["networks"].as_array().unwrap();
-    assert_eq!(nets.len(), METHODS.len());
-    nets.iter()
-        .map(|n| n["critical"].as_array().unwrap().clone())
-        .collect()
+fn verify_stage_criticals(spec: ReproSpec, tag: &str) -> Vec<Vec<CriticalRow>> {
+    let r = run_stage(spec, tag, verify).verify.unwrap();
+    assert_eq!(r.networks.len(), METHODS.len());
+    r.networks.into_iter().map(|n| n.critical).collect()
 }
 
 /// Issue 12: the reachability stage flies the spec's closed loop. A copy of the shipped
@@ -242,13 +253,15 @@ fn the_reach_stage_flies_the_specs_loop() {
         text = text.replace(from, to);
     }
     let spec = ReproSpec::parse(&text, "edited.spec", Path::new(".")).unwrap();
-    let r = run_stage(spec, "reach", crate::reach_stage::reach);
-    assert_eq!(r["y0"], json!([2.0, 2.2]));
-    assert_eq!(r["horizon"], json!(1.5));
-    assert_eq!(r["goal_ystar"], json!(5.0));
-    assert_eq!(r["goal_from"], json!(0.5));
-    assert_eq!(r["loop"], json!("published"));
-    let nets = r["networks"].as_array().unwrap();
+    let r = run_stage(spec, "reach", crate::reach_stage::reach)
+        .reach
+        .unwrap();
+    assert_eq!(r.y0, [Real(2.0), Real(2.2)]);
+    assert_eq!(r.horizon, Real(1.5));
+    assert_eq!(r.goal_ystar, Real(5.0));
+    assert_eq!(r.goal_from, Real(0.5));
+    assert_eq!(r.loop_name, "published");
+    let nets = &r.networks;
     assert_eq!(nets.len(), METHODS.len());
     let plant = Plant::new(Model::Reduced);
     let settings = LoopSettings {
@@ -258,9 +271,9 @@ fn the_reach_stage_flies_the_specs_loop() {
     };
     let mut ctl = NetworkController::new(linear_net(), Some(samara_plant::EX_RANGE), "linear");
     for n in nets {
-        assert_eq!(n["verdict"], json!("proved"), "{n}");
-        let f = &n["final_x_plus_y"];
-        let (lo, hi) = (f[0].as_f64().unwrap(), f[1].as_f64().unwrap());
+        assert_eq!(n.verdict, "proved", "{n:?}");
+        let f = &n.final_x_plus_y;
+        let (lo, hi) = (f[0].get().unwrap(), f[1].get().unwrap());
         for y0 in [2.0, 2.1, 2.2] {
             let flight = fly(&plant, &mut ctl, &initial_state(&plant, y0), &settings).unwrap();
             let last = &flight.steps.last().unwrap().state_end;
@@ -305,9 +318,9 @@ fn the_verify_stage_thresholds_move_with_an_edited_spec() {
     ] {
         for crit in verify_stage_criticals(spec, tag) {
             for (k, (c, w)) in crit.iter().zip(want).enumerate() {
-                assert_eq!(c["property"], json!(P1_TO_P4[k]));
-                assert_eq!(c["complete"], json!(true), "{tag} {c}");
-                let v = c["critical"].as_f64().unwrap();
+                assert_eq!(c.property, P1_TO_P4[k]);
+                assert!(c.complete, "{tag} {c:?}");
+                let v = c.critical.get().unwrap();
                 assert!((v - w).abs() < 1e-6, "{tag} {}: {v} != {w}", P1_TO_P4[k]);
             }
         }

@@ -2,7 +2,8 @@
 //! cached run renders the same report).
 
 use crate::doc::{Block, Document};
-use crate::{new_report, table, Ctx, ReproError, ReproduceOptions, StageFn, StageOutput};
+use crate::results::{reals, DataResult, FinalPoint, Real, Results, Stages};
+use crate::{new_report, table, Ctx, ReproError, ReproduceOptions, StageFn};
 use samara_plant::{Model, Plant};
 use samara_report::{write_atomic, Curve, TrajectoryFigure};
 use samara_sim::dataset::{normalisation_csv, training_csv};
@@ -10,7 +11,6 @@ use samara_sim::{
     fly, initial_state, minmax, published_starts, training_rows, Flight, LoopSettings,
     PidController,
 };
-use serde_json::{json, Value};
 
 /// samara's training methods, in the order of the train stage's table.
 pub(crate) const METHODS: [&str; 6] = [
@@ -77,7 +77,7 @@ pub fn flights_figure(title: &str, flights: &[Flight], band: Option<f64>) -> Tra
 }
 
 /// Stage 1: the PID data set (published protocol), its constants and the figure.
-fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
+fn data(ctx: &Ctx, st: &mut Stages) -> Result<Vec<String>, ReproError> {
     let plant = Plant::new(Model::Plate6);
     let settings = LoopSettings::default();
     let starts = published_starts();
@@ -117,7 +117,7 @@ fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
         &ctx.path("figures/pid_trajectories.svg"),
     )
     .map_err(|e| stage_err("data", e))?;
-    let finals: Vec<Value> = flights
+    let finals = flights
         .iter()
         .map(|f| {
             let s = &f
@@ -125,15 +125,22 @@ fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
                 .last()
                 .map(|r| r.state_end.clone())
                 .unwrap_or_default();
-            json!({"y0": f.initial[5], "x_plus_y": s[4] + s[5]})
+            FinalPoint {
+                x_plus_y: Real(s[4] + s[5]),
+                y0: Real(f.initial[5]),
+            }
         })
         .collect();
-    let mut result = json!({
-        "rows": rows.len(),
-        "final": finals,
-        "normalisation_min": lo.to_vec(),
-        "normalisation_range": range.to_vec(),
-    });
+    let mut result = DataResult {
+        finals,
+        normalisation_min: reals(&lo),
+        normalisation_range: reals(&range),
+        published_constants: None,
+        published_constants_vs_data_max_abs: None,
+        published_max_abs_deviation: None,
+        published_rows: None,
+        rows: rows.len(),
+    };
     if let Some(p) = &ctx.opts.published {
         let refr =
             read_plain_csv(&p.join("Training_Data.csv")).map_err(|e| stage_err("data", e))?;
@@ -142,8 +149,8 @@ fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
             .zip(&refr)
             .flat_map(|(a, b)| a.iter().zip(b).map(|(x, y)| (x - y).abs()))
             .fold(0.0f64, f64::max);
-        result["published_max_abs_deviation"] = json!(dev);
-        result["published_rows"] = json!(refr.len());
+        result.published_max_abs_deviation = Some(Real(dev));
+        result.published_rows = Some(refr.len());
         if let Ok(nc) = read_plain_csv(&p.join("Normalisation_Constants.csv")) {
             if nc.len() >= 2 && nc[0].len() >= 7 {
                 // Does the published constants file describe the published data set?
@@ -151,69 +158,52 @@ fn data(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
                 for j in 0..6 {
                     worst = worst.max((nc[0][j] - lo[j]).abs().max((nc[1][j] - range[j]).abs()));
                 }
-                result["published_constants_vs_data_max_abs"] = json!(worst);
-                result["published_constants"] = json!(nc[..2]);
+                result.published_constants_vs_data_max_abs = Some(Real(worst));
+                result.published_constants = Some(nc[..2].iter().map(|r| reals(r)).collect());
             }
         }
     }
-    Ok(StageOutput {
-        result,
-        files: vec![
-            "data/training_data.csv".into(),
-            "data/normalisation.csv".into(),
-            "figures/pid_trajectories.png".into(),
-            "figures/pid_trajectories.svg".into(),
-        ],
-    })
+    st.data = Some(result);
+    Ok(vec![
+        "data/training_data.csv".into(),
+        "data/normalisation.csv".into(),
+        "figures/pid_trajectories.png".into(),
+        "figures/pid_trajectories.svg".into(),
+    ])
 }
 
-pub(crate) fn f4(v: &Value) -> String {
-    v.as_f64()
-        .map(|x| format!("{x:.4}"))
-        .unwrap_or_else(|| "-".into())
-}
-
-/// Build the report from the run's JSON.
-pub fn report(full: &Value, _opts: &ReproduceOptions) -> Document {
+/// Build the report from the run's results.
+pub fn report(full: &Results, _opts: &ReproduceOptions) -> Document {
     let mut d = new_report(full);
-    let st = &full["stages"];
+    let st = &full.stages;
     let mut findings: Vec<String> = Vec::new();
 
-    if let Some(data) = st.get("data") {
+    if let Some(data) = &st.data {
         d.push(Block::Heading(
             1,
             "1. Data generation (PID, published protocol)".into(),
         ));
         d.push(Block::Para(format!(
             "Nine PID flights of the plate6 model (y0 = n/0.07, n = 0.1:0.025:0.3; 40 control steps of 0.5; MATLAB-ode45-compatible integration) give {} training rows (`data/training_data.csv`) and their min-max constants (`data/normalisation.csv`).",
-            data["rows"]
+            data.rows
         )));
         d.push(Block::Image {
             path: "figures/pid_trajectories.png".into(),
             caption: "PID flights and the target line y = -x (equal axes)".into(),
         });
-        let rows = data["final"]
-            .as_array()
-            .map(|a| {
-                a.iter()
-                    .map(|f| vec![f4(&f["y0"]), f4(&f["x_plus_y"])])
-                    .collect()
-            })
-            .unwrap_or_default();
+        let rows = data
+            .finals
+            .iter()
+            .map(|f| vec![f.y0.f4(), f.x_plus_y.f4()])
+            .collect();
         d.push(table(&["y0", "x + y at t = 20"], rows));
-        if let Some(dev) = data
-            .get("published_max_abs_deviation")
-            .and_then(Value::as_f64)
-        {
+        if let Some(dev) = data.published_max_abs_deviation.and_then(Real::get) {
             findings.push(format!(
                 "samara's simulator regenerates the published `Training_Data.csv` to a maximum absolute deviation of {dev:.2e} over all {} numbers, so the published data come from the plate6 model with the filter state reset every control step.",
-                data["rows"].as_u64().unwrap_or(0) * 7
+                data.rows * 7
             ));
         }
-        if let Some(w) = data
-            .get("published_constants_vs_data_max_abs")
-            .and_then(Value::as_f64)
-        {
+        if let Some(w) = data.published_constants_vs_data_max_abs.and_then(Real::get) {
             findings.push(format!(
                 "The published `Normalisation_Constants.csv` does not describe the published `Training_Data.csv`: its minima/ranges differ from the data's by up to {w:.3} (raw units). The networks were trained on an older data set, so their normalisation does not match the data the paper publishes."
             ));

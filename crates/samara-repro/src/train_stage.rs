@@ -2,17 +2,19 @@
 //! (plain, adversarial, Lipschitz, DL2 and Goedel on the spec's P1-P4, and closed-loop
 //! training on the spec's loop).
 
+use crate::results::{
+    pair, reals, ClosedLoopResult, Real, RoundRow, Stages, TrainResult, TrainedNetwork,
+};
 use crate::spec_check::published_loop;
 use crate::stages::stage_err;
 use crate::stages::{METHODS, P1_TO_P4};
-use crate::{Ctx, ReproError, StageOutput};
+use crate::{Ctx, ReproError};
 use samara_nn::Network;
 use samara_spec::{Bindings, Spec};
 use samara_train::{
     read_table, spec_properties, train as train_net, train_closed_loop, Attack, CegisOptions,
     Logic, Method, MinMax, Property, TrainOptions,
 };
-use serde_json::{json, Value};
 
 /// R^2 of a raw-unit network against every row of `data` (raw units).
 pub(crate) fn r2_all(net: &Network, data: &samara_train::Table) -> f64 {
@@ -34,7 +36,7 @@ pub(crate) fn r2_rows(net: &Network, data: &samara_train::Table, idx: &[usize]) 
 
 /// Stage 2: train the six controllers on the regenerated data: the five data-driven
 /// methods, and the closed-loop method (issue 18) with its reach rounds.
-pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
+pub fn train(ctx: &Ctx, st: &mut Stages) -> Result<Vec<String>, ReproError> {
     let data =
         read_table(&ctx.path("data/training_data.csv")).map_err(|e| stage_err("train", e))?;
     let mm = MinMax::of(&data);
@@ -46,12 +48,12 @@ pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
     let pb = ctx.bar(METHODS.len() as u64, "training controllers");
     let mut rows = Vec::new();
     let mut files = Vec::new();
-    let mut cegis = Value::Null;
+    let mut cegis = None;
     for m in METHODS {
         if m == "closed-loop" {
             let (row, extra, figs) = train_closed_loop_stage(ctx, &data, &mm, epochs)?;
             rows.push(row);
-            cegis = extra;
+            cegis = Some(extra);
             files.extend(figs);
             pb.inc(1);
             continue;
@@ -91,15 +93,31 @@ pub fn train(ctx: &Ctx, _up: &Value) -> Result<StageOutput, ReproError> {
             .map_err(|e| stage_err("train", e))?;
         files.push(rel.clone());
         let k = &out.metrics;
-        rows.push(json!({"method": m, "file": rel, "r2": k.r2, "r2_all": r2_all(&net, &data), "rmse": k.rmse, "mae": k.mae,
-            "attack_worst": k.attack_worst, "attack_mean": k.attack_mean, "eps": o.eps, "epochs": epochs, "seconds": secs}));
+        rows.push(TrainedNetwork {
+            attack_mean: Real(k.attack_mean),
+            attack_worst: Real(k.attack_worst),
+            epochs,
+            eps: Real(o.eps),
+            file: rel,
+            mae: Real(k.mae),
+            method: m.to_string(),
+            r2: Real(k.r2),
+            r2_all: Real(r2_all(&net, &data)),
+            rmse: Real(k.rmse),
+            seconds: Real(secs),
+        });
         pb.inc(1);
     }
     pb.finish_and_clear();
-    Ok(StageOutput {
-        result: json!({"networks": rows, "closed_loop": cegis, "domain_lo": lo, "domain_hi": hi, "norm_min": mm.min, "norm_range": mm.range}),
-        files,
-    })
+    st.train = Some(TrainResult {
+        closed_loop: cegis,
+        domain_hi: reals(&hi),
+        domain_lo: reals(&lo),
+        networks: rows,
+        norm_min: reals(&mm.min),
+        norm_range: reals(&mm.range),
+    });
+    Ok(files)
 }
 
 /// P1-P4 as `spec` states them (`ystar` at its default), lowered in the trainer's
@@ -128,7 +146,7 @@ pub(crate) fn train_closed_loop_stage(
     data: &samara_train::Table,
     mm: &MinMax,
     epochs: usize,
-) -> Result<(Value, Value, Vec<String>), ReproError> {
+) -> Result<(TrainedNetwork, ClosedLoopResult, Vec<String>), ReproError> {
     let base = published_loop(ctx.spec())
         .and_then(|lp| CegisOptions::from_loop(lp).map_err(|e| e.to_string()))
         .map_err(|e| stage_err("train", e))?;
@@ -164,27 +182,58 @@ pub(crate) fn train_closed_loop_stage(
         &ctx.path(&svg),
     )
     .map_err(|e| stage_err("train", e))?;
-    let rounds: Vec<Value> = out
+    let rounds = out
         .rounds
         .iter()
-        .map(|r| {
-            json!({"round": r.round, "steps": r.steps, "loss": r.loss, "mse": r.mse,
-                "penalty": r.penalty, "r2": r.r2, "starts": r.starts, "verdict": r.verdict,
-                "enclosure": r.enclosure, "sampled": r.sampled, "max_leaves": r.max_leaves,
-                "added": r.added, "seconds": r.train_seconds + r.reach_seconds})
+        .map(|r| RoundRow {
+            added: reals(&r.added),
+            enclosure: pair(r.enclosure),
+            loss: Real(r.loss),
+            max_leaves: r.max_leaves,
+            mse: Real(r.mse),
+            penalty: Real(r.penalty),
+            r2: Real(r.r2),
+            round: r.round,
+            sampled: pair(r.sampled),
+            seconds: Real(r.train_seconds + r.reach_seconds),
+            starts: r.starts,
+            steps: r.steps,
+            verdict: r.verdict.clone(),
         })
         .collect();
     // Test R^2 on the rows the data-only training held out (its split, seed 0).
     let (_, test) =
         samara_train::data::split(data.rows(), o.pretrain.test_fraction, o.pretrain.seed);
     let (r2_test, rmse_test) = r2_rows(&net, data, &test);
-    let row = json!({"method": "closed-loop", "file": rel, "r2": r2_test, "r2_all": out.r2,
-        "rmse": rmse_test, "mae": Value::Null, "attack_worst": Value::Null,
-        "attack_mean": Value::Null, "eps": Value::Null, "epochs": epochs, "seconds": secs});
-    let extra = json!({"proved": out.proved, "verdict": out.reach.verdict.name(),
-        "enclosure": out.reach.final_x_plus_y, "r2_all": out.r2, "rounds": rounds,
-        "goal_ystar": o.goal, "training_bound": o.loss.bound, "data_weight": o.data_weight,
-        "steps_per_round": o.steps_per_round, "seconds": secs, "figure": png,
-        "y0": o.y0, "horizon": o.loss.horizon});
+    // The closed-loop row has no attack, MAE or radius: null in results.json.
+    let none = Real(f64::NAN);
+    let row = TrainedNetwork {
+        attack_mean: none,
+        attack_worst: none,
+        epochs,
+        eps: none,
+        file: rel.clone(),
+        mae: none,
+        method: "closed-loop".into(),
+        r2: Real(r2_test),
+        r2_all: Real(out.r2),
+        rmse: Real(rmse_test),
+        seconds: Real(secs),
+    };
+    let extra = ClosedLoopResult {
+        data_weight: Real(o.data_weight),
+        enclosure: pair(out.reach.final_x_plus_y),
+        figure: png.clone(),
+        goal_ystar: Real(o.goal),
+        horizon: Real(o.loss.horizon),
+        proved: out.proved,
+        r2_all: Real(out.r2),
+        rounds,
+        seconds: Real(secs),
+        steps_per_round: o.steps_per_round,
+        training_bound: Real(o.loss.bound),
+        verdict: out.reach.verdict.name().to_string(),
+        y0: [Real(o.y0.0), Real(o.y0.1)],
+    };
     Ok((row, extra, vec![rel, png, svg]))
 }

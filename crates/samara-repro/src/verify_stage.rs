@@ -1,17 +1,18 @@
 //! Stages 3-4 of the reproduction: critical values of P1-P4 and the P5 robustness
 //! tables, for samara's networks and the published ones.
 
+use crate::results::{
+    reals, CriticalRow, P5Tables, Real, ReasonRow, Stages, VerifiedNetwork, VerifyResult,
+};
 use crate::stages::{read_plain_csv, stage_err};
 use crate::stages::{METHODS, P1_TO_P4};
-use crate::{Ctx, ReproError, StageOutput};
+use crate::{Ctx, ReproError};
 use samara_nn::Network;
 use samara_spec::normal::{Goal, LinExpr, Query, Sense, Var};
 use samara_spec::{Bindings, Spec};
 use samara_train::{read_table, with_units};
 use samara_verify::robustness::{lipschitz_cell, published_cell, sweep, Reference};
 use samara_verify::{optimise, Prepared, Settings};
-use serde::Deserialize;
-use serde_json::{json, Value};
 use std::collections::HashMap;
 
 pub(crate) const EPS: [f64; 4] = [1e-5, 1e-4, 1e-3, 1e-2];
@@ -27,24 +28,21 @@ pub(crate) struct Subject {
     pub(crate) raw_controller: Option<Network>,
 }
 
-/// What the verify stage takes from the train stage's result: the data's box and the
-/// min-max constants the networks were trained in (read once, as one struct).
-#[derive(serde::Deserialize)]
-pub(crate) struct TrainUnits {
-    domain_lo: Vec<f64>,
-    domain_hi: Vec<f64>,
-    norm_min: Vec<f64>,
-    norm_range: Vec<f64>,
-}
-
-pub(crate) fn subjects(ctx: &Ctx, up: &Value) -> Result<Vec<Subject>, ReproError> {
+/// The train stage's box of the data and the min-max constants the networks were
+/// trained in (the verify, flights and reach stages need the train stage first).
+pub(crate) fn subjects(ctx: &Ctx, st: &Stages) -> Result<Vec<Subject>, ReproError> {
     let mut v = Vec::new();
-    let TrainUnits {
-        domain_lo: lo,
-        domain_hi: hi,
-        norm_min: nmin,
-        norm_range: nrange,
-    } = TrainUnits::deserialize(&up["train"]).map_err(|e| stage_err("verify", e))?;
+    let tr = st
+        .train
+        .as_ref()
+        .ok_or_else(|| stage_err("verify", "the train stage has not run"))?;
+    let f = |r: &[Real]| r.iter().map(|x| x.0).collect::<Vec<f64>>();
+    let (lo, hi, nmin, nrange) = (
+        f(&tr.domain_lo),
+        f(&tr.domain_hi),
+        f(&tr.norm_min),
+        f(&tr.norm_range),
+    );
     let spec = ctx.spec();
     // samara's networks take raw units (their normalisation is inside the file); their
     // domain is the box of the data they were trained on.
@@ -195,36 +193,45 @@ pub fn critical_values(
     spec: &Spec,
     prep: &Prepared,
     settings: &Settings,
-) -> Result<Vec<Value>, String> {
+) -> Result<Vec<CriticalRow>, String> {
     P1_TO_P4
         .iter()
         .map(|name| {
             let q = critical_query(spec, name, "ystar")?;
             let r = optimise(&q, prep, settings).map_err(|e| e.to_string())?;
-            Ok(critical_json(name, &r))
+            Ok(critical_row(name, &r))
         })
         .collect()
 }
 
 /// One critical value as stored in results.json: the search's value, bound, flags, and
 /// why it is incomplete (`unknown_reason`, null for a complete search).
-pub(crate) fn critical_json(property: &str, r: &samara_verify::Critical) -> Value {
-    json!({"property": property, "critical": r.value, "bound": r.bound, "attained": r.attained,
-        "vacuous": r.vacuous, "domain_extreme": r.domain_extreme, "complete": r.complete,
-        "unknown_reason": r.unknown.as_ref().map(|u| json!({"kind": u.kind(), "message": u.to_string()}))})
+pub(crate) fn critical_row(property: &str, r: &samara_verify::Critical) -> CriticalRow {
+    CriticalRow {
+        attained: r.attained,
+        bound: Real(r.bound),
+        complete: r.complete,
+        critical: Real::of(r.value),
+        domain_extreme: Real::of(r.domain_extreme),
+        property: property.to_string(),
+        unknown_reason: r.unknown.as_ref().map(|u| ReasonRow {
+            kind: u.kind().to_string(),
+            message: u.to_string(),
+        }),
+        vacuous: r.vacuous,
+    }
 }
 
 /// The report's cell for one critical value. Only a complete search makes a claim: an
-/// incomplete one (or a result without `complete`) reads "unknown" with its reason,
-/// never "holds"; a value whose gap to the sound bound is open shows both.
-pub(crate) fn critical_cell(c: &Value) -> String {
-    let value = c["critical"].as_f64();
-    let bound = c["bound"].as_f64();
-    if c["complete"].as_bool() != Some(true) {
-        let reason = &c["unknown_reason"];
-        let why = match (reason["kind"].as_str(), reason["message"].as_str()) {
-            (Some(k), Some(m)) => format!("{k}: {m}"),
-            _ => "search incomplete".into(),
+/// incomplete one reads "unknown" with its reason, never "holds"; a value whose gap to
+/// the sound bound is open shows both.
+pub(crate) fn critical_cell(c: &CriticalRow) -> String {
+    let value = c.critical.get();
+    let bound = c.bound.get();
+    if !c.complete {
+        let why = match &c.unknown_reason {
+            Some(r) => format!("{}: {}", r.kind, r.message),
+            None => "search incomplete".into(),
         };
         let seen = match (value, bound) {
             (Some(v), Some(b)) => format!("; witness {v:.4}, bound {b:.4}"),
@@ -235,7 +242,7 @@ pub(crate) fn critical_cell(c: &Value) -> String {
     }
     match value {
         None => "holds for every ystar".into(),
-        Some(v) if c["attained"].as_bool() == Some(true) => format!("{v:.4}"),
+        Some(v) if c.attained => format!("{v:.4}"),
         Some(v) => match bound {
             Some(b) => format!("{v:.4} (gap open: sound bound {b:.4})"),
             None => format!("{v:.4} (gap open)"),
@@ -244,8 +251,8 @@ pub(crate) fn critical_cell(c: &Value) -> String {
 }
 
 /// Stage 4: critical values of P1-P4 and P5 tables, for every network.
-pub fn verify(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
-    let subs = subjects(ctx, up)?;
+pub fn verify(ctx: &Ctx, st: &mut Stages) -> Result<Vec<String>, ReproError> {
+    let subs = subjects(ctx, st)?;
     let pb = ctx.bar(subs.len() as u64, "verification");
     let mut out = Vec::new();
     for s in &subs {
@@ -256,44 +263,57 @@ pub fn verify(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
         let crit = critical_values(&s.spec, &prep, &Settings::default())
             .map_err(|e| stage_err("verify", e))?;
         let crit_secs = t.elapsed().as_secs_f64();
-        let mut p5 = Value::Null;
+        let mut p5 = None;
         if let Some((body, rows)) = &s.p5 {
             let t = std::time::Instant::now();
             let lab = sweep(body, rows, &EPS, Reference::Label, None)
                 .map_err(|e| stage_err("verify", e))?;
             let netref = sweep(body, rows, &EPS, Reference::Network, None)
                 .map_err(|e| stage_err("verify", e))?;
-            let cells = |f: &dyn Fn(f64, f64) -> samara_verify::robustness::Cell| -> Vec<Vec<f64>> {
-                EPS.iter()
-                    .map(|e| {
-                        LS.iter()
-                            .map(|l| f(*e, *l).proved as f64 / rows.len() as f64)
-                            .collect()
-                    })
-                    .collect()
-            };
+            let cells =
+                |f: &dyn Fn(f64, f64) -> samara_verify::robustness::Cell| -> Vec<Vec<Real>> {
+                    EPS.iter()
+                        .map(|e| {
+                            LS.iter()
+                                .map(|l| Real(f(*e, *l).proved as f64 / rows.len() as f64))
+                                .collect()
+                        })
+                        .collect()
+                };
             let label_gap = rows
                 .iter()
                 .map(|r| (body.eval_f64(&r[..6])[0] - r[6]).abs())
                 .fold(0.0, f64::max);
-            p5 = json!({
-                "points": rows.len(),
-                "published_label": cells(&|e, l| published_cell(&lab, e, l)),
-                "published_network": cells(&|e, l| published_cell(&netref, e, l)),
-                "lipschitz": cells(&|e, l| lipschitz_cell(&netref, e, l)),
-                "lipschitz_unknown": EPS.iter().map(|e| LS.iter().map(|l| lipschitz_cell(&netref, *e, *l).unknown).collect::<Vec<_>>()).collect::<Vec<_>>(),
-                "max_label_gap": label_gap,
-                "seconds": t.elapsed().as_secs_f64(),
+            p5 = Some(P5Tables {
+                lipschitz: cells(&|e, l| lipschitz_cell(&netref, e, l)),
+                lipschitz_unknown: EPS
+                    .iter()
+                    .map(|e| {
+                        LS.iter()
+                            .map(|l| lipschitz_cell(&netref, *e, *l).unknown)
+                            .collect()
+                    })
+                    .collect(),
+                max_label_gap: Real(label_gap),
+                points: rows.len(),
+                published_label: cells(&|e, l| published_cell(&lab, e, l)),
+                published_network: cells(&|e, l| published_cell(&netref, e, l)),
+                seconds: Real(t.elapsed().as_secs_f64()),
             });
         }
-        out.push(
-            json!({"network": s.label, "critical": crit, "critical_seconds": crit_secs, "p5": p5}),
-        );
+        out.push(VerifiedNetwork {
+            critical: crit,
+            critical_seconds: Real(crit_secs),
+            network: s.label.clone(),
+            p5,
+        });
         pb.inc(1);
     }
     pb.finish_and_clear();
-    Ok(StageOutput {
-        result: json!({"networks": out, "eps": EPS, "L": LS}),
-        files: vec![],
-    })
+    st.verify = Some(VerifyResult {
+        l: reals(&LS),
+        eps: reals(&EPS),
+        networks: out,
+    });
+    Ok(vec![])
 }
