@@ -5,6 +5,7 @@ use crate::spec_check::published_loop;
 use crate::stages::stage_err;
 use crate::verify_stage::{subjects, Subject};
 use crate::{Ctx, ReproError, StageOutput};
+use samara_report::reach::{Trajectory, XyBox};
 use serde_json::{json, Value};
 
 /// Stage 6: sound reachable sets of every raw-unit controller on the spec's closed loop
@@ -29,9 +30,24 @@ pub fn reach(ctx: &Ctx, up: &Value) -> Result<StageOutput, ReproError> {
         let r = samara_reach::reach(net, &rs).map_err(|e| stage_err("reach", e))?;
         let png = format!("figures/reach_{i}.png");
         let svg = format!("figures/reach_{i}.svg");
+        let sets: Vec<Vec<XyBox>> = r
+            .leaves
+            .iter()
+            .map(|l| l.steps.iter().map(|st| [st.bbox[4], st.bbox[5]]).collect())
+            .collect();
+        let samples: Vec<Trajectory> = r
+            .samples
+            .iter()
+            .map(|smp| Trajectory {
+                y0: smp.initial[5],
+                xy: &smp.xy,
+            })
+            .collect();
         samara_report::reach::figure(
-            &r,
             &format!("{}, {} model", s.label, lp.model.name()),
+            r.verdict.name(),
+            &sets,
+            &samples,
             Some(goal),
         )
         .render(&ctx.path(&png), &ctx.path(&svg))
