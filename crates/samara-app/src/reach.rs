@@ -16,7 +16,9 @@ use crate::shard::{pair, unpair, Exact, ExactPair, Shard};
 use crate::AppError;
 use samara_plant::{Model, STATE_NAMES};
 use samara_reach::parts::{self, Flown, LeafRecord, Prepared};
+use samara_reach::Sample;
 use samara_reach::{Goal, ReachResult, ReachSettings, StepSet, Verdict};
+use samara_report::reach::{Trajectory, XyBox};
 use samara_report::Curve;
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
@@ -819,7 +821,8 @@ impl ZonotopeShard {
         src: ShardSource,
     ) -> Self {
         let figure = (sh.i == 0).then(|| {
-            let (curves, group_label) = samara_report::reach::sample_curves(&prep.samples);
+            let (curves, group_label) =
+                samara_report::reach::sample_curves(&figure_samples(&prep.samples));
             FigureText {
                 group_label,
                 curves: curves
@@ -1219,4 +1222,25 @@ mod tests {
         assert!(back.leaves[0].max_dev.is_nan());
         assert_eq!(back.leaves[1].steps[0].x_plus_y[1], 0.1);
     }
+}
+
+/// A glider run's final sub-boxes as its figure draws them (`samara_report::reach`):
+/// each sub-box's set at every control instant, projected onto x and y (states 4 and 5).
+pub fn figure_sets(leaves: &[LeafRecord]) -> Vec<Vec<XyBox>> {
+    leaves
+        .iter()
+        .map(|l| l.steps.iter().map(|st| [st.bbox[4], st.bbox[5]]).collect())
+        .collect()
+}
+
+/// A glider run's sampled trajectories as its figure draws them, labelled by `y0`
+/// (state 5).
+pub fn figure_samples(samples: &[Sample]) -> Vec<Trajectory<'_>> {
+    samples
+        .iter()
+        .map(|s| Trajectory {
+            y0: s.initial[5],
+            xy: &s.xy,
+        })
+        .collect()
 }

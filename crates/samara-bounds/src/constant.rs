@@ -19,7 +19,7 @@
 //! is exactly 0 when the compared outputs are the same expression. Both bounds are sound;
 //! their intersection is used.
 
-use crate::search::OutputConstraint;
+use crate::query::OutputConstraint;
 use samara_nn::Affine;
 use std::time::Instant;
 

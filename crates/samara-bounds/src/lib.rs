@@ -41,5 +41,6 @@ pub mod lp;
 pub mod optimise;
 pub mod phases;
 pub mod pwl;
+mod query;
 pub mod search;
 pub mod symbolic;

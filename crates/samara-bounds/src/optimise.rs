@@ -521,7 +521,7 @@ fn attack(ctx: &Ctx, starts: usize, steps: usize) -> Vec<Vec<f64>> {
                 if ctx.late() {
                     break;
                 }
-                let y = crate::search::forward(p.maps, &v[..ctx.nx], None);
+                let y = crate::query::forward(p.maps, &v[..ctx.nx], None);
                 let vals: Vec<f64> = p
                     .constraints
                     .iter()
@@ -815,7 +815,7 @@ fn process(
         // At the LP's point, the neuron whose relaxation there is loosest (the chord
         // above, CROWN's lower line below); without a point, the most balanced one.
         let z = n.cand.as_ref().map(|x| {
-            let a = crate::search::forward(&ctx.p.maps[..j0], &x[..ctx.nx], None);
+            let a = crate::query::forward(&ctx.p.maps[..j0], &x[..ctx.nx], None);
             let m = &ctx.p.maps[j0].0;
             let mut z = vec![0.0; m.out];
             m.apply_f64(&a, &mut z);

@@ -34,7 +34,7 @@
 //! minimiser) are only reported after a concrete f64 evaluation with a margin
 //! ([`crate::search::satisfies`]).
 
-use crate::search::{combination_certifies, forward, satisfies, Case};
+use crate::query::{combination_certifies, forward, satisfies, Case};
 use crate::symbolic::{self, Linear, Objective};
 use samara_nn::Affine;
 use std::sync::Arc;

@@ -629,8 +629,10 @@ fn run_zonotope(a: &ReachArgs, quiet_unknown: bool) -> Result<(ExitCode, bool)> 
         json_text(&report, true)?.as_bytes(),
     )?;
     samara_report::reach::figure(
-        &res,
         &figure_title(&a.network, &plan.settings),
+        res.verdict.name(),
+        &samara_app::reach::figure_sets(&res.leaves),
+        &samara_app::reach::figure_samples(&res.samples),
         plan.settings.goal.as_ref().map(|g| g.ystar),
     )
     .render(&a.out.join("reach.png"), &a.out.join("reach.svg"))?;
@@ -790,8 +792,8 @@ pub fn merge_reach(
     )?;
     samara_report::reach::draw(
         &figure_title(Path::new(&merged.network), s),
-        &merged.outcome.verdict,
-        &merged.leaves,
+        merged.outcome.verdict.name(),
+        &samara_app::reach::figure_sets(&merged.leaves),
         merged.curves.clone(),
         merged.group_label.clone(),
         s.goal.as_ref().map(|g| g.ystar),

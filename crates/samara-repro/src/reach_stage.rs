@@ -6,6 +6,7 @@ use crate::spec_check::published_loop;
 use crate::stages::stage_err;
 use crate::verify_stage::{subjects, Subject};
 use crate::{Ctx, ReproError};
+use samara_report::reach::{Trajectory, XyBox};
 
 /// Stage 6: sound reachable sets of every raw-unit controller on the spec's closed loop
 /// (the shipped spec's `published`: reduced model, the published interval of y0, clipped
@@ -29,9 +30,24 @@ pub fn reach(ctx: &Ctx, st: &mut Stages) -> Result<Vec<String>, ReproError> {
         let r = samara_reach::reach(net, &rs).map_err(|e| stage_err("reach", e))?;
         let png = format!("figures/reach_{i}.png");
         let svg = format!("figures/reach_{i}.svg");
+        let sets: Vec<Vec<XyBox>> = r
+            .leaves
+            .iter()
+            .map(|l| l.steps.iter().map(|st| [st.bbox[4], st.bbox[5]]).collect())
+            .collect();
+        let samples: Vec<Trajectory> = r
+            .samples
+            .iter()
+            .map(|smp| Trajectory {
+                y0: smp.initial[5],
+                xy: &smp.xy,
+            })
+            .collect();
         samara_report::reach::figure(
-            &r,
             &format!("{}, {} model", s.label, lp.model.name()),
+            r.verdict.name(),
+            &sets,
+            &samples,
             Some(goal),
         )
         .render(&ctx.path(&png), &ctx.path(&svg))

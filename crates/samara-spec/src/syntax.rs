@@ -2,15 +2,7 @@
 
 use std::fmt;
 
-/// A position in the source (1-based line and column; line 0 means "no position in the
-/// source", e.g. for a file that cannot be read, and is not printed).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub struct Pos {
-    /// Line.
-    pub line: usize,
-    /// Column.
-    pub col: usize,
-}
+pub use samara_text::{number_end, scan_lines, write_diagnostic, Pos};
 
 /// A spec error: where, what was expected, and how to fix it.
 #[derive(Clone, Debug, PartialEq)]
@@ -38,48 +30,6 @@ impl fmt::Display for SpecError {
             &self.source_line,
         )
     }
-}
-
-/// A diagnostic as `file:line:col: message` (`file: message` on line 0), the source line
-/// (at most 120 characters of it, around the column) with a caret under the column when
-/// the line is given, and `  = help: hint` when a hint is. Shared by the system language
-/// (`samara-system`), whose errors read the same.
-pub fn write_diagnostic(
-    f: &mut fmt::Formatter<'_>,
-    file: &str,
-    pos: Pos,
-    message: &str,
-    hint: &str,
-    source_line: &str,
-) -> fmt::Result {
-    if pos.line == 0 {
-        writeln!(f, "{file}: {message}")?;
-    } else {
-        writeln!(f, "{file}:{}:{}: {message}", pos.line, pos.col)?;
-    }
-    if !source_line.is_empty() {
-        // At most WIDTH characters of the line, around the column.
-        const WIDTH: usize = 120;
-        let chars: Vec<char> = source_line.chars().collect();
-        let col = pos.col.saturating_sub(1).min(chars.len());
-        let start = col.saturating_sub(WIDTH / 2);
-        let end = (start + WIDTH).min(chars.len());
-        let mut shown: String = chars[start..end].iter().collect();
-        let mut caret = col - start;
-        if start > 0 {
-            shown.insert_str(0, "...");
-            caret += 3;
-        }
-        if end < chars.len() {
-            shown.push_str("...");
-        }
-        writeln!(f, "  | {shown}")?;
-        writeln!(f, "  | {}^", " ".repeat(caret))?;
-    }
-    if !hint.is_empty() {
-        write!(f, "  = help: {hint}")?;
-    }
-    Ok(())
 }
 
 impl std::error::Error for SpecError {}
@@ -247,68 +197,6 @@ pub fn lex(src: &str, file: &str) -> Result<Vec<Token>, SpecError> {
         },
     });
     Ok(out)
-}
-
-/// The line scanner of both line-based languages (the property language here, the
-/// system language in `samara-system`): for each line of `src`, skips white space, stops
-/// at a `#` comment or at a `\` that ends the line (a continuation), and hands every
-/// other place to `token` (with `state`, the line's index, the line, its characters and
-/// the place's index), which returns the index after the token it read; then calls
-/// `line_end` (with `state`, the line's index, its length in characters and whether it
-/// continues on the next line). Returns the number of lines.
-pub fn scan_lines<S, E>(
-    src: &str,
-    state: &mut S,
-    mut token: impl FnMut(&mut S, usize, &str, &[char], usize) -> Result<usize, E>,
-    mut line_end: impl FnMut(&mut S, usize, usize, bool),
-) -> Result<usize, E> {
-    let mut n_lines = 0;
-    for (li, line) in src.lines().enumerate() {
-        let chars: Vec<char> = line.chars().collect();
-        let mut i = 0;
-        let mut continued = false;
-        while i < chars.len() {
-            let c = chars[i];
-            if c == '#' {
-                break;
-            }
-            if c.is_whitespace() {
-                i += 1;
-                continue;
-            }
-            if c == '\\' && chars[i + 1..].iter().all(|c| c.is_whitespace()) {
-                continued = true;
-                break;
-            }
-            i = token(state, li, line, &chars, i)?;
-        }
-        line_end(state, li, chars.len(), continued);
-        n_lines = li + 1;
-    }
-    Ok(n_lines)
-}
-
-/// The end of the number literal that starts at `chars[start]` (a digit, or a `.` before
-/// one): digits and dots, then an exponent (`e` or `E`, an optional sign, digits) when
-/// digits follow the `e`.
-pub fn number_end(chars: &[char], start: usize) -> usize {
-    let mut i = start;
-    while i < chars.len() && (chars[i].is_ascii_digit() || chars[i] == '.') {
-        i += 1;
-    }
-    if i < chars.len() && (chars[i] == 'e' || chars[i] == 'E') {
-        let mut j = i + 1;
-        if j < chars.len() && (chars[j] == '+' || chars[j] == '-') {
-            j += 1;
-        }
-        if j < chars.len() && chars[j].is_ascii_digit() {
-            i = j;
-            while i < chars.len() && chars[i].is_ascii_digit() {
-                i += 1;
-            }
-        }
-    }
-    i
 }
 
 /// A numeric or symbolic expression.

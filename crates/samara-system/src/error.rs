@@ -2,14 +2,7 @@
 
 use std::fmt;
 
-/// A position in the source (1-based line and column; line 0: no position).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub struct Pos {
-    /// Line.
-    pub line: usize,
-    /// Column (in characters).
-    pub col: usize,
-}
+pub use samara_text::Pos;
 
 /// A system-file error. Displayed as `file:line:col: message`, the source line with a
 /// caret, and `= help: fix`. The CLI exits with [`SystemError::EXIT_CODE`] on it.
@@ -34,14 +27,10 @@ impl SystemError {
 
 impl fmt::Display for SystemError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let pos = samara_spec::syntax::Pos {
-            line: self.pos.line,
-            col: self.pos.col,
-        };
-        samara_spec::syntax::write_diagnostic(
+        samara_text::write_diagnostic(
             f,
             &self.file,
-            pos,
+            self.pos,
             &self.message,
             &self.hint,
             &self.source_line,
@@ -66,7 +55,7 @@ pub(crate) fn closest<'a>(name: &str, candidates: impl Iterator<Item = &'a str>)
         let d = if c.eq_ignore_ascii_case(name) {
             0
         } else {
-            samara_spec::lower::suggest::levenshtein(name, c)
+            samara_text::levenshtein(name, c)
         };
         let better = match best {
             None => true,

@@ -1,7 +1,7 @@
 //! The lexer: identifiers, numbers, symbols and line ends, each with its position.
 
 use crate::error::{Pos, SystemError};
-use samara_spec::syntax::{number_end, scan_lines};
+use samara_text::{number_end, scan_lines};
 
 /// Tokens.
 #[derive(Clone, Debug, PartialEq)]

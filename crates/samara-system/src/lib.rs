@@ -20,6 +20,7 @@ mod error;
 mod graph;
 mod lex;
 mod parse;
+pub mod plate;
 pub mod sim;
 pub mod taylor;
 

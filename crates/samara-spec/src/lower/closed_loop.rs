@@ -1,4 +1,4 @@
-//! Closed loops: a built-in plate model (`samara_plant::Model`) flown by a declared
+//! Closed loops: a built-in plate model (`samara_system::plate`) flown by a declared
 //! network under sample and hold, its initial set and the goal `samara reach` decides.
 //!
 //! ```text
@@ -16,7 +16,7 @@
 use super::suggest::nearest;
 use super::Spec;
 use crate::syntax::{Expr, LoopValue, Pos, SpecError};
-use samara_plant::{Model, STATE_NAMES};
+use samara_system::plate::{self, Model};
 
 /// The band goal `|x + y| <= bound` around the line `y = -x` (the one goal `samara
 /// reach` decides for the built-in plate), at the horizon or over `[from, horizon]`.
@@ -178,7 +178,7 @@ impl Spec {
         if d.inputs
             .iter()
             .map(String::as_str)
-            .ne(STATE_NAMES[..6].iter().copied())
+            .ne(plate::controller_inputs().iter().copied())
             || d.outputs.len() != 1
         {
             return Err(self.error(
@@ -187,7 +187,7 @@ impl Spec {
                     "network `{net}` reads ({}) and gives ({}); a closed loop of the plate feeds it the states ({}) and takes one output, the actuation",
                     d.inputs.join(", "),
                     d.outputs.join(", "),
-                    STATE_NAMES[..6].join(", ")
+                    plate::controller_inputs().join(", ")
                 ),
                 "declare the controller as network f(v_xp, v_yp, omega, theta, x, y) -> (ex)",
             ));
@@ -222,7 +222,7 @@ impl Spec {
             ));
         }
         let model = self.loops[k].model;
-        let names = &STATE_NAMES[..model.dim()];
+        let names = plate::states(model);
         let mut start: Vec<Option<(f64, f64)>> = vec![None; model.dim()];
         for (n, a, b, p) in states {
             let Some(j) = names.iter().position(|s| *s == n) else {
