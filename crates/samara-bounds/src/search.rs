@@ -148,23 +148,22 @@ pub enum StopReason {
     ThinRegion,
 }
 
-/// The answer.
+/// A point of case `case`, with the network's f64 outputs there: the witness of a
+/// violated query.
 #[derive(Clone, Debug, PartialEq)]
-pub enum Outcome {
-    /// No case has a point: the property holds.
-    Empty,
-    /// A point of case `case`, with the network's f64 outputs there.
-    Point {
-        /// Index of the case.
-        case: usize,
-        /// The input.
-        x: Vec<f64>,
-        /// The outputs.
-        y: Vec<f64>,
-    },
-    /// Cut short.
-    Unknown(StopReason),
+pub struct CasePoint {
+    /// Index of the case.
+    pub case: usize,
+    /// The input.
+    pub x: Vec<f64>,
+    /// The outputs.
+    pub y: Vec<f64>,
 }
+
+/// The answer, in the one answer vocabulary ([`samara_num::Outcome`]): `Proved` (no
+/// case has a point: the property holds), `Violated` with a [`CasePoint`], or `Unknown`
+/// when the search is cut short.
+pub type Outcome = samara_num::Outcome<CasePoint, StopReason>;
 
 /// Statistics of a search.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -1002,7 +1001,7 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
             ms(P_PHASE),
             PROF[P_PHASE_CLOSED].load(AtOrd::Relaxed),
             match &o {
-                Outcome::Point { .. } => "point".to_string(),
+                Outcome::Violated(CasePoint { .. }) => "point".to_string(),
                 o => format!("{o:?}"),
             },
             FOUND_BY.load(AtOrd::Relaxed)
@@ -1020,7 +1019,7 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     if let Some((ci, x)) = attack_all(maps, cases, s, 0, s.attack_seconds, &mut stats, deadline) {
         let y = forward(maps, &x, None);
         FOUND_BY.store(1, AtOrd::Relaxed);
-        return (Outcome::Point { case: ci, x, y }, stats);
+        return (Outcome::Violated(CasePoint { case: ci, x, y }), stats);
     }
     if out_of_time(&t0) {
         return (Outcome::Unknown(StopReason::Timeout), stats);
@@ -1076,7 +1075,7 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
             {
                 let y = forward(maps, &x, None);
                 FOUND_BY.store(2, AtOrd::Relaxed);
-                return (Outcome::Point { case: ci, x, y }, stats);
+                return (Outcome::Violated(CasePoint { case: ci, x, y }), stats);
             }
             last_burst = Instant::now();
         }
@@ -1092,7 +1091,7 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
                 Piece::Closed => closed += 1,
                 Piece::Found(ci, x) => {
                     let y = forward(maps, &x, None);
-                    return (Outcome::Point { case: ci, x, y }, stats);
+                    return (Outcome::Violated(CasePoint { case: ci, x, y }), stats);
                 }
                 Piece::Split(ws) => {
                     // A half the look-ahead closed counts as closed: on ACAS Xu property
@@ -1113,6 +1112,6 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     } else if stuck {
         (Outcome::Unknown(StopReason::Unsplittable), stats)
     } else {
-        (Outcome::Empty, stats)
+        (Outcome::Proved, stats)
     }
 }

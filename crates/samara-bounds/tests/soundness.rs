@@ -6,7 +6,7 @@
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use samara_bounds::search::{solve, Case, Outcome, OutputConstraint, Settings};
+use samara_bounds::search::{solve, Case, CasePoint, Outcome, OutputConstraint, Settings};
 use samara_bounds::symbolic::{self, Objective};
 use samara_nn::{Activation, Affine, Layer, Network};
 
@@ -172,7 +172,7 @@ fn search_verdicts_survive_sampling_and_points_are_real() {
             },
         );
         match o {
-            Outcome::Empty => {
+            Outcome::Proved => {
                 empty += 1;
                 for k in 0..20_000 {
                     let y = net.eval_f64(&sample(&mut rng, &lo, &hi, k));
@@ -183,7 +183,7 @@ fn search_verdicts_survive_sampling_and_points_are_real() {
                     );
                 }
             }
-            Outcome::Point { x, .. } => {
+            Outcome::Violated(CasePoint { x, .. }) => {
                 found += 1;
                 assert!(x
                     .iter()
@@ -246,10 +246,10 @@ fn limits_give_unknown_never_a_verdict() {
     ] {
         let (o, _) = solve(&maps, std::slice::from_ref(&case), &s);
         assert!(
-            matches!(o, Outcome::Unknown(_) | Outcome::Point { .. }),
+            matches!(o, Outcome::Unknown(_) | Outcome::Violated(CasePoint { .. })),
             "a limited search claimed {o:?}"
         );
-        if let Outcome::Point { x, .. } = o {
+        if let Outcome::Violated(CasePoint { x, .. }) = o {
             let y = net.eval_f64(&x);
             assert!(y[0] - y[1] <= min - 1e-3);
         }
@@ -403,7 +403,7 @@ fn conjunctions_survive_sampling(seed: u64, settings: &Settings) {
             },
         );
         match o {
-            Outcome::Empty => {
+            Outcome::Proved => {
                 empty += 1;
                 for k in 0..20_000 {
                     let y = net.eval_f64(&sample(&mut rng, &lo, &hi, k));
@@ -422,7 +422,7 @@ fn conjunctions_survive_sampling(seed: u64, settings: &Settings) {
                     }
                 }
             }
-            Outcome::Point { case, x, .. } => {
+            Outcome::Violated(CasePoint { case, x, .. }) => {
                 found += 1;
                 assert!(x
                     .iter()
@@ -488,7 +488,7 @@ fn joint_attack_points_on_many_inputs_are_real_and_name_their_case() {
             },
         );
         match o {
-            Outcome::Point { case, x, .. } => {
+            Outcome::Violated(CasePoint { case, x, .. }) => {
                 let y = net.eval_f64(&x);
                 let k = &cases[case].constraints[0];
                 let g = k.obj.c.iter().zip(&y).map(|(c, v)| c * v).sum::<f64>();
@@ -499,7 +499,7 @@ fn joint_attack_points_on_many_inputs_are_real_and_name_their_case() {
                     .all(|(v, (a, b))| a <= v && v <= b));
                 checked += 1;
             }
-            Outcome::Empty => assert!(!sampled_point, "trial {trial}: Empty, yet sampled"),
+            Outcome::Proved => assert!(!sampled_point, "trial {trial}: Empty, yet sampled"),
             Outcome::Unknown(r) => assert!(!sampled_point, "trial {trial}: {r:?}, yet sampled"),
         }
     }

@@ -14,6 +14,7 @@
 mod dual;
 mod idual;
 mod interval;
+mod outcome;
 mod scalar;
 mod series;
 mod tm;
@@ -21,6 +22,7 @@ mod tm;
 pub use dual::Dual;
 pub use idual::IDual;
 pub use interval::Interval;
+pub use outcome::{Outcome, Status};
 pub use scalar::{Scalar, Sign};
 pub use series::{conv, dconv, Series};
 pub use tm::Tm;

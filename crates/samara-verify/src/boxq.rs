@@ -17,7 +17,7 @@ use crate::engine::Point;
 use crate::exact::rigorous_satisfies;
 use crate::net::PwlNet;
 use crate::Counterexample;
-use samara_bounds::search::{self, Case, Outcome, OutputConstraint, StopReason};
+use samara_bounds::search::{self, Case, CasePoint, Outcome, OutputConstraint, StopReason};
 use samara_bounds::symbolic::Objective;
 use samara_spec::normal::{Cmp, Goal, Query, Var};
 use std::time::Duration;
@@ -190,9 +190,9 @@ pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxA
     };
     let (outcome, _) = search::solve(&net.maps, &plain, &settings);
     Some(match outcome {
-        Outcome::Empty => BoxAnswer::Proved,
+        Outcome::Proved => BoxAnswer::Proved,
         Outcome::Unknown(r) => BoxAnswer::Unknown(BoxUnknown::Stopped(r)),
-        Outcome::Point { case, x, .. } => {
+        Outcome::Violated(CasePoint { case, x, .. }) => {
             let disjunct = cases[case].0;
             let point = Point {
                 outputs: vec![net.eval(&x)],

@@ -253,16 +253,10 @@ pub struct Counterexample {
     pub disjunct: usize,
 }
 
-/// The answer to a `prove` query.
-#[derive(Clone, Debug, PartialEq)]
-pub enum Verdict {
-    /// The counterexample region is empty.
-    Proved,
-    /// A concrete, re-evaluated counterexample.
-    Violated(Counterexample),
-    /// Not settled, with the reason.
-    Unknown(UnknownReason),
-}
+/// The answer to a `prove` query, in samara's one answer vocabulary
+/// ([`samara_num::Outcome`]): `Proved` (the counterexample region is empty),
+/// `Violated` with a concrete, re-evaluated counterexample, or `Unknown` with the reason.
+pub type Verdict = samara_num::Outcome<Counterexample, UnknownReason>;
 
 /// The answer to an `optimise` (critical value) query.
 #[derive(Clone, Debug, PartialEq)]
@@ -612,8 +606,8 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
                 let boxes = engine::tighten(&boxes, &q.region[d]);
                 let left = (s.timeout - t0.elapsed().as_secs_f64()).max(0.0);
                 match smooth::search(&nets, &boxes, &q.region[d], left, 2_000_000) {
-                    smooth::SmoothResult::Empty => continue,
-                    smooth::SmoothResult::Witness(pt) => {
+                    smooth::SmoothResult::Proved => continue,
+                    smooth::SmoothResult::Violated(pt) => {
                         let margin = pt.margin(&q.region[d]);
                         if let Err((margin, tolerance)) = pt.robustly_satisfies(&q.region[d]) {
                             unknown = Some(UnknownReason::Rounding { margin, tolerance });

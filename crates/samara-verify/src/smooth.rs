@@ -129,15 +129,10 @@ fn concrete_point(nets: &[&Network], inputs: Vec<Vec<f64>>) -> Point {
     }
 }
 
-/// Outcome of the smooth prover for one conjunction.
-pub enum SmoothResult {
-    /// No counterexample in the domain.
-    Empty,
-    /// A concrete counterexample.
-    Witness(Point),
-    /// Budget exhausted (time or box limit).
-    Unknown(crate::UnknownReason),
-}
+/// Outcome of the smooth prover for one conjunction, in the one answer vocabulary:
+/// `Proved` (no counterexample in the domain), `Violated` with a concrete
+/// counterexample, or `Unknown` when the budget (time or box limit) is exhausted.
+pub type SmoothResult = samara_num::Outcome<Point, crate::UnknownReason>;
 
 /// Search one conjunction over the applications' boxes (single free of parameters).
 pub fn search(
@@ -189,7 +184,7 @@ pub fn search(
                 .collect();
             let p = concrete_point(nets, inputs);
             if p.satisfies(cs) {
-                return SmoothResult::Witness(p);
+                return SmoothResult::Violated(p);
             }
         }
     }
@@ -231,7 +226,7 @@ pub fn search(
             .collect();
         let p = concrete_point(nets, inputs);
         if p.satisfies(cs) {
-            return SmoothResult::Witness(p);
+            return SmoothResult::Violated(p);
         }
         // Bisect the widest input (relative to nothing: inputs share units per network).
         let (k, w) = b
@@ -259,5 +254,5 @@ pub fn search(
             b: right,
         });
     }
-    SmoothResult::Empty
+    SmoothResult::Proved
 }
