@@ -78,15 +78,15 @@ pub fn minmax(coef: &[&[f64]], cst: &[f64], lo: &[f64], hi: &[f64]) -> Option<Mi
     let mut basis: Vec<usize> = (nv..nv + m).collect();
     let piv_tol = 1e-12 * scale.max(1.0);
     let mut solved = false;
+    let mut rule = Pricing::default();
     for _ in 0..50 * (m + nv) {
-        // Bland: the lowest-index column with a negative reduced cost enters.
-        let obj = &tab[m * cols..];
-        let Some(q) = (0..nv + m).find(|&c| obj[c] < -1e-12) else {
+        let Some(q) = rule.entering(&tab[m * cols..m * cols + nv + m], 1e-12) else {
             solved = true;
             break;
         };
         // Ratio test; ties to the lowest basic index.
         let p = leaving_row(&tab, cols, m, &basis, q, piv_tol, |r| r)?; // unbounded cannot happen (tau <= T - e_k); bail out if so
+        rule.record(tab[p * cols + cols - 1]);
         pivot(&mut tab, cols, m, &mut basis, p, q);
     }
     if !solved || tab.iter().any(|v| !v.is_finite()) {
@@ -226,13 +226,14 @@ pub fn min_linear(c: &[f64], a: &[&[f64]], d: &[f64], lo: &[f64], hi: &[f64]) ->
     }
     let tol = 1e-12;
     let mut solved = false;
+    let mut rule = Pricing::default();
     for _ in 0..50 * (rows + nv) {
-        let obj = &tab[rows * cols..];
-        let Some(q) = (0..nv + rows).find(|&c| obj[c] < -1e-12 * big) else {
+        let Some(q) = rule.entering(&tab[rows * cols..rows * cols + nv + rows], 1e-12 * big) else {
             solved = true;
             break;
         };
         let p = leaving_row(&tab, cols, rows, &basis, q, tol, |r| r.max(0.0))?;
+        rule.record(tab[p * cols + cols - 1]);
         pivot(&mut tab, &mut basis, p, q);
     }
     if !solved || tab.iter().any(|v| !v.is_finite()) {
@@ -254,6 +255,48 @@ pub fn min_linear(c: &[f64], a: &[&[f64]], d: &[f64], lo: &[f64], hi: &[f64]) ->
         x,
         feasible: sv[n] <= 1e-9,
     })
+}
+
+/// The entering-column rule of both solvers: Dantzig's (the most negative reduced cost
+/// enters), which needs far fewer pivots than Bland's on these tableaux, until a run of
+/// degenerate pivots (a zero step, where Dantzig's rule can cycle) is seen; from then on
+/// Bland's rule (the lowest-index negative reduced cost, Bland 1977), which cannot cycle,
+/// so every solve still terminates.
+#[derive(Default)]
+struct Pricing {
+    /// Consecutive degenerate pivots seen so far.
+    degenerate: usize,
+    /// Bland's rule from now on.
+    bland: bool,
+}
+
+impl Pricing {
+    /// Degenerate pivots in a row after which Bland's rule takes over.
+    const MAX_DEGENERATE: usize = 20;
+
+    /// The entering column among the reduced costs `obj` below `-tol`, if any.
+    fn entering(&self, obj: &[f64], tol: f64) -> Option<usize> {
+        if self.bland {
+            return obj.iter().position(|&v| v < -tol);
+        }
+        let (q, v) = obj
+            .iter()
+            .enumerate()
+            .fold((0, 0.0), |b, (c, &v)| if v < b.1 { (c, v) } else { b });
+        (v < -tol).then_some(q)
+    }
+
+    /// Record a pivot whose leaving row had right-hand side `rhs` (zero: degenerate).
+    fn record(&mut self, rhs: f64) {
+        if rhs <= 0.0 {
+            self.degenerate += 1;
+            if self.degenerate >= Self::MAX_DEGENERATE {
+                self.bland = true;
+            }
+        } else {
+            self.degenerate = 0;
+        }
+    }
 }
 
 /// The ratio test of a simplex step on the dense tableau `tab` (`cols` columns, `rows`
