@@ -348,3 +348,33 @@ def test_zero_pieces_of_a_partition_is_a_named_error():
     net = samara.Network.from_onnx(reference("base_model_denorm.onnx"))
     with pytest.raises(OverflowError, match=r"pieces=0"):
         sd.reach_partition(net, pieces=0, local=True)
+
+
+def _interrupt_after(seconds: float, sent: dict) -> threading.Thread:
+    def run():
+        time.sleep(seconds)
+        sent["at"] = time.monotonic()
+        os.kill(os.getpid(), signal.SIGINT)
+
+    t = threading.Thread(target=run)
+    t.start()
+    return t
+
+
+@pytest.mark.parametrize("call", ["reach", "train"])
+def test_ctrl_c_interrupts_reach_and_train_within_a_second(call):
+    """Not only the verifier: a reach run (about 4 s here) and a training run (about 6 s)
+    raise KeyboardInterrupt within a second of SIGINT too."""
+    if call == "reach":
+        net = samara.Network.from_onnx(reference("base_model_denorm.onnx"))
+        work = lambda: samara.reach(net, horizon=4.0)  # noqa: E731
+    else:
+        data = samara.read_table(reference("Training_Data.csv"))
+        work = lambda: samara.train(data, epochs=20_000, min_r2=0.0)  # noqa: E731
+    sent: dict = {}
+    t = _interrupt_after(0.5, sent)
+    with pytest.raises(KeyboardInterrupt):
+        work()
+    took = time.monotonic() - sent["at"]
+    t.join()
+    assert took < 1.0, f"KeyboardInterrupt {took:.2f} s after SIGINT"
