@@ -19,7 +19,7 @@ use pyo3::prelude::*;
 use pyo3::types::PyBytes;
 use samara_app::python_front::{self as front, GridPart, ReachRequest, TrainReport};
 use samara_app::{Front, Loaded};
-use samara_verify::{LpTighten, Settings};
+use samara_verify::Settings;
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::collections::HashMap;
@@ -62,10 +62,6 @@ impl From<samara_app::AppError> for Error {
             e => Error::Samara(e.to_string()),
         }
     }
-}
-
-fn value<T>(m: impl Into<String>) -> Result<T, Error> {
-    Err(Error::Value(m.into()))
 }
 
 type R<T> = Result<T, Error>;
@@ -242,10 +238,7 @@ impl PySpec {
         max_nodes: usize,
         lp_tighten: bool,
     ) -> PyResult<(Vec<PyObject>, Vec<String>)> {
-        let nets: HashMap<String, samara_nn::Network> = networks
-            .into_iter()
-            .map(|(k, v)| (k, v.net.clone()))
-            .collect();
+        let nets = owned(networks);
         let spec = self.spec.clone();
         let (run, warnings) = interruptible(py, move || {
             let start = Instant::now();
@@ -278,10 +271,7 @@ impl PySpec {
         max_nodes: usize,
         lp_tighten: bool,
     ) -> PyResult<(PyObject, Vec<String>)> {
-        let nets: HashMap<String, samara_nn::Network> = networks
-            .into_iter()
-            .map(|(k, v)| (k, v.net.clone()))
-            .collect();
+        let nets = owned(networks);
         let spec = self.spec.clone();
         let (c, warnings) = interruptible(py, move || {
             let l = bind(&spec, nets, &params, Some(&param), &datasets)?;
@@ -293,22 +283,23 @@ impl PySpec {
     }
 }
 
+/// The networks of a `networks={...}` argument, owned (the computation runs on a
+/// thread of its own).
+fn owned(networks: HashMap<String, PyRef<'_, PyNetwork>>) -> HashMap<String, samara_nn::Network> {
+    networks
+        .into_iter()
+        .map(|(k, v)| (k, v.net.clone()))
+        .collect()
+}
+
+/// The verifier's settings ([`front::verify_settings`]).
 fn settings(timeout: f64, max_nodes: usize, lp_tighten: bool) -> R<Settings> {
-    if timeout.is_nan() || timeout < 0.0 {
-        return value(format!(
-            "timeout {timeout}: must be a number of seconds >= 0 (float('inf') for no limit)"
-        ));
-    }
-    Ok(Settings {
+    Ok(front::verify_settings(
+        Front::Python,
         timeout,
         max_nodes,
-        lp_tighten: if lp_tighten {
-            LpTighten::Root
-        } else {
-            LpTighten::Off
-        },
-        ..Default::default()
-    })
+        lp_tighten,
+    )?)
 }
 
 /// Bind a spec's networks, parameters and data sets with the library's checks
@@ -452,108 +443,42 @@ type FlightRows<'py> = (Bound<'py, PyBytes>, usize, Vec<f64>, usize);
 #[pyo3(signature = (model, controller, ex, network, clip, y0, integrator, horizon, period))]
 fn simulate<'py>(
     py: Python<'py>,
-    model: &str,
+    model: String,
     controller: &str,
     ex: f64,
     network: Option<PyRef<'_, PyNetwork>>,
     clip: bool,
     y0: Option<Vec<f64>>,
-    integrator: &str,
+    integrator: String,
     horizon: f64,
     period: f64,
 ) -> PyResult<Vec<FlightRows<'py>>> {
-    use samara_plant::{Model, Plant, EX_RANGE};
-    use samara_sim::{
-        fly, initial_state, published_starts, ConstantController, Controller, Integrator,
-        LoopSettings, NetworkController, PidController,
-    };
-    let Some(model) = Model::from_name(model) else {
-        return Err(PyValueError::new_err(format!(
-            "model {model:?}: unknown model; choose one of plate6, reduced, full"
-        )));
-    };
-    let Some(integ) = Integrator::from_name(integrator) else {
-        return Err(PyValueError::new_err(format!(
-            "integrator {integrator:?}: unknown integrator; choose ode45, tight, dp5 or rk4"
-        )));
-    };
-    front::check_times(
-        Front::Python,
-        horizon,
-        period,
-        samara_app::bind::MAX_PERIOD,
-        100_000.0,
-    )
-    .map_err(Error::from)?;
-    let plant = Plant::new(model);
-    let mut ctl: Box<dyn Controller + Send> = match controller {
-        "pid" => {
-            if !model.has_filter() {
-                return Err(PyValueError::new_err("controller 'pid' needs the filter state E, which model `reduced` does not have; use model='plate6' or 'full', or another controller"));
-            }
-            Box::new(PidController::default())
-        }
-        "constant" => {
-            if !(EX_RANGE.0..=EX_RANGE.1).contains(&ex) {
-                return Err(PyValueError::new_err(format!(
-                    "controller=constant ex = {ex} is outside the allowed range [{}, {}]; choose a value inside it",
-                    EX_RANGE.0, EX_RANGE.1
-                )));
-            }
-            Box::new(ConstantController(ex))
-        }
-        "network" => {
-            let Some(n) = network else {
-                return Err(PyValueError::new_err("controller: a Network is needed"));
-            };
-            let net = controller_net(&n.net)?;
-            let c = if clip { Some(EX_RANGE) } else { None };
-            Box::new(NetworkController::new(net, c, "network"))
-        }
-        o => {
+    use front::ControllerRequest as C;
+    let controller = match (controller, network) {
+        ("pid", _) => C::Pid,
+        ("constant", _) => C::Constant(ex),
+        ("network", Some(n)) => C::Network {
+            net: n.net.clone(),
+            clip,
+        },
+        ("network", None) => return Err(PyValueError::new_err("controller: a Network is needed")),
+        (o, _) => {
             return Err(PyValueError::new_err(format!(
                 "controller {o:?}: expected 'pid', a number (a constant ex) or a samara.Network"
             )))
         }
     };
-    let starts = match y0 {
-        Some(v) => {
-            if v.is_empty() || v.len() > 100_000 {
-                return Err(PyValueError::new_err(format!(
-                    "y0: {} starts; give 1 to 100000",
-                    v.len()
-                )));
-            }
-            if let Some(y) = v.iter().find(|y| !(y.is_finite() && y.abs() <= 1000.0)) {
-                return Err(PyValueError::new_err(format!("y0: the height {y} is outside [-1000, 1000], the range in which the nondimensional model means anything (published starts: 1.43 to 4.29)")));
-            }
-            v
-        }
-        None => published_starts(),
-    };
-    let output_step = if (period / 0.01 - (period / 0.01).round()).abs() < 1e-9 {
-        Some(0.01)
-    } else {
-        Some(period / 50.0)
-    };
-    let settings = LoopSettings {
-        period,
+    let plan = front::SimulateRequest {
+        model,
+        controller,
+        y0,
+        integrator,
         horizon,
-        integrator: integ,
-        reset_filter: true,
-        output_step,
-    };
-    settings.steps().map_err(|e| py_value_error(&e))?;
-    let flights = interruptible(py, move || -> R<Vec<_>> {
-        let mut out = Vec::with_capacity(starts.len());
-        for &y in &starts {
-            let init = initial_state(&plant, y);
-            let f = fly(&plant, ctl.as_mut(), &init, &settings)
-                .map_err(|e| Error::Samara(e.to_string()))?;
-            out.push(f);
-        }
-        Ok(out)
-    })?;
+        period,
+    }
+    .plan(Front::Python, 100_000.0)
+    .map_err(Error::from)?;
+    let flights = interruptible(py, move || plan.fly().map_err(Error::Samara))?;
     Ok(flights
         .into_iter()
         .map(|f| {
@@ -628,20 +553,6 @@ fn merge_reach_system(py: Python<'_>, parts: Vec<Bound<'_, PyAny>>) -> PyResult<
     topy::to_py(py, &merged)
 }
 
-/// A 6-input, 1-output controller network with the state names (as the CLI's loader).
-fn controller_net(n: &samara_nn::Network) -> PyResult<samara_nn::Network> {
-    if n.n_inputs() != 6 || n.n_outputs() != 1 {
-        return Err(PyValueError::new_err(format!(
-            "the network has {} inputs and {} outputs; a controller needs 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and 1 output (ex)",
-            n.n_inputs(),
-            n.n_outputs()
-        )));
-    }
-    n.clone()
-        .with_names(&samara_nn::STATE_INPUTS, &["ex"])
-        .map_err(|e| py_value_error(&e))
-}
-
 /// A reachability analysis as `samara reach` runs it (no files): the typed `reach.json`
 /// (`samara_app::reach::ReachReport`: settings, verdict, final and sampled x + y, leaves
 /// with their enclosures per control instant) as Python objects. The arguments are
@@ -680,7 +591,7 @@ fn reach(
     }
     .settings(Front::Python)
     .map_err(Error::from)?;
-    let net = controller_net(&network.net)?;
+    let net = front::glider_controller("network", &network.net).map_err(Error::from)?;
     s.validate(&net).map_err(|e| py_value_error(&e))?;
     // The checks `samara reach` makes on its inputs and result, from the same library
     // calls: a network in the wrong units, an enclosure lost before the horizon.

@@ -179,6 +179,39 @@ pub fn check_times(
     Ok(())
 }
 
+/// The verifier's settings of a `verify`, `critical` or `robustness` call: `timeout`
+/// seconds per query (infinite: none; NaN or negative refused), `max_nodes` and the LP
+/// tightening at the root.
+pub fn verify_settings(
+    front: Front,
+    timeout: f64,
+    max_nodes: usize,
+    lp_tighten: bool,
+) -> Result<samara_verify::Settings> {
+    use samara_verify::LpTighten;
+    if timeout.is_nan() || timeout < 0.0 {
+        let none = match front {
+            Front::Cli => "inf",
+            Front::Python => "float('inf')",
+        };
+        return input(format!(
+            "{} {timeout}: must be a number of seconds >= 0 (e.g. {}; {none} for no limit)",
+            front.arg("timeout"),
+            front.eg("timeout", "60")
+        ));
+    }
+    Ok(samara_verify::Settings {
+        timeout,
+        max_nodes,
+        lp_tighten: if lp_tighten {
+            LpTighten::Root
+        } else {
+            LpTighten::Off
+        },
+        ..Default::default()
+    })
+}
+
 /// A worker-thread count: 1 to 1024 (`None`: all cores).
 pub fn check_threads(front: Front, threads: Option<usize>) -> Result<()> {
     match threads {
@@ -712,6 +745,177 @@ impl SystemPlan {
     }
 }
 
+/// A glider controller: a network of 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and
+/// 1 output (ex), named so; `label` names it in the message.
+pub fn glider_controller(label: &str, n: &samara_nn::Network) -> Result<samara_nn::Network> {
+    if n.n_inputs() != 6 || n.n_outputs() != 1 {
+        return input(format!(
+            "{label}: the network has {} inputs and {} outputs; a controller needs 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and 1 output (ex)",
+            n.n_inputs(),
+            n.n_outputs()
+        ));
+    }
+    n.clone()
+        .with_names(&samara_nn::STATE_INPUTS, &["ex"])
+        .map_err(|e| AppError::Input(e.to_string()))
+}
+
+/// The controller of a simulation (`samara.simulate`).
+#[derive(Clone, Debug)]
+pub enum ControllerRequest {
+    /// The published PID controller (needs the filter state E).
+    Pid,
+    /// A constant control `ex`.
+    Constant(f64),
+    /// A network in raw units, clipped to the actuator's range if `clip`.
+    Network {
+        /// The network.
+        net: samara_nn::Network,
+        /// Whether its output is clipped.
+        clip: bool,
+    },
+}
+
+/// The arguments of closed-loop flights of the glider (`samara.simulate`).
+#[derive(Clone, Debug)]
+pub struct SimulateRequest {
+    /// `plate6`, `reduced` or `full`.
+    pub model: String,
+    /// The controller.
+    pub controller: ControllerRequest,
+    /// The initial heights (`None`: the nine published starts).
+    pub y0: Option<Vec<f64>>,
+    /// `ode45`, `tight`, `dp5` or `rk4`.
+    pub integrator: String,
+    /// Horizon.
+    pub horizon: f64,
+    /// Control period.
+    pub period: f64,
+}
+
+/// A checked [`SimulateRequest`]: the plant, the controller, the loop's settings and
+/// the starts.
+pub struct SimulatePlan {
+    /// The plant.
+    pub plant: samara_plant::Plant,
+    /// The controller.
+    pub controller: Box<dyn samara_sim::Controller + Send>,
+    /// The sample-and-hold loop's settings.
+    pub settings: samara_sim::LoopSettings,
+    /// The initial heights.
+    pub starts: Vec<f64>,
+}
+
+impl SimulateRequest {
+    /// Check the arguments (most periods: `max_periods`).
+    pub fn plan(self, front: Front, max_periods: f64) -> Result<SimulatePlan> {
+        use samara_plant::{Plant, EX_RANGE};
+        use samara_sim::{
+            published_starts, ConstantController, Integrator, LoopSettings, NetworkController,
+            PidController,
+        };
+        let Some(model) = Model::from_name(&self.model) else {
+            return input(format!(
+                "{} {:?}: unknown model; choose one of plate6, reduced, full",
+                front.arg("model"),
+                self.model
+            ));
+        };
+        let Some(integrator) = Integrator::from_name(&self.integrator) else {
+            return input(format!(
+                "{} {:?}: unknown integrator; choose ode45, tight, dp5 or rk4",
+                front.arg("integrator"),
+                self.integrator
+            ));
+        };
+        let (h, p) = (self.horizon, self.period);
+        check_times(front, h, p, crate::bind::MAX_PERIOD, max_periods)?;
+        let controller: Box<dyn samara_sim::Controller + Send> = match self.controller {
+            ControllerRequest::Pid => {
+                if !model.has_filter() {
+                    return input(format!(
+                        "{} 'pid' needs the filter state E, which model `reduced` does not have; use {} or 'full', or another controller",
+                        front.arg("controller"),
+                        front.eg("model", "'plate6'")
+                    ));
+                }
+                Box::new(PidController::default())
+            }
+            ControllerRequest::Constant(ex) => {
+                if !(EX_RANGE.0..=EX_RANGE.1).contains(&ex) {
+                    return input(format!(
+                        "{} constant ex = {ex} is outside the allowed range [{}, {}]; choose a value inside it",
+                        front.arg("controller"),
+                        EX_RANGE.0,
+                        EX_RANGE.1
+                    ));
+                }
+                Box::new(ConstantController(ex))
+            }
+            ControllerRequest::Network { net, clip } => {
+                let net = glider_controller(&front.arg("controller"), &net)?;
+                let c = if clip { Some(EX_RANGE) } else { None };
+                Box::new(NetworkController::new(net, c, "network"))
+            }
+        };
+        let starts = match self.y0 {
+            Some(v) => {
+                if v.is_empty() || v.len() > 100_000 {
+                    return input(format!(
+                        "{}: {} starts; give 1 to 100000",
+                        front.arg("y0"),
+                        v.len()
+                    ));
+                }
+                if let Some(y) = v.iter().find(|y| !(y.is_finite() && y.abs() <= 1000.0)) {
+                    return input(format!(
+                        "{}: the height {y} is outside [-1000, 1000], the range in which the nondimensional model means anything (published starts: 1.43 to 4.29)",
+                        front.arg("y0")
+                    ));
+                }
+                v
+            }
+            None => published_starts(),
+        };
+        // Dense output every 0.01 when it divides the period, else 50 points a period.
+        let output_step = if (p / 0.01 - (p / 0.01).round()).abs() < 1e-9 {
+            Some(0.01)
+        } else {
+            Some(p / 50.0)
+        };
+        let settings = LoopSettings {
+            period: p,
+            horizon: h,
+            integrator,
+            reset_filter: true,
+            output_step,
+        };
+        settings
+            .steps()
+            .map_err(|e| AppError::Input(front.words(&e.to_string())))?;
+        Ok(SimulatePlan {
+            plant: Plant::new(model),
+            controller,
+            settings,
+            starts,
+        })
+    }
+}
+
+impl SimulatePlan {
+    /// Fly every start; the error is the integrator's message.
+    pub fn fly(mut self) -> std::result::Result<Vec<samara_sim::Flight>, String> {
+        let mut out = Vec::with_capacity(self.starts.len());
+        for &y in &self.starts {
+            let init = samara_sim::initial_state(&self.plant, y);
+            let f = samara_sim::fly(&self.plant, self.controller.as_mut(), &init, &self.settings)
+                .map_err(|e| e.to_string())?;
+            out.push(f);
+        }
+        Ok(out)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -775,6 +979,22 @@ mod tests {
             s.goal.as_ref().map(|g| (g.ystar, g.from)),
             Some((2.0, None))
         );
+    }
+
+    #[test]
+    fn a_bad_timeout_is_named_in_each_front() {
+        let py = verify_settings(Front::Python, -1.0, 10, false).unwrap_err();
+        assert_eq!(
+            py.to_string(),
+            "timeout -1: must be a number of seconds >= 0 (e.g. timeout=60; float('inf') for no limit)"
+        );
+        let cli = verify_settings(Front::Cli, f64::NAN, 10, false).unwrap_err();
+        assert_eq!(
+            cli.to_string(),
+            "--timeout NaN: must be a number of seconds >= 0 (e.g. --timeout 60; inf for no limit)"
+        );
+        let s = verify_settings(Front::Python, f64::INFINITY, 10, true).unwrap();
+        assert_eq!((s.timeout, s.max_nodes), (f64::INFINITY, 10));
     }
 
     #[test]
