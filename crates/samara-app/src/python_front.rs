@@ -377,6 +377,30 @@ impl TrainReport {
     }
 }
 
+impl TrainReport {
+    /// The `samara train --json` summary of this run, whose network and log were
+    /// written to `out` and `log`: the same numbers, so the CLI can print it from the
+    /// report instead of filling the fields again.
+    pub fn summary(&self, out: String, log: String) -> crate::train::TrainSummary {
+        crate::train::TrainSummary {
+            method: self.method.clone(),
+            out,
+            log,
+            test_rows: self.test_rows,
+            r2: self.r2,
+            rmse: self.rmse,
+            mae: self.mae,
+            eps: self.eps,
+            attack_worst_deviation: self.attack_worst_deviation,
+            attack_mean_deviation: self.attack_mean_deviation,
+            seed: self.seed,
+            init_seed: self.init_seed,
+            restarts: self.restarts,
+            restart_log: self.restart_log.clone(),
+        }
+    }
+}
+
 /// One data point at one radius: a row of `samara robustness --out`'s CSV.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct PointRow {
