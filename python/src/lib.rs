@@ -17,7 +17,7 @@ use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyBytes;
-use samara_app::python_front::{self as front, GridPart, ReachRequest, TrainReport};
+use samara_app::python_front::{self as front, GridPart, InWords, ReachRequest, TrainReport};
 use samara_app::{Front, Loaded};
 use samara_verify::Settings;
 use std::borrow::Cow;
@@ -245,11 +245,11 @@ impl PySpec {
             let l = bind(&spec, nets, &params, None, &datasets)?;
             let s = settings(timeout, max_nodes, lp_tighten)?;
             let run = samara_app::run_verify(&l, property.as_deref(), &s, start, false, |_| {})?;
-            Ok((run, l.warnings))
+            Ok((run, python_words(l.warnings)))
         })?;
         let rows = run
             .rows()
-            .map(|r| topy::to_py(py, r))
+            .map(|r| topy::to_py(py, &r.clone().in_words(Front::Python)))
             .collect::<PyResult<Vec<_>>>()?;
         Ok((rows, warnings))
     }
@@ -277,10 +277,15 @@ impl PySpec {
             let l = bind(&spec, nets, &params, Some(&param), &datasets)?;
             let s = settings(timeout, max_nodes, lp_tighten)?;
             let c = samara_app::critical_value(&l, &property, &param, &s)?;
-            Ok((c, l.warnings))
+            Ok((c, python_words(l.warnings)))
         })?;
-        Ok((topy::to_py(py, &c)?, warnings))
+        Ok((topy::to_py(py, &c.in_words(Front::Python))?, warnings))
     }
+}
+
+/// Messages in Python's words ([`Front::words`]).
+fn python_words(ms: Vec<String>) -> Vec<String> {
+    ms.iter().map(|m| Front::Python.words(m)).collect()
 }
 
 /// The networks of a `networks={...}` argument, owned (the computation runs on a
@@ -537,7 +542,7 @@ fn reach_system(
         plan.run(&sys, &net)
             .map_err(|e| Error::Samara(format!("{file}: {e}")))
     })?;
-    topy::to_py(py, &part)
+    topy::to_py(py, &part.in_words(Front::Python))
 }
 
 /// Merge the results of `reach_system` over consecutive cell ranges, in cell order,
@@ -550,6 +555,7 @@ fn merge_reach_system(py: Python<'_>, parts: Vec<Bound<'_, PyAny>>) -> PyResult<
         .map(|(i, p)| frompy::from_py::<GridPart>(p, &format!("parts[{i}]")))
         .collect::<PyResult<Vec<_>>>()?;
     let merged = front::merge_grid_parts(parts, "parts").map_err(Error::from)?;
+    let merged = merged.in_words(Front::Python);
     topy::to_py(py, &merged)
 }
 
@@ -620,9 +626,7 @@ fn reach(
         .map_err(|e| Error::Samara(e.to_string()))?;
         let o = samara_app::reach::Outcome::of(&res, &s, warnings);
         let echo = samara_app::reach::SettingsEcho::new(&network_name, n_threads, &s);
-        Ok(samara_app::reach::ReachReport::new(
-            echo, &s, &o, res.leaves,
-        ))
+        Ok(samara_app::reach::ReachReport::new(echo, &s, &o, res.leaves).in_words(Front::Python))
     })?;
     topy::to_py(py, &r)
 }

@@ -88,6 +88,9 @@ def test_unknown_result_carries_its_reason(net):
     assert res[0].verdict in ("unknown", "proved", "violated")
     if res[0].verdict == "unknown":
         assert res[0].unknown_reason.kind and res[0].unknown_reason.message
+        assert "--" not in res[0].unknown_reason.message, res[0].unknown_reason.message
+        cx = res[0].counterexample
+        assert cx is None or cx.reason is None or "--" not in cx.reason, cx
 
 
 def test_p5_on_an_array_dataset(net):
@@ -184,3 +187,5 @@ def test_timeout_is_a_deadline_for_critical():
     r = samara.Spec(SPEC).critical(property="p1", param="ystar", networks={"f": net}, timeout=1.0)
     assert time.monotonic() - t0 < 2.0
     assert r.holds == "unknown" and r.unknown_reason.kind == "timeout"
+    # In Python's words: the keyword argument, not the CLI's flag (issue 38).
+    assert "(raise timeout)" in r.unknown_reason.message and "--" not in r.unknown_reason.message

@@ -940,6 +940,79 @@ impl SimulatePlan {
     }
 }
 
+/// The messages inside a result in `front`'s words ([`Front::words`]): the library
+/// writes its reasons naming the CLI's flags ("time limit reached (raise --timeout)"),
+/// which Python users know as keyword arguments ("raise timeout").
+pub trait InWords {
+    /// The result with every message in `front`'s words.
+    fn in_words(self, front: Front) -> Self;
+}
+
+fn words_opt(front: Front, m: &mut Option<String>) {
+    if let Some(t) = m {
+        *t = front.words(t);
+    }
+}
+
+impl InWords for crate::Reason {
+    fn in_words(mut self, front: Front) -> Self {
+        self.message = front.words(&self.message);
+        self
+    }
+}
+
+impl InWords for crate::VerdictRow {
+    fn in_words(mut self, front: Front) -> Self {
+        use crate::verify::RowCounterexample;
+        self.unknown_reason = self.unknown_reason.map(|r| r.in_words(front));
+        if let Some(RowCounterexample::Reason { reason }) = &mut self.counterexample {
+            *reason = front.words(reason);
+        }
+        words_opt(front, &mut self.vacuity);
+        self
+    }
+}
+
+impl InWords for crate::CriticalValue {
+    fn in_words(mut self, front: Front) -> Self {
+        self.unknown_reason = self.unknown_reason.map(|r| r.in_words(front));
+        self
+    }
+}
+
+impl InWords for crate::reach::ReachReport {
+    fn in_words(mut self, front: Front) -> Self {
+        use crate::reach::VerdictReport;
+        match &mut self.verdict {
+            VerdictReport::Unknown { reason } | VerdictReport::Violated { reason, .. } => {
+                *reason = front.words(reason)
+            }
+            VerdictReport::Proved | VerdictReport::NoGoal => {}
+        }
+        words_opt(front, &mut self.enclosure_lost);
+        for w in &mut self.warnings {
+            *w = front.words(w);
+        }
+        for l in &mut self.leaves {
+            words_opt(front, &mut l.failure);
+        }
+        self
+    }
+}
+
+impl InWords for GridPart {
+    fn in_words(mut self, front: Front) -> Self {
+        use samara_reach::system::SystemVerdict;
+        if let SystemVerdict::Unknown { reason } = &mut self.reach.verdict {
+            *reason = front.words(reason);
+        }
+        for l in &mut self.reach.leaves {
+            words_opt(front, &mut l.failure);
+        }
+        self
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1003,6 +1076,19 @@ mod tests {
             s.goal.as_ref().map(|g| (g.ystar, g.from)),
             Some((2.0, None))
         );
+    }
+
+    #[test]
+    fn reasons_in_results_name_python_arguments() {
+        let r = crate::Reason {
+            kind: "timeout".into(),
+            message: "time limit reached after 31 nodes (raise --timeout)".into(),
+        };
+        assert_eq!(
+            r.clone().in_words(Front::Python).message,
+            "time limit reached after 31 nodes (raise timeout)"
+        );
+        assert_eq!(r.clone().in_words(Front::Cli), r);
     }
 
     #[test]
