@@ -1,12 +1,16 @@
 """samara from Python, notebook style: the case study's headline numbers, then a
 network trained in PyTorch a minute ago, verified exactly.
 
-    python python/examples/notebook.py            # from the repository root
+    python python/examples/notebook.py     # from the repository root, or
+    python notebook.py                     # from python/examples: any folder works
 
-Needs the ``samara`` wheel (docs/python.md) and numpy; the PyTorch part runs when torch
-is installed and is skipped (with a message) otherwise. The published files are read
-from ../shared/reference (or $SAMARA_REFERENCE). Every cell checks what it prints, so
-the script exits non-zero when a number is off.
+The paths are found from this file's own place, not the current folder: the
+repository is two folders up, the spec is models/alsomitra/alsomitra.spec in it, and
+the published files are in ../shared/reference beside the checkout (or in
+$SAMARA_REFERENCE). Needs the ``samara`` wheel (docs/python.md) and numpy; the PyTorch
+part runs when torch is installed and is skipped (with a message) otherwise. Every cell
+checks what it prints, so the script exits non-zero when a number is off. Results are
+typed: ``r.verdict == "proved"``, ``r.final_x_plus_y`` a numpy array.
 """
 
 import os
@@ -43,9 +47,9 @@ adv = samara.Network.from_onnx(REF / "adversarial_model_denorm.onnx")
 t = time.perf_counter()
 r = samara.reach(adv, goal_ystar=2.0)
 lo, hi = r.final_x_plus_y
-print(f"reach: {r.verdict['verdict']}, x + y at t = 20 in [{lo:.4f}, {hi:.4f}], "
+print(f"reach: {r.verdict}, x + y at t = 20 in [{lo:.4f}, {hi:.4f}], "
       f"{r.subproblems} sub-boxes, {time.perf_counter() - t:.2f} s")
-assert r.proved and -2.0 <= lo <= hi <= 2.0
+assert r.verdict == "proved" and -2.0 <= lo <= hi <= 2.0
 # The enclosure contains the sampled flights the run made (reach.json's own samples).
 slo, shi = r.sampled_x_plus_y
 assert lo <= slo <= shi <= hi

@@ -31,6 +31,20 @@ __version__ = _samara.__version__
 
 __all__ = [
     "SystemReachResult",
+    "SystemLeaf",
+    "Measure",
+    "ReachSettings",
+    "ReachGoal",
+    "ReachCounterexample",
+    "ReachLeaf",
+    "Reason",
+    "NetworkPoint",
+    "VerifyCounterexample",
+    "RobustnessCell",
+    "RobustnessPoint",
+    "Flight",
+    "TrainReport",
+    "Restart",
     "reach_system",
     "Network",
     "Spec",
@@ -218,112 +232,195 @@ def _network_from_bytes(b: bytes, source: str = "<bytes>") -> Network:
     return n
 
 
-class _Result:
-    """Fields of the CLI's ``--json`` output as attributes; ``as_dict()`` gives them all."""
-
-    def __init__(self, d: Dict[str, Any]):
-        self.__dict__["_d"] = d
-
-    def as_dict(self) -> Dict[str, Any]:
-        return dict(self._d)
-
-    def __getattr__(self, k: str) -> Any:
-        try:
-            return self.__dict__["_d"][k]
-        except KeyError:
-            raise AttributeError(k) from None
-
-    def __getitem__(self, k: str) -> Any:
-        return self._d[k]
-
-    def __eq__(self, other: object) -> bool:
-        return isinstance(other, _Result) and type(other) is type(self) and other._d == self._d
-
-    def __repr__(self) -> str:
-        # One short line: the verdict and the scalar fields (the full data: as_dict()).
-        parts = []
-        for k, v in self._d.items():
-            if k == "verdict" and isinstance(v, dict):
-                v = v.get("verdict")
-            if v is None or isinstance(v, (str, bool, int, float)):
-                r = repr(v)
-                if len(r) <= 40:
-                    parts.append(f"{k}={r}")
-            if len(parts) == 6:
-                break
-        return f"{type(self).__name__}({', '.join(parts)}, ...)"
-
-    def __dir__(self) -> List[str]:
-        return sorted(set(super().__dir__()) | set(self._d))
-
-    def __setattr__(self, k: str, v: Any) -> None:
-        raise AttributeError(
-            f"{type(self).__name__} is read-only: its fields are results (copy as_dict() to change them)"
-        )
-
-    def __delattr__(self, k: str) -> None:
-        raise AttributeError(f"{type(self).__name__} is read-only")
-
-    def __reduce__(self):
-        return (type(self), (self._d,))
+def _same(a: Any, b: Any) -> bool:
+    """Equality of result fields: arrays element by element (NaN equal to NaN), lists,
+    tuples and dicts item by item, anything else by ``==``."""
+    if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+        a, b = np.asarray(a), np.asarray(b)
+        if a.shape != b.shape:
+            return False
+        if a.dtype.kind == "f" or b.dtype.kind == "f":
+            return bool(np.array_equal(a, b, equal_nan=True))
+        return bool(np.array_equal(a, b))
+    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
+        return len(a) == len(b) and all(_same(x, y) for x, y in zip(a, b))
+    if isinstance(a, dict) and isinstance(b, dict):
+        return a.keys() == b.keys() and all(_same(a[k], b[k]) for k in a)
+    if isinstance(a, float) and isinstance(b, float) and math.isnan(a) and math.isnan(b):
+        return True
+    return bool(a == b)
 
 
 class _Typed:
-    """Base of the typed results (frozen dataclasses built from the library's typed
-    values): fields are attributes (in ``dir()``, not assignable), ``as_dict()`` gives
-    them all as plain data, ``r["field"]`` reads one, and ``repr`` is one short line."""
+    """Base of samara's results: frozen dataclasses built from the library's typed
+    values (the native module hands over their fields; no JSON text in between).
+    Fields are attributes (listed by ``dir()``), assignment raises
+    ``dataclasses.FrozenInstanceError`` (an ``AttributeError``) naming the field,
+    ``repr`` is one short line of the scalar fields, numbers that form arrays are numpy
+    float64 arrays, ``==`` compares fields (arrays element-wise, NaN equal to NaN) and
+    ``as_dict()`` gives every field as plain data (nested results as dicts)."""
 
     _REPR: Tuple[str, ...] = ()
 
     def as_dict(self) -> Dict[str, Any]:
-        return dataclasses.asdict(self)
-
-    def __getitem__(self, k: str) -> Any:
-        if k not in {f.name for f in dataclasses.fields(self)}:
-            raise KeyError(k)
-        return getattr(self, k)
+        return dataclasses.asdict(self)  # type: ignore[call-overload]
 
     def __repr__(self) -> str:
-        parts = ", ".join(f"{k}={getattr(self, k)!r}" for k in self._REPR)
-        return f"{type(self).__name__}({parts})"
+        parts = []
+        for k in self._REPR:
+            v = getattr(self, k)
+            if isinstance(v, np.ndarray):
+                v = v.tolist()
+            r = repr(v)
+            parts.append(f"{k}={r if len(r) <= 60 else r[:57] + '...'}")
+        more = len(dataclasses.fields(self)) > len(self._REPR)  # type: ignore[arg-type]
+        return f"{type(self).__name__}({', '.join(parts)}{', ...' if more else ''})"
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return all(
+            _same(getattr(self, f.name), getattr(other, f.name))
+            for f in dataclasses.fields(self)  # type: ignore[arg-type]
+        )
+
+    __hash__ = None  # type: ignore[assignment]
+
+    def __setattr__(self, k: str, v: Any) -> None:
+        raise dataclasses.FrozenInstanceError(
+            f"{type(self).__name__}.{k}: a result is read-only; "
+            f"dataclasses.replace(r, {k}=...) makes a changed copy"
+        )
+
+    def __delattr__(self, k: str) -> None:
+        raise dataclasses.FrozenInstanceError(f"{type(self).__name__}.{k}: a result is read-only")
 
 
-@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+_T = Any
+
+
+def _result(cls: _T) -> _T:
+    """A frozen dataclass over :class:`_Typed` (its messages for assignment)."""
+    cls = dataclasses.dataclass(frozen=True, repr=False, eq=False)(cls)
+    # The dataclass's own __setattr__/__delattr__ say only "cannot assign to field";
+    # _Typed's name the field and the way to a changed copy.
+    del cls.__setattr__
+    del cls.__delattr__
+    return cls
+
+
+def _floats(v: Any, shape: Tuple[int, ...] = ()) -> np.ndarray:
+    """A float64 array of `v` (None: NaN), of `shape` when `v` is empty."""
+    if v is None:
+        return np.full(shape or (2,), np.nan)
+    a = np.array(v, dtype=np.float64)
+    return a.reshape(shape) if a.size == 0 and shape else a
+
+
+def _opt_pair(v: Any) -> Optional[Tuple[float, float]]:
+    return None if v is None else (float(v[0]), float(v[1]))
+
+
+@_result
+class Reason(_Typed):
+    """Why a search gave no verdict: ``kind`` (``timeout``, ``node_limit``, ...) and the
+    human ``message``."""
+
+    kind: str
+    message: str
+
+    _REPR = ("kind",)
+
+    @classmethod
+    def _of(cls, d: Optional[Dict[str, Any]]) -> Optional["Reason"]:
+        return None if d is None else cls(**d)
+
+
+@_result
+class NetworkPoint(_Typed):
+    """A point of one network application: the ``network``'s name and ``values`` (its
+    inputs and outputs by name, in the spec's physical units)."""
+
+    network: str
+    values: Dict[str, float]
+
+    _REPR = ("network",)
+
+
+def _point(v: Optional[List[Dict[str, Any]]]) -> Optional[List[NetworkPoint]]:
+    return None if v is None else [NetworkPoint(network=a["network"], values=dict(a["values"])) for a in v]
+
+
+def _flat_point(apps: List[NetworkPoint]) -> Dict[str, float]:
+    out: Dict[str, float] = {}
+    multi = len(apps) > 1
+    for i, a in enumerate(apps):
+        for k, v in a.values.items():
+            out[f"{a.network}[{i}].{k}" if multi else k] = v
+    return out
+
+
+@_result
+class VerifyCounterexample(_Typed):
+    """The counterexample of a verdict row: ``point`` (one :class:`NetworkPoint` per
+    network application), its ``margin`` and ``exact_check`` (re-evaluated exactly);
+    or, for an unknown verdict with a candidate, only ``reason``."""
+
+    point: Optional[List[NetworkPoint]]
+    margin: Optional[float]
+    exact_check: Optional[bool]
+    reason: Optional[str]
+
+    _REPR = ("margin", "exact_check", "reason")
+
+    @classmethod
+    def _of(cls, d: Optional[Dict[str, Any]]) -> Optional["VerifyCounterexample"]:
+        if d is None:
+            return None
+        return cls(point=_point(d.get("point")), margin=d.get("margin"),
+                   exact_check=d.get("exact_check"), reason=d.get("reason"))
+
+
+@_result
 class VerifyResult(_Typed):
     """One property instance of :meth:`Spec.verify` (the library's verdict row, the
     fields of ``samara verify --json``): ``property``, ``verdict`` ('proved' |
-    'violated' | 'unknown'), ``counterexample`` (``{'point': [{'network', 'values':
-    {name: value}}], 'margin', 'exact_check'}``, ``{'reason'}`` when unknown, or None),
-    ``seconds``, ``vacuous``, ``vacuity``, ``unknown_reason`` (``{'kind', 'message'}``
-    or None). ``witness`` is the counterexample's values as one dict."""
+    'violated' | 'unknown'), ``counterexample`` (:class:`VerifyCounterexample` or
+    None), ``seconds``, ``vacuous``, ``vacuity``, ``unknown_reason``
+    (:class:`Reason` or None). ``witness`` is the counterexample's values as one dict."""
 
     property: str
     verdict: str
-    counterexample: Optional[Dict[str, Any]]
+    counterexample: Optional[VerifyCounterexample]
     seconds: float
     vacuous: bool
     vacuity: Optional[str]
-    unknown_reason: Optional[Dict[str, str]]
+    unknown_reason: Optional[Reason]
 
     _REPR = ("property", "verdict", "seconds")
+
+    @classmethod
+    def _of(cls, d: Dict[str, Any]) -> "VerifyResult":
+        return cls(**dict(d, counterexample=VerifyCounterexample._of(d["counterexample"]),
+                          unknown_reason=Reason._of(d["unknown_reason"])))
 
     @property
     def witness(self) -> Optional[Dict[str, float]]:
         cx = self.counterexample
-        if not cx or "point" not in cx:
+        if cx is None or cx.point is None:
             return None
-        return _flat_point(cx["point"])
+        return _flat_point(cx.point)
 
 
-@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+@_result
 class CriticalResult(_Typed):
     """The result of :meth:`Spec.critical` (the library's critical value, the fields of
     ``samara critical --json``): ``property``, ``parameter``, ``holds`` ('above' |
     'below' | 'everywhere' | 'nowhere' | 'unknown'), ``critical``, ``bound``,
     ``threshold``, ``attained``, ``vacuous``, ``domain_extreme``,
-    ``counterexample_range`` (inf, sup), ``witness`` (as the CLI: a list of
-    ``{'network', 'values'}``), ``complete``, ``unknown_reason``, ``seconds``.
-    ``witness_values`` is the witness as one dict."""
+    ``counterexample_range`` (inf, sup), ``witness`` (one :class:`NetworkPoint` per
+    application, or None), ``complete``, ``unknown_reason`` (:class:`Reason` or None),
+    ``seconds``. ``witness_values`` is the witness as one dict."""
 
     property: str
     parameter: str
@@ -335,46 +432,83 @@ class CriticalResult(_Typed):
     vacuous: bool
     domain_extreme: Optional[float]
     counterexample_range: Tuple[Optional[float], Optional[float]]
-    witness: Optional[List[Dict[str, Any]]]
+    witness: Optional[List[NetworkPoint]]
     complete: bool
-    unknown_reason: Optional[Dict[str, str]]
+    unknown_reason: Optional[Reason]
     seconds: float
 
     _REPR = ("property", "parameter", "holds", "critical", "threshold")
+
+    @classmethod
+    def _of(cls, d: Dict[str, Any]) -> "CriticalResult":
+        return cls(**dict(d, counterexample_range=tuple(d["counterexample_range"]),
+                          witness=_point(d["witness"]), unknown_reason=Reason._of(d["unknown_reason"])))
 
     @property
     def witness_values(self) -> Optional[Dict[str, float]]:
         return None if self.witness is None else _flat_point(self.witness)
 
 
-@dataclasses.dataclass(frozen=True, repr=False, eq=True)
+@_result
+class RobustnessCell(_Typed):
+    """One cell of the robustness table: the points at radius ``eps`` and bound ``L``
+    that are ``proved``, ``violated`` or ``unknown``, and ``success_rate`` (proved over
+    all points)."""
+
+    eps: float
+    L: float
+    proved: int
+    violated: int
+    unknown: int
+    success_rate: float
+
+    _REPR = ("eps", "L", "proved", "violated", "unknown")
+
+
+@_result
+class RobustnessPoint(_Typed):
+    """One data point at one radius (a row of ``samara robustness --out``'s CSV):
+    ``index`` (the row of ``data``, counted from 0), ``eps``, the output's bounds
+    ``f_min``/``f_max`` over the ball, ``reference``, ``max_deviation`` and the
+    Lipschitz bounds ``lipschitz_lower``/``lipschitz_upper``."""
+
+    index: int
+    eps: float
+    f_min: float
+    f_max: float
+    reference: float
+    max_deviation: float
+    lipschitz_lower: float
+    lipschitz_upper: float
+
+    _REPR = ("index", "eps", "max_deviation")
+
+
+@_result
 class RobustnessResult(_Typed):
     """The result of :func:`robustness` (the library's robustness table, the fields of
     ``samara robustness --json``): ``form``, ``points``, ``seconds``, ``table`` (rows
-    eps, columns L: ``{'eps', 'L', 'proved', 'violated', 'unknown', 'success_rate'}``),
-    plus ``per_point`` (the CSV of ``--out`` as dicts, rows counted from 0).
-    ``success_rate`` is the table as a numpy array."""
+    eps, columns L, each a :class:`RobustnessCell`), plus ``per_point`` (one
+    :class:`RobustnessPoint` per point and radius). ``success_rate`` is the table as a
+    numpy array."""
 
     form: str
     points: int
     seconds: float
-    table: List[List[Dict[str, Any]]]
-    per_point: List[Dict[str, Any]]
+    table: List[List[RobustnessCell]]
+    per_point: List[RobustnessPoint]
 
     _REPR = ("form", "points", "seconds")
 
+    @classmethod
+    def _of(cls, d: Dict[str, Any]) -> "RobustnessResult":
+        return cls(form=d["form"], points=d["points"], seconds=d["seconds"],
+                   table=[[RobustnessCell(**c) for c in row] for row in d["table"]],
+                   per_point=[RobustnessPoint(**p) for p in d["per_point"]])
+
     @property
     def success_rate(self) -> np.ndarray:
-        return np.array([[c["success_rate"] for c in row] for row in self.table])
-
-
-def _flat_point(apps: List[Dict[str, Any]]) -> Dict[str, float]:
-    out: Dict[str, float] = {}
-    multi = len(apps) > 1
-    for i, a in enumerate(apps):
-        for k, v in a["values"].items():
-            out[f"{a['network']}[{i}].{k}" if multi else k] = v
-    return out
+        return np.array([[c.success_rate for c in row] for row in self.table], dtype=np.float64)
 
 
 class _Datasets:
@@ -531,7 +665,7 @@ class Spec:
                 _nets(networks), _params(params), ds, property, _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
             )
         _warn(ws)
-        return [VerifyResult(**d) for d in rows]
+        return [VerifyResult._of(d) for d in rows]
 
     def critical(
         self,
@@ -552,7 +686,7 @@ class Spec:
                 _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
             )
         _warn(ws)
-        return CriticalResult(**d)
+        return CriticalResult._of(d)
 
     def __repr__(self) -> str:
         return f"Spec({self._spec.file!r}, properties={self.properties})"
@@ -584,7 +718,7 @@ def robustness(
         raise ValueError(f"data: shape {a.shape}, expected (rows, columns)")
     a = np.ascontiguousarray(a)
     d = _samara.robustness(
-        network._net,
+        _network("network", network),
         a.tobytes(),
         a.shape[0],
         a.shape[1],
@@ -595,7 +729,7 @@ def robustness(
         _timeout(timeout),
         _count("max_nodes", max_nodes),
     )
-    return RobustnessResult(**d)
+    return RobustnessResult._of(d)
 
 
 STATE_NAMES = ["v_xp", "v_yp", "omega", "theta", "x", "y", "E"]
@@ -609,16 +743,14 @@ def simulate(
     horizon: float = 20.0,
     period: float = 0.5,
     clip: bool = True,
-) -> List[Dict[str, Any]]:
+) -> List["Flight"]:
     """Closed-loop flights as ``samara simulate`` flies them (no files written).
 
     ``controller``: ``"pid"``, a number (a constant ex in [0.181, 0.193]) or a
     :class:`Network` (6 raw inputs, 1 raw output; clipped to [0.181, 0.193] unless
     ``clip=False``). ``y0``: initial heights (default: the nine published starts).
 
-    One dict per start: ``y0``, ``t`` (n,), ``states`` (n, dim) with columns
-    ``state_names``, ``ex`` (n,) (the control held from each row on), ``initial``,
-    ``final_state`` and ``rhs_evals``."""
+    One :class:`Flight` per start."""
     net = None
     ex = 0.0
     if isinstance(controller, Network):
@@ -627,6 +759,10 @@ def simulate(
         kind, ex = "constant", float(controller.split(":", 1)[1])
     elif isinstance(controller, (int, float)) and not isinstance(controller, bool):
         kind, ex = "constant", float(controller)
+    elif isinstance(controller, (str, os.PathLike)) and str(controller).endswith((".onnx", ".nnet")):
+        raise TypeError(
+            f"controller={str(controller)!r}: a path; pass samara.Network.from_onnx(path) (or 'pid', or a number)"
+        )
     else:
         kind = str(controller)
     starts = None if y0 is None else [float(v) for v in np.atleast_1d(np.asarray(y0, dtype=np.float64))]
@@ -638,18 +774,37 @@ def simulate(
         a = np.frombuffer(data, dtype=np.float64).reshape(-1, width)
         dim = width - 2
         out.append(
-            {
-                "y0": initial[5],
-                "t": a[:, 0].copy(),
-                "ex": a[:, 1].copy(),
-                "states": a[:, 2:].copy(),
-                "state_names": STATE_NAMES[:dim],
-                "initial": np.array(initial),
-                "final_state": dict(zip(STATE_NAMES[:dim], a[-1, 2:].tolist())),
-                "rhs_evals": evals,
-            }
+            Flight(
+                y0=initial[5],
+                t=a[:, 0].copy(),
+                ex=a[:, 1].copy(),
+                states=a[:, 2:].copy(),
+                state_names=STATE_NAMES[:dim],
+                initial=np.array(initial),
+                final_state=dict(zip(STATE_NAMES[:dim], a[-1, 2:].tolist())),
+                rhs_evals=evals,
+            )
         )
     return out
+
+
+@_result
+class Flight(_Typed):
+    """One closed-loop flight of :func:`simulate`: its start height ``y0``, ``t`` (n,),
+    ``ex`` (n,) (the control held from each row on), ``states`` (n, dim) with columns
+    ``state_names``, ``initial`` (the initial state), ``final_state`` (by name) and
+    ``rhs_evals`` (right-hand-side evaluations)."""
+
+    y0: float
+    t: np.ndarray
+    ex: np.ndarray
+    states: np.ndarray
+    state_names: List[str]
+    initial: np.ndarray
+    final_state: Dict[str, float]
+    rhs_evals: int
+
+    _REPR = ("y0", "rhs_evals")
 
 
 def _interval(name: str, v: Any) -> Tuple[float, float]:
@@ -661,69 +816,209 @@ def _interval(name: str, v: Any) -> Tuple[float, float]:
     return (float(a[0]), float(a[-1]))
 
 
-def _iv(v: Any) -> List[float]:
-    return [math.nan if x is None else x for x in v]
+def _network(name: str, v: Any) -> "_samara.Network":
+    """The native network of argument `name`, or a TypeError naming it (a path is not
+    a network)."""
+    if not isinstance(v, Network):
+        hint = " (a path: load it with samara.Network.from_onnx(path))" if isinstance(v, (str, os.PathLike)) else ""
+        raise TypeError(f"{name}={v!r}: expected samara.Network{hint}")
+    return v._net
 
 
-class ReachResult(_Result):
-    """The result of :func:`reach` (the fields of ``samara reach``'s ``reach.json``:
-    ``settings``, ``verdict`` (``{'verdict': 'proved' | 'violated' | 'unknown' | 'none',
-    'reason'?, 'counterexample'?}``), ``final_x_plus_y``, ``sampled_x_plus_y``,
-    ``width_ratio``, ``subproblems``, ``seconds``, ``sampled_trajectories``,
-    ``state_names``, ``leaves``, ``warnings`` (a network in the wrong units) and
-    ``enclosure_lost`` (``None``, or where the sets stopped before the horizon, which
-    ``samara reach`` reports with exit code 1)), plus arrays per control instant:
+@_result
+class ReachGoal(_Typed):
+    """The goal |x + y| <= ``ystar`` at the horizon, or on [``from_``, horizon]."""
+
+    ystar: float
+    from_: Optional[float]
+
+    _REPR = ("ystar", "from_")
+
+
+@_result
+class ReachSettings(_Typed):
+    """The settings of a :func:`reach` run as ``reach.json`` records them: ``network``
+    (where the network came from: its path, ``<bytes>``, ``<torch ...>``), ``model``,
+    ``init`` (state -> (lo, hi)), ``horizon``, ``period``, ``clip``, ``reset_filter``,
+    ``goal`` (:class:`ReachGoal` or None), ``max_leaves``, ``initial_splits``,
+    ``samples``, ``seed`` and ``threads`` (the worker threads it ran on)."""
+
+    network: str
+    model: str
+    init: Dict[str, Tuple[float, float]]
+    horizon: float
+    period: float
+    clip: Optional[Tuple[float, float]]
+    reset_filter: bool
+    goal: Optional[ReachGoal]
+    max_leaves: int
+    initial_splits: int
+    samples: int
+    seed: int
+    threads: int
+
+    _REPR = ("network", "model", "horizon", "period", "threads")
+
+    @classmethod
+    def _of(cls, d: Dict[str, Any]) -> "ReachSettings":
+        g = d["goal"]
+        return cls(**dict(
+            d,
+            init={k: (float(v[0]), float(v[1])) for k, v in d["init"].items()},
+            clip=_opt_pair(d["clip"]),
+            goal=None if g is None else ReachGoal(ystar=g["ystar"], from_=g["from"]),
+        ))
+
+
+@_result
+class ReachCounterexample(_Typed):
+    """A simulated flight that misses the goal: its ``initial`` state, the time ``t``
+    of the miss and its ``x_plus_y`` there."""
+
+    initial: np.ndarray
+    t: float
+    x_plus_y: float
+
+    _REPR = ("t", "x_plus_y")
+
+
+def _steps(steps: List[Dict[str, Any]], nb: int) -> Dict[str, np.ndarray]:
+    """The per-instant records of a sub-box as arrays (an absent control: NaN)."""
+    k = len(steps)
+    return dict(
+        t=np.array([s["t"] for s in steps], dtype=np.float64),
+        bbox=_floats([s["bbox"] for s in steps], (k, nb, 2)),
+        x_plus_y=_floats([s["x_plus_y"] for s in steps], (k, 2)),
+        x_plus_y_period=_floats([s["x_plus_y_period"] for s in steps], (k, 2)),
+        ex=_floats([[math.nan, math.nan] if s["ex"] is None else s["ex"] for s in steps], (k, 2)),
+    )
+
+
+@_result
+class ReachLeaf(_Typed):
+    """A sub-box of the initial set and its enclosures: ``init`` (states, 2), the
+    indices ``params`` of its parameter states, per control instant reached ``t`` (k,),
+    ``bbox`` (k, 6, 2) of the six physical states, ``x_plus_y`` and
+    ``x_plus_y_period`` (k, 2), ``ex`` (k, 2) (NaN at the horizon); ``failure`` (why it
+    stopped early, or None), ``flow_steps`` (accepted, rejected) and ``max_dev``."""
+
+    init: np.ndarray
+    params: List[int]
+    t: np.ndarray
+    bbox: np.ndarray
+    x_plus_y: np.ndarray
+    x_plus_y_period: np.ndarray
+    ex: np.ndarray
+    failure: Optional[str]
+    flow_steps: Tuple[int, int]
+    max_dev: float
+
+    _REPR = ("failure", "flow_steps")
+
+
+def _verdict(v: Dict[str, Any]) -> Tuple[str, Optional[str]]:
+    return v["verdict"], v.get("reason")
+
+
+@_result
+class ReachResult(_Typed):
+    """The result of :func:`reach` (the library's ``reach.json`` of ``samara reach``):
+    ``settings`` (:class:`ReachSettings`), ``verdict`` ('proved' | 'violated' |
+    'unknown' | 'none' without a goal), ``reason`` (why not proved, or None),
+    ``counterexample`` (:class:`ReachCounterexample` of a violation, or None),
+    ``final_x_plus_y`` and ``sampled_x_plus_y`` (2,) (the enclosure and the sampled
+    range of x + y at the horizon), ``width_ratio``, ``subproblems``, ``seconds``,
+    ``sampled_trajectories``, ``enclosure_lost`` (where the sets stopped before the
+    horizon, which ``samara reach`` reports with exit code 1, or None), ``warnings``
+    (a network in the wrong units), ``state_names``, ``leaves`` (one
+    :class:`ReachLeaf` per sub-box), and the hull over the sub-boxes per control
+    instant:
 
     - ``t``: (k,) the control instants;
-    - ``bbox``: (k, 6, 2) the interval hull over all sub-boxes of the six physical states;
+    - ``bbox``: (k, 6, 2) of the six physical states;
     - ``x_plus_y``: (k, 2) the enclosure of x + y at each instant; ``x_plus_y_period``:
       over the period ending there;
     - ``ex``: (k, 2) the control held from each instant (NaN at the horizon).
 
-    Where a sub-box stopped early (``leaves[i]['failure']``) the later instants are
-    unbounded (-inf, inf)."""
+    Where a sub-box stopped early (``leaf.failure``) the later instants are unbounded
+    (-inf, inf)."""
 
-    def __init__(self, d: Dict[str, Any]):
-        super().__init__(d)
-        leaves = d["leaves"]
-        k = int(round(d["settings"]["horizon"] / d["settings"]["period"])) + 1
+    settings: ReachSettings
+    verdict: str
+    reason: Optional[str]
+    counterexample: Optional[ReachCounterexample]
+    final_x_plus_y: np.ndarray
+    sampled_x_plus_y: np.ndarray
+    width_ratio: float
+    subproblems: int
+    seconds: float
+    sampled_trajectories: int
+    enclosure_lost: Optional[str]
+    warnings: List[str]
+    state_names: List[str]
+    leaves: List[ReachLeaf]
+    t: np.ndarray
+    bbox: np.ndarray
+    x_plus_y: np.ndarray
+    x_plus_y_period: np.ndarray
+    ex: np.ndarray
+
+    _REPR = ("verdict", "final_x_plus_y", "subproblems", "seconds")
+
+    @property
+    def proved(self) -> bool:
+        return self.verdict == "proved"
+
+    @classmethod
+    def _of(cls, d: Dict[str, Any]) -> "ReachResult":
+        settings = ReachSettings._of(d["settings"])
         nb = 6
+        leaves = [
+            ReachLeaf(init=_floats(l["init"], (0, 2)), params=list(l["params"]), **_steps(l["steps"], nb),
+                      failure=l["failure"], flow_steps=tuple(l["flow_steps"]), max_dev=l["max_dev"])
+            for l in d["leaves"]
+        ]
+        # The hull over the sub-boxes at each control instant (unbounded after a
+        # sub-box stopped).
+        k = int(round(settings.horizon / settings.period)) + 1
+        t = np.array([i * settings.period for i in range(k)])
         bbox = np.empty((k, nb, 2))
         bbox[..., 0], bbox[..., 1] = np.inf, -np.inf
         xy = np.tile([np.inf, -np.inf], (k, 1))
         xyp = np.tile([np.inf, -np.inf], (k, 1))
         ex = np.tile([np.inf, -np.inf], (k, 1))
-        t = np.array([i * d["settings"]["period"] for i in range(k)])
         for leaf in leaves:
-            steps = leaf["steps"]
-            for i in range(k):
-                if i < len(steps):
-                    st = steps[i]
-                    b = np.array([_iv(iv) for iv in st["bbox"]])[:nb]
-                    lo, hi = np.nan_to_num(b[:, 0], nan=-np.inf), np.nan_to_num(b[:, 1], nan=np.inf)
-                    bbox[i, :, 0] = np.minimum(bbox[i, :, 0], lo)
-                    bbox[i, :, 1] = np.maximum(bbox[i, :, 1], hi)
-                    t[i] = st["t"]
-                    for arr, key in ((xy, "x_plus_y"), (xyp, "x_plus_y_period"), (ex, "ex")):
-                        v = st.get(key)
-                        if v is None:
-                            continue
-                        lo_, hi_ = _iv(v)
-                        arr[i, 0] = min(arr[i, 0], -np.inf if math.isnan(lo_) else lo_)
-                        arr[i, 1] = max(arr[i, 1], np.inf if math.isnan(hi_) else hi_)
-                else:
-                    bbox[i, :, 0], bbox[i, :, 1] = -np.inf, np.inf
-                    xy[i], xyp[i] = (-np.inf, np.inf), (-np.inf, np.inf)
+            n = len(leaf.t)
+            t[:n] = leaf.t
+            for arr, mine in ((bbox, leaf.bbox[:, :nb]), (xy, leaf.x_plus_y), (xyp, leaf.x_plus_y_period)):
+                lo = np.nan_to_num(mine[..., 0], nan=-np.inf)
+                hi = np.nan_to_num(mine[..., 1], nan=np.inf)
+                arr[:n, ..., 0] = np.minimum(arr[:n, ..., 0], lo)
+                arr[:n, ..., 1] = np.maximum(arr[:n, ..., 1], hi)
+                arr[n:, ..., 0], arr[n:, ..., 1] = -np.inf, np.inf
+            ex[:n, 0] = np.fmin(ex[:n, 0], leaf.ex[:, 0])
+            ex[:n, 1] = np.fmax(ex[:n, 1], leaf.ex[:, 1])
         ex[np.isinf(ex[:, 0]) & (ex[:, 0] > 0)] = np.nan
-        self.__dict__["t"] = t
-        self.__dict__["bbox"] = bbox
-        self.__dict__["x_plus_y"] = xy
-        self.__dict__["x_plus_y_period"] = xyp
-        self.__dict__["ex"] = ex
-
-    @property
-    def proved(self) -> bool:
-        return self._d["verdict"]["verdict"] == "proved"
+        verdict, reason = _verdict(d["verdict"])
+        cx = d["verdict"].get("counterexample")
+        return cls(
+            settings=settings,
+            verdict=verdict,
+            reason=reason,
+            counterexample=None if cx is None else ReachCounterexample(
+                initial=np.array(cx["initial"], dtype=np.float64), t=cx["t"], x_plus_y=cx["x_plus_y"]),
+            final_x_plus_y=_floats(d["final_x_plus_y"]),
+            sampled_x_plus_y=_floats(d["sampled_x_plus_y"]),
+            width_ratio=d["width_ratio"],
+            subproblems=d["subproblems"],
+            seconds=d["seconds"],
+            sampled_trajectories=d["sampled_trajectories"],
+            enclosure_lost=d["enclosure_lost"],
+            warnings=list(d["warnings"]),
+            state_names=list(d["state_names"]),
+            leaves=leaves,
+            t=t, bbox=bbox, x_plus_y=xy, x_plus_y_period=xyp, ex=ex,
+        )
 
 
 def reach(
@@ -747,15 +1042,14 @@ def reach(
     (``{'theta': (-0.01, 0.01)}``). ``goal_ystar``: the goal |x + y| <= Y at the horizon
     (or on [goal_from, horizon]). ``threads``: worker threads (default all cores), as
     ``samara reach --threads``; ``r.settings`` names it and the network's source."""
-    if not isinstance(network, Network):
-        raise TypeError(f"network={network!r}: expected samara.Network (samara.Network.from_onnx(path))")
+    net = _network("network", network)
     iv: Dict[str, Tuple[float, float]] = {"y": _interval("y0", y0)}
     for k, v in (init or {}).items():
         if k == "y":
             raise ValueError("init['y']: give the height interval as y0")
         iv[k] = _interval(f"init[{k!r}]", v)
     d = _samara.reach(
-        network._net, model, iv, float(horizon), float(period),
+        net, model, iv, float(horizon), float(period),
         None if goal_ystar is None else float(goal_ystar),
         None if goal_from is None else float(goal_from),
         bool(clip),
@@ -765,35 +1059,149 @@ def reach(
         network._source,
         None if threads is None else _count("threads", threads, 1, 1024),
     )
-    r = ReachResult(d)
+    r = ReachResult._of(d)
     # What `samara reach` prints on stderr: a network in the wrong units, an enclosure
-    # lost before the horizon (then ``r['enclosure_lost']`` says where).
-    for w in r["warnings"]:
+    # lost before the horizon (then ``r.enclosure_lost`` says where).
+    for w in r.warnings:
         warnings.warn(w, stacklevel=2)
-    if r["enclosure_lost"]:
-        warnings.warn(r["enclosure_lost"], stacklevel=2)
+    if r.enclosure_lost:
+        warnings.warn(r.enclosure_lost, stacklevel=2)
     return r
 
 
-class SystemReachResult(_Result):
-    """The result of :func:`reach_system` (the ``result`` of ``samara reach --system``'s
-    ``reach.json``: ``system``, ``verdict`` (``{'verdict': 'proved' | 'violated' |
-    'unknown' | 'none', ...}``), ``instants`` and ``periods`` (per control instant /
-    period, the hull over the sub-boxes of every state as ``[lo, hi]``), ``boxes``,
-    ``covered``, ``order``, ``network_error``, ``seconds``, ``leaves``, ``measures``),
-    plus ``cells`` (``[start, end]`` of a grid run, else None) and ``total_cells``.
-    ``bbox`` is ``instants`` as a numpy array (k, states, 2)."""
+@_result
+class Measure(_Typed):
+    """A measure of a system file's settings at the horizon: its ``name``, the sets'
+    ``enclosure`` and the flights' ``sampled`` range (each (lo, hi) or None), and their
+    width ``ratio``."""
+
+    name: str
+    enclosure: Optional[Tuple[float, float]]
+    sampled: Optional[Tuple[float, float]]
+    ratio: Optional[float]
+
+    _REPR = ("name", "enclosure", "ratio")
+
+
+@_result
+class SystemLeaf(_Typed):
+    """A sub-box of a system's initial set: ``init`` (states, 2), its hulls per control
+    instant ``instants`` and per period ``periods`` (k, states, 2), ``failure`` (why it
+    stopped early, or None), ``stopped_at`` (the time it stopped, or None) and
+    ``end_measures`` (measures, 2)."""
+
+    init: np.ndarray
+    instants: np.ndarray
+    periods: np.ndarray
+    failure: Optional[str]
+    stopped_at: Optional[float]
+    end_measures: np.ndarray
+
+    _REPR = ("failure", "stopped_at")
+
+
+def _boxes(v: List[Any], n: int) -> np.ndarray:
+    """(k, n, 2) intervals per instant."""
+    return _floats(v, (len(v), n, 2)) if len(v) == 0 else _floats(v)
+
+
+def _network_error_text(v: Any) -> str:
+    """`interval`, `symbolic:N` (as the argument ``network_error`` takes it)."""
+    if isinstance(v, str):
+        return v
+    (kind, fields), = v.items()
+    return f"{kind}:{fields['extra']}"
+
+
+def _network_error_native(t: str) -> Any:
+    kind, _, n = t.partition(":")
+    return kind if not n else {kind: {"extra": int(n)}}
+
+
+@_result
+class SystemReachResult(_Typed):
+    """The result of :func:`reach_system` (the library's ``result`` of
+    ``samara reach --system``'s ``reach.json``): ``system``, ``verdict`` ('proved' |
+    'violated' | 'unknown' | 'none'), ``reason`` (the goal a violation misses, or why
+    the verdict is unknown; None otherwise), ``counterexample`` (the initial state of a
+    violating flight, or None), ``instants`` and ``periods`` ((k, states, 2): the hull
+    over the sub-boxes per control instant / period), ``boxes``, ``covered``,
+    ``order``, ``network_error`` (``interval`` or ``symbolic:N``), ``seconds``,
+    ``leaves`` (:class:`SystemLeaf`), ``measures`` (:class:`Measure`), ``cells``
+    ((start, end) of a grid run, else None) and ``total_cells``. ``bbox`` is
+    ``instants``."""
+
+    system: str
+    verdict: str
+    reason: Optional[str]
+    counterexample: Optional[np.ndarray]
+    instants: np.ndarray
+    periods: np.ndarray
+    boxes: int
+    covered: float
+    order: int
+    network_error: str
+    seconds: float
+    leaves: List[SystemLeaf]
+    measures: List[Measure]
+    cells: Optional[Tuple[int, int]]
+    total_cells: Optional[int]
+
+    _REPR = ("system", "verdict", "boxes", "covered", "cells", "seconds")
 
     @property
     def bbox(self) -> np.ndarray:
-        return np.asarray(self._d["instants"], dtype=np.float64).reshape(len(self._d["instants"]), -1, 2)
+        return self.instants
 
+    @classmethod
+    def _of(cls, part: Dict[str, Any]) -> "SystemReachResult":
+        d = part["reach"]
+        v = d["verdict"]
+        n = len(v["initial"]) if "initial" in v else None
+        leaves = [
+            SystemLeaf(init=_floats(l["init"], (0, 2)), instants=_boxes(l["instants"], len(l["init"])),
+                       periods=_boxes(l["periods"], len(l["init"])), failure=l["failure"],
+                       stopped_at=l["stopped_at"], end_measures=_floats(l["end_measures"], (0, 2)))
+            for l in d["leaves"]
+        ]
+        dim = len(leaves[0].init) if leaves else (n or 0)
+        return cls(
+            system=d["system"],
+            verdict=v["verdict"],
+            reason=v.get("reason", v.get("goal")),
+            counterexample=None if "initial" not in v else np.array(v["initial"], dtype=np.float64),
+            instants=_boxes(d["instants"], dim),
+            periods=_boxes(d["periods"], dim),
+            boxes=d["boxes"],
+            covered=d["covered"],
+            order=d["order"],
+            network_error=_network_error_text(d["network_error"]),
+            seconds=d["seconds"],
+            leaves=leaves,
+            measures=[Measure(name=m["name"], enclosure=_opt_pair(m["enclosure"]),
+                              sampled=_opt_pair(m["sampled"]), ratio=m["ratio"]) for m in d["measures"]],
+            cells=None if part["cells"] is None else tuple(part["cells"]),
+            total_cells=part["total_cells"],
+        )
 
-def _system_result(d: Dict[str, Any]) -> SystemReachResult:
-    r = dict(d["reach"])
-    r["cells"] = d["cells"]
-    r["total_cells"] = d["total_cells"]
-    return SystemReachResult(r)
+    def _native(self) -> Dict[str, Any]:
+        """The fields the native merge reads back (the inverse of ``_of``)."""
+        v: Dict[str, Any] = {"verdict": self.verdict}
+        if self.verdict == "violated":
+            v["initial"] = self.counterexample
+            v["goal"] = self.reason
+        elif self.verdict == "unknown":
+            v["reason"] = self.reason
+        reach = dict(
+            system=self.system, verdict=v, instants=self.instants, periods=self.periods,
+            boxes=self.boxes, covered=self.covered, order=self.order,
+            network_error=_network_error_native(self.network_error), seconds=self.seconds,
+            leaves=[dict(init=l.init, instants=l.instants, periods=l.periods, failure=l.failure,
+                         stopped_at=l.stopped_at, end_measures=l.end_measures) for l in self.leaves],
+            measures=[dict(name=m.name, enclosure=m.enclosure, sampled=m.sampled, ratio=m.ratio)
+                      for m in self.measures],
+        )
+        return {"cells": self.cells, "total_cells": self.total_cells, "reach": reach}
 
 
 def _system_source(system: Union[str, PathLike]) -> Tuple[str, str]:
@@ -852,13 +1260,65 @@ def _reach_system_text(
     seed: int = 1,
     timeout: Optional[float] = None,
 ) -> SystemReachResult:
+    net = _network("network", network)
+    if cells is not None:
+        if len(cells) != 2:
+            raise ValueError(f"cells={cells!r}: give (start, end)")
+        cells = (_count("cells[0]", cells[0]), _count("cells[1]", cells[1]))
     out = _samara.reach_system(
-        text, name, network._net, {str(k): _count(f"grid[{k!r}]", v, 1, 2**31) for k, v in (grid or {}).items()},
-        None if cells is None else (int(cells[0]), int(cells[1])),
-        int(order), str(network_error), int(lifted_weight), float(lift_at),
-        int(max_leaves), int(samples), int(seed), None if timeout is None else float(timeout),
+        text, name, net, {str(k): _count(f"grid[{k!r}]", v, 1, 2**31) for k, v in (grid or {}).items()},
+        cells, _count("order", order, 0, 2**32 - 1), _str("network_error", network_error),
+        _count("lifted_weight", lifted_weight, 0, 2**32 - 1), float(lift_at),
+        _count("max_leaves", max_leaves), _count("samples", samples), _count("seed", seed, 0, 2**64 - 1),
+        None if timeout is None else float(timeout),
     )
-    return _system_result(out)
+    return SystemReachResult._of(out)
+
+
+@_result
+class Restart(_Typed):
+    """A restart of training from a degenerate network: the ``attempt`` (from 0), the
+    ``seed`` of the degenerate network, the ``epoch`` it was found at and the
+    ``reason``."""
+
+    attempt: int
+    seed: int
+    epoch: int
+    reason: str
+
+    _REPR = ("attempt", "epoch", "reason")
+
+
+@_result
+class TrainReport(_Typed):
+    """The report of :func:`train` (the fields of ``samara train --json`` but the file
+    paths): ``method``, ``test_rows``, the held-out ``r2``, the training ``r2_train``,
+    ``rmse``, ``mae``, ``eps``, ``attack_worst_deviation``, ``attack_mean_deviation``,
+    ``seed``, ``init_seed`` (the seed of the kept network), ``restarts`` and
+    ``restart_log`` (:class:`Restart`), and ``log`` (epochs, 3): epoch, loss, test
+    RMSE."""
+
+    method: str
+    test_rows: int
+    r2: float
+    r2_train: float
+    rmse: float
+    mae: float
+    eps: float
+    attack_worst_deviation: float
+    attack_mean_deviation: float
+    seed: int
+    init_seed: int
+    restarts: int
+    restart_log: List[Restart]
+    log: np.ndarray
+
+    _REPR = ("method", "r2", "rmse", "restarts")
+
+    @classmethod
+    def _of(cls, d: Dict[str, Any]) -> "TrainReport":
+        return cls(**dict(d, restart_log=[Restart(**r) for r in d["restart_log"]],
+                          log=_floats(d["log"], (0, 3)).reshape(-1, 3)))
 
 
 def train(
@@ -878,7 +1338,7 @@ def train(
     normalisation: Optional[Any] = None,
     max_restarts: Optional[int] = None,
     min_r2: Optional[float] = None,
-) -> Tuple[Network, Dict[str, Any]]:
+) -> Tuple[Network, TrainReport]:
     """Train a network as ``samara train`` does (defaults: the published 6-6-4-1 ReLU
     network, Adam lr 0.06, batch 50, 1000 epochs, 10% test split); same seed and data,
     bit-identical network.
@@ -888,9 +1348,9 @@ def train(
     range; default: from the data). ``method``: plain, adversarial (``attack`` fgsm or
     pgd, radius ``eps``), lipschitz, dl2 or goedel (the built-in P1-P4 with ``ystar``).
 
-    Returns the network (raw units, with its normalisation layers) and the report:
-    the fields of ``samara train --json`` plus ``log`` as an array (epoch, loss,
-    test RMSE). Raises SamaraError when every attempt gave a degenerate network."""
+    Returns the network (raw units, with its normalisation layers) and its
+    :class:`TrainReport`. Raises SamaraError when every attempt gave a degenerate
+    network."""
     if isinstance(data, (str, os.PathLike)):
         data = read_table(data)
     a = np.ascontiguousarray(np.asarray(data, dtype=np.float64))
@@ -905,9 +1365,11 @@ def train(
             raise ValueError(f"normalisation: shape {m.shape}, expected (2, columns)")
         nm = (m[0].tolist(), m[1].tolist())
     net, report = _samara.train(
-        a.tobytes(), a.shape[0], a.shape[1], nm, method, attack, [int(w) for w in arch],
-        int(epochs), int(batch), float(lr), int(seed), float(eps), float(lipschitz),
-        None if weight is None else float(weight), float(ystar), max_restarts, min_r2,
+        a.tobytes(), a.shape[0], a.shape[1], nm, _str("method", method), _str("attack", attack),
+        [_count(f"arch[{i}]", w) for i, w in enumerate(arch)],
+        _count("epochs", epochs), _count("batch", batch), float(lr), _count("seed", seed, 0, 2**64 - 1),
+        float(eps), float(lipschitz), None if weight is None else float(weight), float(ystar),
+        None if max_restarts is None else _count("max_restarts", max_restarts),
+        None if min_r2 is None else float(min_r2),
     )
-    report["log"] = np.array(report["log"], dtype=np.float64).reshape(-1, 3)
-    return Network(net, "<trained>"), report
+    return Network(net, "<trained>"), TrainReport._of(report)

@@ -1,7 +1,9 @@
 """Type stubs of the native module `samara._samara` (PyO3). Use the wrappers in
-`samara` (numpy in and out); this layer takes float64 row-major bytes and returns
-bytes, or the fields of the library's typed results as dicts and lists (no JSON
-text)."""
+`samara` (numpy in and out, frozen result classes); this layer takes float64
+row-major bytes and returns bytes, or the serde fields of the library's typed results
+as dicts, lists and numbers (no JSON text; non-finite floats kept), from which
+`samara` builds its result classes. `test_stubs_match_the_native_module` checks every
+name and every signature here against the module."""
 
 from typing import Any, Dict, List, Optional, Tuple
 

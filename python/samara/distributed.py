@@ -21,18 +21,19 @@ Every worker needs the ``samara`` wheel installed (the same version).
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import os
 from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
 
 import numpy as np
 
-from . import Network, ReachResult, RobustnessResult, SystemReachResult, _samara
-from . import _reach_system_text, _system_result, _system_source
+from . import Network, ReachResult, RobustnessPoint, RobustnessResult, SystemReachResult, _samara
+from . import _count, _reach_system_text, _result, _system_source, _Typed
 from . import reach as _reach, read_table, robustness as _robustness
 
 __all__ = [
     "local_cluster", "robustness", "reach_partition", "reach_grid", "merge_robustness", "merge_reach",
-    "merge_reach_system", "shard_rows",
+    "merge_reach_system", "shard_rows", "MergedReach",
 ]
 
 
@@ -101,25 +102,29 @@ def merge_robustness(parts: Sequence[Tuple[int, RobustnessResult]], points: int)
     """Merge the tables of shards (each with its first row's index): counts add,
     success rates are recomputed over all points, per-point rows are re-indexed;
     ``seconds`` is the sum of the shards' times."""
-    first = parts[0][1].as_dict()
-    table = [[dict(c, proved=0, violated=0, unknown=0) for c in row] for row in first["table"]]
-    per_point: List[Dict[str, Any]] = []
+    if not parts:
+        raise ValueError("parts: give at least one (first row, RobustnessResult) pair")
+    first = parts[0][1]
+    counts = [[[0, 0, 0] for _ in row] for row in first.table]
+    per_point: List[RobustnessPoint] = []
     seconds = 0.0
     for offset, r in parts:
-        d = r.as_dict()
-        seconds += d["seconds"]
-        for i, row in enumerate(d["table"]):
+        seconds += r.seconds
+        for i, row in enumerate(r.table):
             for j, c in enumerate(row):
-                for k in ("proved", "violated", "unknown"):
-                    table[i][j][k] += c[k]
-        per_point.extend(dict(p, index=p["index"] + offset) for p in d["per_point"])
-    for row in table:
-        for c in row:
-            c["success_rate"] = c["proved"] / max(points, 1)
+                counts[i][j][0] += c.proved
+                counts[i][j][1] += c.violated
+                counts[i][j][2] += c.unknown
+        per_point.extend(dataclasses.replace(p, index=p.index + offset) for p in r.per_point)
+    table = [
+        [
+            dataclasses.replace(c, proved=n[0], violated=n[1], unknown=n[2], success_rate=n[0] / max(points, 1))
+            for c, n in zip(row, ns)
+        ]
+        for row, ns in zip(first.table, counts)
+    ]
     # shards in order: per-point rows by index, then eps, as one process gives them
-    return RobustnessResult(
-        form=first["form"], points=points, seconds=seconds, table=table, per_point=per_point
-    )
+    return RobustnessResult(form=first.form, points=points, seconds=seconds, table=table, per_point=per_point)
 
 
 def _robust_task(net: Network, rows: np.ndarray, kw: Dict[str, Any]) -> RobustnessResult:
@@ -163,11 +168,41 @@ def _split(lo: float, hi: float, pieces: int) -> List[Tuple[float, float]]:
     return list(zip(edges[:-1], edges[1:]))
 
 
-def merge_reach(parts: Sequence[ReachResult]) -> Dict[str, Any]:
+@_result
+class MergedReach(_Typed):
+    """The reach results of a partition of the initial set, merged
+    (:func:`merge_reach`): ``verdict`` ('proved' only if every piece is, 'violated' if
+    any is, 'none' if no piece has a goal, else 'unknown'), ``pieces`` (the pieces'
+    verdicts), the hulls over the pieces ``t`` (k,), ``bbox`` (k, 6, 2), ``x_plus_y``,
+    ``x_plus_y_period`` and ``ex`` (k, 2), ``final_x_plus_y`` and ``sampled_x_plus_y``
+    (2,), ``subproblems`` and ``seconds`` (sums over the pieces)."""
+
+    verdict: str
+    pieces: List[str]
+    t: np.ndarray
+    bbox: np.ndarray
+    x_plus_y: np.ndarray
+    x_plus_y_period: np.ndarray
+    ex: np.ndarray
+    final_x_plus_y: np.ndarray
+    sampled_x_plus_y: np.ndarray
+    subproblems: int
+    seconds: float
+
+    _REPR = ("verdict", "pieces", "final_x_plus_y", "subproblems")
+
+    @property
+    def proved(self) -> bool:
+        return self.verdict == "proved"
+
+
+def merge_reach(parts: Sequence[ReachResult]) -> MergedReach:
     """Merge the reach results of a partition of the initial set: the verdict is
     ``proved`` only if every piece is proved, ``violated`` if any is, else ``unknown``
     (``none`` without a goal); enclosures are interval hulls over the pieces."""
-    kinds = [p.verdict["verdict"] for p in parts]
+    if not parts:
+        raise ValueError("parts: give at least one ReachResult")
+    kinds = [p.verdict for p in parts]
     if all(k == "proved" for k in kinds):
         verdict = "proved"
     elif any(k == "violated" for k in kinds):
@@ -182,20 +217,23 @@ def merge_reach(parts: Sequence[ReachResult]) -> Dict[str, Any]:
         return np.stack([s[..., 0].min(axis=0), s[..., 1].max(axis=0)], axis=-1)
 
     ex = np.stack([p.ex for p in parts])
-    return {
-        "verdict": verdict,
-        "pieces": [p.verdict for p in parts],
-        "t": parts[0].t.copy(),
-        "bbox": hull([p.bbox for p in parts]),
-        "x_plus_y": hull([p.x_plus_y for p in parts]),
-        "x_plus_y_period": hull([p.x_plus_y_period for p in parts]),
-        "ex": np.stack([np.fmin.reduce(ex[..., 0], axis=0), np.fmax.reduce(ex[..., 1], axis=0)], axis=-1),
-        "final_x_plus_y": [min(p.final_x_plus_y[0] if p.final_x_plus_y[0] is not None else -np.inf for p in parts),
-                           max(p.final_x_plus_y[1] if p.final_x_plus_y[1] is not None else np.inf for p in parts)],
-        "sampled_x_plus_y": [min(p.sampled_x_plus_y[0] for p in parts), max(p.sampled_x_plus_y[1] for p in parts)],
-        "subproblems": sum(p.subproblems for p in parts),
-        "seconds": sum(p.seconds for p in parts),
-    }
+    final = np.stack([p.final_x_plus_y for p in parts])
+    return MergedReach(
+        verdict=verdict,
+        pieces=kinds,
+        t=parts[0].t.copy(),
+        bbox=hull([p.bbox for p in parts]),
+        x_plus_y=hull([p.x_plus_y for p in parts]),
+        x_plus_y_period=hull([p.x_plus_y_period for p in parts]),
+        ex=np.stack([np.fmin.reduce(ex[..., 0], axis=0), np.fmax.reduce(ex[..., 1], axis=0)], axis=-1),
+        # A NaN end (no enclosure) makes the hull's end unbounded.
+        final_x_plus_y=np.array([np.nan_to_num(final[:, 0], nan=-np.inf).min(),
+                                 np.nan_to_num(final[:, 1], nan=np.inf).max()]),
+        sampled_x_plus_y=np.array([min(p.sampled_x_plus_y[0] for p in parts),
+                                   max(p.sampled_x_plus_y[1] for p in parts)]),
+        subproblems=sum(p.subproblems for p in parts),
+        seconds=sum(p.seconds for p in parts),
+    )
 
 
 def _reach_task(net: Network, y0: Tuple[float, float], kw: Dict[str, Any]) -> ReachResult:
@@ -208,12 +246,12 @@ def reach_partition(
     pieces: int = 8,
     local: bool = False,
     **kwargs: Any,
-) -> Tuple[Dict[str, Any], List[ReachResult]]:
+) -> Tuple[MergedReach, List[ReachResult]]:
     """:func:`samara.reach` over ``pieces`` equal parts of the height interval ``y0``, one
     Ray task each (``local=True``: in this process, one after the other — the same
     work). ``kwargs`` go to :func:`samara.reach`. Returns the merged result
     (:func:`merge_reach`) and the pieces' results."""
-    ys = _split(float(y0[0]), float(y0[1]), int(pieces))
+    ys = _split(float(y0[0]), float(y0[1]), _count("pieces", pieces, 1, 1_000_000))
     if local:
         parts = [_reach(network, y0=y, **kwargs) for y in ys]
     else:
@@ -229,11 +267,10 @@ def merge_reach_system(parts: Sequence[SystemReachResult]) -> SystemReachResult:
     (in cell order, from cell 0) into the result of their union, exactly as one process
     flying all the cells gives it (``samara_reach::grid::merge_parts``; ``seconds`` is
     the parts' sum)."""
-    results = []
-    for p in parts:
-        d = p.as_dict()
-        results.append({"cells": d.pop("cells"), "total_cells": d.pop("total_cells"), "reach": d})
-    return _system_result(_samara.merge_reach_system(results))
+    for i, p in enumerate(parts):
+        if not isinstance(p, SystemReachResult):
+            raise TypeError(f"parts[{i}]: expected samara.SystemReachResult, got {type(p).__name__}")
+    return SystemReachResult._of(_samara.merge_reach_system([p._native() for p in parts]))
 
 
 def _grid_task(text: str, name: str, net: Network, grid: Dict[str, int], cells: Tuple[int, int],

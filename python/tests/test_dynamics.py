@@ -22,18 +22,18 @@ def test_simulate_shapes_and_controllers(ctl):
     fs = samara.simulate(controller=ctl, y0=[2.0, 3.0])
     assert len(fs) == 2
     f = fs[0]
-    assert f["state_names"] == ["v_xp", "v_yp", "omega", "theta", "x", "y", "E"]
-    assert f["t"].shape == (2001,) and f["states"].shape == (2001, 7) and f["ex"].shape == (2001,)
-    assert f["t"][0] == 0.0 and abs(f["t"][-1] - 20.0) < 1e-9 and f["initial"][5] == 2.0
-    assert np.all((f["ex"] >= 0.181) & (f["ex"] <= 0.193))
+    assert f.state_names == ["v_xp", "v_yp", "omega", "theta", "x", "y", "E"]
+    assert f.t.shape == (2001,) and f.states.shape == (2001, 7) and f.ex.shape == (2001,)
+    assert f.t[0] == 0.0 and abs(f.t[-1] - 20.0) < 1e-9 and f.initial[5] == 2.0
+    assert np.all((f.ex >= 0.181) & (f.ex <= 0.193))
     # The network controller steers onto y = -x (|x + y| small at the end).
-    assert abs(f["final_state"]["x"] + f["final_state"]["y"]) < 3.0
+    assert abs(f.final_state["x"] + f.final_state["y"]) < 3.0
     pid = samara.simulate()  # the nine published starts, PID
     assert len(pid) == 9
     const = samara.simulate(controller=0.187, y0=[2.0], horizon=5.0)
-    assert np.all(const[0]["ex"] == 0.187)
+    assert np.all(const[0].ex == 0.187)
     red = samara.simulate(model="reduced", controller=ctl, y0=[2.0], integrator="rk4", horizon=1.0)
-    assert red[0]["states"].shape[1] == 6
+    assert red[0].states.shape[1] == 6
 
 
 def test_simulate_matches_cli(ctl, tmp_path):
@@ -48,9 +48,9 @@ def test_simulate_matches_cli(ctl, tmp_path):
     c = json.loads(out.stdout)
     fs = samara.simulate(controller=ctl, y0=[2.0, 3.0])
     for f, s in zip(fs, c["starts"]):
-        assert f["y0"] == s["y0"]
-        assert f["final_state"] == s["final_state"]
-        assert f["rhs_evals"] == s["rhs_evals"]
+        assert f.y0 == s["y0"]
+        assert f.final_state == s["final_state"]
+        assert f.rhs_evals == s["rhs_evals"]
 
 
 def test_simulate_errors(ctl):
@@ -70,7 +70,7 @@ def test_simulate_errors(ctl):
 
 def test_reach_short_horizon(ctl):
     r = samara.reach(ctl, y0=(2.0, 2.1), horizon=2.0, goal_ystar=5.0)
-    assert r.verdict["verdict"] == "proved" and r.proved
+    assert r.verdict == "proved" and r.proved and r.reason is None and r.counterexample is None
     assert r.t.shape == (5,) and np.allclose(r.t, [0, 0.5, 1, 1.5, 2])
     assert r.bbox.shape == (5, 6, 2) and np.all(r.bbox[..., 0] <= r.bbox[..., 1])
     assert r.bbox[0, 5, 0] <= 2.0 and r.bbox[0, 5, 1] >= 2.1
@@ -93,11 +93,30 @@ def test_reach_matches_cli(ctl, tmp_path):
     assert out.returncode == 0, out.stderr
     c = json.loads(out.stdout)
     r = samara.reach(ctl, y0=(2.0, 2.1), horizon=2.0, goal_ystar=5.0)
-    assert r.final_x_plus_y == c["final_x_plus_y"]
-    assert r.sampled_x_plus_y == c["sampled_x_plus_y"]
-    assert r.subproblems == c["subproblems"]
+    assert r.final_x_plus_y.tolist() == c["final_x_plus_y"]
+    assert r.sampled_x_plus_y.tolist() == c["sampled_x_plus_y"]
+    assert r.subproblems == c["subproblems"] and r.verdict == c["verdict"]
+    # Every sub-box's enclosures, bit for bit as the CLI's reach.json has them (where
+    # the JSON writes an unbounded end as null, the typed result keeps the float).
     full = json.loads((tmp_path / "reach" / "reach.json").read_text())
-    assert r.leaves == full["leaves"]
+    assert len(r.leaves) == len(full["leaves"])
+
+    def arr(v):
+        return np.array([[np.nan if x is None else x for x in iv] for iv in v], dtype=np.float64)
+
+    for leaf, j in zip(r.leaves, full["leaves"]):
+        assert np.array_equal(leaf.init, arr(j["init"])) and leaf.params == j["params"]
+        assert leaf.failure == j["failure"] and list(leaf.flow_steps) == j["flow_steps"]
+        assert leaf.t.tolist() == [s["t"] for s in j["steps"]]
+        for k, s in enumerate(j["steps"]):
+            assert np.array_equal(leaf.bbox[k], arr(s["bbox"]), equal_nan=True)
+            assert np.array_equal(leaf.x_plus_y[k], arr([s["x_plus_y"]])[0], equal_nan=True)
+            assert np.array_equal(leaf.x_plus_y_period[k], arr([s["x_plus_y_period"]])[0], equal_nan=True)
+            ex = [np.nan, np.nan] if s["ex"] is None else s["ex"]
+            assert np.array_equal(leaf.ex[k], np.array(ex), equal_nan=True)
+    assert r.settings.as_dict() == {**full["settings"], "goal": {"ystar": 5.0, "from_": None},
+                                    "init": {k: tuple(v) for k, v in full["settings"]["init"].items()},
+                                    "clip": tuple(full["settings"]["clip"]), "network": r.settings.network}
 
 
 def test_reach_errors(ctl):
@@ -113,10 +132,10 @@ def test_train_matches_cli(tmp_path):
     data = samara.read_table(reference("Training_Data.csv"))
     net, rep = samara.train(data, method="plain", epochs=15, seed=3, min_r2=0.0)
     assert (net.n_inputs, net.n_outputs) == (6, 1)
-    assert rep["log"].shape[1] == 3 and rep["log"].shape[0] >= 1
-    assert set(rep) >= {"method", "test_rows", "r2", "rmse", "mae", "seed", "init_seed", "restarts"}
+    assert rep.log.shape[1] == 3 and rep.log.shape[0] >= 1
+    assert isinstance(rep, samara.TrainReport) and rep.method == "plain" and rep.restart_log == []
     again, rep2 = samara.train(data, method="plain", epochs=15, seed=3, min_r2=0.0)
-    assert again.to_onnx() == net.to_onnx() and rep2["r2"] == rep["r2"]  # same seed, same network
+    assert again.to_onnx() == net.to_onnx() and rep2.r2 == rep.r2  # same seed, same network
     exe = cli()
     if exe is None:
         pytest.skip("the samara CLI is not built")
@@ -128,7 +147,7 @@ def test_train_matches_cli(tmp_path):
     )
     assert res.returncode == 0, res.stderr
     c = json.loads(res.stdout)
-    assert c["r2"] == rep["r2"] and c["rmse"] == rep["rmse"] and c["init_seed"] == rep["init_seed"]
+    assert c["r2"] == rep.r2 and c["rmse"] == rep.rmse and c["init_seed"] == rep.init_seed
     assert out.read_bytes() == net.to_onnx()
 
 

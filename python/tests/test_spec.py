@@ -87,7 +87,10 @@ def test_unknown_result_carries_its_reason(net):
     res = spec.verify(networks={"f": net}, params={"ystar": 2}, property="p3", timeout=0.0)
     assert res[0].verdict in ("unknown", "proved", "violated")
     if res[0].verdict == "unknown":
-        assert res[0].unknown_reason["kind"] and res[0].unknown_reason["message"]
+        assert res[0].unknown_reason.kind and res[0].unknown_reason.message
+        assert "--" not in res[0].unknown_reason.message, res[0].unknown_reason.message
+        cx = res[0].counterexample
+        assert cx is None or cx.reason is None or "--" not in cx.reason, cx
 
 
 def test_p5_on_an_array_dataset(net):
@@ -104,7 +107,7 @@ def test_robustness_table(net):
     assert r.success_rate.shape == (2, 2)
     for row in r.table:
         for c in row:
-            assert c["proved"] + c["violated"] + c["unknown"] == 25
+            assert c.proved + c.violated + c.unknown == 25
     assert len(r.per_point) == 50
     with pytest.raises(ValueError, match="eps"):
         samara.robustness(net, data, eps=[-1.0])
@@ -183,4 +186,6 @@ def test_timeout_is_a_deadline_for_critical():
     t0 = time.monotonic()
     r = samara.Spec(SPEC).critical(property="p1", param="ystar", networks={"f": net}, timeout=1.0)
     assert time.monotonic() - t0 < 2.0
-    assert r.holds == "unknown" and r.unknown_reason["kind"] == "timeout"
+    assert r.holds == "unknown" and r.unknown_reason.kind == "timeout"
+    # In Python's words: the keyword argument, not the CLI's flag (issue 38).
+    assert "(raise timeout)" in r.unknown_reason.message and "--" not in r.unknown_reason.message

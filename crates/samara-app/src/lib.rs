@@ -12,6 +12,7 @@
 //!   reach shard files with their merge;
 //! - [`shard`]: the shard files of `--shard I/N` runs and their checks;
 //! - [`simulate`], [`train`]: the summaries of simulation and training runs;
+//! - [`python_front`]: the checks and results of the Python package's calls;
 //! - [`vnncomp`]: deciding one VNN-COMP instance with the counterexample re-check and
 //!   downgrade policy, and the competition's result words and files.
 //!
@@ -19,6 +20,7 @@
 //! map with sorted keys) is the `--json` document of the CLI.
 
 pub mod bind;
+pub mod python_front;
 pub mod reach;
 pub mod robustness;
 pub mod shard;

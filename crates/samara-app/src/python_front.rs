@@ -1,0 +1,1141 @@
+//! What the `samara` Python package runs, as library calls: the checks of its
+//! arguments and the typed results it hands over, so that `python/src/lib.rs` only
+//! converts Python values and calls these (no logic of its own, none copied).
+//!
+//! - [`ReachRequest`]: the arguments of `samara.reach`, checked into the library's
+//!   [`ReachSettings`];
+//! - [`train_method`] and [`TrainReport`]: `samara.train`'s method (P1-P4 of the case
+//!   study for dl2/goedel) and its report (the fields of `samara train --json` without
+//!   the file paths, plus the training R^2 and the loss log);
+//! - [`robustness`] and [`RobustnessReport`]: the robustness table with its per-point
+//!   rows (the columns of `samara robustness --out`'s CSV);
+//! - [`GridPart`] and [`merge_grid_parts`]: a Taylor-model grid run over a range of
+//!   cells and the exact merge of consecutive ranges.
+//!
+//! Messages name arguments through [`Front`], so the same checks read `--goal-ystar` on
+//! the command line and `goal_ystar` in Python.
+
+use crate::bind::{check_horizon_period, check_period_count, num, Front, MIN_PERIOD};
+use crate::robustness::{Form, Table};
+use crate::{input, AppError};
+use samara_plant::{Model, STATE_NAMES};
+use samara_reach::system::SystemReach;
+use samara_reach::{Goal, ReachSettings};
+use samara_train::{Attack, Logic, Method, MinMax};
+use samara_verify::robustness::{sweep_with, PointBall, Reference};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+use std::time::Instant;
+
+type Result<T> = std::result::Result<T, AppError>;
+
+/// Longest control period `samara.reach` takes (the validated integrator takes at
+/// most 400 steps of at most 0.0625 per period).
+pub const REACH_MAX_PERIOD: f64 = 10.0;
+/// Most control periods of a `samara.reach` run.
+pub const REACH_MAX_PERIODS: f64 = 10_000.0;
+/// Most sub-boxes, and most sampled flights, of a reach run.
+pub const REACH_MAX_COUNT: usize = 100_000;
+
+/// The arguments of a zonotope reach run of the glider (`samara.reach`).
+#[derive(Clone, Debug, Default)]
+pub struct ReachRequest {
+    /// `reduced`, `plate6` or `full`.
+    pub model: String,
+    /// Initial intervals by state name (the others: the published initial set).
+    pub init: BTreeMap<String, (f64, f64)>,
+    /// Horizon.
+    pub horizon: f64,
+    /// Control period.
+    pub period: f64,
+    /// The goal band's half-width, if there is a goal.
+    pub goal_ystar: Option<f64>,
+    /// Start of the goal's window (needs `goal_ystar`).
+    pub goal_from: Option<f64>,
+    /// Whether the controller's output is clipped to the actuator's range.
+    pub clip: bool,
+    /// Sub-box budget (default 64).
+    pub max_leaves: Option<usize>,
+    /// Sampled flights (default 200).
+    pub samples: Option<usize>,
+    /// Sampling seed.
+    pub seed: Option<u64>,
+}
+
+impl ReachRequest {
+    /// The run's settings, every argument checked; the messages name the arguments in
+    /// `front`'s words.
+    pub fn settings(&self, front: Front) -> Result<ReachSettings> {
+        let Some(m) = Model::from_name(&self.model) else {
+            return input(format!(
+                "{} {:?}: unknown model; choose one of reduced, plate6, full",
+                front.arg("model"),
+                self.model
+            ));
+        };
+        let mut s = ReachSettings::published(m);
+        s.init[5] = (0.1 / 0.07, 0.3 / 0.07);
+        let names = &STATE_NAMES[..m.dim()];
+        for (k, &(lo, hi)) in &self.init {
+            let Some(i) = names.iter().position(|n| n == k) else {
+                return input(format!(
+                    "{}[{k:?}]: unknown state; choose one of {}",
+                    front.arg("init"),
+                    names.join(", ")
+                ));
+            };
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= -1000.0 && hi <= 1000.0) {
+                return input(format!(
+                    "{}[{k:?}] = ({lo}, {hi}): give finite ends lo <= hi in [-1000, 1000]",
+                    front.arg("init")
+                ));
+            }
+            s.init[i] = (lo, hi);
+        }
+        let (h, p) = (self.horizon, self.period);
+        check_times(front, h, p, REACH_MAX_PERIOD, REACH_MAX_PERIODS)?;
+        s.horizon = h;
+        s.period = p;
+        if !self.clip {
+            s.clip = None;
+        }
+        match (self.goal_ystar, self.goal_from) {
+            (None, Some(_)) => {
+                return input(format!(
+                    "{}: needs a goal; pass {} too",
+                    front.arg("goal_from"),
+                    front.arg("goal_ystar")
+                ))
+            }
+            (Some(y), from) => {
+                if !(y.is_finite() && y >= 0.0) {
+                    return input(format!(
+                        "{} {}: the band half-width must be a finite number >= 0",
+                        front.arg("goal_ystar"),
+                        num(y)
+                    ));
+                }
+                if let Some(f) = from {
+                    if !(f.is_finite() && f >= 0.0 && f <= h) {
+                        return input(format!(
+                            "{} {}: the window start must lie in [0, horizon = {h}]",
+                            front.arg("goal_from"),
+                            num(f)
+                        ));
+                    }
+                }
+                s.goal = Some(Goal { ystar: y, from });
+            }
+            (None, None) => {}
+        }
+        for (name, v, default, slot) in [
+            ("max_leaves", self.max_leaves, 64, &mut s.max_leaves),
+            ("samples", self.samples, 200, &mut s.samples),
+        ] {
+            if let Some(n) = v {
+                if n == 0 || n > REACH_MAX_COUNT {
+                    return input(format!(
+                        "{} {n}: give 1 to {REACH_MAX_COUNT} (default {default})",
+                        front.arg(name)
+                    ));
+                }
+                *slot = n;
+            }
+        }
+        if let Some(v) = self.seed {
+            s.seed = v;
+        }
+        Ok(s)
+    }
+}
+
+/// The horizon and period of a closed-loop run: the library's checks
+/// ([`check_horizon_period`], [`check_period_count`] with at most `max_periods`), a
+/// period of at most `max_period` and a whole number of periods.
+pub fn check_times(
+    front: Front,
+    horizon: f64,
+    period: f64,
+    max_period: f64,
+    max_periods: f64,
+) -> Result<()> {
+    check_horizon_period(front, horizon, period)?;
+    if period > max_period {
+        return input(format!(
+            "{} {period}: the control period must lie in [{MIN_PERIOD}, {max_period}] (e.g. {})",
+            front.arg("period"),
+            front.eg("period", "0.5")
+        ));
+    }
+    check_period_count(front, horizon, period, max_periods)?;
+    let k = horizon / period;
+    if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
+        return input(format!(
+            "{} {horizon} is not a positive multiple of {} {period}",
+            front.arg("horizon"),
+            front.arg("period")
+        ));
+    }
+    Ok(())
+}
+
+/// The verifier's settings of a `verify`, `critical` or `robustness` call: `timeout`
+/// seconds per query (infinite: none; NaN or negative refused), `max_nodes` and the LP
+/// tightening at the root.
+pub fn verify_settings(
+    front: Front,
+    timeout: f64,
+    max_nodes: usize,
+    lp_tighten: bool,
+) -> Result<samara_verify::Settings> {
+    use samara_verify::LpTighten;
+    if timeout.is_nan() || timeout < 0.0 {
+        let none = match front {
+            Front::Cli => "inf",
+            Front::Python => "float('inf')",
+        };
+        return input(format!(
+            "{} {timeout}: must be a number of seconds >= 0 (e.g. {}; {none} for no limit)",
+            front.arg("timeout"),
+            front.eg("timeout", "60")
+        ));
+    }
+    Ok(samara_verify::Settings {
+        timeout,
+        max_nodes,
+        lp_tighten: if lp_tighten {
+            LpTighten::Root
+        } else {
+            LpTighten::Off
+        },
+        ..Default::default()
+    })
+}
+
+/// A worker-thread count: 1 to 1024 (`None`: all cores).
+pub fn check_threads(front: Front, threads: Option<usize>) -> Result<()> {
+    match threads {
+        Some(t) if !(1..=1024).contains(&t) => input(format!(
+            "{} {t}: give 1 to 1024 worker threads (default: all cores)",
+            front.arg("threads")
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// The training method `method` (plain, adversarial, lipschitz, dl2, goedel) with its
+/// options. dl2 and goedel train for P1-P4 as `models/alsomitra/alsomitra.spec` states
+/// them (compiled into samara-train), lowered in the units of the network being
+/// trained (`mm`) over the box of `data`, with `ystar` bound: what `samara train` does
+/// without `--spec`.
+#[allow(clippy::too_many_arguments)]
+pub fn train_method(
+    front: Front,
+    method: &str,
+    attack: &str,
+    lipschitz: f64,
+    weight: Option<f64>,
+    ystar: f64,
+    data: &samara_train::Table,
+    mm: &MinMax,
+    arch: &[usize],
+) -> Result<Method> {
+    Ok(match method {
+        "plain" => Method::Plain,
+        "adversarial" => Method::Adversarial(match attack {
+            "fgsm" => Attack::Fgsm,
+            "pgd" => Attack::Pgd { steps: 10 },
+            other => {
+                return input(format!(
+                    "{} {other:?}: choose fgsm or pgd",
+                    front.arg("attack")
+                ))
+            }
+        }),
+        "lipschitz" => Method::Lipschitz {
+            l: lipschitz,
+            weight: weight.unwrap_or(10.0),
+        },
+        "dl2" | "goedel" => {
+            if data.cols != 7 || arch.first() != Some(&6) {
+                return input(format!(
+                    "{} {method:?}: the built-in properties P1-P4 need the case study's 6 inputs and 1 output",
+                    front.arg("method")
+                ));
+            }
+            let spec = samara_train::case_study_spec();
+            let mut b = samara_spec::Bindings::default();
+            b.params.insert("ystar".into(), ystar);
+            let names: Vec<String> = spec
+                .properties
+                .iter()
+                .filter(|p| p.binders.is_empty())
+                .map(|p| p.name.clone())
+                .collect();
+            let data_mm = MinMax::of(data);
+            let domain: Vec<(f64, f64)> = (0..6)
+                .map(|j| (data_mm.min[j], data_mm.min[j] + data_mm.range[j]))
+                .collect();
+            let props = samara_train::spec_properties(&spec, &names, &b, mm, Some(domain))
+                .map_err(|e| AppError::Input(e.to_string()))?;
+            Method::Properties {
+                logic: if method == "dl2" {
+                    Logic::Dl2
+                } else {
+                    Logic::Goedel
+                },
+                props,
+                weight: weight.unwrap_or(1.0),
+            }
+        }
+        other => {
+            return input(format!(
+                "{} {other:?}: choose plain, adversarial, lipschitz, dl2 or goedel (closed-loop: use the CLI)",
+                front.arg("method")
+            ))
+        }
+    })
+}
+
+/// The least held-out R^2 a training run of method `m` must reach unless told
+/// otherwise (`samara train --min-r2`'s default): 0.9 for data fitting (plain,
+/// adversarial), 0 for the methods that trade accuracy for a property.
+pub fn default_min_r2(m: &Method) -> f64 {
+    match m {
+        Method::Plain | Method::Adversarial(_) => 0.9,
+        _ => 0.0,
+    }
+}
+
+/// The report of a data-fitting training run: the fields of `samara train --json`
+/// (without the file paths), the R^2 on the training rows, and the log as (epoch,
+/// loss, test RMSE) rows.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainReport {
+    /// The method.
+    pub method: String,
+    /// Held-out rows.
+    pub test_rows: usize,
+    /// Held-out R^2.
+    pub r2: f64,
+    /// R^2 on the training rows.
+    pub r2_train: f64,
+    /// Held-out RMSE.
+    pub rmse: f64,
+    /// Held-out MAE.
+    pub mae: f64,
+    /// Attack radius.
+    pub eps: f64,
+    /// Worst output deviation under the attack.
+    pub attack_worst_deviation: f64,
+    /// Mean output deviation under the attack.
+    pub attack_mean_deviation: f64,
+    /// The seed asked for.
+    pub seed: u64,
+    /// The seed the kept network was initialised from.
+    pub init_seed: u64,
+    /// Number of restarts.
+    pub restarts: usize,
+    /// The restarts.
+    pub restart_log: Vec<crate::train::RestartEntry>,
+    /// (epoch, loss, test RMSE) per logged epoch.
+    pub log: Vec<(usize, f64, f64)>,
+}
+
+impl TrainReport {
+    /// The report of `outcome`, trained by `method` with options `o`.
+    pub fn of(
+        method: &str,
+        o: &samara_train::TrainOptions,
+        outcome: &samara_train::TrainOutcome,
+    ) -> Self {
+        let m = &outcome.metrics;
+        TrainReport {
+            method: method.to_string(),
+            test_rows: m.n_test,
+            r2: m.r2,
+            r2_train: m.r2_train,
+            rmse: m.rmse,
+            mae: m.mae,
+            eps: o.eps,
+            attack_worst_deviation: m.attack_worst,
+            attack_mean_deviation: m.attack_mean,
+            seed: o.seed,
+            init_seed: outcome.init_seed,
+            restarts: outcome.restarts.len(),
+            restart_log: outcome
+                .restarts
+                .iter()
+                .map(crate::train::RestartEntry::from)
+                .collect(),
+            log: outcome
+                .log
+                .iter()
+                .map(|r| (r.epoch, r.loss, r.test_rmse))
+                .collect(),
+        }
+    }
+}
+
+impl TrainReport {
+    /// The `samara train --json` summary of this run, whose network and log were
+    /// written to `out` and `log`: the same numbers, so the CLI can print it from the
+    /// report instead of filling the fields again.
+    pub fn summary(&self, out: String, log: String) -> crate::train::TrainSummary {
+        crate::train::TrainSummary {
+            method: self.method.clone(),
+            out,
+            log,
+            test_rows: self.test_rows,
+            r2: self.r2,
+            rmse: self.rmse,
+            mae: self.mae,
+            eps: self.eps,
+            attack_worst_deviation: self.attack_worst_deviation,
+            attack_mean_deviation: self.attack_mean_deviation,
+            seed: self.seed,
+            init_seed: self.init_seed,
+            restarts: self.restarts,
+            restart_log: self.restart_log.clone(),
+        }
+    }
+}
+
+/// One data point at one radius: a row of `samara robustness --out`'s CSV.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct PointRow {
+    /// The data row, counted from 0.
+    pub index: usize,
+    /// The radius.
+    pub eps: f64,
+    /// Lower bound of the output over the ball.
+    pub f_min: f64,
+    /// Upper bound of the output over the ball.
+    pub f_max: f64,
+    /// The reference output.
+    pub reference: f64,
+    /// Bound on the deviation from the reference.
+    pub max_deviation: f64,
+    /// Lipschitz lower bound.
+    pub lipschitz_lower: f64,
+    /// Lipschitz upper bound.
+    pub lipschitz_upper: f64,
+}
+
+impl From<&PointBall> for PointRow {
+    fn from(p: &PointBall) -> Self {
+        PointRow {
+            index: p.index,
+            eps: p.eps,
+            f_min: p.f_min,
+            f_max: p.f_max,
+            reference: p.reference,
+            max_deviation: p.max_deviation,
+            lipschitz_lower: p.lipschitz_lower,
+            lipschitz_upper: p.lipschitz_upper,
+        }
+    }
+}
+
+/// The robustness table (the fields of `samara robustness --json`) and its per-point
+/// rows.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RobustnessReport {
+    /// The table.
+    #[serde(flatten)]
+    pub table: Table,
+    /// One row per data point and radius.
+    pub per_point: Vec<PointRow>,
+}
+
+/// The robustness sweep of `net` over `data` (`n` rows of `cols`: the network's inputs,
+/// then the label unless `reference` is `network`) at the radii `eps`, tabulated
+/// against the bounds `lipschitz` in `form`; every argument checked, the data's bad
+/// entries named by row and column (counted from 0).
+#[allow(clippy::too_many_arguments)]
+pub fn robustness(
+    front: Front,
+    net: &samara_nn::Network,
+    data: &[f64],
+    n: usize,
+    cols: usize,
+    eps: &[f64],
+    lipschitz: &[f64],
+    reference: &str,
+    form: &str,
+    settings: &samara_verify::Settings,
+) -> Result<RobustnessReport> {
+    let d = front.arg("data");
+    if data.len() != n * cols {
+        return input(format!("{d}: {} values for {n} rows of {cols}", data.len()));
+    }
+    let mut es: Vec<f64> = Vec::new();
+    for &e in eps {
+        if !(e > 0.0 && e <= 1e6) {
+            return input(format!(
+                "{} {e}: out of range; each value must be a radius > 0 and at most 1e6 (in the network's input units)",
+                front.arg("eps")
+            ));
+        }
+        if !es.contains(&e) {
+            es.push(e);
+        }
+    }
+    let mut ls: Vec<f64> = Vec::new();
+    for &l in lipschitz {
+        if !(l.is_finite() && l >= 0.0) {
+            return input(format!(
+                "{} {l}: out of range; each value must be finite and >= 0",
+                front.arg("lipschitz")
+            ));
+        }
+        if !ls.contains(&l) {
+            ls.push(l);
+        }
+    }
+    let reference = match reference {
+        "label" => Reference::Label,
+        "network" => Reference::Network,
+        o => {
+            return input(format!(
+                "{} {o:?}: choose label or network",
+                front.arg("reference")
+            ))
+        }
+    };
+    let Some(form) = Form::parse(form) else {
+        return input(format!(
+            "{} {form:?}: choose published or lipschitz",
+            front.arg("form")
+        ));
+    };
+    let ni = net.n_inputs();
+    let used = if reference == Reference::Label {
+        ni + 1
+    } else {
+        ni
+    };
+    if cols < used {
+        return input(format!(
+            "{d}: {cols} columns but the network has {ni} inputs{}",
+            if reference == Reference::Label {
+                format!(
+                    " and the label column is needed (or pass {})",
+                    front.eg("reference", "network")
+                )
+            } else {
+                String::new()
+            }
+        ));
+    }
+    let rows: Vec<Vec<f64>> = (0..n)
+        .map(|i| data[i * cols..(i + 1) * cols].to_vec())
+        .collect();
+    for (i, r) in rows.iter().enumerate() {
+        if let Some(j) = r.iter().take(used).position(|v| !v.is_finite()) {
+            return input(format!(
+                "{d}: row {i} column {j} is {}, not a finite number",
+                r[j]
+            ));
+        }
+    }
+    let t0 = Instant::now();
+    let points = sweep_with(net, &rows, &es, reference, None, settings).map_err(AppError::Input)?;
+    let secs = t0.elapsed().as_secs_f64();
+    Ok(RobustnessReport {
+        table: Table::of(form, &es, &ls, rows.len(), secs, &points),
+        per_point: points.iter().map(PointRow::from).collect(),
+    })
+}
+
+/// A Taylor-model grid run over the cells `[start, end)` (`None` without a grid), the
+/// grid's cell count and the cells' merged result.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct GridPart {
+    /// `(start, end)` of the cells flown.
+    pub cells: Option<(usize, usize)>,
+    /// The grid's cells in all.
+    pub total_cells: Option<usize>,
+    /// The cells' result.
+    pub reach: SystemReach,
+}
+
+/// The results of consecutive cell ranges of one grid, given in cell order from cell 0,
+/// merged into the result of their union (`samara_reach::grid::merge_parts`); `label`
+/// names the list in messages (`parts`: `parts[2]: ...`).
+pub fn merge_grid_parts(parts: Vec<GridPart>, label: &str) -> Result<GridPart> {
+    if parts.is_empty() {
+        return input(format!("{label}: give at least one result"));
+    }
+    let mut out: Vec<(usize, SystemReach)> = Vec::new();
+    let (mut next, mut total) = (None::<usize>, None);
+    for (i, v) in parts.into_iter().enumerate() {
+        let at = format!("{label}[{i}]");
+        let Some((a, b)) = v.cells else {
+            return input(format!("{at}: not a grid result (no cells)"));
+        };
+        if next.is_some_and(|n| n != a)
+            || (next.is_none() && a != 0)
+            || total.is_some_and(|t| t != v.total_cells)
+        {
+            return input(format!(
+                "{at}: cells {a}..{b} do not continue the parts before it; give the ranges of one grid in order from cell 0"
+            ));
+        }
+        next = Some(b);
+        total = Some(v.total_cells);
+        out.push((b - a, v.reach));
+    }
+    Ok(GridPart {
+        cells: next.map(|n| (0, n)),
+        total_cells: total.flatten(),
+        reach: samara_reach::grid::merge_parts(out),
+    })
+}
+
+/// The arguments of a Taylor-model reach run of a system file (`samara.reach_system`).
+#[derive(Clone, Debug, Default)]
+pub struct SystemRequest {
+    /// Pieces per state of the grid the initial set is cut into (empty: no grid).
+    pub grid: BTreeMap<String, usize>,
+    /// Only the cells `[start, end)` of the grid.
+    pub cells: Option<(usize, usize)>,
+    /// Taylor-model order.
+    pub order: usize,
+    /// `auto`, `interval`, `symbolic` or `symbolic:N`.
+    pub network_error: String,
+    /// Order of the lifted parameters' terms.
+    pub lifted_weight: u32,
+    /// Share of the width at which a parameter is lifted.
+    pub lift_at: f64,
+    /// Sub-box budget.
+    pub max_leaves: usize,
+    /// Sampled flights.
+    pub samples: usize,
+    /// Sampling seed.
+    pub seed: u64,
+    /// Time limit in seconds.
+    pub timeout: Option<f64>,
+}
+
+/// A checked [`SystemRequest`]: the settings, the grid's pieces per state, and the
+/// cells to fly with the grid's cell count (both `None` without a grid).
+#[derive(Clone, Debug)]
+pub struct SystemPlan {
+    /// The run's settings.
+    pub settings: samara_reach::system::SystemReachSettings,
+    /// Pieces per state.
+    pub pieces: Vec<usize>,
+    /// The cells flown.
+    pub range: Option<std::ops::Range<usize>>,
+    /// The grid's cells in all.
+    pub total: Option<usize>,
+}
+
+impl SystemRequest {
+    /// Check the arguments for system `sys` (named `file`) and controller `net`.
+    pub fn plan(
+        &self,
+        front: Front,
+        sys: &samara_system::System,
+        file: &str,
+        net: &samara_nn::Network,
+    ) -> Result<SystemPlan> {
+        use samara_reach::system::{end_band_measures, NetworkError, SystemReachSettings};
+        let a = |n: &str| front.arg(n);
+        if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
+            return input(format!(
+                "{}: {} inputs and {} outputs; the system {file} observes {} values and reads {} network outputs: pass the controller made for it",
+                a("network"),
+                net.n_inputs(),
+                net.n_outputs(),
+                sys.n_observed(),
+                sys.n_net_outputs
+            ));
+        }
+        let order = self.order;
+        if !(1..=8).contains(&order) {
+            return input(format!(
+                "{} {order}: give 1 to 8 (3-5 is usual)",
+                a("order")
+            ));
+        }
+        let lw = self.lifted_weight;
+        if !(1..=order as u32).contains(&lw) {
+            return input(format!(
+                "{} {lw}: give 1 to the order ({order})",
+                a("lifted_weight")
+            ));
+        }
+        let lift_at = self.lift_at;
+        if !(lift_at.is_finite() && lift_at > 0.0 && lift_at <= 1.0) {
+            return input(format!(
+                "{} {lift_at}: give a share of the width in (0, 1]",
+                a("lift_at")
+            ));
+        }
+        for (name, n) in [("max_leaves", self.max_leaves), ("samples", self.samples)] {
+            if !(1..=REACH_MAX_COUNT).contains(&n) {
+                return input(format!("{} {n}: give 1 to {REACH_MAX_COUNT}", a(name)));
+            }
+        }
+        if let Some(t) = self.timeout {
+            if !(t.is_finite() && t > 0.0) {
+                return input(format!(
+                    "{} {t}: give a positive number of seconds",
+                    a("timeout")
+                ));
+            }
+        }
+        let network_error = NetworkError::parse(&self.network_error).map_err(|e| {
+            AppError::Input(format!(
+                "{} {:?}: {e}",
+                a("network_error"),
+                self.network_error
+            ))
+        })?;
+        let mut s = SystemReachSettings {
+            order,
+            max_boxes: self.max_leaves,
+            samples: self.samples,
+            seed: self.seed,
+            timeout: self.timeout,
+            network_error,
+            measures: end_band_measures(sys),
+            ..SystemReachSettings::default()
+        };
+        s.flow.lift_at = lift_at;
+        s.flow.lifted_weight = lw;
+        let mut pieces = vec![1usize; sys.dim()];
+        for (k, &n) in &self.grid {
+            let Some(i) = sys.states.iter().position(|x| x == k) else {
+                return input(format!(
+                    "{}[{k:?}]: no such state; the states are {}",
+                    a("grid"),
+                    sys.states.join(", ")
+                ));
+            };
+            pieces[i] = n;
+        }
+        let gridded = !self.grid.is_empty() || self.cells.is_some();
+        let total = if gridded {
+            Some(
+                samara_reach::grid::cell_count(sys, &pieces)
+                    .map_err(|e| AppError::Input(format!("{}: {e}", a("grid"))))?,
+            )
+        } else {
+            None
+        };
+        let range = match (total, self.cells) {
+            (Some(c), Some((x, y))) if x < y && y <= c => Some(x..y),
+            (Some(c), Some((x, y))) => {
+                return input(format!(
+                    "{} ({x}, {y}): give start < end <= {c}, the grid's cells",
+                    a("cells")
+                ))
+            }
+            (Some(c), None) => Some(0..c),
+            _ => None,
+        };
+        Ok(SystemPlan {
+            settings: s,
+            pieces,
+            range,
+            total,
+        })
+    }
+}
+
+impl SystemPlan {
+    /// Fly the plan: the whole initial set, or the grid's cells `range`. The error is
+    /// the computation's message.
+    pub fn run(
+        &self,
+        sys: &samara_system::System,
+        net: &samara_nn::Network,
+    ) -> std::result::Result<GridPart, String> {
+        let r = match &self.range {
+            None => samara_reach::system::reach_system(sys, net, &self.settings),
+            Some(r) => {
+                samara_reach::grid::reach_cells(sys, net, &self.settings, &self.pieces, r.clone())
+            }
+        }
+        .map_err(|e| e.to_string())?;
+        Ok(GridPart {
+            cells: self.range.as_ref().map(|r| (r.start, r.end)),
+            total_cells: self.total,
+            reach: r,
+        })
+    }
+}
+
+/// A glider controller: a network of 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and
+/// 1 output (ex), named so; `label` names it in the message.
+pub fn glider_controller(label: &str, n: &samara_nn::Network) -> Result<samara_nn::Network> {
+    if n.n_inputs() != 6 || n.n_outputs() != 1 {
+        return input(format!(
+            "{label}: the network has {} inputs and {} outputs; a controller needs 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and 1 output (ex)",
+            n.n_inputs(),
+            n.n_outputs()
+        ));
+    }
+    n.clone()
+        .with_names(&samara_nn::STATE_INPUTS, &["ex"])
+        .map_err(|e| AppError::Input(e.to_string()))
+}
+
+/// The controller of a simulation (`samara.simulate`).
+#[derive(Clone, Debug)]
+pub enum ControllerRequest {
+    /// The published PID controller (needs the filter state E).
+    Pid,
+    /// A constant control `ex`.
+    Constant(f64),
+    /// A network in raw units, clipped to the actuator's range if `clip`.
+    Network {
+        /// The network.
+        net: samara_nn::Network,
+        /// Whether its output is clipped.
+        clip: bool,
+    },
+}
+
+/// The arguments of closed-loop flights of the glider (`samara.simulate`).
+#[derive(Clone, Debug)]
+pub struct SimulateRequest {
+    /// `plate6`, `reduced` or `full`.
+    pub model: String,
+    /// The controller.
+    pub controller: ControllerRequest,
+    /// The initial heights (`None`: the nine published starts).
+    pub y0: Option<Vec<f64>>,
+    /// `ode45`, `tight`, `dp5` or `rk4`.
+    pub integrator: String,
+    /// Horizon.
+    pub horizon: f64,
+    /// Control period.
+    pub period: f64,
+}
+
+/// A checked [`SimulateRequest`]: the plant, the controller, the loop's settings and
+/// the starts.
+pub struct SimulatePlan {
+    /// The plant.
+    pub plant: samara_plant::Plant,
+    /// The controller.
+    pub controller: Box<dyn samara_sim::Controller + Send>,
+    /// The sample-and-hold loop's settings.
+    pub settings: samara_sim::LoopSettings,
+    /// The initial heights.
+    pub starts: Vec<f64>,
+}
+
+impl SimulateRequest {
+    /// Check the arguments (most periods: `max_periods`).
+    pub fn plan(self, front: Front, max_periods: f64) -> Result<SimulatePlan> {
+        use samara_plant::{Plant, EX_RANGE};
+        use samara_sim::{
+            published_starts, ConstantController, Integrator, LoopSettings, NetworkController,
+            PidController,
+        };
+        let Some(model) = Model::from_name(&self.model) else {
+            return input(format!(
+                "{} {:?}: unknown model; choose one of plate6, reduced, full",
+                front.arg("model"),
+                self.model
+            ));
+        };
+        let Some(integrator) = Integrator::from_name(&self.integrator) else {
+            return input(format!(
+                "{} {:?}: unknown integrator; choose ode45, tight, dp5 or rk4",
+                front.arg("integrator"),
+                self.integrator
+            ));
+        };
+        let (h, p) = (self.horizon, self.period);
+        check_times(front, h, p, crate::bind::MAX_PERIOD, max_periods)?;
+        let controller: Box<dyn samara_sim::Controller + Send> = match self.controller {
+            ControllerRequest::Pid => {
+                if !model.has_filter() {
+                    return input(format!(
+                        "{} 'pid' needs the filter state E, which model `reduced` does not have; use {} or 'full', or another controller",
+                        front.arg("controller"),
+                        front.eg("model", "'plate6'")
+                    ));
+                }
+                Box::new(PidController::default())
+            }
+            ControllerRequest::Constant(ex) => {
+                if !(EX_RANGE.0..=EX_RANGE.1).contains(&ex) {
+                    return input(format!(
+                        "{} constant ex = {ex} is outside the allowed range [{}, {}]; choose a value inside it",
+                        front.arg("controller"),
+                        EX_RANGE.0,
+                        EX_RANGE.1
+                    ));
+                }
+                Box::new(ConstantController(ex))
+            }
+            ControllerRequest::Network { net, clip } => {
+                let net = glider_controller(&front.arg("controller"), &net)?;
+                let c = if clip { Some(EX_RANGE) } else { None };
+                Box::new(NetworkController::new(net, c, "network"))
+            }
+        };
+        let starts = match self.y0 {
+            Some(v) => {
+                if v.is_empty() || v.len() > 100_000 {
+                    return input(format!(
+                        "{}: {} starts; give 1 to 100000",
+                        front.arg("y0"),
+                        v.len()
+                    ));
+                }
+                if let Some(y) = v.iter().find(|y| !(y.is_finite() && y.abs() <= 1000.0)) {
+                    return input(format!(
+                        "{}: the height {y} is outside [-1000, 1000], the range in which the nondimensional model means anything (published starts: 1.43 to 4.29)",
+                        front.arg("y0")
+                    ));
+                }
+                v
+            }
+            None => published_starts(),
+        };
+        // Dense output every 0.01 when it divides the period, else 50 points a period.
+        let output_step = if (p / 0.01 - (p / 0.01).round()).abs() < 1e-9 {
+            Some(0.01)
+        } else {
+            Some(p / 50.0)
+        };
+        let settings = LoopSettings {
+            period: p,
+            horizon: h,
+            integrator,
+            reset_filter: true,
+            output_step,
+        };
+        settings
+            .steps()
+            .map_err(|e| AppError::Input(front.words(&e.to_string())))?;
+        Ok(SimulatePlan {
+            plant: Plant::new(model),
+            controller,
+            settings,
+            starts,
+        })
+    }
+}
+
+impl SimulatePlan {
+    /// Fly every start; the error is the integrator's message.
+    pub fn fly(mut self) -> std::result::Result<Vec<samara_sim::Flight>, String> {
+        let mut out = Vec::with_capacity(self.starts.len());
+        for &y in &self.starts {
+            let init = samara_sim::initial_state(&self.plant, y);
+            let f = samara_sim::fly(&self.plant, self.controller.as_mut(), &init, &self.settings)
+                .map_err(|e| e.to_string())?;
+            out.push(f);
+        }
+        Ok(out)
+    }
+}
+
+/// The messages inside a result in `front`'s words ([`Front::words`]): the library
+/// writes its reasons naming the CLI's flags ("time limit reached (raise --timeout)"),
+/// which Python users know as keyword arguments ("raise timeout").
+pub trait InWords {
+    /// The result with every message in `front`'s words.
+    fn in_words(self, front: Front) -> Self;
+}
+
+fn words_opt(front: Front, m: &mut Option<String>) {
+    if let Some(t) = m {
+        *t = front.words(t);
+    }
+}
+
+impl InWords for crate::Reason {
+    fn in_words(mut self, front: Front) -> Self {
+        self.message = front.words(&self.message);
+        self
+    }
+}
+
+impl InWords for crate::VerdictRow {
+    fn in_words(mut self, front: Front) -> Self {
+        use crate::verify::RowCounterexample;
+        self.unknown_reason = self.unknown_reason.map(|r| r.in_words(front));
+        if let Some(RowCounterexample::Reason { reason }) = &mut self.counterexample {
+            *reason = front.words(reason);
+        }
+        words_opt(front, &mut self.vacuity);
+        self
+    }
+}
+
+impl InWords for crate::CriticalValue {
+    fn in_words(mut self, front: Front) -> Self {
+        self.unknown_reason = self.unknown_reason.map(|r| r.in_words(front));
+        self
+    }
+}
+
+impl InWords for crate::reach::ReachReport {
+    fn in_words(mut self, front: Front) -> Self {
+        use crate::reach::VerdictReport;
+        match &mut self.verdict {
+            VerdictReport::Unknown { reason } | VerdictReport::Violated { reason, .. } => {
+                *reason = front.words(reason)
+            }
+            VerdictReport::Proved | VerdictReport::NoGoal => {}
+        }
+        words_opt(front, &mut self.enclosure_lost);
+        for w in &mut self.warnings {
+            *w = front.words(w);
+        }
+        for l in &mut self.leaves {
+            words_opt(front, &mut l.failure);
+        }
+        self
+    }
+}
+
+impl InWords for GridPart {
+    fn in_words(mut self, front: Front) -> Self {
+        use samara_reach::system::SystemVerdict;
+        if let SystemVerdict::Unknown { reason } = &mut self.reach.verdict {
+            *reason = front.words(reason);
+        }
+        for l in &mut self.reach.leaves {
+            words_opt(front, &mut l.failure);
+        }
+        self
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn request() -> ReachRequest {
+        ReachRequest {
+            model: "reduced".into(),
+            horizon: 2.0,
+            period: 0.5,
+            clip: true,
+            ..ReachRequest::default()
+        }
+    }
+
+    #[test]
+    fn reach_request_checks_name_the_argument_in_each_front() {
+        let r = ReachRequest {
+            goal_from: Some(1.0),
+            ..request()
+        };
+        let py = r.settings(Front::Python).unwrap_err().to_string();
+        let cli = r.settings(Front::Cli).unwrap_err().to_string();
+        assert_eq!(py, "goal_from: needs a goal; pass goal_ystar too");
+        assert_eq!(cli, "--goal-from: needs a goal; pass --goal-ystar too");
+        let r = ReachRequest {
+            horizon: 1.2,
+            ..request()
+        };
+        let m = r.settings(Front::Python).unwrap_err().to_string();
+        assert!(
+            m.contains("horizon 1.2 is not a positive multiple of period 0.5"),
+            "{m}"
+        );
+        let r = ReachRequest {
+            max_leaves: Some(0),
+            ..request()
+        };
+        let m = r.settings(Front::Python).unwrap_err().to_string();
+        assert!(m.starts_with("max_leaves 0: give 1 to 100000"), "{m}");
+    }
+
+    #[test]
+    fn reach_request_gives_the_published_settings_with_its_changes() {
+        let mut init = BTreeMap::new();
+        init.insert("theta".to_string(), (-0.01, 0.01));
+        let s = ReachRequest {
+            init,
+            goal_ystar: Some(2.0),
+            samples: Some(7),
+            ..request()
+        }
+        .settings(Front::Python)
+        .unwrap();
+        let published = ReachSettings::published(Model::Reduced);
+        assert_eq!(s.init[3], (-0.01, 0.01));
+        assert_eq!(s.init[5], (0.1 / 0.07, 0.3 / 0.07));
+        assert_eq!((s.horizon, s.period, s.samples), (2.0, 0.5, 7));
+        assert_eq!(s.max_leaves, published.max_leaves);
+        assert_eq!(s.clip, published.clip);
+        assert_eq!(
+            s.goal.as_ref().map(|g| (g.ystar, g.from)),
+            Some((2.0, None))
+        );
+    }
+
+    #[test]
+    fn reasons_in_results_name_python_arguments() {
+        let r = crate::Reason {
+            kind: "timeout".into(),
+            message: "time limit reached after 31 nodes (raise --timeout)".into(),
+        };
+        assert_eq!(
+            r.clone().in_words(Front::Python).message,
+            "time limit reached after 31 nodes (raise timeout)"
+        );
+        assert_eq!(r.clone().in_words(Front::Cli), r);
+    }
+
+    #[test]
+    fn a_bad_timeout_is_named_in_each_front() {
+        let py = verify_settings(Front::Python, -1.0, 10, false).unwrap_err();
+        assert_eq!(
+            py.to_string(),
+            "timeout -1: must be a number of seconds >= 0 (e.g. timeout=60; float('inf') for no limit)"
+        );
+        let cli = verify_settings(Front::Cli, f64::NAN, 10, false).unwrap_err();
+        assert_eq!(
+            cli.to_string(),
+            "--timeout NaN: must be a number of seconds >= 0 (e.g. --timeout 60; inf for no limit)"
+        );
+        let s = verify_settings(Front::Python, f64::INFINITY, 10, true).unwrap();
+        assert_eq!((s.timeout, s.max_nodes), (f64::INFINITY, 10));
+    }
+
+    #[test]
+    fn grid_parts_merge_only_in_cell_order() {
+        let part = |a, b| GridPart {
+            cells: Some((a, b)),
+            total_cells: Some(4),
+            reach: SystemReach {
+                system: "s".into(),
+                verdict: samara_reach::system::SystemVerdict::NoGoal,
+                instants: vec![],
+                periods: vec![],
+                boxes: 1,
+                covered: 1.0,
+                order: 3,
+                network_error: samara_reach::system::NetworkError::Interval,
+                seconds: 1.0,
+                leaves: vec![],
+                measures: vec![],
+                flights: vec![],
+            },
+        };
+        let m = merge_grid_parts(vec![part(0, 1), part(1, 4)], "parts").unwrap();
+        assert_eq!((m.cells, m.total_cells), (Some((0, 4)), Some(4)));
+        let e = merge_grid_parts(vec![part(1, 4), part(0, 1)], "parts").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("parts[0]: cells 1..4 do not continue"),
+            "{e}"
+        );
+        let e = merge_grid_parts(vec![], "parts").unwrap_err();
+        assert_eq!(e.to_string(), "parts: give at least one result");
+    }
+}
