@@ -72,13 +72,15 @@ pub fn minmax(coef: &[&[f64]], cst: &[f64], lo: &[f64], hi: &[f64]) -> Option<Mi
     }
     // Objective row: z - tau = 0.
     tab[m * cols + n] = -1.0;
-    if tab.iter().any(|v| !v.is_finite()) {
+    // Every entry comes from `a`, `e` and `big` (the rest are 0 and 1).
+    if !big.is_finite() || !e.iter().chain(a.iter().flatten()).all(|v| v.is_finite()) {
         return None;
     }
     let mut basis: Vec<usize> = (nv..nv + m).collect();
     let piv_tol = 1e-12 * scale.max(1.0);
     let mut solved = false;
     let mut rule = Pricing::default();
+    let mut nz = Vec::with_capacity(cols);
     for _ in 0..50 * (m + nv) {
         let Some(q) = rule.entering(&tab[m * cols..m * cols + nv + m], 1e-12) else {
             solved = true;
@@ -87,9 +89,9 @@ pub fn minmax(coef: &[&[f64]], cst: &[f64], lo: &[f64], hi: &[f64]) -> Option<Mi
         // Ratio test; ties to the lowest basic index.
         let p = leaving_row(&tab, cols, m, &basis, q, piv_tol, |r| r)?; // unbounded cannot happen (tau <= T - e_k); bail out if so
         rule.record(tab[p * cols + cols - 1]);
-        pivot(&mut tab, cols, m, &mut basis, p, q);
+        pivot(&mut tab, cols, m, &mut basis, p, q, &mut nz);
     }
-    if !solved || tab.iter().any(|v| !v.is_finite()) {
+    if !solved || !read_out_finite(&tab, cols, m) {
         return None;
     }
     let mut s = vec![0.0; nv];
@@ -210,12 +212,22 @@ pub fn min_linear(c: &[f64], a: &[&[f64]], d: &[f64], lo: &[f64], hi: &[f64]) ->
         o[..n].copy_from_slice(&cs);
         o[n] = big;
     }
-    if tab.iter().any(|v| !v.is_finite()) {
+    // The constraint rows (scaled), their right-hand sides and the objective: the rest
+    // of the tableau is 0 and 1.
+    if !big.is_finite()
+        || !(0..m).all(|p| {
+            tab[p * cols..p * cols + n]
+                .iter()
+                .chain(std::iter::once(&tab[p * cols + cols - 1]))
+                .all(|v| v.is_finite())
+        })
+    {
         return None;
     }
     let mut basis: Vec<usize> = (nv..nv + rows).collect();
-    let pivot = |tab: &mut Vec<f64>, basis: &mut Vec<usize>, p: usize, q: usize| {
-        pivot(tab, cols, rows, basis, p, q)
+    let mut nz = Vec::with_capacity(cols);
+    let mut pivot = |tab: &mut Vec<f64>, basis: &mut Vec<usize>, p: usize, q: usize| {
+        pivot(tab, cols, rows, basis, p, q, &mut nz)
     };
     // The most violated row takes the artificial variable r.
     let (q, minr) = (0..m)
@@ -236,7 +248,7 @@ pub fn min_linear(c: &[f64], a: &[&[f64]], d: &[f64], lo: &[f64], hi: &[f64]) ->
         rule.record(tab[p * cols + cols - 1]);
         pivot(&mut tab, &mut basis, p, q);
     }
-    if !solved || tab.iter().any(|v| !v.is_finite()) {
+    if !solved || !read_out_finite(&tab, cols, rows) {
         return None;
     }
     let mut sv = vec![0.0; nv];
@@ -255,6 +267,15 @@ pub fn min_linear(c: &[f64], a: &[&[f64]], d: &[f64], lo: &[f64], hi: &[f64]) ->
         x,
         feasible: sv[n] <= 1e-9,
     })
+}
+
+/// Whether what a solver reads out of its final tableau is finite: the right-hand side
+/// column (the primal point) and the objective row (the duals). Checking these instead of
+/// the whole tableau costs O(rows + cols) instead of O(rows cols); the solvers only
+/// propose, and their callers certify every bound and re-check every point.
+fn read_out_finite(tab: &[f64], cols: usize, rows: usize) -> bool {
+    (0..rows).all(|i| tab[i * cols + cols - 1].is_finite())
+        && tab[rows * cols..].iter().all(|v| v.is_finite())
 }
 
 /// The entering-column rule of both solvers: Dantzig's (the most negative reduced cost
@@ -330,18 +351,30 @@ fn leaving_row(
 
 /// One simplex pivot on the dense tableau `tab` (`cols` columns, rows `0..=last`, the
 /// objective row included) at row `p`, column `q`; `q` enters the basis at row `p`.
-fn pivot(tab: &mut [f64], cols: usize, last: usize, basis: &mut [usize], p: usize, q: usize) {
+/// `nz` is scratch space for the pivot row's non-zero entries (kept between pivots so
+/// that a solve allocates it once).
+fn pivot(
+    tab: &mut [f64],
+    cols: usize,
+    last: usize,
+    basis: &mut [usize],
+    p: usize,
+    q: usize,
+    nz: &mut Vec<(usize, f64)>,
+) {
     let piv = tab[p * cols + q];
     for c in 0..cols {
         tab[p * cols + c] /= piv;
     }
     // The pivot row's non-zero entries, so that each row update touches only those.
-    let nz: Vec<(usize, f64)> = tab[p * cols..(p + 1) * cols]
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| **v != 0.0)
-        .map(|(c, v)| (c, *v))
-        .collect();
+    nz.clear();
+    nz.extend(
+        tab[p * cols..(p + 1) * cols]
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| **v != 0.0)
+            .map(|(c, v)| (c, *v)),
+    );
     for i in 0..=last {
         if i == p {
             continue;
@@ -349,7 +382,7 @@ fn pivot(tab: &mut [f64], cols: usize, last: usize, basis: &mut [usize], p: usiz
         let f = tab[i * cols + q];
         if f != 0.0 {
             let row = &mut tab[i * cols..(i + 1) * cols];
-            for &(c, v) in &nz {
+            for &(c, v) in nz.iter() {
                 row[c] -= f * v;
             }
         }
