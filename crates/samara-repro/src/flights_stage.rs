@@ -1,7 +1,7 @@
 //! Stage 5 of the reproduction: every raw-unit controller flown from the published
 //! starts (plate6 model, sample and hold).
 
-use crate::stages::{flights_figure, stage_err};
+use crate::common::{flights_figure, stage_err};
 use crate::verify_stage::subjects;
 use crate::{Ctx, ReproError, StageOutput};
 use samara_plant::{Model, Plant};

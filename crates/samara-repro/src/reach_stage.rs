@@ -1,8 +1,8 @@
 //! Stage 6 of the reproduction: sound reachable sets of every raw-unit controller on
 //! the spec's closed loop.
 
+use crate::common::stage_err;
 use crate::spec_check::published_loop;
-use crate::stages::stage_err;
 use crate::verify_stage::{subjects, Subject};
 use crate::{Ctx, ReproError, StageOutput};
 use samara_report::reach::{Trajectory, XyBox};

@@ -1,8 +1,8 @@
 //! Sections 2-6 of the report and the computed findings, rendered from the stages'
 //! JSON results (a cached run renders the same report).
 
+use crate::common::f4;
 use crate::doc::{Block, Document};
-use crate::stages::f4;
 use crate::table;
 use crate::verify_stage::{critical_cell, EPS, LS};
 use serde_json::Value;

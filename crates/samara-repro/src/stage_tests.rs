@@ -1,7 +1,7 @@
 //! Tests of the stages (2-6) and the spec checks: shared helpers (a linear network with
 //! known critical values, edited copies of the spec) in one place.
 
-use crate::stages::{METHODS, P1_TO_P4};
+use crate::common::{METHODS, P1_TO_P4};
 use crate::train_stage::*;
 use crate::verify_stage::*;
 use crate::{Ctx, ReproError, StageOutput};

@@ -1,8 +1,7 @@
 //! Stages 3-4 of the reproduction: critical values of P1-P4 and the P5 robustness
 //! tables, for samara's networks and the published ones.
 
-use crate::stages::{read_plain_csv, stage_err};
-use crate::stages::{METHODS, P1_TO_P4};
+use crate::common::{read_plain_csv, stage_err, METHODS, P1_TO_P4};
 use crate::{Ctx, ReproError, StageOutput};
 use samara_nn::Network;
 use samara_spec::normal::{Goal, LinExpr, Query, Sense, Var};
