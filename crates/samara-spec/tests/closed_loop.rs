@@ -4,8 +4,8 @@
 //! [0.1/0.07, 0.3/0.07], period 0.5, horizon 20, clip [0.181, 0.193], goal |x + y| <= 2
 //! at t = 20), and every mistake named with file:line:column and a fix.
 
-use samara_system::plate::Model;
 use samara_spec::Spec;
+use samara_system::plate::Model;
 use std::path::Path;
 
 fn shipped() -> Spec {
