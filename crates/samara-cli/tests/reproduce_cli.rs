@@ -329,7 +329,7 @@ fn an_edited_spec_moves_the_reproductions_threshold() {
         .arg("--out")
         .arg(&out_dir)
         .arg("--published")
-        .arg(published)
+        .arg(&published)
         .output()
         .unwrap();
     assert!(

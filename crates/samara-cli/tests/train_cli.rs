@@ -252,7 +252,7 @@ fn out_of_range_flags_exit_2_naming_the_flag() {
 #[test]
 fn too_small_data_sets_exit_2_saying_how_many_rows_are_needed() {
     let dir = tempfile::tempdir().unwrap();
-    let all = std::fs::read_to_string(&normalised()).unwrap();
+    let all = std::fs::read_to_string(normalised()).unwrap();
     for n in [1, 14] {
         let p = dir.path().join(format!("rows{n}.csv"));
         let body: String = all.lines().take(n).map(|l| format!("{l}\n")).collect();
@@ -321,7 +321,7 @@ fn outputs_onto_inputs_are_refused_and_inputs_survive() {
     let t = dir.path().join("t");
     std::fs::create_dir(&t).unwrap();
     let data = t.join("mydata.csv");
-    std::fs::copy(&normalised(), &data).unwrap();
+    std::fs::copy(normalised(), &data).unwrap();
     let norm = t.join("norm.csv");
     std::fs::copy(support::reference("Normalisation_Constants.csv"), &norm).unwrap();
     let spec = t.join("props.spec");
@@ -381,7 +381,7 @@ fn outputs_onto_inputs_are_refused_and_inputs_survive() {
     ];
     // The last-but-one case needs the data under that name.
     let data_as_log = t.join("mydata.log.csv");
-    std::fs::copy(&normalised(), &data_as_log).unwrap();
+    std::fs::copy(normalised(), &data_as_log).unwrap();
     let dl0 = snapshot(&data_as_log);
     for (k, (extra, needle)) in cases.iter().enumerate() {
         let data_flag = if k == 8 { p(&data_as_log) } else { p(&data) };
