@@ -12,7 +12,13 @@ SPEC = ROOT / "models" / "alsomitra" / "alsomitra.spec"
 
 
 def reference(name: str) -> Path:
+    """A published reference file; a missing one fails the test naming it (the policy of
+    samara-testkit: never a silent skip)."""
     p = REFERENCE / name
     if not p.is_file():
-        pytest.skip(f"reference file {p} not present")
+        pytest.fail(
+            f"reference file {p} not found: the tests read the published case-study files "
+            "from ../shared/reference beside the repository (or $SAMARA_REFERENCE)",
+            pytrace=False,
+        )
     return p

@@ -126,13 +126,13 @@ fn referenced_files(html: &str, md: &str) -> Vec<String> {
 #[test]
 fn quick_reproduction_writes_a_consistent_report_and_reuses_stages() {
     let dir = tempfile::tempdir().unwrap();
-    let published = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
+    let published = support::published_dir();
     let run = || {
         samara()
             .args(["reproduce", "--quick", "--json", "--out"])
             .arg(dir.path())
             .arg("--published")
-            .arg(published)
+            .arg(&published)
             .output()
             .unwrap()
     };
@@ -183,7 +183,7 @@ fn quick_reproduction_writes_a_consistent_report_and_reuses_stages() {
         .args(["reproduce", "--quick", "--out"])
         .arg(dir.path())
         .arg("--published")
-        .arg(published)
+        .arg(&published)
         .output()
         .unwrap();
     assert!(out2.status.success());
@@ -313,7 +313,7 @@ fn num(v: &Value, pointer: &str) -> f64 {
 #[ignore = "a second full `reproduce --quick` (2-5 min on 2 cores); run with --ignored"]
 fn an_edited_spec_moves_the_reproductions_threshold() {
     let dir = tempfile::tempdir().unwrap();
-    let published = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference");
+    let published = support::published_dir();
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../models/alsomitra/alsomitra.spec"
@@ -329,7 +329,7 @@ fn an_edited_spec_moves_the_reproductions_threshold() {
         .arg("--out")
         .arg(&out_dir)
         .arg("--published")
-        .arg(published)
+        .arg(&published)
         .output()
         .unwrap();
     assert!(
@@ -361,7 +361,10 @@ fn an_edited_spec_moves_the_reproductions_threshold() {
             "--json",
             "--network",
         ])
-        .arg(format!("f={published}/adversarial_model_norm.onnx"))
+        .arg(format!(
+            "f={}/adversarial_model_norm.onnx",
+            published.display()
+        ))
         .output()
         .unwrap();
     let cli: Value = serde_json::from_slice(&cli.stdout).unwrap();

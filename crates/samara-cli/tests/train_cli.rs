@@ -4,10 +4,10 @@
 mod support;
 use support::samara;
 
-const DATA: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/Training_Data.csv"
-);
+/// The published training data (fails naming the file when it is missing).
+fn data() -> String {
+    support::reference_str("Training_Data.csv")
+}
 
 #[test]
 fn trains_exports_and_flies() {
@@ -17,7 +17,7 @@ fn trains_exports_and_flies() {
         .args([
             "train",
             "--data",
-            DATA,
+            &data(),
             "--method",
             "adversarial",
             "--epochs",
@@ -41,7 +41,7 @@ fn trains_exports_and_flies() {
         .args([
             "train",
             "--data",
-            DATA,
+            &data(),
             "--method",
             "adversarial",
             "--epochs",
@@ -107,10 +107,10 @@ fn bad_data_and_flags_exit_2() {
     assert!(!dir.path().join("n.onnx").exists());
 }
 
-const NORMALISED: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/Training_Data_Normalised.csv"
-);
+/// The published normalised training data (fails naming the file when it is missing).
+fn normalised() -> String {
+    support::reference_str("Training_Data_Normalised.csv")
+}
 
 fn run(args: &[&std::ffi::OsStr]) -> (Option<i32>, String, String) {
     let out = samara().arg("train").args(args).output().unwrap();
@@ -136,7 +136,7 @@ fn a_dead_start_is_restarted_reported_and_reproducible() {
         let net = dir.path().join(format!("net{k}.onnx"));
         let (code, stdout, stderr) = run(&os(&[
             "--data",
-            NORMALISED,
+            &normalised(),
             "--method",
             "plain",
             "--seed",
@@ -164,7 +164,7 @@ fn a_dead_start_is_restarted_reported_and_reproducible() {
     // Human output names the restart.
     let (code, _, stderr) = run(&os(&[
         "--data",
-        NORMALISED,
+        &normalised(),
         "--seed",
         "1",
         "--out",
@@ -185,7 +185,7 @@ fn no_recovery_exits_1_and_writes_nothing() {
     let net = dir.path().join("new").join("sub").join("net.onnx");
     let (code, stdout, stderr) = run(&os(&[
         "--data",
-        NORMALISED,
+        &normalised(),
         "--seed",
         "1",
         "--max-restarts",
@@ -236,8 +236,9 @@ fn out_of_range_flags_exit_2_naming_the_flag() {
         (&["--min-r2", "nan"], "--min-r2"),
         (&["--max-restarts", "1000"], "--max-restarts"),
     ];
+    let data = normalised();
     for (extra, needle) in cases {
-        let mut args = vec!["--data", NORMALISED, "--out", out.to_str().unwrap()];
+        let mut args = vec!["--data", &data, "--out", out.to_str().unwrap()];
         args.extend_from_slice(extra);
         let (code, _, stderr) = run(&os(&args));
         assert_eq!(code, Some(2), "{extra:?}: {stderr}");
@@ -251,7 +252,7 @@ fn out_of_range_flags_exit_2_naming_the_flag() {
 #[test]
 fn too_small_data_sets_exit_2_saying_how_many_rows_are_needed() {
     let dir = tempfile::tempdir().unwrap();
-    let all = std::fs::read_to_string(NORMALISED).unwrap();
+    let all = std::fs::read_to_string(normalised()).unwrap();
     for n in [1, 14] {
         let p = dir.path().join(format!("rows{n}.csv"));
         let body: String = all.lines().take(n).map(|l| format!("{l}\n")).collect();
@@ -320,16 +321,9 @@ fn outputs_onto_inputs_are_refused_and_inputs_survive() {
     let t = dir.path().join("t");
     std::fs::create_dir(&t).unwrap();
     let data = t.join("mydata.csv");
-    std::fs::copy(NORMALISED, &data).unwrap();
+    std::fs::copy(normalised(), &data).unwrap();
     let norm = t.join("norm.csv");
-    std::fs::copy(
-        concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/reference/Normalisation_Constants.csv"
-        ),
-        &norm,
-    )
-    .unwrap();
+    std::fs::copy(support::reference("Normalisation_Constants.csv"), &norm).unwrap();
     let spec = t.join("props.spec");
     std::fs::write(&spec, "not read before the output check\n").unwrap();
     let old_log = t.join("old.log.csv");
@@ -387,7 +381,7 @@ fn outputs_onto_inputs_are_refused_and_inputs_survive() {
     ];
     // The last-but-one case needs the data under that name.
     let data_as_log = t.join("mydata.log.csv");
-    std::fs::copy(NORMALISED, &data_as_log).unwrap();
+    std::fs::copy(normalised(), &data_as_log).unwrap();
     let dl0 = snapshot(&data_as_log);
     for (k, (extra, needle)) in cases.iter().enumerate() {
         let data_flag = if k == 8 { p(&data_as_log) } else { p(&data) };
@@ -428,7 +422,7 @@ fn a_new_output_folder_is_created_and_kept_on_success() {
     let net = dir.path().join("a").join("b").join("net.onnx");
     let (code, _, stderr) = run(&os(&[
         "--data",
-        NORMALISED,
+        &normalised(),
         "--epochs",
         "300",
         "--out",

@@ -10,10 +10,10 @@ const SPEC: &str = concat!(
     "/../../models/alsomitra/alsomitra.spec"
 );
 
-const DATA: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/Training_Data.csv"
-);
+/// The published training data (fails naming the file when it is missing).
+fn data() -> String {
+    support::reference_str("Training_Data.csv")
+}
 
 #[test]
 fn closed_loop_training_reports_its_rounds_and_reach_proves_the_network() {
@@ -23,7 +23,7 @@ fn closed_loop_training_reports_its_rounds_and_reach_proves_the_network() {
         .args([
             "train",
             "--data",
-            DATA,
+            &data(),
             "--method",
             "closed-loop",
             "--json",
@@ -114,7 +114,14 @@ fn bad_closed_loop_flags_are_refused_before_writing() {
     ] {
         let sub = dir.path().join("new");
         let out = samara()
-            .args(["train", "--data", DATA, "--method", "closed-loop", "--out"])
+            .args([
+                "train",
+                "--data",
+                &data(),
+                "--method",
+                "closed-loop",
+                "--out",
+            ])
             .arg(sub.join("cl.onnx"))
             .args(&flags)
             .output()

@@ -76,8 +76,7 @@ fn start_watchdog() {
     });
 }
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 use support::reference;
 
 /// Counts of one input kind.

@@ -7,8 +7,7 @@
 use samara_nn::{onnx, Activation, Affine, Layer, Network};
 use samara_num::{Dual, Scalar};
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 use support::reference;
 
 #[test]

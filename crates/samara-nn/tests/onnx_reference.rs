@@ -5,8 +5,7 @@
 
 use samara_nn::onnx;
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 use support::reference;
 
 fn check(stem: &str) -> f64 {

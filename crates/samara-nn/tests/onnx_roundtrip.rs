@@ -198,7 +198,7 @@ proptest! {
 
 /// Needs bench/.venv (bench/setup_venv.sh): `cargo test -p samara-nn -- --ignored`.
 #[test]
-#[ignore]
+#[ignore = "needs onnxruntime in bench/.venv (bench/setup_venv.sh); run with --ignored"]
 fn exported_network_agrees_with_onnxruntime() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
     let py = root.join("bench/.venv/bin/python");

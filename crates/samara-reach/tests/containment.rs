@@ -7,8 +7,7 @@
 
 use samara_plant::{Model, Plant};
 use samara_reach::{check_containment, reach, simulate_samples, Goal, ReachSettings};
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 
 /// A published network (the test fails with a message when it is missing).
 fn net(name: &str) -> samara_nn::Network {

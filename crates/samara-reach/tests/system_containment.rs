@@ -696,15 +696,11 @@ fn final_xy_range(sys: &System, net: &samara_nn::Network, n: usize, seed: u64) -
     (lo, hi)
 }
 
-/// A published network of the case study, from `../shared/reference`.
+/// A published network of the case study, from `../shared/reference` (a missing file
+/// fails naming it: `samara_testkit::reference`).
 fn reference_net(file: &str) -> samara_nn::Network {
-    let p = root().join("../shared/reference").join(file);
-    samara_nn::onnx::load(&p).unwrap_or_else(|e| {
-        panic!(
-            "{}: {e}; the published networks live in ../shared/reference (see its README)",
-            p.display()
-        )
-    })
+    let p = samara_testkit::reference(file);
+    samara_nn::onnx::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()))
 }
 
 /// The published Alsomitra setting through the system path (the shipped

@@ -1,8 +1,8 @@
 //! Stage 5 of the reproduction: every raw-unit controller flown from the published
 //! starts (plate6 model, sample and hold).
 
+use crate::common::{flights_figure, stage_err};
 use crate::results::{reals, FlightsResult, FlownController, Real, Stages};
-use crate::stages::{flights_figure, stage_err};
 use crate::verify_stage::subjects;
 use crate::{Ctx, ReproError};
 use samara_plant::{Model, Plant};

@@ -13,6 +13,7 @@
 #![warn(missing_docs)]
 
 pub mod cache;
+mod common;
 pub mod doc;
 mod flights_stage;
 mod reach_stage;

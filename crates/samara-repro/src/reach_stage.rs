@@ -1,9 +1,9 @@
 //! Stage 6 of the reproduction: sound reachable sets of every raw-unit controller on
 //! the spec's closed loop.
 
+use crate::common::stage_err;
 use crate::results::{pair, ReachStageResult, ReachedNetwork, Real, Stages};
 use crate::spec_check::published_loop;
-use crate::stages::stage_err;
 use crate::verify_stage::{subjects, Subject};
 use crate::{Ctx, ReproError};
 use samara_report::reach::{Trajectory, XyBox};

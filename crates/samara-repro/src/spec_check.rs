@@ -2,7 +2,7 @@
 //! critical-value queries and training properties, and the closed loop of the
 //! reachability stage and closed-loop training.
 
-use crate::stages::P1_TO_P4;
+use crate::common::P1_TO_P4;
 use crate::verify_stage::critical_query;
 use samara_spec::{Bindings, LoopDecl, Spec};
 use samara_train::{from_query, CegisOptions};

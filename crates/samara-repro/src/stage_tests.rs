@@ -1,8 +1,8 @@
 //! Tests of the stages (2-6) and the spec checks: shared helpers (a linear network with
 //! known critical values, edited copies of the spec) in one place.
 
+use crate::common::{METHODS, P1_TO_P4};
 use crate::results::{reals, CriticalRow, Real, Stages, TrainResult};
-use crate::stages::{METHODS, P1_TO_P4};
 use crate::train_stage::*;
 use crate::verify_stage::*;
 use crate::{Ctx, ReproError};

@@ -1,29 +1,17 @@
-//! The stages of the reproduction and the report built from their JSON results (so a
+//! The stages of the reproduction and the report built from their typed results (so a
 //! cached run renders the same report).
 
+pub use crate::common::flights_figure;
+use crate::common::{read_plain_csv, stage_err};
 use crate::doc::{Block, Document};
 use crate::results::{reals, DataResult, FinalPoint, Real, Results, Stages};
 use crate::{new_report, table, Ctx, ReproError, ReproduceOptions, StageFn};
 use samara_plant::{Model, Plant};
-use samara_report::{write_atomic, Curve, TrajectoryFigure};
+use samara_report::write_atomic;
 use samara_sim::dataset::{normalisation_csv, training_csv};
 use samara_sim::{
-    fly, initial_state, minmax, published_starts, training_rows, Flight, LoopSettings,
-    PidController,
+    fly, initial_state, minmax, published_starts, training_rows, LoopSettings, PidController,
 };
-
-/// samara's training methods, in the order of the train stage's table.
-pub(crate) const METHODS: [&str; 6] = [
-    "plain",
-    "adversarial",
-    "lipschitz",
-    "dl2",
-    "goedel",
-    "closed-loop",
-];
-/// The spec's global properties, verified by critical values and trained for by DL2 and
-/// Goedel.
-pub(crate) const P1_TO_P4: [&str; 4] = ["p1", "p2", "p3", "p4"];
 
 /// Every stage, in order.
 pub fn all() -> Vec<(&'static str, StageFn)> {
@@ -34,46 +22,6 @@ pub fn all() -> Vec<(&'static str, StageFn)> {
         ("closed_loop", crate::flights_stage::closed_loop as StageFn),
         ("reach", crate::reach_stage::reach as StageFn),
     ]
-}
-
-pub(crate) fn stage_err(stage: &str, e: impl std::fmt::Display) -> ReproError {
-    ReproError::Stage {
-        stage: stage.into(),
-        message: e.to_string(),
-    }
-}
-
-pub(crate) fn read_plain_csv(path: &std::path::Path) -> Result<Vec<Vec<f64>>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    text.lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| {
-            l.split(',')
-                .map(|v| {
-                    v.trim()
-                        .parse::<f64>()
-                        .map_err(|_| format!("{}:{}: not a number: {v:?}", path.display(), i + 1))
-                })
-                .collect()
-        })
-        .collect()
-}
-
-/// Figure of flights.
-pub fn flights_figure(title: &str, flights: &[Flight], band: Option<f64>) -> TrajectoryFigure {
-    let curves = flights
-        .iter()
-        .map(|f| Curve {
-            label: format!("y0 = {:.4}", f.initial[5]),
-            points: std::iter::once((f.initial[4], f.initial[5]))
-                .chain(f.dense.iter().map(|(_, s, _)| (s[4], s[5])))
-                .collect(),
-        })
-        .collect();
-    let mut fig = TrajectoryFigure::new(title, curves);
-    fig.band = band;
-    fig
 }
 
 /// Stage 1: the PID data set (published protocol), its constants and the figure.

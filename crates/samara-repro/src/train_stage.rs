@@ -2,12 +2,11 @@
 //! (plain, adversarial, Lipschitz, DL2 and Goedel on the spec's P1-P4, and closed-loop
 //! training on the spec's loop).
 
+use crate::common::{stage_err, METHODS, P1_TO_P4};
 use crate::results::{
     pair, reals, ClosedLoopResult, Real, RoundRow, Stages, TrainResult, TrainedNetwork,
 };
 use crate::spec_check::published_loop;
-use crate::stages::stage_err;
-use crate::stages::{METHODS, P1_TO_P4};
 use crate::{Ctx, ReproError};
 use samara_nn::Network;
 use samara_spec::{Bindings, Spec};

@@ -1,11 +1,10 @@
 //! Stages 3-4 of the reproduction: critical values of P1-P4 and the P5 robustness
 //! tables, for samara's networks and the published ones.
 
+use crate::common::{read_plain_csv, stage_err, METHODS, P1_TO_P4};
 use crate::results::{
     reals, CriticalRow, P5Tables, Real, ReasonRow, Stages, VerifiedNetwork, VerifyResult,
 };
-use crate::stages::{read_plain_csv, stage_err};
-use crate::stages::{METHODS, P1_TO_P4};
 use crate::{Ctx, ReproError};
 use samara_nn::Network;
 use samara_spec::normal::{Goal, LinExpr, Query, Sense, Var};

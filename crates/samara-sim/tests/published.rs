@@ -1,8 +1,7 @@
 //! The published training data are the independent reference here: they were produced
 //! by the authors' MATLAB code (ode45), not by samara.
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 
 use samara_plant::{Model, Plant};
 use samara_sim::{

@@ -33,8 +33,7 @@ fn spec() -> Spec {
         .unwrap()
 }
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 use support::reference;
 
 /// Counterexample to P_k with ystar = t, from the paper's statements (raw units).

@@ -10,8 +10,7 @@ use samara_spec::normal::{Cmp, Query, Var};
 use samara_spec::{vnnlib, Bindings, Spec};
 use std::path::Path;
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 use support::reference;
 
 fn spec() -> Spec {

@@ -8,8 +8,7 @@ use samara_spec::normal::{Cmp, Constraint, Var};
 use samara_spec::{vnnlib, Bindings, Spec};
 use std::path::Path;
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod support;
+use samara_testkit as support;
 
 const C: [f64; 6] = [
     0.967568147,

@@ -4,24 +4,10 @@
 use crate::error::{closest, Pos, SystemError};
 use crate::graph::{Bin2, Builder, Cond, Graph, Op, Un};
 use crate::lex::err;
-use crate::parse::{Bin, Cmp, Expr, GoalAst, Stmt, WhenAst};
+use crate::parse::{function_arity, Bin, Cmp, Expr, GoalAst, Stmt, WhenAst, FUNCTIONS};
 use crate::{Goal, GoalKind, Switch, System, When};
 use std::collections::HashMap;
 use std::f64::consts::PI;
-
-/// The functions of the language with their number of arguments (min, max).
-pub(crate) fn function_arity(name: &str) -> Option<(usize, usize)> {
-    Some(match name {
-        "sqrt" | "exp" | "log" | "ln" | "sin" | "cos" | "tan" | "tanh" | "atan" | "abs"
-        | "sign" => (1, 1),
-        "min" | "max" => (2, 64),
-        _ => return None,
-    })
-}
-
-const FUNCTIONS: &[&str] = &[
-    "sqrt", "exp", "log", "ln", "sin", "cos", "tan", "tanh", "atan", "abs", "sign", "min", "max",
-];
 
 /// Largest integer exponent evaluated by repeated squaring.
 const MAX_POWI: f64 = 65536.0;

@@ -102,6 +102,21 @@ pub(crate) enum Stmt {
     Goal(GoalAst, WhenAst, Pos),
 }
 
+/// The functions of the language with their number of arguments (min, max).
+pub(crate) fn function_arity(name: &str) -> Option<(usize, usize)> {
+    Some(match name {
+        "sqrt" | "exp" | "log" | "ln" | "sin" | "cos" | "tan" | "tanh" | "atan" | "abs"
+        | "sign" => (1, 1),
+        "min" | "max" => (2, 64),
+        _ => return None,
+    })
+}
+
+/// The function names, for suggestions.
+pub(crate) const FUNCTIONS: &[&str] = &[
+    "sqrt", "exp", "log", "ln", "sin", "cos", "tan", "tanh", "atan", "abs", "sign", "min", "max",
+];
+
 /// Statement keywords (not usable as names).
 pub(crate) const KEYWORDS: &[&str] = &[
     "system",
@@ -195,7 +210,7 @@ impl<'a> Parser<'a> {
         match self.peek().clone() {
             Tok::Id(s) => {
                 let pos = self.bump().pos;
-                if KEYWORDS.contains(&s.as_str()) || crate::compile::function_arity(&s).is_some() {
+                if KEYWORDS.contains(&s.as_str()) || function_arity(&s).is_some() {
                     return self.fail(
                         pos,
                         format!("`{s}` is reserved and cannot name {what}"),

@@ -262,41 +262,6 @@ fn closed_loop_flights_are_bit_identical() {
     }
 }
 
-/// Time per right-hand side, file (with and without a reused buffer) vs built-in.
-/// `cargo test --release -p samara-system --test alsomitra -- --ignored --nocapture`
-#[test]
-#[ignore = "a timing report (prints, asserts nothing): run with --release -- --ignored --nocapture"]
-fn rhs_speed() {
-    let sys = file("alsomitra_plate6.sys");
-    let plant = Plant::new(Model::Plate6);
-    let s = [1.1, 0.2, 0.3, -0.2, 1.0, 2.0, 0.1];
-    let n = 200_000;
-    let mut o = [0.0; 7];
-    let t = std::time::Instant::now();
-    for i in 0..n {
-        plant.rhs(&s, &(0.19 + i as f64 * 1e-9), &mut o);
-    }
-    let a = t.elapsed().as_secs_f64() / n as f64;
-    let t = std::time::Instant::now();
-    for i in 0..n {
-        sys.rhs(&s, &[0.19 + i as f64 * 1e-9], &mut o);
-    }
-    let b = t.elapsed().as_secs_f64() / n as f64;
-    let mut scratch = Vec::new();
-    let t = std::time::Instant::now();
-    for i in 0..n {
-        sys.rhs_with(&mut scratch, &s, &[0.19 + i as f64 * 1e-9], &mut o);
-    }
-    let c = t.elapsed().as_secs_f64() / n as f64;
-    eprintln!(
-        "rhs: built-in {:.0} ns, file {:.0} ns, file with buffer {:.0} ns ({} instructions)",
-        a * 1e9,
-        b * 1e9,
-        c * 1e9,
-        sys.rhs_graph().ops.len()
-    );
-}
-
 /// Over sets the file runs the same Scalar operations in the same order as the
 /// built-in plant: interval and Taylor-series enclosures are identical, so reach
 /// results are the same (reduced and plate6; `full` joins undecided masks differently

@@ -8,9 +8,8 @@ use samara_system::sim;
 use samara_system::System;
 use std::path::Path;
 
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod reference_files;
 use reference_files::reference;
+use samara_testkit as reference_files;
 
 fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))

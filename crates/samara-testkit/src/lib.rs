@@ -6,7 +6,34 @@
 //! naming the file and where it is expected; a test never skips or passes silently
 //! because a reference file is absent.
 
-include!("reference.rs");
+use std::path::{Path, PathBuf};
+
+/// The folder of the published case-study files, `../shared/reference` beside the
+/// repository (`CARGO_MANIFEST_DIR` of any crate is two levels below the repository).
+pub fn reference_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference")
+}
+
+/// A published reference file. A missing file fails the test (never a silent pass) with
+/// a message saying where the file is expected.
+pub fn reference(name: &str) -> PathBuf {
+    let p = reference_dir().join(name);
+    assert!(
+        p.exists(),
+        "reference file {} not found: the tests read the published case-study files \
+         from ../shared/reference beside the repository (README.md); put them there",
+        p.display()
+    );
+    p
+}
+
+/// The folder of the published files, for a command that takes the folder itself
+/// (`samara reproduce --published DIR`): fails, naming the file, when the training data
+/// it starts from is missing.
+pub fn published_dir() -> PathBuf {
+    reference("Training_Data.csv");
+    reference_dir()
+}
 
 /// [`reference`] as a path string (for command lines).
 pub fn reference_str(name: &str) -> String {

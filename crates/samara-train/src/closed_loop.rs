@@ -232,22 +232,14 @@ mod tests {
     use samara_sim::{fly, Integrator, LoopSettings, NetworkController};
 
     fn constants() -> MinMax {
-        MinMax::read(std::path::Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/reference/Normalisation_Constants.csv"
-        )))
-        .unwrap()
+        MinMax::read(&samara_testkit::reference("Normalisation_Constants.csv")).unwrap()
     }
 
     /// A 6-6-4-1 network (ReLU output, as published) trained for 300 epochs on the
     /// published data in the published units, so that its output moves inside the clip
     /// range during the flights.
     fn network() -> Mlp {
-        let data = crate::read_table(std::path::Path::new(concat!(
-            env!("CARGO_MANIFEST_DIR"),
-            "/../../../shared/reference/Training_Data.csv"
-        )))
-        .unwrap();
+        let data = crate::read_table(&samara_testkit::reference("Training_Data.csv")).unwrap();
         let out = crate::train(
             &data,
             Some(&constants()),

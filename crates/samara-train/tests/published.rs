@@ -7,11 +7,7 @@ use samara_sim::{fly, initial_state, published_starts, LoopSettings, NetworkCont
 use samara_train::{read_table, train, Method, MinMax, TrainOptions};
 
 fn data() -> samara_train::Table {
-    read_table(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/reference/Training_Data.csv"
-    )))
-    .unwrap()
+    read_table(&samara_testkit::reference("Training_Data.csv")).unwrap()
 }
 
 #[test]
@@ -155,11 +151,7 @@ fn goedel_with_a_lipschitz_penalty_trains_a_smoother_linear_output_network() {
 #[test]
 fn published_constants_file_is_understood() {
     let d = data();
-    let mm = MinMax::read(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/reference/Normalisation_Constants.csv"
-    )))
-    .unwrap();
+    let mm = MinMax::read(&samara_testkit::reference("Normalisation_Constants.csv")).unwrap();
     assert_eq!(mm.min.len(), 7);
     assert_eq!((mm.min[6], mm.range[6]), (0.181, 0.012));
     let out = train(

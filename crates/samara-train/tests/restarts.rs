@@ -6,11 +6,7 @@
 use samara_train::{attempt_seed, read_table, train, Degeneracy, TrainError, TrainOptions};
 
 fn data() -> samara_train::Table {
-    read_table(std::path::Path::new(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/reference/Training_Data_Normalised.csv"
-    )))
-    .unwrap()
+    read_table(&samara_testkit::reference("Training_Data_Normalised.csv")).unwrap()
 }
 
 #[test]

@@ -37,7 +37,6 @@ fn check(q: &Query, nets: &HashMap<String, Network>) {
 
 #[test]
 fn case_study_critical_values_agree_with_highs() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference");
     for f in [
         "base_model_norm",
         "adversarial_model_norm",
@@ -47,7 +46,7 @@ fn case_study_critical_values_agree_with_highs() {
         let mut nets = HashMap::new();
         nets.insert(
             "f".to_string(),
-            samara_nn::onnx::load(dir.join(format!("{f}.onnx"))).unwrap(),
+            samara_nn::onnx::load(samara_testkit::reference(&format!("{f}.onnx"))).unwrap(),
         );
         for q in p1_to_p4(f.contains("denorm")) {
             check(&q, &nets);

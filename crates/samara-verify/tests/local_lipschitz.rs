@@ -145,13 +145,9 @@ fn a_relu_network_is_decided_on_each_side_of_its_kink() {
 /// test short; `--ignored` runs all 360.
 fn published_p5_lipschitz(step: usize) {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let net_path = root.join("../shared/reference/adversarial_model_norm.onnx");
-    let network = samara_nn::onnx::load(&net_path).unwrap_or_else(|e| {
-        panic!(
-            "{}: {e} (the published networks live in ../shared/reference)",
-            net_path.display()
-        )
-    });
+    let net_path = samara_testkit::reference("adversarial_model_norm.onnx");
+    let network =
+        samara_nn::onnx::load(&net_path).unwrap_or_else(|e| panic!("{}: {e}", net_path.display()));
     let spec = samara_spec::Spec::read(&root.join("models/alsomitra/alsomitra.spec")).unwrap();
     let insts = spec
         .lower_prove("p5_lipschitz", &samara_spec::Bindings::default())

@@ -9,9 +9,8 @@ use samara_nn::{Activation, Layer, Network};
 use samara_spec::normal::{Application, Cmp, Constraint, Goal, LinExpr, Query, Sense, Var};
 #[path = "support/case_study.rs"]
 mod case_study;
-#[path = "../../samara-cli/tests/support/reference.rs"]
-mod reference_files;
 use case_study::p1_to_p4;
+use samara_testkit as reference_files;
 use samara_verify::net::PwlNet;
 use samara_verify::tighten::{base_bounds, lp_tighten, InputConstraint, LpTighten};
 use samara_verify::{optimise, prove, Prepared, Settings, Verdict};
@@ -298,10 +297,8 @@ fn critical_values_and_verdicts_do_not_change() {
 /// when `../shared/reference` is absent).
 #[test]
 fn case_study_critical_values_do_not_change() {
-    let dir = reference_files::reference_dir();
-    reference_files::reference("adversarial_model_norm.onnx");
     for file in ["adversarial_model_norm.onnx", "base_model_denorm.onnx"] {
-        let f = samara_nn::onnx::load(dir.join(file)).unwrap();
+        let f = samara_nn::onnx::load(reference_files::reference(file)).unwrap();
         let mut nets = HashMap::new();
         nets.insert("f".to_string(), f);
         let prep = Prepared::new(&nets);

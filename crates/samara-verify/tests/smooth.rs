@@ -110,11 +110,7 @@ fn smooth_verdicts_are_sound() {
 
 #[test]
 fn published_sigmoid_network_bounds() {
-    let f = samara_nn::onnx::load(concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/../../../shared/reference/merged_model_base.onnx"
-    ))
-    .unwrap();
+    let f = samara_nn::onnx::load(samara_testkit::reference("merged_model_base.onnx")).unwrap();
     let mut nets = HashMap::new();
     nets.insert("f".to_string(), f.clone());
     let prep = Prepared::new(&nets);

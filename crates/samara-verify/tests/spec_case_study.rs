@@ -6,11 +6,7 @@ use samara_verify::{prove, Prepared, Settings, Verdict};
 use std::collections::HashMap;
 use std::path::Path;
 
-fn reference(name: &str) -> std::path::PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference")
-        .join(name)
-}
+use samara_testkit::reference;
 
 #[test]
 fn p5_instances_come_from_the_published_data_and_verify() {

@@ -4,7 +4,6 @@
 
 use std::process::Command;
 
-mod reference;
 pub mod sealing;
 
 /// The shipped case-study spec, `models/alsomitra/alsomitra.spec`.
@@ -16,7 +15,7 @@ pub const SPEC: &str = concat!(
 /// A published reference file as a path string (fails, never skips, when it is
 /// missing).
 #[allow(unused_imports)] // each test file uses its own subset
-pub use samara_testkit::reference_str;
+pub use samara_testkit::{published_dir, reference, reference_str};
 
 /// The `samara` binary built for these tests.
 pub fn samara() -> Command {
@@ -57,6 +56,3 @@ pub fn verify_vnnlib_json(
     });
     (o.status.code(), v, dt)
 }
-
-#[allow(unused_imports)] // each test file uses its own subset
-pub use reference::reference;

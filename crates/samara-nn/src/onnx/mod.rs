@@ -19,7 +19,9 @@
 
 mod export;
 pub(crate) mod import;
+mod load;
 pub mod proto;
 
 pub use export::{export, save, ExportOptions};
-pub use import::{from_bytes, graph_from_bytes, load, load_graph, OnnxError, SUPPORTED_OPS};
+pub use import::{OnnxError, SUPPORTED_OPS};
+pub use load::{from_bytes, graph_from_bytes, load, load_graph};
