@@ -18,7 +18,7 @@
 // Numeric kernels index several arrays by one index; the explicit forms mirror the formulas.
 #![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
 
-use crate::zonotope::{gamma, Zonotope};
+use super::set::{gamma, Zonotope};
 use samara_num::{IDual, Interval, Scalar, Series};
 use samara_plant::Plant;
 use samara_system::Graph;
