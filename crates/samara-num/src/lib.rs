@@ -17,6 +17,7 @@ mod interval;
 mod scalar;
 mod series;
 mod tm;
+pub mod tm_reduce;
 
 pub use dual::Dual;
 pub use idual::IDual;

@@ -3,9 +3,9 @@
 //! on the sets.
 
 use super::network::{lift_remainders, monomials, network_over};
-use super::reduce::{mid_rad, needs_precondition, precondition, reduce};
 use super::result::{undecidable, SystemLeaf};
 use super::settings::{affine_on, NetworkError, SystemReachSettings};
+use samara_num::tm_reduce::{mid_rad, needs_precondition, precondition, reduce};
 
 use super::flow::{tm_period_parts, TmFlowSettings};
 use samara_nn::Network;

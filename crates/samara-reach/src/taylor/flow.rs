@@ -58,7 +58,7 @@ pub struct TmFlowSettings {
     /// Symbolic remainders inside the period: when positive, after every step whose
     /// interval remainders pass `lift_at` of a state's width, the states are
     /// order-reduced to at most this many parameters and their remainders become fresh
-    /// parameters ([`super::reduce::reduce_with`]), so that the next steps map them
+    /// parameters ([`samara_num::tm_reduce::reduce_with`]), so that the next steps map them
     /// through the flow instead of adding them up as intervals (0: off).
     pub max_params: usize,
     /// The share of a state's width its interval remainder may reach inside the period
@@ -532,8 +532,9 @@ pub fn tm_period_parts(
                     cur = next;
                     if s.max_params > 0 {
                         let hull: Vec<Interval> = cur.iter().map(|v| v.bound()).collect();
-                        if super::reduce::remainders_past(&cur, &hull, s.lift_at) {
-                            (cur, u) = super::reduce::reduce_with(&cur, &u, s.max_params, s.order);
+                        if samara_num::tm_reduce::remainders_past(&cur, &hull, s.lift_at) {
+                            (cur, u) =
+                                samara_num::tm_reduce::reduce_with(&cur, &u, s.max_params, s.order);
                         }
                     }
                     boxes.extend(b);

@@ -38,7 +38,6 @@ pub(crate) mod driver;
 pub(crate) mod flight;
 pub mod flow;
 pub(crate) mod network;
-pub(crate) mod reduce;
 pub(crate) mod refine;
 pub(crate) mod result;
 pub mod settings;
@@ -46,8 +45,8 @@ pub(crate) mod standin;
 
 pub use driver::{reach_system, starts};
 pub use network::network_over;
-pub use reduce::{precondition, reduce, reduce_with};
 pub use result::{SystemLeaf, SystemReach, SystemVerdict};
+pub use samara_num::tm_reduce::{precondition, reduce, reduce_with};
 pub use settings::{
     end_band_measures, Measure, MeasureRange, NetworkError, SystemReachError, SystemReachSettings,
     NETWORK_ERROR_LADDER,

@@ -1,7 +1,7 @@
 //! The controller over Taylor-model sets: CROWN on the models' linear part with the
 //! rest as a noise box, or the network evaluated on the models themselves.
 
-use super::reduce::{fresh_param, linear_parts, mid_rad};
+use samara_num::tm_reduce::{fresh_param, linear_parts, mid_rad};
 
 use samara_nn::Network;
 use samara_num::{Interval, Tm};

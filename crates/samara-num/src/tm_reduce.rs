@@ -1,12 +1,24 @@
-//! Taylor-model reduction: re-parameterisation at control instants and order
-//! reduction of symbolic remainders.
+//! Reduction of vectors of Taylor models (sets `x(xi)`, `xi in [-1, 1]^n`) that keep
+//! every value they held:
+//! - [`precondition`]: the set re-parameterised as a parallelotope in fresh parameters
+//!   (Lohner's frames, Makino & Berz's preconditioning), its higher-order terms and
+//!   remainders becoming parameters, with an approximate matrix inverse whose error is
+//!   enclosed;
+//! - [`reduce`] / [`reduce_with`]: order reduction to a budget of parameters, the
+//!   heaviest kept, the dropped dependence folded into one fresh parameter per state;
+//! - the small helpers both need ([`mid_rad`], [`linear_parts`], [`fresh_param`]) and
+//!   the test of when it pays ([`needs_precondition`], [`remainders_past`]).
+//!
+//! Used by the reachability code's Taylor-model engine at control instants and inside
+//! its flowpipe; kept beside [`Tm`] because it is arithmetic on Taylor models, with no
+//! knowledge of plants or networks.
 
-use samara_num::{Interval, Scalar, Tm};
+use crate::{Interval, Scalar, Tm};
 
 /// A midpoint `m` and radius `r` with `[m - r, m + r]` containing `i` in exact
 /// arithmetic (the ends checked with outward-rounded interval sums); `(lo, 0)` for a
 /// point.
-pub(crate) fn mid_rad(i: Interval) -> (f64, f64) {
+pub fn mid_rad(i: Interval) -> (f64, f64) {
     if i.lo == i.hi {
         return (i.lo, 0.0);
     }
@@ -30,7 +42,7 @@ pub(crate) fn mid_rad(i: Interval) -> (f64, f64) {
 
 /// The constant coefficients of `x` and their degree-1 coefficients over every
 /// parameter any of them depends on (rows padded to that count).
-pub(crate) fn linear_parts(x: &[Tm]) -> (Vec<f64>, Vec<Vec<f64>>) {
+pub fn linear_parts(x: &[Tm]) -> (Vec<f64>, Vec<Vec<f64>>) {
     let n = x.iter().map(|v| v.n_vars()).max().unwrap_or(0);
     x.iter()
         .map(|v| {
@@ -44,7 +56,7 @@ pub(crate) fn linear_parts(x: &[Tm]) -> (Vec<f64>, Vec<Vec<f64>>) {
 /// The parameter `xi_k` of `total` for a symbolic remainder of `p`: on `p`'s own table
 /// kind (a mixed-degree `p` gives it its lifted weight), or a classic one of `order`
 /// when `p` has no order of its own (a constant).
-pub(crate) fn fresh_param(p: &Tm, k: usize, total: usize, order: u32) -> Tm {
+pub fn fresh_param(p: &Tm, k: usize, total: usize, order: u32) -> Tm {
     if p.order() == order {
         p.param(k, total)
     } else {
@@ -55,12 +67,12 @@ pub(crate) fn fresh_param(p: &Tm, k: usize, total: usize, order: u32) -> Tm {
 /// Whether the interval remainders of `x` are large enough, against the sets' own
 /// widths (`hull`, the models' bounds), that turning them into parameters pays
 /// ([`precondition`], [`reduce`], and inside a period the flow's own lifting).
-pub(crate) fn needs_precondition(x: &[Tm], hull: &[Interval]) -> bool {
+pub fn needs_precondition(x: &[Tm], hull: &[Interval]) -> bool {
     remainders_past(x, hull, 0.05)
 }
 
 /// Whether some state's interval remainder is wider than `share` of its width.
-pub(crate) fn remainders_past(x: &[Tm], hull: &[Interval], share: f64) -> bool {
+pub fn remainders_past(x: &[Tm], hull: &[Interval], share: f64) -> bool {
     x.iter().zip(hull).any(|(v, b)| {
         let r = v.rem();
         let w = b.hi - b.lo;
