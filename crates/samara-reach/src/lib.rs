@@ -16,7 +16,8 @@
 //! - [`taylor`]: any closed loop written as a system file, on Taylor models in the
 //!   initial-set parameters (settings, driver, refinement, one sub-box's flight, the
 //!   network over Taylor models, the flowpipe);
-//! - shared: [`settings`] (the glider run's settings, the goal, their validation), [`result`]
+//! - shared: [`taylor_step`] (the validated Taylor step both engines take: a-priori
+//!   enclosure, time coefficients, Lagrange remainder), [`settings`] (the glider run's settings, the goal, their validation), [`result`]
 //!   and [`verdict`] (what a glider run returns and how the goal is decided on it),
 //!   [`sampling`] (simulated trajectories: falsification first, figures), [`parts`]
 //!   (a glider run cut into shards and merged), [`grid`] and [`adaptive`] (the system
@@ -34,6 +35,7 @@ pub mod result;
 pub mod sampling;
 pub mod settings;
 pub mod taylor;
+pub mod taylor_step;
 pub mod verdict;
 pub mod zonotope;
 

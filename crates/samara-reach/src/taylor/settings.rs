@@ -68,7 +68,7 @@ impl Measure {
         }
         // Both hold every value; `meet` keeps the hull's where the other is not finite
         // (a model with a NaN is the whole line) or, by rounding, misses it.
-        crate::zonotope::flow::meet(affine_on(&self.coef, self.offset, x).bound(), by_hull)
+        crate::taylor_step::meet(affine_on(&self.coef, self.offset, x).bound(), by_hull)
     }
 }
 
