@@ -146,3 +146,45 @@ pub(crate) fn series<S: Scalar, const K: usize>(
     }
     Some(x)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The a-priori box of `x' = -x^2` from `[1, 2]` over `[0, 0.2]` contains the exact
+    /// solutions `x0 / (1 + x0 t)` (sampled over the box and the step), and a
+    /// right-hand side that is not finite gives no box.
+    #[test]
+    fn apriori_box_contains_the_exact_solutions() {
+        let f = |x: &[Interval]| vec![-(x[0] * x[0])];
+        let (bz, h) = (vec![Interval::new(1.0, 2.0)], 0.2);
+        let b = apriori_by(f, &bz, h).expect("the Picard test closes");
+        for i in 0..=50 {
+            for j in 0..=50 {
+                let x0 = 1.0 + i as f64 / 50.0;
+                let t = h * j as f64 / 50.0;
+                let x = x0 / (1.0 + x0 * t);
+                assert!(b[0].lo <= x && x <= b[0].hi, "{x} outside {:?}", b[0]);
+            }
+        }
+        let inf = |x: &[Interval]| vec![x[0] / Interval::new(-1.0, 1.0)];
+        assert!(apriori_by(inf, &bz, h).is_none());
+    }
+
+    /// Two enclosures of the same set meet in their intersection; a side that is not
+    /// finite (a NaN model) leaves the other, and an empty intersection (rounding) the
+    /// second.
+    #[test]
+    fn meet_keeps_the_finite_side() {
+        let a = Interval::new(0.0, 2.0);
+        let b = Interval::new(1.0, 3.0);
+        assert_eq!(meet(a, b), Interval::new(1.0, 2.0));
+        let nan = Interval {
+            lo: f64::NAN,
+            hi: f64::NAN,
+        };
+        assert_eq!(meet(nan, b), b);
+        assert_eq!(meet(a, nan), a);
+        assert_eq!(meet(Interval::new(0.0, 0.5), b), b);
+    }
+}
