@@ -549,4 +549,49 @@ mod tests {
         crate::ode45::integrate(nan_after, &mut y, &times, &Default::default(), None);
         assert!(y.iter().any(|v| !v.is_finite()), "{y:?}");
     }
+
+    /// The RK4 integrator through the shared loop ([`sample_and_hold`],
+    /// [`Integrator::hold`]) gives the flight of a hand-written sample-and-hold loop
+    /// that steps RK4 over each output interval with the PID law's `ex` held and the
+    /// filter restarted every period, bit for bit, dense rows included.
+    #[test]
+    fn rk4_flights_are_the_hand_written_loop() {
+        use crate::control::PidController;
+        let plant = Plant::new(samara_plant::Model::Full);
+        let ls = LoopSettings {
+            horizon: 3.0,
+            period: 0.5,
+            integrator: Integrator::Rk4(1e-3),
+            reset_filter: true,
+            output_step: Some(0.1),
+        };
+        let x0 = initial_state(&plant, 3.0);
+        let f = fly(&plant, &mut PidController::default(), &x0, &ls).unwrap();
+        let mut pid = PidController::default();
+        pid.reset();
+        let mut s = x0.clone();
+        let mut rows: Vec<(f64, Vec<f64>, f64)> = Vec::new();
+        for k in 0..6 {
+            let ex = pid.act(&s);
+            if k == 0 {
+                rows.push((0.0, s.clone(), ex));
+            }
+            s[6] = 0.0;
+            let mut t = 0.0;
+            for i in 1..=5 {
+                let to = if i == 5 { 0.5 } else { i as f64 * 0.1 };
+                crate::rk4::integrate(|y, d| plant.rhs(y, &ex, d), &mut s, t, to, 1e-3);
+                rows.push((k as f64 * 0.5 + to, s.clone(), ex));
+                t = to;
+            }
+            assert_eq!(f.steps[k].state_end, s, "period {k}");
+            assert_eq!(f.steps[k].ex, ex);
+        }
+        let dense: Vec<(f64, Vec<f64>, f64)> = f
+            .dense
+            .iter()
+            .map(|(t, x, ex)| (t, x.to_vec(), ex))
+            .collect();
+        assert_eq!(dense, rows);
+    }
 }
