@@ -18,6 +18,7 @@ mod outcome;
 mod scalar;
 mod series;
 mod tm;
+pub mod tm_reduce;
 
 pub use dual::Dual;
 pub use idual::IDual;

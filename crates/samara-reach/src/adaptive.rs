@@ -37,10 +37,14 @@
 //! Cell ids: the starting cell's number (row-major over `pieces`, 0 without a grid)
 //! followed by the halves taken, `0` the lower and `1` the upper (`"17.0110"`).
 
-use crate::system::{
-    bisect_sensitive, checked_settings, controller, coverage, covered_volume, cut_at, empty_leaf,
-    falsify, fly_box, leaf_hull, measure_ranges, past, Falsified, NetworkError, SystemLeaf,
-    SystemReach, SystemReachError, SystemReachSettings, SystemVerdict,
+use crate::taylor::driver::{
+    checked_settings, coverage, covered_volume, falsify, leaf_hull, measure_ranges, Falsified,
+};
+use crate::taylor::flight::{empty_leaf, fly_box, past};
+use crate::taylor::network::controller;
+use crate::taylor::refine::{bisect_sensitive, cut_at};
+use crate::taylor::{
+    NetworkError, SystemLeaf, SystemReach, SystemReachError, SystemReachSettings, SystemVerdict,
 };
 use rayon::prelude::*;
 use samara_nn::Network;
@@ -639,7 +643,7 @@ fn measure_split(
     sys: &System,
     net: &Network,
     b: &[Interval],
-    m: &crate::system::Measure,
+    m: &crate::taylor::Measure,
 ) -> Option<usize> {
     let eval = controller(net);
     let centre: Vec<f64> = b.iter().map(|v| 0.5 * (v.lo + v.hi)).collect();

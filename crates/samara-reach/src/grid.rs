@@ -23,7 +23,7 @@
 //! result does not depend on which process flew it, so the merge of any cut of the cells
 //! into ranges is the one-process grid run (checked in `tests/grid.rs`).
 
-use crate::system::{
+use crate::taylor::{
     reach_system, MeasureRange, SystemReach, SystemReachError, SystemReachSettings, SystemVerdict,
 };
 use rayon::prelude::*;

@@ -32,11 +32,12 @@
 
 use std::ops::Range;
 
-pub use crate::driver::{child_key, finish, piece_key, prepare, refine, Flown, Prepared};
+pub use crate::result::Flown;
+pub use crate::zonotope::driver::{child_key, finish, piece_key, prepare, refine, Prepared};
 
 /// A sub-box of the initial set and its enclosures, as a part records it: the driver's
 /// [`Leaf`](crate::Leaf).
-pub type LeafRecord = crate::driver::Leaf;
+pub type LeafRecord = crate::result::Leaf;
 
 impl Prepared<'_> {
     /// Fly the pieces `range` and refine them with the driver's rule (the pieces outside

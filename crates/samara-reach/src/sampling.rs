@@ -1,7 +1,6 @@
 //! Simulated trajectories from the initial box (falsification and figures) and the check
 //! that a run's enclosures contain them.
 
-use crate::driver::ReachResult;
 use crate::settings::ReachSettings;
 use rayon::prelude::*;
 use samara_nn::Network;
@@ -82,47 +81,4 @@ fn sample_step(period: f64) -> f64 {
     } else {
         period / q.ceil().max(1.0)
     }
-}
-
-/// Whether the result's enclosures contain a simulated trajectory at every control
-/// instant: the trajectory's initial state selects the sub-box, and the state must lie
-/// in that sub-box's zonotope (parameters exact, noise as a box; needs `keep_sets`) or
-/// its box, with tolerance `tol` for the simulation's own error. Returns the first
-/// instant where containment fails.
-pub fn check_containment(res: &ReachResult, smp: &Sample, tol: f64) -> Result<(), String> {
-    let leaf = res
-        .leaves
-        .iter()
-        .find(|l| {
-            l.init
-                .iter()
-                .zip(&smp.initial)
-                .all(|(r, x)| r[0] <= *x && *x <= r[1])
-        })
-        .ok_or("no sub-box contains the initial state")?;
-    for (k, st) in leaf.steps.iter().enumerate() {
-        let x = &smp.states[k];
-        for (i, b) in st.bbox.iter().enumerate() {
-            if !(b[0] - tol <= x[i] && x[i] <= b[1] + tol) {
-                return Err(format!(
-                    "t = {}: state {} = {} outside [{}, {}]",
-                    st.t, i, x[i], b[0], b[1]
-                ));
-            }
-        }
-        if let Some(z) = &st.set {
-            let xi: Vec<f64> = leaf
-                .params
-                .iter()
-                .map(|&p| {
-                    let (a, b) = (leaf.init[p][0], leaf.init[p][1]);
-                    (smp.initial[p] - 0.5 * (a + b)) / (0.5 * (b - a))
-                })
-                .collect();
-            if !z.contains_with_params(x, &xi, tol) {
-                return Err(format!("t = {}: state outside the zonotope", st.t));
-            }
-        }
-    }
-    Ok(())
 }

@@ -1,6 +1,6 @@
 //! Settings of a reachability run, the goal, input errors and their validation.
 
-use crate::flow::FlowSettings;
+use crate::zonotope::flow::FlowSettings;
 use samara_nn::Network;
 use samara_plant::Model;
 use serde::Serialize;

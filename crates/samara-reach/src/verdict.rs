@@ -1,65 +1,11 @@
 //! The goal on the final sets, falsification by simulated trajectories, and the verdict.
 
-use crate::driver::{Flown, Leaf};
+pub use crate::result::Verdict;
+use crate::result::{Flown, Leaf};
 use crate::sampling::Sample;
 use crate::settings::{Goal, ReachSettings};
 use samara_num::Interval;
-use serde::Serialize;
 use std::borrow::Borrow;
-
-/// The verdict on the goal.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-#[serde(tag = "verdict", rename_all = "lowercase")]
-pub enum Verdict {
-    /// Every trajectory from the initial set meets the goal (sound enclosure).
-    Proved,
-    /// A simulated trajectory misses the goal.
-    Violated {
-        /// Its initial state.
-        initial: Vec<f64>,
-        /// Time of the violation.
-        t: f64,
-        /// Its `x + y` there.
-        x_plus_y: f64,
-    },
-    /// Not settled.
-    Unknown {
-        /// Why.
-        reason: String,
-    },
-    /// No goal was given.
-    #[serde(rename = "none")]
-    NoGoal,
-}
-
-impl Verdict {
-    /// `proved`, `violated`, `unknown` or `none`.
-    pub fn name(&self) -> &'static str {
-        match self {
-            Verdict::Proved => "proved",
-            Verdict::Violated { .. } => "violated",
-            Verdict::Unknown { .. } => "unknown",
-            Verdict::NoGoal => "none",
-        }
-    }
-
-    /// Why the goal is not proved, in words: the unknown reason, or where the
-    /// simulated counterexample misses the goal; empty when proved or without a goal.
-    pub fn reason(&self) -> String {
-        match self {
-            Verdict::Unknown { reason } => reason.clone(),
-            Verdict::Violated {
-                initial,
-                t,
-                x_plus_y,
-            } => format!(
-                "simulated from y0 = {:.4}: x + y = {:.4} at t = {}",
-                initial[5], x_plus_y, t
-            ),
-            _ => String::new(),
-        }
-    }
-}
 
 /// The goal on one sub-box: `Some(true)` every enclosure inside the band, `Some(false)`
 /// some enclosure entirely outside it, `None` undecided.

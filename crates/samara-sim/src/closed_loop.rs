@@ -4,8 +4,11 @@
 
 use crate::control::Controller;
 use crate::dopri;
+use crate::dynamics::Dynamics;
 use crate::explicit_rk::{Stats, Tolerances};
 use crate::ode45::{self, Ode45Options};
+use crate::rk4::Rk4;
+use samara_num::Scalar;
 use samara_plant::Plant;
 
 /// Which integrator advances the plant over one period.
@@ -40,6 +43,60 @@ impl Integrator {
     #[allow(non_snake_case)]
     pub const fn Tight(tol: Tolerances) -> Integrator {
         Integrator::Dop853(tol)
+    }
+
+    /// Advance `x` over one control period `[0, out_times.last()]` of `x' = f(x, u)`
+    /// with the input `u` held. `out_times` is the output grid of the period (from 0;
+    /// the ode45 clone reads its first step from it even when nothing is recorded, and
+    /// RK4 steps each of its intervals); with `dense`, each output time `t` and the
+    /// state there are appended as one row `t, x...`. `h_prev` is the step the previous
+    /// period proposed (DOP853 continues with it; 0 for none); `scratch` the value
+    /// buffer of an interpreted right-hand side.
+    #[allow(clippy::too_many_arguments)]
+    pub fn hold<D: Dynamics>(
+        self,
+        d: &D,
+        x: &mut [f64],
+        u: &[f64],
+        out_times: &[f64],
+        h_prev: f64,
+        scratch: &mut Vec<f64>,
+        dense: Option<&mut Vec<f64>>,
+    ) -> Stats {
+        let period = *out_times.last().expect("an output grid ends at the period");
+        let rhs = |y: &[f64], out: &mut [f64]| d.rhs_buffered(scratch, y, u, out);
+        match self {
+            Integrator::Ode45 => {
+                ode45::integrate(rhs, x, out_times, &Ode45Options::default(), dense)
+            }
+            Integrator::Dop853(tol) => crate::dop853::integrate_from(
+                rhs,
+                x,
+                0.0,
+                period,
+                tol,
+                (h_prev > 0.0).then_some(h_prev),
+                out_times,
+                dense,
+            ),
+            Integrator::Dp5(tol) => dopri::integrate(rhs, x, 0.0, period, tol, out_times, dense),
+            Integrator::Rk4(h) => {
+                let mut rhs = rhs;
+                let mut rk = Rk4::new(x.len());
+                let mut st = Stats::default();
+                let mut t = 0.0;
+                let mut dense = dense;
+                for &to in &out_times[1..] {
+                    st.evals += 4 * rk.integrate(&mut rhs, x, t, to, h);
+                    t = to;
+                    if let Some(buf) = dense.as_deref_mut() {
+                        buf.push(to);
+                        buf.extend_from_slice(x);
+                    }
+                }
+                st
+            }
+        }
     }
 }
 
@@ -238,6 +295,31 @@ pub struct Flight {
     pub evals: usize,
 }
 
+/// The sample-and-hold loop, written once for every closed loop in samara (the
+/// glider's flights, a system file's, training's differentiable flights), over any
+/// [`Scalar`]: for each of `periods` control periods `k`, `control(ctx, k, x)` reads the
+/// state (and applies what happens at a control instant: the published filter restart,
+/// a system file's resets) and returns the input; `hold(ctx, x, u)` advances the plant
+/// over the period with that input held (by [`Integrator::hold`] over a [`Dynamics`], or
+/// [`Rk4`] on dual numbers); `after(ctx, k, x, u, held)` sees the state at the period's
+/// end with what `hold` returned (records it, checks it). `ctx` is the flight's own
+/// record, shared by the three steps. The first error stops the flight.
+pub fn sample_and_hold<S, C, H, E>(
+    ctx: &mut C,
+    x: &mut [S],
+    periods: usize,
+    mut control: impl FnMut(&mut C, usize, &mut [S]) -> Result<Vec<S>, E>,
+    mut hold: impl FnMut(&mut C, &mut [S], &[S]) -> H,
+    mut after: impl FnMut(&mut C, usize, &[S], &[S], H) -> Result<(), E>,
+) -> Result<(), E> {
+    for k in 0..periods {
+        let u = control(ctx, k, x)?;
+        let held = hold(ctx, x, &u);
+        after(ctx, k, x, &u, held)?;
+    }
+    Ok(())
+}
+
 /// Fly `plant` under `controller` from `initial` with the given settings.
 pub fn fly(
     plant: &Plant,
@@ -255,13 +337,6 @@ pub fn fly(
         });
     }
     controller.reset();
-    let mut s = initial.to_vec();
-    let mut steps = Vec::with_capacity(n_steps);
-    let mut dense = Dense {
-        dim,
-        data: Vec::new(),
-    };
-    let mut evals = 0usize;
     let period = settings.period;
     // Output times within a period, as MATLAB's tspan 0:0.01:0.5 (t = i * 0.01). The
     // ode45 clone reads its first step from tspan(2) - tspan(1), so the grid is passed
@@ -271,103 +346,97 @@ pub fn fly(
     let out_times: Vec<f64> = (0..=m)
         .map(|i| if i == m { period } else { i as f64 * grid })
         .collect();
-    let mut buf: Vec<f64> = Vec::new();
-    let mut h_next = 0.0f64;
-    for k in 0..n_steps {
-        let ex = controller.act(&s);
-        if k == 0 && settings.output_step.is_some() {
-            dense.push(0.0, &s, ex);
-        }
-        if settings.reset_filter && plant.model.has_filter() {
-            s[6] = 0.0;
-        }
-        let rhs = |y: &[f64], d: &mut [f64]| plant.rhs(y, &ex, d);
-        buf.clear();
-        let want = settings.output_step.is_some();
-        let stats: Stats = match settings.integrator {
-            Integrator::Ode45 => ode45::integrate(
-                rhs,
-                &mut s,
-                &out_times,
-                &Ode45Options::default(),
-                if want { Some(&mut buf) } else { None },
-            ),
-            Integrator::Dop853(tol) => crate::dop853::integrate_from(
-                rhs,
-                &mut s,
-                0.0,
-                period,
-                tol,
-                (h_next > 0.0).then_some(h_next),
-                &out_times,
-                if want { Some(&mut buf) } else { None },
-            ),
-            Integrator::Dp5(tol) => dopri::integrate(
-                rhs,
-                &mut s,
-                0.0,
-                period,
-                tol,
-                &out_times,
-                if want { Some(&mut buf) } else { None },
-            ),
-            Integrator::Rk4(h) => {
-                let mut st = Stats::default();
-                let mut t = 0.0;
-                for &to in &out_times[1..] {
-                    st.evals += 4 * crate::rk4::integrate(rhs, &mut s, t, to, h);
-                    t = to;
-                    if want {
-                        buf.push(to);
-                        buf.extend_from_slice(&s);
-                    }
-                }
-                st
+    let want = settings.output_step.is_some();
+    /// What the flight records, shared by the loop's steps.
+    struct Record {
+        flight: Flight,
+        buf: Vec<f64>,
+        scratch: Vec<f64>,
+        h_next: f64,
+    }
+    let mut rec = Record {
+        flight: Flight {
+            initial: initial.to_vec(),
+            steps: Vec::with_capacity(n_steps),
+            dense: Dense {
+                dim,
+                data: Vec::new(),
+            },
+            evals: 0,
+        },
+        buf: Vec::new(),
+        scratch: Vec::new(),
+        h_next: 0.0,
+    };
+    let mut s = initial.to_vec();
+    sample_and_hold(
+        &mut rec,
+        &mut s,
+        n_steps,
+        |rec, k, s| {
+            let ex = controller.act(s);
+            if k == 0 && want {
+                rec.flight.dense.push(0.0, s, ex);
             }
-        };
-        evals += stats.evals;
-        h_next = stats.h_next;
-        let t0 = k as f64 * period;
-        for row in buf.chunks_exact(dim + 1) {
-            dense.push(t0 + row[0], &row[1..], ex);
-        }
-        if let Some(c) = stats.collapse {
-            // A step that collapses while the state runs off to huge values is a
-            // divergence (the model left its valid range), not a switching surface:
-            // report it as such, with the fix that applies.
-            if c.state[..dim]
-                .iter()
-                .any(|v| !v.is_finite() || v.abs() > DIVERGED)
-            {
+            if settings.reset_filter && plant.model.has_filter() {
+                s[6] = 0.0;
+            }
+            Ok(vec![ex])
+        },
+        |rec, s, u| {
+            rec.buf.clear();
+            settings.integrator.hold(
+                plant,
+                s,
+                u,
+                &out_times,
+                rec.h_next,
+                &mut rec.scratch,
+                want.then_some(&mut rec.buf),
+            )
+        },
+        |rec, k, s, u, stats: Stats| {
+            let ex = u[0];
+            rec.flight.evals += stats.evals;
+            rec.h_next = stats.h_next;
+            let t0 = k as f64 * period;
+            for row in rec.buf.chunks_exact(dim + 1) {
+                rec.flight.dense.push(t0 + row[0], &row[1..], ex);
+            }
+            if let Some(c) = stats.collapse {
+                // A step that collapses while the state runs off to huge values is a
+                // divergence (the model left its valid range), not a switching surface:
+                // report it as such, with the fix that applies.
+                if c.state[..dim]
+                    .iter()
+                    .any(|v| !v.is_finite() || v.abs() > DIVERGED)
+                {
+                    return Err(SimError::NonFinite {
+                        t: (k + 1) as f64 * period,
+                        ex,
+                    });
+                }
+                return Err(SimError::StepCollapse {
+                    t: k as f64 * period + c.t,
+                    state: c.state[..dim].to_vec(),
+                    ex,
+                });
+            }
+            if s.iter().any(|v| !v.is_finite()) {
                 return Err(SimError::NonFinite {
                     t: (k + 1) as f64 * period,
                     ex,
                 });
             }
-            return Err(SimError::StepCollapse {
-                t: k as f64 * period + c.t,
-                state: c.state[..dim].to_vec(),
+            rec.flight.steps.push(StepRecord {
+                t_end: (k + 1) as f64 * period,
+                state_end: s.to_vec(),
                 ex,
             });
-        }
-        if s.iter().any(|v| !v.is_finite()) {
-            return Err(SimError::NonFinite {
-                t: (k + 1) as f64 * period,
-                ex,
-            });
-        }
-        steps.push(StepRecord {
-            t_end: (k + 1) as f64 * period,
-            state_end: s.clone(),
-            ex,
-        });
-    }
-    Ok(Flight {
-        initial: initial.to_vec(),
-        steps,
-        dense,
-        evals,
-    })
+            Ok(())
+        },
+    )?;
+    Ok(rec.flight)
 }
 
 /// A state component beyond this magnitude counts as diverged: the glider's states are
@@ -479,5 +548,50 @@ mod tests {
         let mut y = [1.0, 1.0];
         crate::ode45::integrate(nan_after, &mut y, &times, &Default::default(), None);
         assert!(y.iter().any(|v| !v.is_finite()), "{y:?}");
+    }
+
+    /// The RK4 integrator through the shared loop ([`sample_and_hold`],
+    /// [`Integrator::hold`]) gives the flight of a hand-written sample-and-hold loop
+    /// that steps RK4 over each output interval with the PID law's `ex` held and the
+    /// filter restarted every period, bit for bit, dense rows included.
+    #[test]
+    fn rk4_flights_are_the_hand_written_loop() {
+        use crate::control::PidController;
+        let plant = Plant::new(samara_plant::Model::Full);
+        let ls = LoopSettings {
+            horizon: 3.0,
+            period: 0.5,
+            integrator: Integrator::Rk4(1e-3),
+            reset_filter: true,
+            output_step: Some(0.1),
+        };
+        let x0 = initial_state(&plant, 3.0);
+        let f = fly(&plant, &mut PidController::default(), &x0, &ls).unwrap();
+        let mut pid = PidController::default();
+        pid.reset();
+        let mut s = x0.clone();
+        let mut rows: Vec<(f64, Vec<f64>, f64)> = Vec::new();
+        for k in 0..6 {
+            let ex = pid.act(&s);
+            if k == 0 {
+                rows.push((0.0, s.clone(), ex));
+            }
+            s[6] = 0.0;
+            let mut t = 0.0;
+            for i in 1..=5 {
+                let to = if i == 5 { 0.5 } else { i as f64 * 0.1 };
+                crate::rk4::integrate(|y, d| plant.rhs(y, &ex, d), &mut s, t, to, 1e-3);
+                rows.push((k as f64 * 0.5 + to, s.clone(), ex));
+                t = to;
+            }
+            assert_eq!(f.steps[k].state_end, s, "period {k}");
+            assert_eq!(f.steps[k].ex, ex);
+        }
+        let dense: Vec<(f64, Vec<f64>, f64)> = f
+            .dense
+            .iter()
+            .map(|(t, x, ex)| (t, x.to_vec(), ex))
+            .collect();
+        assert_eq!(dense, rows);
     }
 }

@@ -9,10 +9,14 @@
 //! - [`dop853`]: DOP853 (order 8) under the standard control, by default at rtol 1e-10,
 //!   atol 1e-12 (the CLI's `dop853`, alias `tight`).
 //! - [`dopri`]: DP5(4) under the standard control (the CLI's `dp5`).
-//! - [`rk4`]: classical fixed-step Runge-Kutta.
+//! - [`rk4`]: classical fixed-step Runge-Kutta, over any `Scalar` (dual numbers too).
+//! - [`dynamics`]: the [`Dynamics`] trait, one description of `x' = f(x, u)` that the
+//!   built-in plant and a system file implement.
 //! - [`control`]: the [`Controller`] trait, the published PID law, constant and network
 //!   controllers.
-//! - [`closed_loop`]: the sample-and-hold loop and the data-generation protocol.
+//! - [`closed_loop`]: the sample-and-hold loop ([`sample_and_hold`], written once for
+//!   the glider, system files and training; [`Integrator::hold`], one period of any
+//!   [`Dynamics`]) and the data-generation protocol.
 #![warn(missing_docs)]
 // Numeric kernels index several arrays by the same stage/component index, and the
 // `!(err <= 1.0)` tests deliberately treat NaN as a rejected step.
@@ -24,17 +28,20 @@ pub mod dataset;
 pub mod dop853;
 mod dop853_tableau;
 pub mod dopri;
+pub mod dynamics;
 pub mod explicit_rk;
 pub mod ode45;
 pub mod rk4;
 pub mod tableau;
 
 pub use closed_loop::{
-    fly, initial_state, minmax, published_starts, training_rows, Dense, Flight, Integrator,
-    LoopSettings, SimError, StepRecord,
+    fly, initial_state, minmax, published_starts, sample_and_hold, training_rows, Dense, Flight,
+    Integrator, LoopSettings, SimError, StepRecord,
 };
 pub use control::{ConstantController, Controller, NetworkController, PidController};
+pub use dynamics::Dynamics;
 pub use explicit_rk::{Collapse, Stats, Tolerances};
+pub use rk4::Rk4;
 
 /// Largest state dimension handled by the fixed-size integrator buffers.
 pub const MAX_DIM: usize = 12;

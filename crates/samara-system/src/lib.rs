@@ -31,35 +31,10 @@ pub use parse::MAX_NESTING;
 
 use samara_num::{Dual, Interval, Scalar};
 
-/// A plant's continuous dynamics `x' = f(x, u)`, evaluable over any [`Scalar`]. The
-/// simulator and the reachability code can take either the built-in plant or a
-/// [`System`] through this trait.
-pub trait Dynamics {
-    /// Number of states.
-    fn dim(&self) -> usize;
-    /// Number of inputs (held constant over a control period).
-    fn n_inputs(&self) -> usize;
-    /// `out = f(x, u)`; `x` has [`Dynamics::dim`] entries, `u` [`Dynamics::n_inputs`].
-    fn rhs<S: Scalar>(&self, x: &[S], u: &[S], out: &mut [S]);
-    /// As [`Dynamics::rhs`], with a caller-owned value buffer that an interpreted
-    /// implementation reuses between calls (the default ignores it).
-    fn rhs_buffered<S: Scalar>(&self, scratch: &mut Vec<S>, x: &[S], u: &[S], out: &mut [S]) {
-        let _ = scratch;
-        self.rhs(x, u, out)
-    }
-}
-
-impl Dynamics for samara_plant::Plant {
-    fn dim(&self) -> usize {
-        samara_plant::Plant::dim(self)
-    }
-    fn n_inputs(&self) -> usize {
-        1
-    }
-    fn rhs<S: Scalar>(&self, x: &[S], u: &[S], out: &mut [S]) {
-        samara_plant::Plant::rhs(self, x, &u[0], out)
-    }
-}
+/// A plant's continuous dynamics `x' = f(x, u)` over any [`Scalar`]: samara-sim's one
+/// trait (the built-in plant and a [`System`] implement it), re-exported here where it
+/// was first defined.
+pub use samara_sim::Dynamics;
 
 /// When a goal is checked.
 #[derive(Clone, Debug, PartialEq)]

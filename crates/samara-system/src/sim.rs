@@ -9,8 +9,8 @@
 //! built-in model's flights.
 
 use crate::{System, When};
-use samara_sim::dop853;
-use samara_sim::Tolerances;
+use samara_sim::closed_loop::sample_and_hold;
+use samara_sim::{Integrator, Stats, Tolerances};
 
 /// A simulated flight of a system.
 #[derive(Clone, Debug, PartialEq)]
@@ -134,79 +134,98 @@ pub fn fly_until(
         })
         .collect();
     let mut x = x0.to_vec();
-    let mut flight = SystemFlight {
-        t: Vec::new(),
-        states: Vec::new(),
-        inputs: Vec::new(),
-    };
-    let mut obs = vec![0.0; sys.n_observed()];
-    let mut u = vec![0.0; sys.n_inputs()];
-    let mut scratch = Vec::new();
-    let mut buf = Vec::new();
-    let mut h_next = 0.0f64;
-    sys.initial_state(&mut x);
-    for k in 0..sys.steps() {
-        if deadline.is_some_and(|d| std::time::Instant::now() > d) {
-            return Err(SimError::Timeout {
-                t: (k + 1) as f64 * period,
-            });
-        }
-        sys.begin_period(k, &mut x);
-        sys.observe(&x, &mut obs);
-        let y = net(&obs);
-        if y.len() < sys.n_net_outputs {
-            return Err(SimError::NetOutputs {
-                expected: sys.n_net_outputs,
-                found: y.len(),
-            });
-        }
-        sys.actuate(&y, &mut u);
-        if k == 0 {
-            flight.t.push(0.0);
-            flight.states.push(x.clone());
-            flight.inputs.push(u.clone());
-        }
-        buf.clear();
-        let uu = u.clone();
-        let stats = dop853::integrate_from(
-            |s: &[f64], d: &mut [f64]| sys.rhs_with(&mut scratch, s, &uu, d),
-            &mut x,
-            0.0,
-            period,
-            Tolerances::default(),
-            (h_next > 0.0).then_some(h_next),
-            &out_times,
-            Some(&mut buf),
-        );
-        h_next = stats.h_next;
-        if let Some(c) = stats.collapse {
-            let state = c.state[..n].to_vec();
-            let file = &sys.file;
-            let switches = sys
-                .switches_at(&state, &uu, 1e-6)
-                .into_iter()
-                .map(|w| format!("{file}:{}:{}: {}", w.pos.line, w.pos.col, w.text))
-                .collect();
-            return Err(SimError::StepCollapse {
-                t: k as f64 * period + c.t,
-                state,
-                h: c.h,
-                switches,
-            });
-        }
-        if x.iter().any(|v| !v.is_finite()) {
-            return Err(SimError::NonFinite {
-                t: (k + 1) as f64 * period,
-            });
-        }
-        let t0 = k as f64 * period;
-        for row in buf.chunks_exact(n + 1) {
-            flight.t.push(t0 + row[0]);
-            flight.states.push(row[1..].to_vec());
-            flight.inputs.push(u.clone());
-        }
+    /// What the flight records, shared by the loop's steps.
+    struct Record {
+        flight: SystemFlight,
+        obs: Vec<f64>,
+        scratch: Vec<f64>,
+        buf: Vec<f64>,
+        h_next: f64,
     }
-    Ok(flight)
+    let mut rec = Record {
+        flight: SystemFlight {
+            t: Vec::new(),
+            states: Vec::new(),
+            inputs: Vec::new(),
+        },
+        obs: vec![0.0; sys.n_observed()],
+        scratch: Vec::new(),
+        buf: Vec::new(),
+        h_next: 0.0,
+    };
+    sys.initial_state(&mut x);
+    sample_and_hold(
+        &mut rec,
+        &mut x,
+        sys.steps(),
+        |rec, k, x| {
+            if deadline.is_some_and(|d| std::time::Instant::now() > d) {
+                return Err(SimError::Timeout {
+                    t: (k + 1) as f64 * period,
+                });
+            }
+            sys.begin_period(k, x);
+            sys.observe(x, &mut rec.obs);
+            let y = net(&rec.obs);
+            if y.len() < sys.n_net_outputs {
+                return Err(SimError::NetOutputs {
+                    expected: sys.n_net_outputs,
+                    found: y.len(),
+                });
+            }
+            let mut u = vec![0.0; sys.n_inputs()];
+            sys.actuate(&y, &mut u);
+            if k == 0 {
+                rec.flight.t.push(0.0);
+                rec.flight.states.push(x.to_vec());
+                rec.flight.inputs.push(u.clone());
+            }
+            Ok(u)
+        },
+        |rec, x, u| {
+            rec.buf.clear();
+            Integrator::Dop853(Tolerances::default()).hold(
+                sys,
+                x,
+                u,
+                &out_times,
+                rec.h_next,
+                &mut rec.scratch,
+                Some(&mut rec.buf),
+            )
+        },
+        |rec, k, x, u, stats: Stats| {
+            rec.h_next = stats.h_next;
+            if let Some(c) = stats.collapse {
+                let state = c.state[..n].to_vec();
+                let file = &sys.file;
+                let switches = sys
+                    .switches_at(&state, u, 1e-6)
+                    .into_iter()
+                    .map(|w| format!("{file}:{}:{}: {}", w.pos.line, w.pos.col, w.text))
+                    .collect();
+                return Err(SimError::StepCollapse {
+                    t: k as f64 * period + c.t,
+                    state,
+                    h: c.h,
+                    switches,
+                });
+            }
+            if x.iter().any(|v| !v.is_finite()) {
+                return Err(SimError::NonFinite {
+                    t: (k + 1) as f64 * period,
+                });
+            }
+            let t0 = k as f64 * period;
+            for row in rec.buf.chunks_exact(n + 1) {
+                rec.flight.t.push(t0 + row[0]);
+                rec.flight.states.push(row[1..].to_vec());
+                rec.flight.inputs.push(u.to_vec());
+            }
+            Ok(())
+        },
+    )?;
+    Ok(rec.flight)
 }
 
 /// Whether every goal of `sys` holds along the flight (at its output times: a window

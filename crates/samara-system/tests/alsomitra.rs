@@ -208,27 +208,9 @@ fn interface_initial_set_and_goal() {
 /// applied through its own interface).
 #[test]
 fn closed_loop_flights_are_bit_identical() {
+    /// One RK4 step of length `h` (samara-sim's one RK4), `u` held.
     fn rk4<D: Dynamics>(d: &D, x: &mut [f64], u: &[f64], h: f64) {
-        let n = x.len();
-        let (mut k1, mut k2, mut k3, mut k4) =
-            (vec![0.0; n], vec![0.0; n], vec![0.0; n], vec![0.0; n]);
-        let mut t = vec![0.0; n];
-        d.rhs(x, u, &mut k1);
-        for i in 0..n {
-            t[i] = x[i] + 0.5 * h * k1[i];
-        }
-        d.rhs(&t, u, &mut k2);
-        for i in 0..n {
-            t[i] = x[i] + 0.5 * h * k2[i];
-        }
-        d.rhs(&t, u, &mut k3);
-        for i in 0..n {
-            t[i] = x[i] + h * k3[i];
-        }
-        d.rhs(&t, u, &mut k4);
-        for i in 0..n {
-            x[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-        }
+        samara_sim::Rk4::new(x.len()).integrate(|y, o| d.rhs(y, u, o), x, 0.0, h, h);
     }
     for (model, name) in [
         (Model::Plate6, "alsomitra_plate6.sys"),

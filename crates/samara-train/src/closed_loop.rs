@@ -8,8 +8,8 @@
 //! (with [`ClosedLoopLoss::from`], summed over every control instant of the window
 //! `[from, T]` too),
 //! with its gradient with respect to the network parameters `theta` by forward-mode
-//! automatic differentiation: the plant ([`Plant::rhs`]), a fixed-step RK4 and the
-//! network ([`Mlp::forward_with`]) run on [`Dual`] numbers that carry the derivatives
+//! automatic differentiation: the plant ([`Plant::rhs`]), samara-sim's fixed-step RK4
+//! ([`Rk4`]) in its sample-and-hold loop ([`sample_and_hold`]) and the network ([`Mlp::forward_with`]) run on [`Dual`] numbers that carry the derivatives
 //! with respect to a chunk of [`CHUNK`] parameters at a time. The derivatives are those
 //! of the discretised flight (exact up to rounding), with ReLU' (0) = 0, the clip's
 //! derivative 0 where it is active and d|u|/du = 0 at u = 0.
@@ -19,6 +19,8 @@ use crate::mlp::Mlp;
 use crate::train::TrainError;
 use samara_num::{Dual, Scalar};
 use samara_plant::{Model, Plant, EX_RANGE};
+use samara_sim::{sample_and_hold, Rk4};
+use std::convert::Infallible;
 
 /// Parameters differentiated per forward pass.
 pub const CHUNK: usize = 8;
@@ -133,49 +135,46 @@ impl ClosedLoopLoss {
                 })
             })
             .collect();
-        let m = (self.period / self.step).ceil().max(1.0) as usize;
-        let h = self.period / m as f64;
-        let (mut k1, mut k2, mut k3, mut k4, mut tmp) =
-            (s.clone(), s.clone(), s.clone(), s.clone(), s.clone());
+        let mut rk = Rk4::new(dim);
         let mut penalty = S::cst(0.0);
-        for k in 0..n {
-            let z: Vec<S> = (0..6)
-                .map(|j| (s[j].clone() - mm.min[j]) / mm.range[j])
-                .collect();
-            let y = net.forward_with(params, &z)[0].clone();
-            let raw = y * mm.range[6] + mm.min[6];
-            let ex = match self.clip {
-                Some((lo, hi)) => raw.clamp_to(lo, hi),
-                None => raw,
-            };
-            for _ in 0..m {
-                self.plant.rhs(&s, &ex, &mut k1);
-                for i in 0..dim {
-                    tmp[i] = s[i].clone() + k1[i].clone() * (0.5 * h);
+        let ok: Result<(), Infallible> = sample_and_hold(
+            &mut penalty,
+            &mut s,
+            n,
+            |_, _, s| {
+                let z: Vec<S> = (0..6)
+                    .map(|j| (s[j].clone() - mm.min[j]) / mm.range[j])
+                    .collect();
+                let y = net.forward_with(params, &z)[0].clone();
+                let raw = y * mm.range[6] + mm.min[6];
+                Ok(vec![match self.clip {
+                    Some((lo, hi)) => raw.clamp_to(lo, hi),
+                    None => raw,
+                }])
+            },
+            |_, s, u| {
+                rk.integrate(
+                    |x, out| self.plant.rhs(x, &u[0], out),
+                    s,
+                    0.0,
+                    self.period,
+                    self.step,
+                );
+            },
+            |penalty, k, s, _, ()| {
+                let t = (k + 1) as f64 * self.period;
+                let in_window = self.from.is_some_and(|f| t >= f - 1e-9);
+                if in_window || k + 1 == n {
+                    *penalty += ((s[4].clone() + s[5].clone()).abs() - self.bound)
+                        .relu()
+                        .sqr();
                 }
-                self.plant.rhs(&tmp, &ex, &mut k2);
-                for i in 0..dim {
-                    tmp[i] = s[i].clone() + k2[i].clone() * (0.5 * h);
-                }
-                self.plant.rhs(&tmp, &ex, &mut k3);
-                for i in 0..dim {
-                    tmp[i] = s[i].clone() + k3[i].clone() * h;
-                }
-                self.plant.rhs(&tmp, &ex, &mut k4);
-                for i in 0..dim {
-                    let incr =
-                        (k1[i].clone() + k2[i].clone() * 2.0 + k3[i].clone() * 2.0 + k4[i].clone())
-                            * (h / 6.0);
-                    s[i] += incr;
-                }
-            }
-            let t = (k + 1) as f64 * self.period;
-            let in_window = self.from.is_some_and(|f| t >= f - 1e-9);
-            if in_window || k + 1 == n {
-                penalty += ((s[4].clone() + s[5].clone()).abs() - self.bound)
-                    .relu()
-                    .sqr();
-            }
+                Ok(())
+            },
+        );
+        match ok {
+            Ok(()) => {}
+            Err(never) => match never {},
         }
         penalty
     }

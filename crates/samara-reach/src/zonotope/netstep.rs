@@ -13,7 +13,7 @@
 // Numeric kernels index several arrays by one index; the explicit forms mirror the formulas.
 #![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
 
-use crate::zonotope::Zonotope;
+use super::set::Zonotope;
 use samara_bounds::pwl::{affine_bounds, back_substitute, deeppoly, relu_indices, PwlNet};
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_num::Interval;

@@ -26,8 +26,8 @@
 //! loses the dependence of that step's increment). Every step's box `B` is returned so
 //! that goals over time windows can be checked between control instants.
 
-use crate::flow::{apriori_by, finite, meet, pow_up};
-use crate::standin;
+use super::standin;
+use crate::taylor_step::{apriori_by, finite, lagrange_remainder, meet, pow_up, series};
 use samara_num::{Interval, Scalar, Series, Tm};
 use samara_system::{Graph, System};
 
@@ -58,7 +58,7 @@ pub struct TmFlowSettings {
     /// Symbolic remainders inside the period: when positive, after every step whose
     /// interval remainders pass `lift_at` of a state's width, the states are
     /// order-reduced to at most this many parameters and their remainders become fresh
-    /// parameters ([`crate::system::reduce_with`]), so that the next steps map them
+    /// parameters ([`samara_num::tm_reduce::reduce_with`]), so that the next steps map them
     /// through the flow instead of adding them up as intervals (0: off).
     pub max_params: usize,
     /// The share of a state's width its interval remainder may reach inside the period
@@ -140,48 +140,10 @@ fn rhs_box(g: &Graph, x: &[Interval], u: &[Interval]) -> Vec<Interval> {
 }
 
 /// Taylor coefficients `0..=upto` in time of the solution from `x0` under the constant
-/// inputs `u`, on series with coefficients in `S`; `None` if a branch was undecided.
+/// inputs `u` (the shared step's [`series`], on this flowpipe's series length);
+/// `None` if a branch was undecided.
 fn taylor<S: Scalar>(g: &Graph, x0: &[S], u: &[S], upto: usize) -> Option<Vec<Series<S, K>>> {
-    taylor_trimmed(g, x0, u, upto, &|_, v| v)
-}
-
-/// [`taylor`] with the time coefficients trimmed as
-/// [`samara_system::taylor::solution_series_trimmed`] says (the series fallback ignores
-/// `trim`: it is an economy, never needed for soundness).
-fn taylor_trimmed<S: Scalar>(
-    g: &Graph,
-    x0: &[S],
-    u: &[S],
-    upto: usize,
-    trim: &dyn Fn(usize, S) -> S,
-) -> Option<Vec<Series<S, K>>> {
-    // Incremental Taylor-mode AD over the graph (the same recurrences as the series
-    // below, O(K^2) instead of O(K^3)); the series where it has no recurrence for an
-    // instruction.
-    if let Some(s) = samara_system::taylor::solution_series_trimmed::<S, K>(g, x0, u, upto, trim) {
-        return (!s.iter().any(|v| v.bad)).then_some(s);
-    }
-    let d = x0.len();
-    let mut x: Vec<Series<S, K>> = x0.iter().map(|v| Series::var(v.clone())).collect();
-    let us: Vec<Series<S, K>> = u.iter().map(|v| Series::constant(v.clone())).collect();
-    let mut out = vec![Series::<S, K>::cst(0.0); d];
-    let mut scratch = Vec::new();
-    for i in 0..upto {
-        for xj in x.iter_mut() {
-            xj.n = i + 1;
-        }
-        g.eval_with(&mut scratch, &x, &us, &mut out);
-        for j in 0..d {
-            if out[j].bad || out[j].n <= i {
-                return None;
-            }
-            x[j].c[i + 1] = out[j].c[i].clone() / (i as f64 + 1.0);
-        }
-    }
-    for xj in x.iter_mut() {
-        xj.n = upto + 1;
-    }
-    Some(x)
+    series::<S, K>(g, x0, u, upto, &|_, v| v)
 }
 
 /// One part of a period's flowpipe: a box enclosing every state over its time span and,
@@ -338,8 +300,7 @@ fn taylor_try(
     // remainder (relative to the set's widths) is taken.
     let mut best: Option<(f64, usize, Vec<Interval>)> = None;
     for p in (1..=pmax).rev() {
-        let hp = pow_up(h, p + 1);
-        let rem: Vec<Interval> = tb.iter().map(|c| c.c[p + 1] * hp).collect();
+        let rem = lagrange_remainder(&tb, tb.len(), p, h);
         if !finite(&rem) {
             continue;
         }
@@ -389,7 +350,7 @@ fn taylor_try(
                 v
             }
         };
-        taylor_trimmed::<Tm>(g, x, u, p, &trim)
+        series::<Tm, K>(g, x, u, p, &trim)
     } else {
         taylor::<Tm>(g, x, u, p)
     }?;
@@ -532,8 +493,9 @@ pub fn tm_period_parts(
                     cur = next;
                     if s.max_params > 0 {
                         let hull: Vec<Interval> = cur.iter().map(|v| v.bound()).collect();
-                        if crate::system::remainders_past(&cur, &hull, s.lift_at) {
-                            (cur, u) = crate::system::reduce_with(&cur, &u, s.max_params, s.order);
+                        if samara_num::tm_reduce::remainders_past(&cur, &hull, s.lift_at) {
+                            (cur, u) =
+                                samara_num::tm_reduce::reduce_with(&cur, &u, s.max_params, s.order);
                         }
                     }
                     boxes.extend(b);

@@ -18,7 +18,8 @@
 // Numeric kernels index several arrays by one index; the explicit forms mirror the formulas.
 #![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
 
-use crate::zonotope::{gamma, Zonotope};
+use super::set::{gamma, Zonotope};
+use crate::taylor_step::{apriori_by, finite, lagrange_remainder, series, subset};
 use samara_num::{IDual, Interval, Scalar, Series};
 use samara_plant::Plant;
 use samara_system::Graph;
@@ -164,12 +165,11 @@ fn taylor<S: Scalar + Copy, const K: usize>(
 ) -> Vec<Series<S, K>> {
     let d = x0.len();
     let n = d - 1;
-    // Expanded incrementally on the recording (O(K^2) where re-running the plant on
-    // series per order is O(K^3); the same recurrences, so the same enclosures); the
-    // series below where there is no recording (an undecided branch: then `bad`).
-    if let Some(mut s) =
-        g.and_then(|g| samara_system::taylor::solution_series::<S, K>(g, &x0[..n], &x0[n..], upto))
-    {
+    // Expanded by the shared step's series on the recording (O(K^2) where re-running
+    // the plant on series per order is O(K^3); the same recurrences, so the same
+    // enclosures); the plant's own equations on series below where there is no recording
+    // or its series is `bad` (an undecided branch: then `bad` here too).
+    if let Some(mut s) = g.and_then(|g| series::<S, K>(g, &x0[..n], &x0[n..], upto, &|_, v| v)) {
         s.push(Series::constant(x0[n]));
         return s;
     }
@@ -192,81 +192,9 @@ fn taylor<S: Scalar + Copy, const K: usize>(
     x
 }
 
-pub(crate) fn subset(a: &[Interval], b: &[Interval]) -> bool {
-    a.iter().zip(b).all(|(x, y)| y.lo <= x.lo && x.hi <= y.hi)
-}
-
-/// The intersection of two enclosures of the same set; where rounding makes it look
-/// empty or one side is not finite, the finite one (`b` if both are). Both enclose the
-/// same values, so they meet; an empty intersection can only be rounding or NaN noise.
-pub(crate) fn meet(a: Interval, b: Interval) -> Interval {
-    let fin = |x: Interval| x.lo.is_finite() && x.hi.is_finite();
-    if !fin(a) {
-        return b;
-    }
-    if !fin(b) {
-        return a;
-    }
-    let (lo, hi) = (a.lo.max(b.lo), a.hi.min(b.hi));
-    if lo <= hi {
-        Interval { lo, hi }
-    } else {
-        b
-    }
-}
-
-pub(crate) fn finite(v: &[Interval]) -> bool {
-    v.iter().all(|x| x.lo.is_finite() && x.hi.is_finite())
-}
-
 /// A-priori enclosure of all trajectories from `bz` over `[0, h]`.
 fn apriori(plant: &Plant, bz: &[Interval], h: f64) -> Option<Vec<Interval>> {
     apriori_by(|x| rhs_interval(plant, x), bz, h)
-}
-
-/// A-priori enclosure over `[0, h]` of every solution of `x' = f(x)` from the box `bz`
-/// (`f` an interval enclosure of the right-hand side): the Picard-Lindeloef test
-/// `bz + [0, h] f(B) ⊆ B` on an inflated iterate; `None` if it does not close in 12 tries.
-pub(crate) fn apriori_by(
-    f: impl Fn(&[Interval]) -> Vec<Interval>,
-    bz: &[Interval],
-    h: f64,
-) -> Option<Vec<Interval>> {
-    let th = Interval::new(0.0, h);
-    let f0 = f(bz);
-    if !finite(&f0) {
-        return None;
-    }
-    let mut b: Vec<Interval> = bz.iter().zip(&f0).map(|(z, f)| *z + th * *f).collect();
-    for _ in 0..12 {
-        // Inflate, then test.
-        let inf: Vec<Interval> = b
-            .iter()
-            .map(|x| {
-                let w = 0.2 * (x.hi - x.lo) + 1e-12 * (1.0 + x.lo.abs().max(x.hi.abs()));
-                Interval::new(x.lo - w, x.hi + w)
-            })
-            .collect();
-        let fb = f(&inf);
-        if !finite(&fb) {
-            return None;
-        }
-        let nb: Vec<Interval> = bz.iter().zip(&fb).map(|(z, f)| *z + th * *f).collect();
-        if subset(&nb, &inf) {
-            return Some(nb);
-        }
-        b = nb;
-    }
-    None
-}
-
-/// `h^k`, rounded outward.
-pub(crate) fn pow_up(h: f64, k: usize) -> Interval {
-    let mut p = Interval::point(1.0);
-    for _ in 0..k {
-        p = p * h;
-    }
-    p
 }
 
 /// One Taylor step; `None` if it cannot be validated at this `h`.
@@ -288,8 +216,7 @@ fn taylor_step(
         *hint = f64::NAN;
         return None;
     }
-    let hp = pow_up(h, ORDER + 1);
-    let rem: Vec<Interval> = (0..n).map(|j| tb[j].c[ORDER + 1] * hp).collect();
+    let rem = lagrange_remainder(&tb, n, ORDER, h);
     // Step-size suggestion from the remainder's scaling, rem ~ h^{p+1}.
     // Worst ratio of the remainder's width to what is accepted in its row: the absolute
     // tolerance, or a fraction of the set's own width (a wide set cannot do better).

@@ -1,13 +1,13 @@
 //! The re-parameterisation of Taylor-model sets at control instants
-//! (`samara_reach::system::precondition`) must enclose the set it replaces: points of
+//! (`samara_num::tm_reduce::precondition`) must enclose the set it replaces: points of
 //! the old set (a sampled parameter, a sampled point of the remainder) are found inside
 //! the new parallelotope, by solving for its parameters independently in the test.
 
 #![allow(clippy::needless_range_loop)] // Gaussian elimination reads clearest indexed
 
 use rand::{Rng, SeedableRng};
+use samara_num::tm_reduce::precondition;
 use samara_num::{Interval, Scalar, Tm};
-use samara_reach::system::precondition;
 
 /// Solve `a z = b` (d x d) by Gaussian elimination with partial pivoting.
 fn solve(mut a: Vec<Vec<f64>>, mut b: Vec<f64>) -> Vec<f64> {
@@ -145,7 +145,7 @@ fn a_skewed_parallelotope_keeps_its_hull() {
     }
 }
 
-/// Order reduction for symbolic remainders (`samara_reach::system::reduce`) must
+/// Order reduction for symbolic remainders (`samara_num::tm_reduce::reduce`) must
 /// enclose the set it replaces. The reduced models are `p_i(kept) + rad_i zeta_i + rem`
 /// with one fresh parameter `zeta_i` per state, so a point `z` of the old set (at
 /// parameter `xi`) is inside when it lies between the new models evaluated at the
@@ -153,7 +153,7 @@ fn a_skewed_parallelotope_keeps_its_hull() {
 /// are found independently, by matching the new models' linear parts on the old ones.
 #[test]
 fn order_reduction_contains_the_old_set() {
-    use samara_reach::system::reduce;
+    use samara_num::tm_reduce::reduce;
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
     let mut checked = 0;
     let mut dropped_some = 0;

@@ -20,7 +20,7 @@
 //! Chen, Abraham & Sankaranarayanan, "Flow*", CAV 2013, and the mean-value error
 //! propagation of Lohner's method).
 
-use crate::flow::meet;
+use crate::taylor_step::meet;
 use samara_num::{IDual, Interval, Scalar};
 use samara_system::{Graph, Op, StandIn, Un};
 

@@ -7,108 +7,25 @@
 //! over [`Prepared`]'s flights of every piece) and [`finish`] (order and verdict). A
 //! sharded run and its merge call the very same functions.
 
-use crate::flow::{self, flow_period};
-use crate::netstep::SetController;
+use super::flow::{self, flow_period};
+use super::netstep::SetController;
+use super::set::Zonotope;
+use crate::result::Verdict;
+use crate::result::{Flown, Leaf, ReachResult, StepSet};
 use crate::sampling::{simulate_samples, Sample};
 use crate::settings::{ReachError, ReachSettings};
-use crate::verdict::{decide, first_violation, leaf_goal, Verdict};
-use crate::zonotope::Zonotope;
+use crate::verdict::{decide, first_violation, leaf_goal};
 use rayon::prelude::*;
 use samara_nn::Network;
 use samara_num::{Interval, Scalar};
 use samara_plant::Plant;
-use serde::Serialize;
 use std::borrow::Borrow;
 use std::convert::Infallible;
 use std::ops::Range;
 use std::time::Instant;
 
-/// The enclosure of one sub-box at one control instant.
-#[derive(Clone, Debug, Serialize)]
-pub struct StepSet {
-    /// Time.
-    pub t: f64,
-    /// Interval hull of the six physical states (v_xp, v_yp, omega, theta, x, y).
-    pub bbox: Vec<[f64; 2]>,
-    /// Enclosure of `x + y` at `t`.
-    pub x_plus_y: [f64; 2],
-    /// Enclosure of `x + y` over the period ending at `t` (at `t = 0`: the start).
-    pub x_plus_y_period: [f64; 2],
-    /// Control held over the period starting at `t` (absent at the horizon).
-    pub ex: Option<[f64; 2]>,
-    /// The zonotope (only with `keep_sets`).
-    #[serde(skip)]
-    pub set: Option<Zonotope>,
-}
-
-/// A sub-box of the initial set and its enclosures.
-#[derive(Clone, Debug, Serialize)]
-pub struct Leaf {
-    /// The sub-box, one interval per state.
-    pub init: Vec<[f64; 2]>,
-    /// Indices of the states that are parameters (the first generators, in order).
-    pub params: Vec<usize>,
-    /// One record per control instant reached (all of them unless `failure`).
-    pub steps: Vec<StepSet>,
-    /// Why the enclosure stopped early, if it did.
-    pub failure: Option<String>,
-    /// Validated steps taken (Taylor, fallback).
-    pub flow_steps: (usize, usize),
-    /// Largest deviation of the network enclosure over the flight.
-    pub max_dev: f64,
-}
-
-/// The result of a run.
-#[derive(Clone, Debug, Serialize)]
-pub struct ReachResult {
-    /// The verdict on the goal.
-    pub verdict: Verdict,
-    /// Enclosure of `x + y` at the horizon (hull over sub-boxes).
-    pub final_x_plus_y: [f64; 2],
-    /// Range of `x + y` at the horizon over the simulated samples.
-    pub sampled_x_plus_y: [f64; 2],
-    /// Sub-boxes.
-    pub leaves: Vec<Leaf>,
-    /// Wall time in seconds.
-    pub seconds: f64,
-    /// Simulated trajectories (falsification and figures).
-    #[serde(skip)]
-    pub samples: Vec<Sample>,
-}
-
-impl ReachResult {
-    /// Number of sub-problems (sub-boxes) in the final partition.
-    pub fn subproblems(&self) -> usize {
-        self.leaves.len()
-    }
-
-    /// Width ratio of the enclosure of `x + y` at the horizon to the sampled range.
-    pub fn width_ratio(&self) -> f64 {
-        (self.final_x_plus_y[1] - self.final_x_plus_y[0])
-            / (self.sampled_x_plus_y[1] - self.sampled_x_plus_y[0])
-    }
-}
-
 fn iv(x: Interval) -> [f64; 2] {
     [x.lo, x.hi]
-}
-
-/// A flown sub-box: one node of a piece's refinement tree, and how the driver judges it.
-#[derive(Clone, Debug)]
-pub struct Flown {
-    /// Its name: [`piece_key`] of its piece, then one digit per split (see
-    /// [`child_key`]).
-    pub key: String,
-    /// Whether it is worth splitting: it lost its enclosure, its final `x + y` carries
-    /// too much noise, or the goal is undecided on it.
-    pub want: bool,
-    /// The parameter (index into `leaf.params`) it is split along, if it can be.
-    pub split: Option<usize>,
-    /// The goal on it: `Some(true)` every enclosure inside the band, `Some(false)` one
-    /// entirely outside, `None` undecided or no goal.
-    pub goal: Option<bool>,
-    /// Its sub-box and enclosures.
-    pub leaf: Leaf,
 }
 
 /// The name of initial piece `i`.
