@@ -16,6 +16,7 @@ use crate::shard::{pair, unpair, Exact, ExactPair, Shard};
 use crate::AppError;
 use samara_plant::{Model, STATE_NAMES};
 use samara_reach::parts::{self, Flown, LeafRecord, Prepared};
+use samara_reach::GliderViolation;
 use samara_reach::Sample;
 use samara_reach::{Goal, ReachResult, ReachSettings, StepSet, Verdict};
 use samara_report::reach::{Trajectory, XyBox};
@@ -159,11 +160,11 @@ impl From<&Verdict> for VerdictReport {
             Verdict::Unknown { reason } => VerdictReport::Unknown {
                 reason: reason.clone(),
             },
-            Verdict::Violated {
+            Verdict::Violated(GliderViolation {
                 initial,
                 t,
                 x_plus_y,
-            } => VerdictReport::Violated {
+            }) => VerdictReport::Violated {
                 reason: format!("the simulated trajectory from {initial:?} has x + y = {x_plus_y} at t = {t}, outside the goal band"),
                 counterexample: Counterexample {
                     initial: initial.clone(),
@@ -230,7 +231,7 @@ impl Outcome {
         match self.verdict {
             Verdict::NoGoal => self.lost.is_none(),
             Verdict::Proved => true,
-            Verdict::Violated { .. } | Verdict::Unknown { .. } => false,
+            Verdict::Violated(GliderViolation { .. }) | Verdict::Unknown { .. } => false,
         }
     }
 
@@ -251,11 +252,11 @@ impl Outcome {
                 Some(why) => format!("; no result: {why}"),
                 None => String::new(),
             },
-            Verdict::Violated {
+            Verdict::Violated(GliderViolation {
                 initial,
                 t,
                 x_plus_y,
-            } => format!("; counterexample: from {initial:?}, x + y = {x_plus_y} at t = {t}"),
+            }) => format!("; counterexample: from {initial:?}, x + y = {x_plus_y} at t = {t}"),
             _ => String::new(),
         };
         // No finite sampled trajectory (e.g. a state where the model is singular): say
@@ -611,11 +612,11 @@ impl SharedSamples {
             sampled_x_plus_y: pair(p.sampled_x_plus_y),
             tol_noise: Exact(p.tol_noise),
             violation: match &p.violation {
-                Some(Verdict::Violated {
+                Some(Verdict::Violated(GliderViolation {
                     initial,
                     t,
                     x_plus_y,
-                }) => Some(ViolationText {
+                })) => Some(ViolationText {
                     initial: initial.iter().map(|x| Exact(*x)).collect(),
                     t: Exact(*t),
                     x_plus_y: Exact(*x_plus_y),
@@ -1025,10 +1026,12 @@ pub fn merge_zonotope(
         |f| (parts::child_key(&f.key, 0), parts::child_key(&f.key, 1)),
     )?;
     let sh = &r0.shared;
-    let violation = sh.violation.as_ref().map(|v| Verdict::Violated {
-        initial: v.initial.iter().map(|x| x.0).collect(),
-        t: v.t.0,
-        x_plus_y: v.x_plus_y.0,
+    let violation = sh.violation.as_ref().map(|v| {
+        Verdict::Violated(GliderViolation {
+            initial: v.initial.iter().map(|x| x.0).collect(),
+            t: v.t.0,
+            x_plus_y: v.x_plus_y.0,
+        })
     });
     if let Some(v) = &violation {
         recheck(&Recheck {
@@ -1093,6 +1096,27 @@ pub struct ShardLine {
     pub subboxes: usize,
     /// The shard file.
     pub out: PathBuf,
+}
+
+/// A glider run's final sub-boxes as its figure draws them (`samara_report::reach`):
+/// each sub-box's set at every control instant, projected onto x and y (states 4 and 5).
+pub fn figure_sets(leaves: &[LeafRecord]) -> Vec<Vec<XyBox>> {
+    leaves
+        .iter()
+        .map(|l| l.steps.iter().map(|st| [st.bbox[4], st.bbox[5]]).collect())
+        .collect()
+}
+
+/// A glider run's sampled trajectories as its figure draws them, labelled by `y0`
+/// (state 5).
+pub fn figure_samples(samples: &[Sample]) -> Vec<Trajectory<'_>> {
+    samples
+        .iter()
+        .map(|s| Trajectory {
+            y0: s.initial[5],
+            xy: &s.xy,
+        })
+        .collect()
 }
 
 #[cfg(test)]
@@ -1222,25 +1246,4 @@ mod tests {
         assert!(back.leaves[0].max_dev.is_nan());
         assert_eq!(back.leaves[1].steps[0].x_plus_y[1], 0.1);
     }
-}
-
-/// A glider run's final sub-boxes as its figure draws them (`samara_report::reach`):
-/// each sub-box's set at every control instant, projected onto x and y (states 4 and 5).
-pub fn figure_sets(leaves: &[LeafRecord]) -> Vec<Vec<XyBox>> {
-    leaves
-        .iter()
-        .map(|l| l.steps.iter().map(|st| [st.bbox[4], st.bbox[5]]).collect())
-        .collect()
-}
-
-/// A glider run's sampled trajectories as its figure draws them, labelled by `y0`
-/// (state 5).
-pub fn figure_samples(samples: &[Sample]) -> Vec<Trajectory<'_>> {
-    samples
-        .iter()
-        .map(|s| Trajectory {
-            y0: s.initial[5],
-            xy: &s.xy,
-        })
-        .collect()
 }

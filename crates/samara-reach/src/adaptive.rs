@@ -43,6 +43,7 @@ use crate::taylor::driver::{
 use crate::taylor::flight::{empty_leaf, fly_box, past};
 use crate::taylor::network::controller;
 use crate::taylor::refine::{bisect_sensitive, cut_at};
+use crate::taylor::SystemViolation;
 use crate::taylor::{
     NetworkError, SystemLeaf, SystemReach, SystemReachError, SystemReachSettings, SystemVerdict,
 };
@@ -398,10 +399,10 @@ pub fn reach_adaptive(
     } else if let Some((gi, centre)) = refuted {
         let eval = controller(net);
         Some(match fly(sys, &eval, &centre, 10) {
-            Ok(f) if goals_hold(sys, &f).iter().any(|h| !h) => SystemVerdict::Violated {
+            Ok(f) if goals_hold(sys, &f).iter().any(|h| !h) => SystemVerdict::Violated(SystemViolation {
                 initial: centre,
                 goal: sys.goals[gi].text.clone(),
-            },
+            }),
             _ => SystemVerdict::Unknown {
                 reason: format!(
                     "the enclosure of a cell lies outside the goal `{}`, but no simulated flight from the starts tried missed it",
@@ -605,7 +606,7 @@ pub fn merge_adaptive(
     let goal_verdict = parts
         .iter()
         .map(|p| &p.reach.verdict)
-        .find(|v| matches!(v, SystemVerdict::Violated { .. }))
+        .find(|v| matches!(v, SystemVerdict::Violated(SystemViolation { .. })))
         .cloned();
     let stopped = parts.iter().find_map(|p| p.stopped.clone());
     let rounds = parts.iter().map(|p| p.rounds).max().unwrap_or(0);

@@ -23,6 +23,7 @@
 //! result does not depend on which process flew it, so the merge of any cut of the cells
 //! into ranges is the one-process grid run (checked in `tests/grid.rs`).
 
+use crate::taylor::SystemViolation;
 use crate::taylor::{
     reach_system, MeasureRange, SystemReach, SystemReachError, SystemReachSettings, SystemVerdict,
 };
@@ -168,7 +169,7 @@ pub fn merge_parts(parts: Vec<(usize, SystemReach)>) -> SystemReach {
         .collect();
     let verdict = if let Some((_, p)) = parts
         .iter()
-        .find(|(_, p)| matches!(p.verdict, SystemVerdict::Violated { .. }))
+        .find(|(_, p)| matches!(p.verdict, SystemVerdict::Violated(SystemViolation { .. })))
     {
         p.verdict.clone()
     } else if let Some((_, first)) = undecided.first() {

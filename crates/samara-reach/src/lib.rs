@@ -39,7 +39,9 @@ pub mod taylor_step;
 pub mod verdict;
 pub mod zonotope;
 
-pub use result::{check_containment, Leaf, ReachResult, StepSet, Verdict};
+pub use result::{
+    check_containment, GliderViolation, Leaf, ReachResult, ReachVerdict, StepSet, Verdict,
+};
 pub use sampling::{simulate_samples, Sample};
 pub use settings::{Goal, ReachError, ReachSettings, MAX_INIT, MAX_PERIODS};
 pub use zonotope::driver::reach;

@@ -4,23 +4,22 @@
 
 use crate::sampling::Sample;
 use crate::zonotope::Zonotope;
-use serde::Serialize;
+use samara_num::Status;
+use serde::{Deserialize, Serialize};
 
-/// The verdict on the goal.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+/// The verdict of a reachability run on its goal, in samara's answer vocabulary
+/// ([`samara_num::Status`]: proved, violated, unknown, and `none` when no goal was
+/// stated), generic over what a counterexample is: a glider trajectory
+/// ([`GliderViolation`]) or a system-file flight
+/// ([`crate::taylor::SystemViolation`]). Serialised as `{"verdict": "violated", ...}`
+/// with the counterexample's fields beside the tag.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "verdict", rename_all = "lowercase")]
-pub enum Verdict {
+pub enum ReachVerdict<V> {
     /// Every trajectory from the initial set meets the goal (sound enclosure).
     Proved,
     /// A simulated trajectory misses the goal.
-    Violated {
-        /// Its initial state.
-        initial: Vec<f64>,
-        /// Time of the violation.
-        t: f64,
-        /// Its `x + y` there.
-        x_plus_y: f64,
-    },
+    Violated(V),
     /// Not settled.
     Unknown {
         /// Why.
@@ -31,27 +30,48 @@ pub enum Verdict {
     NoGoal,
 }
 
-impl Verdict {
-    /// `proved`, `violated`, `unknown` or `none`.
-    pub fn name(&self) -> &'static str {
+impl<V> ReachVerdict<V> {
+    /// The verdict's status.
+    pub fn status(&self) -> Status {
         match self {
-            Verdict::Proved => "proved",
-            Verdict::Violated { .. } => "violated",
-            Verdict::Unknown { .. } => "unknown",
-            Verdict::NoGoal => "none",
+            ReachVerdict::Proved => Status::Proved,
+            ReachVerdict::Violated(_) => Status::Violated,
+            ReachVerdict::Unknown { .. } => Status::Unknown,
+            ReachVerdict::NoGoal => Status::NoGoal,
         }
     }
 
+    /// `proved`, `violated`, `unknown` or `none`.
+    pub fn name(&self) -> &'static str {
+        self.status().name()
+    }
+}
+
+/// A glider trajectory that misses the goal.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct GliderViolation {
+    /// Its initial state.
+    pub initial: Vec<f64>,
+    /// Time of the violation.
+    pub t: f64,
+    /// Its `x + y` there.
+    pub x_plus_y: f64,
+}
+
+/// The verdict of a glider run.
+pub type Verdict = ReachVerdict<GliderViolation>;
+
+impl Verdict {
     /// Why the goal is not proved, in words: the unknown reason, or where the
     /// simulated counterexample misses the goal; empty when proved or without a goal.
     pub fn reason(&self) -> String {
         match self {
             Verdict::Unknown { reason } => reason.clone(),
-            Verdict::Violated {
+            Verdict::Violated(GliderViolation {
                 initial,
                 t,
                 x_plus_y,
-            } => format!(
+            }) => format!(
                 "simulated from y0 = {:.4}: x + y = {:.4} at t = {}",
                 initial[5], x_plus_y, t
             ),

@@ -1,5 +1,6 @@
 //! The goal on the final sets, falsification by simulated trajectories, and the verdict.
 
+use crate::result::GliderViolation;
 pub use crate::result::Verdict;
 use crate::result::{Flown, Leaf};
 use crate::sampling::Sample;
@@ -52,11 +53,11 @@ pub(crate) fn first_violation(samples: &[Sample], g: &Goal, s: &ReachSettings) -
                 .map(|&(t, v)| (t, v)),
         };
         if let Some((t, v)) = bad {
-            return Some(Verdict::Violated {
+            return Some(Verdict::Violated(GliderViolation {
                 initial: smp.initial.clone(),
                 t,
                 x_plus_y: v,
-            });
+            }));
         }
     }
     None
@@ -72,7 +73,7 @@ pub fn recheck_violation(
     s: &ReachSettings,
     v: &Verdict,
 ) -> Result<(), String> {
-    let Verdict::Violated { initial, .. } = v else {
+    let Verdict::Violated(GliderViolation { initial, .. }) = v else {
         return Err(format!("a `{}` verdict is not a counterexample", v.name()));
     };
     let Some(g) = &s.goal else {

@@ -6,6 +6,7 @@
 //! Tolerance 1e-7 for the simulation's own error (about 1e-8 over a flight).
 
 use samara_plant::{Model, Plant};
+use samara_reach::GliderViolation;
 use samara_reach::{check_containment, reach, simulate_samples, Goal, ReachSettings};
 use samara_testkit as support;
 
@@ -167,7 +168,7 @@ fn goal_over_a_time_window() {
     });
     let r = reach(&net, &s).expect("reach runs");
     match r.verdict {
-        samara_reach::Verdict::Violated { t, x_plus_y, .. } => {
+        samara_reach::Verdict::Violated(GliderViolation { t, x_plus_y, .. }) => {
             assert!(t >= 1.0 - 1e-12 && x_plus_y.abs() > 0.1);
         }
         v => panic!("expected a violation, got {v:?}"),

@@ -31,6 +31,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_nn::{Activation, Network};
+use samara_reach::system::SystemViolation;
 use samara_reach::system::{
     reach_system, starts, NetworkError, SystemReach, SystemReachError, SystemReachSettings,
     SystemVerdict,
@@ -337,7 +338,7 @@ fn check(
                 );
             }
         }
-        SystemVerdict::Violated { initial, goal } => {
+        SystemVerdict::Violated(SystemViolation { initial, goal }) => {
             tally.violated += 1;
             let f = fly(sys, &eval, initial, 10).unwrap();
             let gi = sys

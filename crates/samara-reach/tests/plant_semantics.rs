@@ -5,6 +5,7 @@
 //! last period's flow. Golden values are closed-form integrals of the plants below.
 
 use samara_nn::{Activation, Affine, Layer, Network};
+use samara_reach::system::SystemViolation;
 use samara_reach::system::{reach_system, NetworkError, SystemReachSettings, SystemVerdict};
 use samara_system::sim::{fly, goals_hold};
 use samara_system::System;
@@ -69,7 +70,7 @@ fn reset_plant_is_never_proved_against_a_violating_flight() {
         assert!(
             matches!(
                 r.verdict,
-                SystemVerdict::Violated { .. } | SystemVerdict::Unknown { .. }
+                SystemVerdict::Violated(SystemViolation { .. }) | SystemVerdict::Unknown { .. }
             ),
             "{:?}",
             r.verdict
@@ -133,7 +134,7 @@ fn reset_states_hold_the_last_period_at_instants_and_at_the_end() {
     assert_eq!(goals_hold(&sys, &f), vec![false]);
     let r = reach_system(&sys, &net, &s).unwrap();
     assert!(
-        matches!(r.verdict, SystemVerdict::Violated { .. }),
+        matches!(r.verdict, SystemVerdict::Violated(SystemViolation { .. })),
         "{:?}",
         r.verdict
     );

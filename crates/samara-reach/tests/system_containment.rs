@@ -12,6 +12,7 @@
 mod common;
 
 use rand::{Rng, SeedableRng};
+use samara_reach::system::SystemViolation;
 use samara_reach::system::{
     reach_system, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
 };
@@ -378,7 +379,7 @@ fn double_pendulum_more_robust_is_falsified_by_a_real_flight() {
     let net = fixture("controller_double_pendulum_more_robust.onnx");
     let r = reach_system(&sys, &net, &SystemReachSettings::default()).unwrap();
     match &r.verdict {
-        SystemVerdict::Violated { initial, goal } => {
+        SystemVerdict::Violated(SystemViolation { initial, goal }) => {
             // Re-fly the witness independently: it must miss the goal.
             let eval = |x: &[f64]| net.eval_f64(x);
             let f = fly(&sys, &eval, initial, 10).unwrap();
@@ -835,7 +836,7 @@ fn field_benchmarks_sets_contain_flights() {
         let t = std::time::Instant::now();
         let r = reach_system(&sys, &net, &s).unwrap();
         let reached = r.leaves.iter().map(|l| l.instants.len()).max().unwrap_or(0);
-        if let SystemVerdict::Violated { initial, .. } = &r.verdict {
+        if let SystemVerdict::Violated(SystemViolation { initial, .. }) = &r.verdict {
             let eval = |x: &[f64]| net.eval_f64(x);
             let f = fly(&sys, &eval, initial, 10).unwrap();
             let holds = samara_system::sim::goals_hold(&sys, &f);

@@ -27,6 +27,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rand::SeedableRng;
 use samara_nn::{Affine, Layer, Network};
 use samara_plant::Model;
+use samara_reach::GliderViolation;
 use samara_reach::{reach, Goal, ReachResult, ReachSettings, Verdict};
 use std::time::Instant;
 
@@ -308,7 +309,7 @@ pub fn counterexamples(
     // (tier, excess, y0): tier 0 the violation, 1 other simulated counterexamples,
     // 2 lost sub-boxes, 3 refuted or undecided ones; worst first within a tier.
     let mut cands: Vec<(u8, f64, f64)> = Vec::new();
-    if let Verdict::Violated { initial, .. } = &res.verdict {
+    if let Verdict::Violated(GliderViolation { initial, .. }) = &res.verdict {
         cands.push((0, 0.0, initial[5]));
     }
     for smp in &res.samples {
@@ -551,7 +552,10 @@ pub fn train_closed_loop(
             .map_err(|e| TrainError::Settings(e.to_string()))?;
         let undecided = matches!(res.verdict, Verdict::Unknown { .. });
         if (undecided || round == o.max_rounds)
-            && !matches!(res.verdict, Verdict::Proved | Verdict::Violated { .. })
+            && !matches!(
+                res.verdict,
+                Verdict::Proved | Verdict::Violated(GliderViolation { .. })
+            )
             && o.final_reach != o.round_reach
         {
             budget = o.final_reach;

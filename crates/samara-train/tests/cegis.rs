@@ -2,6 +2,7 @@
 //! samara regenerates with its own simulator (the reproduction's data stage).
 
 use samara_plant::{Model, Plant, EX_RANGE};
+use samara_reach::GliderViolation;
 use samara_reach::{Goal, Verdict};
 use samara_sim::{
     fly, initial_state, published_starts, training_rows, LoopSettings, PidController,
@@ -122,7 +123,7 @@ fn a_round_that_finds_a_counterexample_adds_it() {
         assert!(r1.added.iter().all(|s| (s - y).abs() > 1e-9));
     }
     // A violation found by reach's simulation is the first start added.
-    if let Verdict::Violated { initial, .. } = &out.reach.verdict {
+    if let Verdict::Violated(GliderViolation { initial, .. }) = &out.reach.verdict {
         let set: Vec<f64> = o.initial_set();
         let c = counterexamples(
             &out.reach,

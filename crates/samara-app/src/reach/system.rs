@@ -6,6 +6,7 @@
 use crate::shard::{digest, pair, Exact, ExactPair, Shard};
 use crate::AppError;
 use samara_reach::grid;
+use samara_reach::system::SystemViolation;
 use samara_reach::system::{
     Measure, MeasureRange, NetworkError, SystemReach, SystemReachSettings, SystemVerdict,
 };
@@ -122,7 +123,7 @@ pub fn success(r: &SystemReach) -> bool {
 pub fn human_line(system: &str, r: &SystemReach) -> String {
     let what = match &r.verdict {
         SystemVerdict::Proved => "proved: every goal holds on the sound enclosure".to_string(),
-        SystemVerdict::Violated { initial, goal } => {
+        SystemVerdict::Violated(SystemViolation { initial, goal }) => {
             format!("violated: the flight from {initial:?} misses `{goal}`")
         }
         SystemVerdict::Unknown { reason } => format!("unknown: {reason}"),
@@ -139,7 +140,9 @@ pub fn human_line(system: &str, r: &SystemReach) -> String {
     };
     // A count of enclosed sub-boxes says little when they are the small ones: the
     // share of the initial set they cover does.
-    let cover = if r.covered < 1.0 && !matches!(r.verdict, SystemVerdict::Violated { .. }) {
+    let cover = if r.covered < 1.0
+        && !matches!(r.verdict, SystemVerdict::Violated(SystemViolation { .. }))
+    {
         format!(
             "; sets to the horizon for {} of the initial set",
             percent(r.covered)

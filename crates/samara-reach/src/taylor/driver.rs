@@ -9,6 +9,7 @@ use super::settings::{
     Measure, MeasureRange, NetworkError, SystemReachError, SystemReachSettings,
     NETWORK_ERROR_LADDER,
 };
+use crate::taylor::SystemViolation;
 
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
@@ -137,10 +138,10 @@ pub fn reach_system(
             // every flight from it misses it; its centre's flight is the witness.
             match fly(sys, &eval, &centre, 10) {
                 Ok(f) if goals_hold(sys, &f).iter().any(|h| !h) => {
-                    violation_from_sets = Some(SystemVerdict::Violated {
+                    violation_from_sets = Some(SystemVerdict::Violated(SystemViolation {
                         initial: centre,
                         goal: g,
-                    });
+                    }));
                 }
                 _ => {
                     reason = Some(format!(
@@ -291,10 +292,10 @@ pub(crate) fn falsify(
         };
         if violation.is_none() {
             if let Some(gi) = goals_hold(sys, &f).iter().position(|h| !h) {
-                violation = Some(SystemVerdict::Violated {
+                violation = Some(SystemVerdict::Violated(SystemViolation {
                     initial: x0.clone(),
                     goal: sys.goals[gi].text.clone(),
-                });
+                }));
             }
         }
         ok_flights.push((x0, f));

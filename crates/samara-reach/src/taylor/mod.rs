@@ -45,7 +45,7 @@ pub(crate) mod standin;
 
 pub use driver::{reach_system, starts};
 pub use network::network_over;
-pub use result::{SystemLeaf, SystemReach, SystemVerdict};
+pub use result::{SystemLeaf, SystemReach, SystemVerdict, SystemViolation};
 pub use samara_num::tm_reduce::{precondition, reduce, reduce_with};
 pub use settings::{
     end_band_measures, Measure, MeasureRange, NetworkError, SystemReachError, SystemReachSettings,

@@ -7,40 +7,18 @@ use samara_system::sim::SystemFlight;
 use samara_system::{System, When};
 use serde::{Deserialize, Serialize};
 
-/// The verdict of a system run.
+/// A system-file flight that misses a goal.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "verdict", rename_all = "lowercase")]
-pub enum SystemVerdict {
-    /// Every flight from the initial set meets every goal (sound enclosure).
-    Proved,
-    /// A simulated flight misses a goal.
-    Violated {
-        /// Its initial state.
-        initial: Vec<f64>,
-        /// The goal it misses (its text in the file).
-        goal: String,
-    },
-    /// Not settled.
-    Unknown {
-        /// Why.
-        reason: String,
-    },
-    /// The file states no goal.
-    #[serde(rename = "none")]
-    NoGoal,
+pub struct SystemViolation {
+    /// Its initial state.
+    pub initial: Vec<f64>,
+    /// The goal it misses (its text in the file).
+    pub goal: String,
 }
 
-impl SystemVerdict {
-    /// `proved`, `violated`, `unknown` or `none`.
-    pub fn name(&self) -> &'static str {
-        match self {
-            SystemVerdict::Proved => "proved",
-            SystemVerdict::Violated { .. } => "violated",
-            SystemVerdict::Unknown { .. } => "unknown",
-            SystemVerdict::NoGoal => "none",
-        }
-    }
-}
+/// The verdict of a system run (the one reach verdict, [`crate::ReachVerdict`], with a
+/// system-file flight as its counterexample).
+pub type SystemVerdict = crate::result::ReachVerdict<SystemViolation>;
 
 /// The sets of one sub-box.
 #[derive(Clone, Debug, Serialize, Deserialize)]
