@@ -6,6 +6,10 @@ use samara_sim::Flight;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+/// Largest magnitude of an initial state value of `simulate` and `reach`: the model is
+/// nondimensional and the published states are O(1) (heights 1.43 to 4.29).
+pub const MAX_STATE: f64 = 1000.0;
+
 /// One flight of the glider: its start height and where it ends.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct StartSummary {

@@ -6,14 +6,109 @@
 
 use crate::{AppError, Reason};
 use samara_nn::Network;
-use samara_spec::normal::Query;
+use samara_spec::normal::{Query, Var};
+use samara_spec::vnnlib;
 use samara_verify::engine::Point;
 use samara_verify::route::{prove_routed, Engine};
 use samara_verify::{Prepared, Settings, UnknownReason, Verdict};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::fmt::Write as _;
+use std::path::Path;
 use std::time::Instant;
+
+/// Load and check one instance: the network and the property (exit 2 on a bad one,
+/// naming the flag or file, the line or the operator).
+pub fn load_instance(
+    network: &Path,
+    property: &Path,
+    net_flag: &str,
+    prop_flag: &str,
+) -> Result<(Network, Query), AppError> {
+    let net = crate::bind::load_network(network, net_flag)?;
+    let text = std::fs::read_to_string(property).map_err(|e| {
+        AppError::Input(format!(
+            "{prop_flag} {}: cannot read: {e}",
+            property.display()
+        ))
+    })?;
+    let file = property.display().to_string();
+    let q = vnnlib::import(&text, &file, "f", "property")
+        .map_err(|e| AppError::Input(e.to_string()))?;
+    let Some(app) = q.applications.first() else {
+        return crate::input(format!("{file}: the property calls no network"));
+    };
+    if app.n_inputs != net.n_inputs() || app.n_outputs != net.n_outputs() {
+        return crate::input(format!(
+            "dimension mismatch: {file} declares {} inputs and {} outputs, the network {} has {} and {}",
+            app.n_inputs,
+            app.n_outputs,
+            network.display(),
+            net.n_inputs(),
+            net.n_outputs()
+        ));
+    }
+    // Every variable used must be declared and exist in the network.
+    for e in q.region.iter().flatten().map(|c| &c.expr) {
+        for (v, _) in &e.terms {
+            let (used, declared, have, what) = match *v {
+                Var::Input { index, .. } => (index, app.n_inputs, net.n_inputs(), "inputs"),
+                Var::Output { index, .. } => (index, app.n_outputs, net.n_outputs(), "outputs"),
+                Var::Free(_) => {
+                    return crate::input(format!(
+                        "{file}: uses {}, which is not an X_i or Y_j",
+                        vnn_name(*v)
+                    ))
+                }
+            };
+            if used >= declared.min(have) {
+                return crate::input(format!(
+                    "{file}: the property uses {}, which it does not declare (it declares {declared} {what}; the network {} has {have}): use only the declared variables, {} to {}",
+                    vnn_name(*v),
+                    network.display(),
+                    vnn_name(var_at(*v, 0)),
+                    vnn_name(var_at(*v, declared.min(have).saturating_sub(1)))
+                ));
+            }
+        }
+    }
+    if app.input_box.len() != net.n_inputs() {
+        return crate::input(format!(
+            "{file}: bounds for {} inputs but the network has {}",
+            app.input_box.len(),
+            net.n_inputs()
+        ));
+    }
+    if let Some((i, (l, h))) = app
+        .input_box
+        .iter()
+        .enumerate()
+        .find(|(_, (l, h))| !l.is_finite() || !h.is_finite())
+    {
+        return crate::input(format!(
+            "{file}: input X_{i} is bounded by [{l}, {h}]; give it finite bounds with top-level asserts, e.g. (assert (>= X_{i} 0.0)) and (assert (<= X_{i} 1.0))"
+        ));
+    }
+    Ok((net, q))
+}
+
+/// The name of a VNN-LIB variable.
+fn vnn_name(v: Var) -> String {
+    match v {
+        Var::Input { index, .. } => format!("X_{index}"),
+        Var::Output { index, .. } => format!("Y_{index}"),
+        Var::Free(k) => format!("P_{k}"),
+    }
+}
+
+/// The same kind of variable at another index.
+fn var_at(v: Var, index: usize) -> Var {
+    match v {
+        Var::Input { app, .. } => Var::Input { app, index },
+        Var::Output { app, .. } => Var::Output { app, index },
+        Var::Free(_) => Var::Free(index),
+    }
+}
 
 /// A decided instance.
 pub struct Decided {

@@ -1,7 +1,9 @@
 //! `samara simulate`.
 
 use anyhow::{anyhow, bail, Context, Result};
+use samara_app::bind::{check_horizon_period, check_period_count, num};
 use samara_app::simulate::{GoalViolation, SimulateSummary, StartSummary, SystemSimSummary};
+use samara_app::Front;
 use samara_plant::{Model, Plant, EX_RANGE, STATE_NAMES};
 use samara_report::write_atomic;
 use samara_sim::dataset::{normalisation_csv, training_csv};
@@ -40,7 +42,7 @@ pub struct SimulateArgs {
     /// same tolerances) or `rk4` (fixed step 1e-3).
     #[arg(long, default_value = "ode45")]
     pub integrator: String,
-    /// Horizon (a positive multiple of the period, at most 100000 periods).
+    /// Horizon (a positive multiple of the period, at most 1000000 periods).
     #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
     pub horizon: f64,
     /// Control period (sample and hold), in [0.001, 100].
@@ -73,31 +75,15 @@ pub struct SimulateArgs {
 /// docs/simulation.md): beyond them a run would only exhaust memory or leave the range in
 /// which the (nondimensional) glider model means anything.
 pub(crate) mod limits {
-    /// Shortest control period (1 ms); below it the hold is shorter than the
-    /// integrator's useful steps.
-    pub const MIN_PERIOD: f64 = 1e-3;
-    /// Longest control period.
-    pub const MAX_PERIOD: f64 = 100.0;
-    /// Most control periods (`horizon / period`) of `simulate` (the published run has 40).
-    pub const MAX_PERIODS: f64 = 100_000.0;
+    /// Most control periods (`horizon / period`) of `simulate` (the published run has
+    /// 40): the closed loop's own limit, `samara_sim::MAX_PERIODS`.
+    pub const MAX_PERIODS: f64 = samara_sim::closed_loop::MAX_PERIODS as f64;
     /// Most starts of `simulate --y0`.
     pub const MAX_STARTS: usize = 100_000;
     /// Most rows of `trajectories.csv` (built in memory, about 200 bytes a row).
     pub const MAX_ROWS: f64 = 2_000_000.0;
-    /// Largest magnitude of an initial state value: the model is nondimensional and the
-    /// published states are O(1) (heights 1.43 to 4.29).
-    pub const MAX_STATE: f64 = 1000.0;
-}
-
-/// A number for a message: plain when moderate, scientific when huge or tiny (so 1e308
-/// does not print as 309 digits).
-pub(crate) fn num(v: f64) -> String {
-    let a = v.abs();
-    if a != 0.0 && a.is_finite() && !(1e-4..1e7).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
+    /// Largest magnitude of an initial state value.
+    pub const MAX_STATE: f64 = samara_app::simulate::MAX_STATE;
 }
 
 /// Parse `START:END:COUNT` or `V,V,...`.
@@ -240,8 +226,8 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
             a.integrator
         )
     })?;
-    check_horizon_period(a.horizon, a.period)?;
-    check_period_count(a.horizon, a.period, limits::MAX_PERIODS)?;
+    check_horizon_period(Front::Cli, a.horizon, a.period)?;
+    check_period_count(Front::Cli, a.horizon, a.period, limits::MAX_PERIODS)?;
     let output_step = if (a.period / 0.01 - (a.period / 0.01).round()).abs() < 1e-9 {
         Some(0.01)
     } else {
@@ -275,54 +261,6 @@ fn plan(a: &SimulateArgs) -> Result<Plan> {
         settings,
         starts,
     })
-}
-
-/// `--horizon` and `--period` must be positive finite numbers, the period in
-/// [`limits::MIN_PERIOD`, `limits::MAX_PERIOD`] (shared by the commands that fly the
-/// closed loop).
-pub(crate) fn check_horizon_period(horizon: f64, period: f64) -> Result<()> {
-    if !(horizon.is_finite() && horizon > 0.0) {
-        bail!(
-            "--horizon {}: the horizon must be positive (e.g. --horizon 20)",
-            num(horizon)
-        );
-    }
-    if !(period.is_finite() && period > 0.0) {
-        bail!(
-            "--period {}: the period must be positive (e.g. --period 0.5)",
-            num(period)
-        );
-    }
-    if !(limits::MIN_PERIOD..=limits::MAX_PERIOD).contains(&period) {
-        bail!(
-            "--period {}: the control period must lie in [{}, {}] (a hold shorter than 1 ms or longer than 100 time units is outside what the model and integrators are meant for); e.g. --period 0.5",
-            num(period),
-            limits::MIN_PERIOD,
-            limits::MAX_PERIOD
-        );
-    }
-    Ok(())
-}
-
-/// At most `max` control periods (`horizon / period`).
-pub(crate) fn check_period_count(horizon: f64, period: f64, max: f64) -> Result<()> {
-    let k = horizon / period;
-    if k > max + 0.5 {
-        bail!(
-            "--horizon {} / --period {} = {} control periods; at most {max} are allowed (time and memory grow with every period; the published run has 40): pass a shorter --horizon or a longer --period",
-            num(horizon),
-            num(period),
-            num(k)
-        );
-    }
-    if k < 0.5 {
-        bail!(
-            "--horizon {} is shorter than one --period {}: the horizon must be a positive multiple of the period (e.g. --horizon 20)",
-            num(horizon),
-            num(period)
-        );
-    }
-    Ok(())
 }
 
 /// The files a run writes into `--out`.
@@ -482,31 +420,6 @@ fn summary(
 /// Files `simulate --system` writes.
 const SYSTEM_WRITES: [&str; 1] = ["trajectories.csv"];
 
-/// `simulate --system FILE --controller NET.onnx`: closed-loop flights of a system file
-/// from starts in its initial set, goals checked along each (a falsification run).
-/// Refuse a network that does not fit a system file (`flag` names the network's flag in
-/// the message, for `simulate` and `reach`).
-pub fn check_fits(
-    flag: &str,
-    net_path: &Path,
-    net: &samara_nn::Network,
-    sys: &samara_system::System,
-    sys_path: &Path,
-) -> Result<()> {
-    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
-        bail!(
-            "{flag} {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
-            net_path.display(),
-            net.n_inputs(),
-            net.n_outputs(),
-            sys_path.display(),
-            sys.n_observed(),
-            sys.n_net_outputs
-        );
-    }
-    Ok(())
-}
-
 fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
     use rand::{Rng, SeedableRng};
     if a.y0.is_some() {
@@ -526,7 +439,7 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
     let net_path = Path::new(&a.controller);
     let net = samara_nn::load(net_path)
         .with_context(|| format!("--controller {}", net_path.display()))?;
-    check_fits("--controller", net_path, &net, &sys, path)?;
+    samara_app::reach::args::check_fits("--controller", net_path, &net, &sys, path)?;
     let rows = (a.samples as f64) * (sys.steps() as f64 * 10.0 + 1.0);
     if rows > limits::MAX_ROWS {
         bail!(

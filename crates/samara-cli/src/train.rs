@@ -536,7 +536,7 @@ fn run_closed_loop(
         bail!("--round-leaves and --max-leaves must be at least 1");
     }
     let y0 = match &a.y0 {
-        Some(s) => crate::reach::parse_interval(s, &format!("--y0 {s:?}"))?,
+        Some(s) => samara_app::reach::args::parse_interval(s, &format!("--y0 {s:?}"))?,
         None => base.y0,
     };
     let (png, svg) = rounds_figure_paths(&t.out);

@@ -1,27 +1,22 @@
 //! `samara check | verify | critical | robustness | export-vnnlib | verify-vnnlib`, and
 //! (in `vnncomp.rs`) `samara vnncomp`.
 
-#[path = "vnncomp.rs"]
-pub mod vnncomp;
-pub use vnncomp::{run_vnncomp, VnncompArgs};
-#[path = "shard.rs"]
-pub mod shard;
-
+use crate::shard;
 use anyhow::{anyhow, bail, Result};
+use samara_app::bind::{kv, load_network, read_data, timeout_flag};
 use samara_app::robustness::{
     merge_sweep, Form, PointText, SweepRun, SweepShard, SweepShardLine, Table,
 };
 use samara_app::shard::Exact;
 use samara_app::verify::{PropertyRun, RowCounterexample, VerdictTag};
+use samara_app::vnncomp::{decide, load_instance, result_text, InstanceVerdict};
 use samara_app::{Front, Holds, VerdictRow};
-use samara_spec::normal::Var;
 use samara_spec::{vnnlib, Spec};
 use samara_verify::robustness::{sweep_until, Reference};
 use samara_verify::{LpTighten, Settings, Verdict};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-use vnncomp::{decide, result_text, InstanceVerdict};
 
 /// Flags shared by the spec commands.
 #[derive(clap::Args, Debug, Clone)]
@@ -208,43 +203,6 @@ pub struct ExportArgs {
     pub property: Option<String>,
 }
 
-fn kv(s: &str, flag: &str) -> Result<(String, String)> {
-    let (k, v) = s
-        .split_once('=')
-        .ok_or_else(|| anyhow!("--{flag} {s:?}: expected NAME=VALUE (e.g. --{flag} NAME=VALUE)"))?;
-    Ok((k.trim().to_string(), v.trim().to_string()))
-}
-
-/// Load an ONNX network, naming the flag on failure (the error's own text only: its
-/// source is already part of it).
-/// (`flag` ends with `=` for a `NAME=FILE` flag. The loaders' errors start with the
-/// file's path, so the message reads `--flag FILE: what`.)
-pub fn load_network(path: &Path, flag: &str) -> Result<samara_nn::Network> {
-    samara_nn::load(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
-}
-
-fn read_data(path: &Path, flag: &str) -> Result<samara_nn::data::Table> {
-    samara_nn::data::read_table(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
-}
-
-fn flag_prefix(flag: &str) -> String {
-    if flag.ends_with('=') {
-        flag.to_string()
-    } else {
-        format!("{flag} ")
-    }
-}
-
-/// `--timeout`: a number >= 0 (`inf` allowed: no limit).
-fn check_timeout(t: f64) -> Result<()> {
-    if t.is_nan() || t < 0.0 {
-        bail!(
-            "--timeout {t}: must be a number of seconds >= 0 (e.g. --timeout 60; inf for no limit)"
-        );
-    }
-    Ok(())
-}
-
 /// A spec with its networks, parameters and data sets bound (owned by the run).
 pub type Loaded = samara_app::Loaded<'static>;
 
@@ -360,7 +318,7 @@ pub fn run_check(a: &CheckArgs) -> Result<ExitCode> {
 /// Run `samara verify`: the library's [`samara_app::run_verify`], one line per property
 /// (or the rows as JSON).
 pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     // `--timeout` is a deadline for the whole command: every instance gets what is left.
     let start = Instant::now();
     let l = load(&a.s, false)?;
@@ -458,7 +416,7 @@ fn tighten_mode(on: bool) -> LpTighten {
 /// search was cut short (`unknown`). The decision is the library's
 /// ([`samara_app::critical_value`]).
 pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     let l = load(&a.s, true)?;
     let free: Vec<&String> = a.s.params.iter().filter(|s| !s.contains('=')).collect();
     let [of] = free.as_slice() else {
@@ -557,7 +515,7 @@ fn list(s: &str, flag: &str, ok: fn(f64) -> bool, allowed: &str) -> Result<Vec<f
 
 /// Run `samara robustness`.
 pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     // `--timeout` is a deadline for the whole command (each search also stops at it).
     let start = Instant::now();
     let deadline = a
@@ -723,7 +681,7 @@ struct Sweep<'a> {
 
 /// `samara merge robustness`: the shards' points in order
 /// (`samara_app::robustness::merge_sweep`), then the one-process report.
-fn merge_robustness(
+pub(crate) fn merge_robustness(
     shards: &samara_app::shard::Shards,
     out: Option<&Path>,
     json_out: bool,
@@ -801,30 +759,12 @@ fn report_robustness(w: &Sweep) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The name of a VNN-LIB variable.
-fn vnn_name(v: Var) -> String {
-    match v {
-        Var::Input { index, .. } => format!("X_{index}"),
-        Var::Output { index, .. } => format!("Y_{index}"),
-        Var::Free(k) => format!("P_{k}"),
-    }
-}
-
-/// The same kind of variable at another index.
-fn var_at(v: Var, index: usize) -> Var {
-    match v {
-        Var::Input { app, .. } => Var::Input { app, index },
-        Var::Output { app, .. } => Var::Output { app, index },
-        Var::Free(_) => Var::Free(index),
-    }
-}
-
 /// Run `samara verify-vnnlib`: prints `unsat` (proved), `sat` (violated, with the
 /// counterexample) or `unknown`, as VNN-COMP tools do. Box-shaped properties go to the
 /// input-split engine, the rest to the ReLU-phase engine ([`samara_verify::route`]).
 pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
     let start = std::time::Instant::now();
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     if let Some(r) = &a.result {
         samara_report::guard::check_output_file(
             "--result",
@@ -832,7 +772,7 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
             &[("--network", &a.network), ("--property", &a.property)],
         )?;
     }
-    let (net, q) = vnncomp::load_instance(&a.network, &a.property, "--network", "--property")?;
+    let (net, q) = load_instance(&a.network, &a.property, "--network", "--property")?;
     // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
     // lowered to dense maps) takes seconds of it.
     let left = (a.timeout - start.elapsed().as_secs_f64()).max(0.0);

@@ -2,13 +2,9 @@
 //! engines ([`samara_verify::route`]), the competition's result-file format, and
 //! `samara vnncomp` (a whole benchmark from its instances CSV).
 
-use super::{check_timeout, load_network, var_at, vnn_name};
 use anyhow::{anyhow, bail, Result};
-pub use samara_app::vnncomp::{decide, recheck, result_text, InstanceVerdict, Recheck};
+pub use samara_app::vnncomp::{decide, load_instance, recheck, Recheck};
 use samara_app::vnncomp::{InstanceResult as Part, Word};
-use samara_nn::Network;
-use samara_spec::normal::{Query, Var};
-use samara_spec::vnnlib;
 use samara_verify::route::Engine;
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
@@ -50,75 +46,8 @@ pub struct VnncompArgs {
     /// Run only shard I of N (0-based): the instance lines split into N contiguous
     /// parts. --out is then this shard's partial result (JSON); `samara merge vnncomp
     /// FILES --out results.csv` puts the N files together.
-    #[arg(long, value_name = "I/N", allow_hyphen_values = true, value_parser = super::shard::parse_shard)]
-    pub shard: Option<super::shard::Shard>,
-}
-
-/// Load and check one instance: the network and the property (exit 2 on a bad one,
-/// naming the flag or file, the line or the operator).
-pub fn load_instance(
-    network: &Path,
-    property: &Path,
-    net_flag: &str,
-    prop_flag: &str,
-) -> Result<(Network, Query)> {
-    let net = load_network(network, net_flag)?;
-    let text = std::fs::read_to_string(property)
-        .map_err(|e| anyhow!("{prop_flag} {}: cannot read: {e}", property.display()))?;
-    let file = property.display().to_string();
-    let q = vnnlib::import(&text, &file, "f", "property").map_err(|e| anyhow!("{e}"))?;
-    let Some(app) = q.applications.first() else {
-        bail!("{file}: the property calls no network");
-    };
-    if app.n_inputs != net.n_inputs() || app.n_outputs != net.n_outputs() {
-        bail!(
-            "dimension mismatch: {file} declares {} inputs and {} outputs, the network {} has {} and {}",
-            app.n_inputs,
-            app.n_outputs,
-            network.display(),
-            net.n_inputs(),
-            net.n_outputs()
-        );
-    }
-    // Every variable used must be declared and exist in the network.
-    for e in q.region.iter().flatten().map(|c| &c.expr) {
-        for (v, _) in &e.terms {
-            let (used, declared, have, what) = match *v {
-                Var::Input { index, .. } => (index, app.n_inputs, net.n_inputs(), "inputs"),
-                Var::Output { index, .. } => (index, app.n_outputs, net.n_outputs(), "outputs"),
-                Var::Free(_) => {
-                    bail!("{file}: uses {}, which is not an X_i or Y_j", vnn_name(*v))
-                }
-            };
-            if used >= declared.min(have) {
-                bail!(
-                    "{file}: the property uses {}, which it does not declare (it declares {declared} {what}; the network {} has {have}): use only the declared variables, {} to {}",
-                    vnn_name(*v),
-                    network.display(),
-                    vnn_name(var_at(*v, 0)),
-                    vnn_name(var_at(*v, declared.min(have).saturating_sub(1)))
-                );
-            }
-        }
-    }
-    if app.input_box.len() != net.n_inputs() {
-        bail!(
-            "{file}: bounds for {} inputs but the network has {}",
-            app.input_box.len(),
-            net.n_inputs()
-        );
-    }
-    if let Some((i, (l, h))) = app
-        .input_box
-        .iter()
-        .enumerate()
-        .find(|(_, (l, h))| !l.is_finite() || !h.is_finite())
-    {
-        bail!(
-            "{file}: input X_{i} is bounded by [{l}, {h}]; give it finite bounds with top-level asserts, e.g. (assert (>= X_{i} 0.0)) and (assert (<= X_{i} 1.0))"
-        );
-    }
-    Ok((net, q))
+    #[arg(long, value_name = "I/N", allow_hyphen_values = true, value_parser = crate::shard::parse_shard)]
+    pub shard: Option<crate::shard::Shard>,
 }
 
 /// One line of an instances CSV.
@@ -211,11 +140,11 @@ fn vnncomp_run(a: &VnncompArgs, text: &str, all: &[Line], root: &Path) -> Result
     });
     let files: Vec<(String, PathBuf, String)> = files.collect();
     Ok(VnncompRun {
-        instances: super::shard::digest(text.as_bytes()),
-        instances_file: super::shard::resolved(&a.instances),
+        instances: crate::shard::digest(text.as_bytes()),
+        instances_file: crate::shard::resolved(&a.instances),
         n_instances: all.len(),
-        root: super::shard::resolved(root),
-        inputs: serde_json::to_value(super::shard::digest_inputs(
+        root: crate::shard::resolved(root),
+        inputs: serde_json::to_value(crate::shard::digest_inputs(
             files
                 .iter()
                 .map(|(n, p, f)| (n.clone(), p.as_path(), f.clone())),
@@ -275,7 +204,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         )
         .map_err(|e| anyhow!("{at}: {e}"))?;
         let t = l.timeout * a.timeout_scale;
-        check_timeout(t)?;
+        samara_app::bind::timeout_flag(t)?;
         loaded.push((net, q, t));
     }
     let bar = {
@@ -304,7 +233,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     if let (Some(s), Some(run)) = (a.shard, &run) {
         // At once, so a shard with no instances (N above their number) still leaves its
         // file, and a cut-short shard leaves one that the merge refuses.
-        super::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
+        crate::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
     }
     for (l, (net, q, t)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
@@ -319,7 +248,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         if let (Some(s), Some(run)) = (a.shard, &run) {
             shard_doc.parts.push(part);
             shard_doc.done = shard_doc.parts.len();
-            super::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
+            crate::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
         } else {
             csv.push_str(&part.csv_line());
             samara_report::write_atomic(&a.out, csv.as_bytes())
@@ -456,7 +385,7 @@ fn check_part(file: &Path, run: &VnncompRun, l: &Line, scale: f64, mut p: Part) 
             let root = Path::new(&run.root);
             let (onnx, vnnlib) = (root.join(&l.onnx), root.join(&l.vnnlib));
             for (name, path) in [(&l.onnx, &onnx), (&l.vnnlib, &vnnlib)] {
-                let now = super::shard::digest_file(path, &format!("{at}: re-checking the counterexample needs"))?;
+                let now = crate::shard::digest_file(path, &format!("{at}: re-checking the counterexample needs"))?;
                 if run.inputs[name.as_str()] != now.as_str() {
                     bail!(
                         "{at}: input `{name}` ({}) changed since the shards ran (content digest {} then, {now} now); run every shard again",
@@ -519,12 +448,12 @@ pub fn merge_vnncomp(
             csv_path.display()
         )
     })?;
-    if super::shard::digest(text.as_bytes()) != run.instances {
+    if crate::shard::digest(text.as_bytes()) != run.instances {
         bail!(
             "input `{}` changed since the shards ran (content digest {} then, {} now); run every shard again",
             csv_path.display(),
             run.instances,
-            super::shard::digest(text.as_bytes())
+            crate::shard::digest(text.as_bytes())
         );
     }
     let all = parse_instances(&csv_path, &text)?;
@@ -551,7 +480,7 @@ pub fn merge_vnncomp(
     for (i, (file, r)) in shards.iter().enumerate() {
         let r: VnncompShard = serde_json::from_value(r.clone())
             .map_err(|e| anyhow!("{}: not a vnncomp shard result: {e}", file.display()))?;
-        let want = super::shard::Shard { i, n: n_shards }.range(all.len());
+        let want = crate::shard::Shard { i, n: n_shards }.range(all.len());
         if r.instances != [want.start, want.end] || want.start != next {
             bail!(
                 "{}: instances {}..{}, expected {}..{} for shard {i}/{n_shards} (the shards do not tile the instances)",

@@ -16,6 +16,7 @@ mod idual;
 mod interval;
 mod scalar;
 mod series;
+mod timeout;
 mod tm;
 
 pub use dual::Dual;
@@ -23,4 +24,5 @@ pub use idual::IDual;
 pub use interval::Interval;
 pub use scalar::{Scalar, Sign};
 pub use series::{conv, dconv, Series};
+pub use timeout::{BadTimeout, Timeout};
 pub use tm::Tm;
