@@ -18,6 +18,7 @@
 //! Every result is a typed value deriving `Serialize`/`Deserialize`; its JSON (serde's
 //! map with sorted keys) is the `--json` document of the CLI.
 
+pub mod args;
 pub mod bind;
 pub mod reach;
 pub mod robustness;

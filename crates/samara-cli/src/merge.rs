@@ -62,20 +62,19 @@ pub fn run_merge(a: &MergeArgs) -> Result<ExitCode> {
         }
     }
     let shards = samara_app::shard::read_shards(a.kind.name(), &a.files)?;
-    let (run, results) = (&shards.run, &shards.results);
     match a.kind {
         Kind::Robustness => crate::verify::merge_robustness(&shards, a.out.as_deref(), a.json),
         Kind::Vnncomp => {
             let Some(out) = &a.out else {
                 bail!("--out FILE is required for `samara merge vnncomp` (the results CSV)");
             };
-            crate::vnncomp::merge_vnncomp(run, results, out, a.json)
+            crate::vnncomp::merge_vnncomp(&shards, out, a.json)
         }
         Kind::Reach => {
             let Some(out) = &a.out else {
                 bail!("--out DIR is required for `samara merge reach` (the folder of reach.json and the figures)");
             };
-            if samara_app::reach::system::is_taylor(run) {
+            if samara_app::reach::system::is_taylor(&shards.run) {
                 crate::reach_system::merge_shards(&shards, out, a.json)
             } else {
                 crate::reach::merge_reach(&shards, out, a.json)

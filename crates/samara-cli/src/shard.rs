@@ -3,7 +3,7 @@
 //! digests and checks are `samara_app::shard`'s.
 
 use anyhow::Result;
-pub use samara_app::shard::{digest, digest_file, digest_inputs, parse_shard, resolved, Shard};
+pub use samara_app::shard::{digest, digest_inputs, resolved, Shard};
 use serde::Serialize;
 use std::path::Path;
 
