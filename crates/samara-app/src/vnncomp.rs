@@ -520,6 +520,7 @@ pub struct ShardLine {
 }
 
 /// One line of an instances CSV.
+#[derive(Clone, Debug, PartialEq)]
 pub struct Line {
     /// The network's path as the CSV writes it.
     pub onnx: String,
@@ -798,4 +799,47 @@ pub fn merge_vnncomp(
         }
     }
     Ok(parts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_run_record_is_typed_and_reads_back() {
+        let run = VnncompRun {
+            instances: "d1".into(),
+            instances_file: "/b/instances.csv".into(),
+            n_instances: 2,
+            root: "/b".into(),
+            inputs: [("n.onnx".to_string(), "d2".to_string())].into(),
+            timeout_scale: format!("{:?}", 0.5),
+            max_nodes: 7,
+        };
+        let v = serde_json::to_value(&run).unwrap();
+        assert_eq!(v["inputs"]["n.onnx"], "d2");
+        let back: VnncompRun = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(back.inputs, run.inputs);
+        assert_eq!(back.timeout_scale.parse::<f64>().unwrap(), 0.5);
+        // A digest that is not text is not a run record this samara writes.
+        let mut bad = v;
+        bad["inputs"]["n.onnx"] = serde_json::json!(3);
+        assert!(serde_json::from_value::<VnncompRun>(bad).is_err());
+    }
+
+    #[test]
+    fn instance_lines_are_checked_with_file_and_line() {
+        let p = Path::new("i.csv");
+        let l = parse_instances(p, "# c\n\na.onnx, b.vnnlib, 116\n").unwrap();
+        assert_eq!((l.len(), l[0].lineno, l[0].timeout), (1, 3, 116.0));
+        let e = parse_instances(p, "a.onnx,b.vnnlib,-1\n").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("i.csv:1: timeout `-1` must be >= 0"),
+            "{e}"
+        );
+        let e = parse_instances(p, "a.onnx,b.vnnlib\n").unwrap_err();
+        assert!(e.to_string().starts_with("i.csv:1: 2 fields"), "{e}");
+        assert!(parse_instances(p, "# only a comment\n").is_err());
+    }
 }
