@@ -376,6 +376,49 @@ pub fn units_check(
     Ok(None)
 }
 
+/// A `NAME=VALUE` flag value split at its first `=`, both sides trimmed; `flag` is the
+/// flag's name without dashes (`network`), named in the message.
+pub fn kv(s: &str, flag: &str) -> Result<(String, String), AppError> {
+    let (k, v) = s.split_once('=').ok_or_else(|| {
+        AppError::Input(format!(
+            "--{flag} {s:?}: expected NAME=VALUE (e.g. --{flag} NAME=VALUE)"
+        ))
+    })?;
+    Ok((k.trim().to_string(), v.trim().to_string()))
+}
+
+/// Load an ONNX network, naming the flag on failure (the error's own text only: its
+/// source is already part of it).
+/// (`flag` ends with `=` for a `NAME=FILE` flag. The loaders' errors start with the
+/// file's path, so the message reads `--flag FILE: what`.)
+pub fn load_network(path: &Path, flag: &str) -> Result<samara_nn::Network, AppError> {
+    samara_nn::load(path).map_err(|e| AppError::Input(format!("{}{e}", flag_prefix(flag))))
+}
+
+/// Read a data set (CSV or IDX), naming the flag on failure.
+pub fn read_data(path: &Path, flag: &str) -> Result<samara_nn::data::Table, AppError> {
+    samara_nn::data::read_table(path)
+        .map_err(|e| AppError::Input(format!("{}{e}", flag_prefix(flag))))
+}
+
+fn flag_prefix(flag: &str) -> String {
+    if flag.ends_with('=') {
+        flag.to_string()
+    } else {
+        format!("{flag} ")
+    }
+}
+
+/// `--timeout` (the verify commands' whole-command limit) as a [`Timeout`]: a number of
+/// seconds >= 0, `inf` for none.
+pub fn timeout_flag(t: f64) -> Result<samara_num::Timeout, AppError> {
+    samara_num::Timeout::from_secs_f64(t).map_err(|_| {
+        AppError::Input(format!(
+            "--timeout {t}: must be a number of seconds >= 0 (e.g. --timeout 60; inf for no limit)"
+        ))
+    })
+}
+
 /// A number as messages show it: plain, or in exponent form when very large or small.
 pub fn num(v: f64) -> String {
     let a = v.abs();

@@ -19,6 +19,7 @@
 //! Every result is a typed value deriving `Serialize`/`Deserialize`; its JSON (serde's
 //! map with sorted keys) is the `--json` document of the CLI.
 
+pub mod args;
 pub mod bind;
 pub mod python_front;
 pub mod reach;

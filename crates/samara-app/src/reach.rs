@@ -10,6 +10,7 @@
 //! the merge rebuilds the one-process run bit for bit, non-finite numbers included.
 
 pub mod adaptive;
+pub mod args;
 pub mod system;
 
 use crate::shard::{pair, unpair, Exact, ExactPair, Shard};

@@ -323,3 +323,25 @@ pub fn merge_sweep(
         points,
     })
 }
+
+/// The per-point CSV of a robustness sweep (`samara robustness --out`): one line per
+/// point and radius, every number as Rust's `{:?}` writes it (exact, round-trips).
+pub fn points_csv(points: &[samara_verify::robustness::PointBall]) -> String {
+    let mut csv = String::from(
+        "index,eps,f_min,f_max,reference,max_deviation,lipschitz_lower,lipschitz_upper\n",
+    );
+    for p in points {
+        csv.push_str(&format!(
+            "{},{:?},{:?},{:?},{:?},{:?},{:?},{:?}\n",
+            p.index,
+            p.eps,
+            p.f_min,
+            p.f_max,
+            p.reference,
+            p.max_deviation,
+            p.lipschitz_lower,
+            p.lipschitz_upper
+        ));
+    }
+    csv
+}

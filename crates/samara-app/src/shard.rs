@@ -33,7 +33,7 @@ fn bad<T>(m: String) -> Result<T> {
 }
 
 /// Shard `i` of `n` (0-based).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 pub struct Shard {
     /// This shard's index, `0 <= i < n`.
     pub i: usize,

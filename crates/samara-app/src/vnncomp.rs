@@ -4,16 +4,111 @@
 //! competition's result words and result file, and the typed per-instance result that
 //! results CSVs, `--json` rows and shard files are made from.
 
-use crate::{AppError, Reason};
+use crate::{input, AppError, Reason};
 use samara_nn::Network;
-use samara_spec::normal::Query;
+use samara_spec::normal::{Query, Var};
+use samara_spec::vnnlib;
 use samara_verify::engine::Point;
 use samara_verify::route::{prove_routed, Engine};
 use samara_verify::{Prepared, Settings, UnknownReason, Verdict};
 use serde::{Deserialize, Serialize};
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
+
+/// Load and check one instance: the network and the property (exit 2 on a bad one,
+/// naming the flag or file, the line or the operator).
+pub fn load_instance(
+    network: &Path,
+    property: &Path,
+    net_flag: &str,
+    prop_flag: &str,
+) -> Result<(Network, Query), AppError> {
+    let net = crate::bind::load_network(network, net_flag)?;
+    let text = std::fs::read_to_string(property).map_err(|e| {
+        AppError::Input(format!(
+            "{prop_flag} {}: cannot read: {e}",
+            property.display()
+        ))
+    })?;
+    let file = property.display().to_string();
+    let q = vnnlib::import(&text, &file, "f", "property")
+        .map_err(|e| AppError::Input(e.to_string()))?;
+    let Some(app) = q.applications.first() else {
+        return crate::input(format!("{file}: the property calls no network"));
+    };
+    if app.n_inputs != net.n_inputs() || app.n_outputs != net.n_outputs() {
+        return crate::input(format!(
+            "dimension mismatch: {file} declares {} inputs and {} outputs, the network {} has {} and {}",
+            app.n_inputs,
+            app.n_outputs,
+            network.display(),
+            net.n_inputs(),
+            net.n_outputs()
+        ));
+    }
+    // Every variable used must be declared and exist in the network.
+    for e in q.region.iter().flatten().map(|c| &c.expr) {
+        for (v, _) in &e.terms {
+            let (used, declared, have, what) = match *v {
+                Var::Input { index, .. } => (index, app.n_inputs, net.n_inputs(), "inputs"),
+                Var::Output { index, .. } => (index, app.n_outputs, net.n_outputs(), "outputs"),
+                Var::Free(_) => {
+                    return crate::input(format!(
+                        "{file}: uses {}, which is not an X_i or Y_j",
+                        vnn_name(*v)
+                    ))
+                }
+            };
+            if used >= declared.min(have) {
+                return crate::input(format!(
+                    "{file}: the property uses {}, which it does not declare (it declares {declared} {what}; the network {} has {have}): use only the declared variables, {} to {}",
+                    vnn_name(*v),
+                    network.display(),
+                    vnn_name(var_at(*v, 0)),
+                    vnn_name(var_at(*v, declared.min(have).saturating_sub(1)))
+                ));
+            }
+        }
+    }
+    if app.input_box.len() != net.n_inputs() {
+        return crate::input(format!(
+            "{file}: bounds for {} inputs but the network has {}",
+            app.input_box.len(),
+            net.n_inputs()
+        ));
+    }
+    if let Some((i, (l, h))) = app
+        .input_box
+        .iter()
+        .enumerate()
+        .find(|(_, (l, h))| !l.is_finite() || !h.is_finite())
+    {
+        return crate::input(format!(
+            "{file}: input X_{i} is bounded by [{l}, {h}]; give it finite bounds with top-level asserts, e.g. (assert (>= X_{i} 0.0)) and (assert (<= X_{i} 1.0))"
+        ));
+    }
+    Ok((net, q))
+}
+
+/// The name of a VNN-LIB variable.
+fn vnn_name(v: Var) -> String {
+    match v {
+        Var::Input { index, .. } => format!("X_{index}"),
+        Var::Output { index, .. } => format!("Y_{index}"),
+        Var::Free(k) => format!("P_{k}"),
+    }
+}
+
+/// The same kind of variable at another index.
+fn var_at(v: Var, index: usize) -> Var {
+    match v {
+        Var::Input { app, .. } => Var::Input { app, index },
+        Var::Output { app, .. } => Var::Output { app, index },
+        Var::Free(_) => Var::Free(index),
+    }
+}
 
 /// A decided instance.
 pub struct Decided {
@@ -422,4 +517,329 @@ pub struct ShardLine {
     pub total_seconds: f64,
     /// The shard file.
     pub out: std::path::PathBuf,
+}
+
+/// One line of an instances CSV.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Line {
+    /// The network's path as the CSV writes it.
+    pub onnx: String,
+    /// The property's path as the CSV writes it.
+    pub vnnlib: String,
+    /// The instance's time limit in seconds.
+    pub timeout: f64,
+    /// Its line number (from 1).
+    pub lineno: usize,
+}
+
+/// The instances of a VNN-COMP instances CSV (`onnx,vnnlib,timeout` lines; blank lines
+/// and `#` comments skipped), each checked; `path` names the file in messages.
+pub fn parse_instances(path: &Path, text: &str) -> Result<Vec<Line>, AppError> {
+    let mut out = Vec::new();
+    for (i, raw) in text.lines().enumerate() {
+        let l = raw.trim();
+        if l.is_empty() || l.starts_with('#') {
+            continue;
+        }
+        let f: Vec<&str> = l.split(',').map(str::trim).collect();
+        let bad = |why: &str| {
+            AppError::Input(format!(
+                "{}:{}: {why}; expected `onnx,vnnlib,timeout` (e.g. net.onnx,prop.vnnlib,116)",
+                path.display(),
+                i + 1
+            ))
+        };
+        if f.len() != 3 || f[0].is_empty() || f[1].is_empty() {
+            return Err(bad(&format!("{} fields", f.len())));
+        }
+        let timeout: f64 = f[2]
+            .parse()
+            .map_err(|_| bad(&format!("timeout `{}` is not a number", f[2])))?;
+        if timeout.is_nan() || timeout < 0.0 {
+            return Err(bad(&format!("timeout `{}` must be >= 0", f[2])));
+        }
+        out.push(Line {
+            onnx: f[0].to_string(),
+            vnnlib: f[1].to_string(),
+            timeout,
+            lineno: i + 1,
+        });
+    }
+    if out.is_empty() {
+        return input(format!(
+            "{}: no instances (expected lines `onnx,vnnlib,timeout`)",
+            path.display()
+        ));
+    }
+    Ok(out)
+}
+
+/// What every shard of one `samara vnncomp` run shares (`run` of the shard file).
+#[derive(Serialize, Deserialize)]
+pub struct VnncompRun {
+    /// The instances CSV: its content digest and its resolved path (the merge reads it
+    /// back to check every part against its line).
+    pub instances: String,
+    /// The instances CSV's resolved path.
+    pub instances_file: String,
+    /// How many instances the CSV has.
+    pub n_instances: usize,
+    /// The folder the CSV's paths were resolved against.
+    pub root: String,
+    /// The content digest of every network and property file of the whole benchmark,
+    /// keyed by the CSV's path text.
+    pub inputs: BTreeMap<String, String>,
+    /// `--timeout-scale`, as Rust's `{:?}` writes it (exact).
+    pub timeout_scale: String,
+    /// `--max-nodes`.
+    pub max_nodes: usize,
+}
+
+/// A vnncomp shard's `result`.
+#[derive(Serialize, Deserialize)]
+pub struct VnncompShard {
+    /// The instance indices `[start, end)` of this shard.
+    pub instances: [usize; 2],
+    /// How many of them are done (the file is rewritten after each).
+    pub done: usize,
+    /// The done instances' results.
+    pub parts: Vec<InstanceResult>,
+}
+
+/// Check one part of a shard against the run: it is the instance of its line (the same
+/// files and timeout), its fields agree with its result word, and a `sat` part's
+/// counterexample holds when the network is evaluated concretely ([`recheck`]; the
+/// network and property are read back and must be the files the shards digested).
+/// Returns the part with the re-computed outputs.
+pub fn check_part(
+    file: &Path,
+    run: &VnncompRun,
+    l: &Line,
+    scale: f64,
+    mut p: InstanceResult,
+) -> Result<InstanceResult, AppError> {
+    let at = format!(
+        "{}: line {} ({}, {})",
+        file.display(),
+        l.lineno,
+        l.onnx,
+        l.vnnlib
+    );
+    let t = l.timeout * scale;
+    if p.line != l.lineno || p.onnx != l.onnx || p.vnnlib != l.vnnlib || p.timeout != t {
+        return input(format!(
+            "{}: the part for line {} is line {} ({}, {}, timeout {}), not the instances CSV's ({}, {}, timeout {t}): the shard does not belong to these instances; run it again",
+            file.display(),
+            l.lineno,
+            p.line,
+            p.onnx,
+            p.vnnlib,
+            p.timeout,
+            l.onnx,
+            l.vnnlib
+        ));
+    }
+    if !(p.seconds.is_finite() && p.seconds >= 0.0) {
+        return input(format!("{at}: `seconds` {} is not a wall time", p.seconds));
+    }
+    if ![
+        Engine::InputSplit,
+        Engine::Phase,
+        Engine::InputSplitThenPhase,
+    ]
+    .iter()
+    .any(|e| e.tag() == p.engine)
+    {
+        return input(format!("{at}: unknown engine `{}`", p.engine));
+    }
+    match (p.result, &p.counterexample, &p.unknown_reason) {
+        (Word::Unsat, None, None) => {}
+        (Word::Timeout, None, Some(r)) if r.kind == "timeout" => {}
+        (Word::Unknown, None, Some(r)) if r.kind != "timeout" => {}
+        (Word::Sat, None, _) => {
+            return input(format!("{at}: `sat` without a counterexample; a `sat` part must carry its point (run the shard again)"))
+        }
+        (Word::Sat, Some(c), None) => {
+            let root = Path::new(&run.root);
+            let (onnx, vnnlib) = (root.join(&l.onnx), root.join(&l.vnnlib));
+            for (name, path) in [(&l.onnx, &onnx), (&l.vnnlib, &vnnlib)] {
+                let now = crate::shard::digest_file(path, &format!("{at}: re-checking the counterexample needs"))?;
+                let then = run.inputs.get(name.as_str()).map_or("none", String::as_str);
+                if then != now.as_str() {
+                    return input(format!(
+                        "{at}: input `{name}` ({}) changed since the shards ran (content digest {} then, {now} now); run every shard again",
+                        path.display(),
+                        then
+                    ));
+                }
+            }
+            let (net, q) = load_instance(&onnx, &vnnlib, "onnx", "vnnlib")
+                .map_err(|e| AppError::Input(format!("{at}: {e}")))?;
+            let y = match recheck(&net, &q, &c.inputs, c.disjunct)
+                .map_err(|e| AppError::Input(format!("{at}: the `sat` counterexample is malformed: {e}")))?
+            {
+                Recheck::Holds(y) | Recheck::ExactOnly(y, _) => y,
+                Recheck::Fails(margin) => return input(format!(
+                    "{at}: the `sat` counterexample does not hold: the network's outputs there miss the property's region (margin {margin:e}); the shard is damaged or tampered with, run it again"
+                )),
+            };
+            if y.iter().map(|v| v.to_bits()).ne(c.outputs.iter().map(|v| v.to_bits())) {
+                return input(format!(
+                    "{at}: the `sat` counterexample's outputs {:?} are not the network's {:?} at its inputs; the shard is damaged or tampered with, run it again",
+                    c.outputs,
+                    y
+                ));
+            }
+            if let Some(c) = &mut p.counterexample {
+                c.outputs = y;
+            }
+        }
+        _ => return input(format!(
+            "{at}: result `{}` with {} counterexample and {} unknown reason: the fields contradict each other; the shard is damaged or tampered with, run it again",
+            p.result.text(),
+            if p.counterexample.is_some() { "a" } else { "no" },
+            p.unknown_reason
+                .as_ref()
+                .map_or("no".to_string(), |r| format!("a `{}`", r.kind))
+        )),
+    }
+    Ok(p)
+}
+
+/// `samara merge vnncomp`: the shards' instances in order, each checked against the run's
+/// instances CSV (read back from where the shards resolved it: every instance exactly
+/// once) and rebuilt from its typed result, every `sat` counterexample re-checked on the
+/// network (`on_part` sees each, in order, as it is checked). The caller writes the
+/// results CSV and the summary, as one process writes them.
+pub fn merge_vnncomp(
+    shards: &crate::shard::Shards,
+    mut on_part: impl FnMut(&InstanceResult),
+) -> Result<Vec<InstanceResult>, AppError> {
+    let (file0, _) = &shards.results[0];
+    let run: VnncompRun = serde_json::from_value(shards.run.clone()).map_err(|e| {
+        AppError::Input(format!(
+            "{}: not a vnncomp run record: {e}",
+            file0.display()
+        ))
+    })?;
+    let csv_path = PathBuf::from(&run.instances_file);
+    let text = std::fs::read_to_string(&csv_path).map_err(|e| {
+        AppError::Input(format!(
+            "{}: the run's instances CSV {}: cannot read: {e} (the merge reads the run's inputs back to check the shards)",
+            file0.display(),
+            csv_path.display()
+        ))
+    })?;
+    if crate::shard::digest(text.as_bytes()) != run.instances {
+        return input(format!(
+            "input `{}` changed since the shards ran (content digest {} then, {} now); run every shard again",
+            csv_path.display(),
+            run.instances,
+            crate::shard::digest(text.as_bytes())
+        ));
+    }
+    let all = parse_instances(&csv_path, &text)?;
+    if all.len() != run.n_instances {
+        return input(format!(
+            "{}: {} instances recorded, the CSV {} has {}",
+            file0.display(),
+            run.n_instances,
+            csv_path.display(),
+            all.len()
+        ));
+    }
+    let scale: f64 = run
+        .timeout_scale
+        .parse()
+        .map_err(|_| AppError::Input(format!("{}: bad `run.timeout_scale`", file0.display())))?;
+    let mut parts = Vec::new();
+    let mut next = 0usize;
+    let n_shards = shards.results.len();
+    for (i, (file, r)) in shards.results.iter().enumerate() {
+        let r: VnncompShard = serde_json::from_value(r.clone()).map_err(|e| {
+            AppError::Input(format!(
+                "{}: not a vnncomp shard result: {e}",
+                file.display()
+            ))
+        })?;
+        let want = crate::shard::Shard { i, n: n_shards }.range(all.len());
+        if r.instances != [want.start, want.end] || want.start != next {
+            return input(format!(
+                "{}: instances {}..{}, expected {}..{} for shard {i}/{n_shards} (the shards do not tile the instances)",
+                file.display(),
+                r.instances[0],
+                r.instances[1],
+                want.start,
+                want.end
+            ));
+        }
+        if r.parts.len() > want.len() {
+            return input(format!(
+                "{}: {} instance parts for its {} instances {}..{}: an instance appears more than once (the shard is damaged or tampered with); run it again",
+                file.display(),
+                r.parts.len(),
+                want.len(),
+                want.start,
+                want.end
+            ));
+        }
+        if r.parts.len() != want.len() || r.done != r.parts.len() {
+            return input(format!(
+                "{}: {} of its {} instances done (the shard was cut short); run it again",
+                file.display(),
+                r.parts.len().min(r.done),
+                want.len()
+            ));
+        }
+        next = want.end;
+        for (l, p) in all[want].iter().zip(r.parts) {
+            let p = check_part(file, &run, l, scale, p)?;
+            on_part(&p);
+            parts.push(p);
+        }
+    }
+    Ok(parts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_run_record_is_typed_and_reads_back() {
+        let run = VnncompRun {
+            instances: "d1".into(),
+            instances_file: "/b/instances.csv".into(),
+            n_instances: 2,
+            root: "/b".into(),
+            inputs: [("n.onnx".to_string(), "d2".to_string())].into(),
+            timeout_scale: format!("{:?}", 0.5),
+            max_nodes: 7,
+        };
+        let v = serde_json::to_value(&run).unwrap();
+        assert_eq!(v["inputs"]["n.onnx"], "d2");
+        let back: VnncompRun = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(back.inputs, run.inputs);
+        assert_eq!(back.timeout_scale.parse::<f64>().unwrap(), 0.5);
+        // A digest that is not text is not a run record this samara writes.
+        let mut bad = v;
+        bad["inputs"]["n.onnx"] = serde_json::json!(3);
+        assert!(serde_json::from_value::<VnncompRun>(bad).is_err());
+    }
+
+    #[test]
+    fn instance_lines_are_checked_with_file_and_line() {
+        let p = Path::new("i.csv");
+        let l = parse_instances(p, "# c\n\na.onnx, b.vnnlib, 116\n").unwrap();
+        assert_eq!((l.len(), l[0].lineno, l[0].timeout), (1, 3, 116.0));
+        let e = parse_instances(p, "a.onnx,b.vnnlib,-1\n").unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("i.csv:1: timeout `-1` must be >= 0"),
+            "{e}"
+        );
+        let e = parse_instances(p, "a.onnx,b.vnnlib\n").unwrap_err();
+        assert!(e.to_string().starts_with("i.csv:1: 2 fields"), "{e}");
+        assert!(parse_instances(p, "# only a comment\n").is_err());
+    }
 }

@@ -31,6 +31,7 @@ use crate::symbolic::{self, Objective};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::Affine;
+use samara_num::Timeout;
 use std::sync::atomic::{AtomicU64, Ordering as AtOrd};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -73,8 +74,8 @@ type Bounds = Vec<Vec<(f64, f64)>>;
 /// Limits and choices of the search.
 #[derive(Clone, Debug)]
 pub struct Settings {
-    /// Wall-clock limit (`None`: none).
-    pub timeout: Option<Duration>,
+    /// Wall-clock limit ([`Timeout::none`]: none).
+    pub timeout: Timeout,
     /// Most pieces examined over all cases (`0`: no limit).
     pub max_pieces: u64,
     /// Pieces per parallel batch.
@@ -116,7 +117,7 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Settings {
-            timeout: Some(Duration::from_secs(60)),
+            timeout: Timeout::from_duration(Duration::from_secs(60)),
             max_pieces: 0,
             batch: 32,
             restarts: 1_000_000,
@@ -1013,9 +1014,9 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
 fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome, Stats) {
     let t0 = Instant::now();
     let mut stats = Stats::default();
-    let out_of_time = |t0: &Instant| s.timeout.is_some_and(|d| t0.elapsed() >= d);
+    let out_of_time = |t0: &Instant| s.timeout.expired(*t0, Instant::now());
     // Attack every case first (in parallel): a cheap refutation beats any proof.
-    let deadline = s.timeout.map(|d| t0 + d);
+    let deadline = s.timeout.deadline_from(t0);
     if let Some((ci, x)) = attack_all(maps, cases, s, 0, s.attack_seconds, &mut stats, deadline) {
         let y = forward(maps, &x, None);
         FOUND_BY.store(1, AtOrd::Relaxed);
@@ -1043,7 +1044,7 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
             open,
         })
         .collect();
-    let deadline = s.timeout.map(|d| t0 + d);
+    let deadline = s.timeout.deadline_from(t0);
     let mut batches = 0u64;
     let mut last_burst = Instant::now();
     let mut batches_burst = 0u64;

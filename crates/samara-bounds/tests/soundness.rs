@@ -167,7 +167,7 @@ fn search_verdicts_survive_sampling_and_points_are_real() {
             &maps,
             std::slice::from_ref(&case),
             &Settings {
-                timeout: None,
+                timeout: samara_num::Timeout::none(),
                 ..Default::default()
             },
         );
@@ -234,11 +234,11 @@ fn limits_give_unknown_never_a_verdict() {
     };
     for s in [
         Settings {
-            timeout: Some(std::time::Duration::ZERO),
+            timeout: samara_num::Timeout::from_duration(std::time::Duration::ZERO),
             ..Default::default()
         },
         Settings {
-            timeout: None,
+            timeout: samara_num::Timeout::none(),
             max_pieces: 1,
             batch: 1,
             ..Default::default()
@@ -398,7 +398,7 @@ fn conjunctions_survive_sampling(seed: u64, settings: &Settings) {
             &maps,
             &cases,
             &Settings {
-                timeout: None,
+                timeout: samara_num::Timeout::none(),
                 ..settings.clone()
             },
         );
@@ -483,7 +483,7 @@ fn joint_attack_points_on_many_inputs_are_real_and_name_their_case() {
             &maps,
             &cases,
             &Settings {
-                timeout: Some(std::time::Duration::from_secs(5)),
+                timeout: samara_num::Timeout::from_duration(std::time::Duration::from_secs(5)),
                 ..Default::default()
             },
         );

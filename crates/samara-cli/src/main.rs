@@ -4,14 +4,17 @@
 //! Exit codes (as ripgrep): 0 success, 1 a property was violated or a check failed,
 //! 2 a usage or input error.
 
+mod merge;
 mod reach;
 mod reach_adaptive;
 mod reach_system;
 mod reproduce;
+mod shard;
 mod simulate;
 mod threads;
 mod train;
 mod verify;
+mod vnncomp;
 
 use clap::{Parser, Subcommand};
 use std::process::ExitCode;
@@ -85,10 +88,10 @@ enum Command {
         "samara export-vnnlib models/alsomitra/alsomitra.spec --out out/vnnlib --network f=base_model_norm.onnx",
     ))]
     ExportVnnlib(verify::ExportArgs),
-    Vnncomp(verify::VnncompArgs),
+    Vnncomp(vnncomp::VnncompArgs),
     /// Merge the shard files of a `--shard I/N` run (robustness, vnncomp, reach) into
     /// what one process writes.
-    Merge(verify::shard::MergeArgs),
+    Merge(merge::MergeArgs),
     /// Sound reachable sets of the closed loop (plant + network) from an initial box,
     /// with a goal |x + y| <= Y decided: proved, violated or unknown.
     #[command(after_help = help!(
@@ -152,9 +155,9 @@ fn main() -> ExitCode {
             threads::start(a.threads.threads).and_then(|_| verify::run_verify_vnnlib(a))
         }
         Command::Vnncomp(a) => {
-            threads::start(a.threads.threads).and_then(|_| verify::run_vnncomp(a))
+            threads::start(a.threads.threads).and_then(|_| vnncomp::run_vnncomp(a))
         }
-        Command::Merge(a) => verify::shard::run_merge(a),
+        Command::Merge(a) => merge::run_merge(a),
         Command::Completions { shell } => {
             use clap::CommandFactory;
             let mut cmd = Cli::command();

@@ -6,11 +6,11 @@
 //! object) and prints one line, or the JSON summary with `--json`.
 
 use crate::json_text;
-use crate::reach::ReachArgs;
-use anyhow::{anyhow, bail, Result};
+use anyhow::{anyhow, Result};
 use samara_app::reach::adaptive::{
     adaptive_text, AdaptiveEcho, AdaptiveReport, AdaptiveSettingsEcho, AdaptiveSummary,
 };
+use samara_app::reach::args::ReachArgs;
 use samara_app::reach::system::{human_line, SystemSettingsEcho, SystemSummary};
 use samara_reach::adaptive::{reach_adaptive, AdaptiveSettings};
 use samara_reach::system::{SystemReachSettings, SystemVerdict};
@@ -18,21 +18,6 @@ use samara_report::write_atomic;
 use std::path::Path;
 use std::process::ExitCode;
 use std::sync::Arc;
-
-/// Most a target ratio may be (beyond it the target says nothing).
-const MAX_RATIO: f64 = 1e6;
-
-/// The built-in glider's settings for adaptive runs, unless --order or --network-error
-/// is given: those of the six-state covering run (order 4, `symbolic:40`, lifted
-/// parameters of weight 2; docs/reach.md, "Grids and shards"), whose cells of a third
-/// of the velocity and angle intervals reach the horizon.
-pub(crate) fn glider_defaults(a: &mut ReachArgs) {
-    if a.order.is_none() && a.network_error.is_none() {
-        a.order = Some(4);
-        a.network_error = Some("symbolic:40".into());
-        a.lifted_weight = a.lifted_weight.or(Some(2));
-    }
-}
 
 /// Run the adaptive mode on a checked system (`s`: the run's settings with their
 /// measures, `pieces`: --grid as the starting cells).
@@ -45,16 +30,8 @@ pub(crate) fn run(
     s: SystemReachSettings,
     pieces: Option<Vec<usize>>,
 ) -> Result<ExitCode> {
-    if !(ratio.is_finite() && (1.0..=MAX_RATIO).contains(&ratio)) {
-        bail!("--target-ratio {ratio}: give a number from 1 to {MAX_RATIO:e}: the enclosure's width over the flights' spread, which is never below 1 (2 is issue 14's criterion)");
-    }
-    if a.shard.is_some() {
-        bail!("--shard with --target-ratio: adaptive runs are not sharded yet; run them in one process (--threads N), or shard a fixed --grid without --target-ratio");
-    }
-    if s.measures.is_empty() {
-        bail!("--target-ratio needs a measure at the horizon: {} has no `goal band |...| <= ... at end`; add one (its expression is what the target measures)", path.display());
-    }
-    crate::reach::start_threads(a)?;
+    a.check_adaptive(ratio, !s.measures.is_empty(), path)?;
+    crate::threads::start(a.threads)?;
     let inputs = if path.is_file() {
         vec![("--system", path), ("--network", a.network.as_path())]
     } else {

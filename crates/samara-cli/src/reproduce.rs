@@ -1,38 +1,9 @@
 //! `samara reproduce`.
 
 use anyhow::{bail, Result};
+pub use samara_app::args::ReproduceArgs;
 use std::io::IsTerminal;
-use std::path::PathBuf;
 use std::process::ExitCode;
-
-/// Flags of `samara reproduce`: the whole case study in one command.
-#[derive(clap::Args, Debug)]
-pub struct ReproduceArgs {
-    /// Output directory for data, networks, tables, figures and the report.
-    #[arg(long, default_value = "out/reproduce")]
-    pub out: PathBuf,
-    /// A smaller run that finishes in under a minute (fewer epochs and samples).
-    #[arg(long)]
-    pub quick: bool,
-    /// A directory laid out like the published reference folder; its data and networks
-    /// are analysed beside samara's own.
-    #[arg(long)]
-    pub published: Option<PathBuf>,
-    /// The specification P1-P4 are read from: its properties drive DL2/Goedel training
-    /// and the critical values of the verify stage, its network declaration gives the
-    /// published networks' units and domain [default: the shipped
-    /// models/alsomitra/alsomitra.spec, compiled in]. Edit a copy to move a threshold;
-    /// the spec's text is part of every stage's cache key. A spec error is exit 2 with
-    /// file:line:col.
-    #[arg(long, value_name = "FILE")]
-    pub spec: Option<PathBuf>,
-    /// Recompute every stage (ignore the cache of finished stages).
-    #[arg(long)]
-    pub fresh: bool,
-    /// Print results.json on stdout.
-    #[arg(long)]
-    pub json: bool,
-}
 
 /// What a run writes at the top of `--out`.
 const WRITES: [&str; 8] = [

@@ -1,164 +1,19 @@
 //! `samara simulate`.
 
 use anyhow::{anyhow, bail, Context, Result};
+pub use samara_app::args::SimulateArgs;
 use samara_app::simulate::{GoalViolation, SimulateSummary, StartSummary, SystemSimSummary};
-use samara_plant::{Model, Plant, EX_RANGE, STATE_NAMES};
+use samara_plant::{Plant, EX_RANGE, STATE_NAMES};
 use samara_report::write_atomic;
 use samara_sim::dataset::{normalisation_csv, training_csv};
 use samara_sim::{
-    fly, initial_state, minmax, published_starts, training_rows, ConstantController, Controller,
-    Flight, Integrator, LoopSettings, NetworkController, PidController,
+    fly, initial_state, minmax, training_rows, ConstantController, Controller, Flight,
+    LoopSettings, NetworkController, PidController,
 };
 use std::fmt::Write as _;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
-
-/// Flags of `samara simulate`. The defaults reproduce the published protocol (plate6,
-/// PID, nine starts y0 = n/0.07 for n = 0.1:0.025:0.3, ode45 clone, period 0.5,
-/// horizon 20).
-#[derive(clap::Args, Debug)]
-pub struct SimulateArgs {
-    /// Plant variant: plate6 (simulation model), reduced (reachability model), full
-    /// (four-quadrant model).
-    #[arg(long, default_value = "plate6")]
-    pub model: String,
-    /// Controller: `pid`, `constant:EX` (EX in [0.181, 0.193]) or a network file
-    /// (`.onnx`, raw units in, raw ex out).
-    #[arg(long, default_value = "pid")]
-    pub controller: String,
-    /// Do not clip a network controller's output to [0.181, 0.193].
-    #[arg(long)]
-    pub no_clip: bool,
-    /// Initial heights: `START:END:COUNT` (evenly spaced, ends included) or a
-    /// comma-separated list, each in [-1000, 1000], at most 100000 starts (negative
-    /// values work as `--y0 -1:2:3`). Default: the nine published starts.
-    #[arg(long, allow_hyphen_values = true)]
-    pub y0: Option<String>,
-    /// Integrator: `ode45` (MATLAB clone, reproduces the published data), `dop853`
-    /// (also `tight`: DOP853, rtol 1e-10, atol 1e-12), `dp5` (Dormand-Prince 5(4) at the
-    /// same tolerances) or `rk4` (fixed step 1e-3).
-    #[arg(long, default_value = "ode45")]
-    pub integrator: String,
-    /// Horizon (a positive multiple of the period, at most 100000 periods).
-    #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
-    pub horizon: f64,
-    /// Control period (sample and hold), in [0.001, 100].
-    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
-    pub period: f64,
-    /// Output directory (created if missing; removed again if the run fails and
-    /// created it). It may not hold the --controller file under a name the run writes.
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Print a JSON summary (final state per start, wall time) on stdout.
-    #[arg(long)]
-    pub json: bool,
-    /// Skip the figures (useful for thousands of starts).
-    #[arg(long)]
-    pub no_plot: bool,
-    /// A system file (`docs/system.md`, e.g. `examples/archcomp/tora.sys`): fly it under
-    /// the network `--controller NET.onnx` from `--samples` starts in its initial set, with
-    /// its own period and horizon, and check its goals along every flight. `--model`,
-    /// `--y0`, `--integrator`, `--horizon` and `--period` do not apply (the file states
-    /// them; DOP853 integrates). Exit 1 when a flight violates a goal.
-    #[arg(long)]
-    pub system: Option<PathBuf>,
-    /// With `--system`: number of starts (the initial box's lower and upper corners, its
-    /// centre, then seeded uniform samples), 1 to 100000.
-    #[arg(long, default_value_t = 9)]
-    pub samples: usize,
-}
-
-/// Limits of the numbers `simulate` and `reach` accept (documented in `--help` and
-/// docs/simulation.md): beyond them a run would only exhaust memory or leave the range in
-/// which the (nondimensional) glider model means anything.
-pub(crate) mod limits {
-    /// Shortest control period (1 ms); below it the hold is shorter than the
-    /// integrator's useful steps.
-    pub const MIN_PERIOD: f64 = 1e-3;
-    /// Longest control period.
-    pub const MAX_PERIOD: f64 = 100.0;
-    /// Most control periods (`horizon / period`) of `simulate` (the published run has 40).
-    pub const MAX_PERIODS: f64 = 100_000.0;
-    /// Most starts of `simulate --y0`.
-    pub const MAX_STARTS: usize = 100_000;
-    /// Most rows of `trajectories.csv` (built in memory, about 200 bytes a row).
-    pub const MAX_ROWS: f64 = 2_000_000.0;
-    /// Largest magnitude of an initial state value: the model is nondimensional and the
-    /// published states are O(1) (heights 1.43 to 4.29).
-    pub const MAX_STATE: f64 = 1000.0;
-}
-
-/// A number for a message: plain when moderate, scientific when huge or tiny (so 1e308
-/// does not print as 309 digits).
-pub(crate) fn num(v: f64) -> String {
-    let a = v.abs();
-    if a != 0.0 && a.is_finite() && !(1e-4..1e7).contains(&a) {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
-}
-
-/// Parse `START:END:COUNT` or `V,V,...`.
-pub fn parse_y0(s: &str) -> Result<Vec<f64>> {
-    let bad = || {
-        anyhow!("--y0 {s:?}: expected START:END:COUNT (e.g. 1.4286:4.2857:9) or a list V,V,... of finite numbers")
-    };
-    let v = parse_y0_values(s, &bad)?;
-    if v.len() > limits::MAX_STARTS {
-        bail!(
-            "--y0 {s:?}: {} starts; at most {} are allowed (each start is a full flight kept in memory); use fewer starts or several runs",
-            v.len(),
-            limits::MAX_STARTS
-        );
-    }
-    if let Some(y) = v.iter().find(|y| y.abs() > limits::MAX_STATE) {
-        bail!(
-            "--y0 {s:?}: the height {} is outside [-{m}, {m}], the range in which the nondimensional model means anything (published starts: 1.43 to 4.29); give heights inside it",
-            num(*y),
-            m = limits::MAX_STATE
-        );
-    }
-    Ok(v)
-}
-
-fn parse_y0_values(s: &str, bad: &dyn Fn() -> anyhow::Error) -> Result<Vec<f64>> {
-    if s.contains(':') {
-        let parts: Vec<&str> = s.split(':').collect();
-        if parts.len() != 3 {
-            return Err(bad());
-        }
-        let a: f64 = parts[0].trim().parse().map_err(|_| bad())?;
-        let b: f64 = parts[1].trim().parse().map_err(|_| bad())?;
-        let n: usize = parts[2].trim().parse().map_err(|_| bad())?;
-        if n == 0 || !a.is_finite() || !b.is_finite() {
-            return Err(bad());
-        }
-        if n > limits::MAX_STARTS {
-            bail!(
-                "--y0 {s:?}: COUNT {n} is more than {} starts (each start is a full flight kept in memory); use fewer starts or several runs",
-                limits::MAX_STARTS
-            );
-        }
-        if n == 1 {
-            return Ok(vec![a]);
-        }
-        Ok((0..n)
-            .map(|i| a + (b - a) * i as f64 / (n - 1) as f64)
-            .collect())
-    } else {
-        let v: Vec<f64> = s
-            .split(',')
-            .map(|x| x.trim().parse::<f64>())
-            .collect::<Result<_, _>>()
-            .map_err(|_| bad())?;
-        if v.is_empty() || v.iter().any(|x| !x.is_finite()) {
-            return Err(bad());
-        }
-        Ok(v)
-    }
-}
 
 /// Build the controller named by `--controller`.
 pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>> {
@@ -228,101 +83,12 @@ struct Plan {
 }
 
 fn plan(a: &SimulateArgs) -> Result<Plan> {
-    let model = Model::from_name(&a.model).ok_or_else(|| {
-        anyhow!(
-            "--model {:?}: unknown model; choose one of plate6, reduced, full",
-            a.model
-        )
-    })?;
-    let integrator = Integrator::from_name(&a.integrator).ok_or_else(|| {
-        anyhow!(
-            "--integrator {:?}: unknown integrator; choose ode45, dop853 (or tight), dp5 or rk4",
-            a.integrator
-        )
-    })?;
-    check_horizon_period(a.horizon, a.period)?;
-    check_period_count(a.horizon, a.period, limits::MAX_PERIODS)?;
-    let output_step = if (a.period / 0.01 - (a.period / 0.01).round()).abs() < 1e-9 {
-        Some(0.01)
-    } else {
-        Some(a.period / 50.0)
-    };
-    let settings = LoopSettings {
-        period: a.period,
-        horizon: a.horizon,
-        integrator,
-        reset_filter: true,
-        output_step,
-    };
-    settings.steps().map_err(|e| anyhow!("{e}"))?;
-    let starts = match &a.y0 {
-        Some(s) => parse_y0(s)?,
-        None => published_starts(),
-    };
-    // Rows of trajectories.csv: t = 0 and every output point of every period.
-    let per_period = output_step.map_or(1.0, |o| (a.period / o).round().max(1.0));
-    let rows = starts.len() as f64 * (1.0 + (a.horizon / a.period).round() * per_period);
-    if rows > limits::MAX_ROWS {
-        bail!(
-            "--y0/--horizon/--period: {} start(s) x {} period(s) x {per_period} output points give {rows:e} trajectory rows; at most {:e} are allowed (trajectories.csv is built in memory): use fewer starts, a shorter --horizon or a longer --period",
-            starts.len(),
-            (a.horizon / a.period).round(),
-            limits::MAX_ROWS
-        );
-    }
+    let p = a.plan()?;
     Ok(Plan {
-        plant: Plant::new(model),
-        settings,
-        starts,
+        plant: Plant::new(p.model),
+        settings: p.settings,
+        starts: p.starts,
     })
-}
-
-/// `--horizon` and `--period` must be positive finite numbers, the period in
-/// [`limits::MIN_PERIOD`, `limits::MAX_PERIOD`] (shared by the commands that fly the
-/// closed loop).
-pub(crate) fn check_horizon_period(horizon: f64, period: f64) -> Result<()> {
-    if !(horizon.is_finite() && horizon > 0.0) {
-        bail!(
-            "--horizon {}: the horizon must be positive (e.g. --horizon 20)",
-            num(horizon)
-        );
-    }
-    if !(period.is_finite() && period > 0.0) {
-        bail!(
-            "--period {}: the period must be positive (e.g. --period 0.5)",
-            num(period)
-        );
-    }
-    if !(limits::MIN_PERIOD..=limits::MAX_PERIOD).contains(&period) {
-        bail!(
-            "--period {}: the control period must lie in [{}, {}] (a hold shorter than 1 ms or longer than 100 time units is outside what the model and integrators are meant for); e.g. --period 0.5",
-            num(period),
-            limits::MIN_PERIOD,
-            limits::MAX_PERIOD
-        );
-    }
-    Ok(())
-}
-
-/// At most `max` control periods (`horizon / period`).
-pub(crate) fn check_period_count(horizon: f64, period: f64, max: f64) -> Result<()> {
-    let k = horizon / period;
-    if k > max + 0.5 {
-        bail!(
-            "--horizon {} / --period {} = {} control periods; at most {max} are allowed (time and memory grow with every period; the published run has 40): pass a shorter --horizon or a longer --period",
-            num(horizon),
-            num(period),
-            num(k)
-        );
-    }
-    if k < 0.5 {
-        bail!(
-            "--horizon {} is shorter than one --period {}: the horizon must be a positive multiple of the period (e.g. --horizon 20)",
-            num(horizon),
-            num(period)
-        );
-    }
-    Ok(())
 }
 
 /// The files a run writes into `--out`.
@@ -482,43 +248,9 @@ fn summary(
 /// Files `simulate --system` writes.
 const SYSTEM_WRITES: [&str; 1] = ["trajectories.csv"];
 
-/// `simulate --system FILE --controller NET.onnx`: closed-loop flights of a system file
-/// from starts in its initial set, goals checked along each (a falsification run).
-/// Refuse a network that does not fit a system file (`flag` names the network's flag in
-/// the message, for `simulate` and `reach`).
-pub fn check_fits(
-    flag: &str,
-    net_path: &Path,
-    net: &samara_nn::Network,
-    sys: &samara_system::System,
-    sys_path: &Path,
-) -> Result<()> {
-    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
-        bail!(
-            "{flag} {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
-            net_path.display(),
-            net.n_inputs(),
-            net.n_outputs(),
-            sys_path.display(),
-            sys.n_observed(),
-            sys.n_net_outputs
-        );
-    }
-    Ok(())
-}
-
 fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
     use rand::{Rng, SeedableRng};
-    if a.y0.is_some() {
-        bail!("--y0 does not apply with --system: the system file's `init` lines give the initial set; use --samples N");
-    }
-    if a.samples == 0 || a.samples > limits::MAX_STARTS {
-        bail!(
-            "--samples {}: give 1 to {} starts",
-            a.samples,
-            limits::MAX_STARTS
-        );
-    }
+    a.check_system_flags()?;
     let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
     if a.controller == "pid" || a.controller.starts_with("constant:") {
         bail!("--system needs a network controller: --controller NET.onnx (inputs: the file's `observe` list, outputs: its net[i])");
@@ -526,16 +258,8 @@ fn run_system(a: &SimulateArgs, path: &Path) -> Result<ExitCode> {
     let net_path = Path::new(&a.controller);
     let net = samara_nn::load(net_path)
         .with_context(|| format!("--controller {}", net_path.display()))?;
-    check_fits("--controller", net_path, &net, &sys, path)?;
-    let rows = (a.samples as f64) * (sys.steps() as f64 * 10.0 + 1.0);
-    if rows > limits::MAX_ROWS {
-        bail!(
-            "--samples {} x {} periods x 10 output points = {rows:e} trajectory rows; at most {:e} are allowed: use fewer --samples",
-            a.samples,
-            sys.steps(),
-            limits::MAX_ROWS
-        );
-    }
+    samara_app::reach::args::check_fits("--controller", net_path, &net, &sys, path)?;
+    a.check_system_rows(&sys)?;
     samara_report::guard::check_output_dir(
         "--out",
         &a.out,

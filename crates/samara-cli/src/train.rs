@@ -1,181 +1,21 @@
 //! `samara train`.
 
 use anyhow::{anyhow, bail, Context, Result};
+pub use samara_app::args::TrainArgs;
 use samara_app::train::{
     ClosedLoopSummary, LoopGoal, Pretrain, RestartEntry, RoundEntry, TrainSummary,
 };
 use samara_report::guard::{check_output_file, resolve, OutDir};
 use samara_train::{
     read_table, train, Attack, Logic, Method, MinMax, Restart, TrainError, TrainOptions,
-    DEFAULT_MAX_RESTARTS,
 };
 use std::fmt::Write as _;
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-/// Flags of `samara train`. Defaults are the published setting (6-6-4-1, ReLU on every
-/// layer, Adam lr 0.06, batch 50, 1000 epochs, 10% test split).
-#[derive(clap::Args, Debug)]
-pub struct TrainArgs {
-    /// Data set (CSV with or without header, or IDX): input columns then the output.
-    #[arg(long)]
-    pub data: PathBuf,
-    /// Min-max constants file (row 1 minimum, row 2 range, like Normalisation_Constants.csv);
-    /// computed from the data when absent.
-    #[arg(long)]
-    pub normalisation: Option<PathBuf>,
-    /// plain | adversarial | lipschitz | dl2 | goedel | closed-loop (the goal
-    /// |x + y| <= --goal-ystar at t = 20 of the reduced model's sample-and-hold loop,
-    /// trained through the loop and checked by reach in counterexample-guided rounds;
-    /// docs/training.md).
-    #[arg(long, default_value = "plain")]
-    pub method: String,
-    /// Adversarial attack: fgsm (the published training) or pgd.
-    #[arg(long, default_value = "fgsm")]
-    pub attack: String,
-    /// Layer widths, inputs first.
-    #[arg(long, default_value = "6,6,4,1")]
-    pub arch: String,
-    /// Epochs.
-    #[arg(long, default_value_t = 1000)]
-    pub epochs: usize,
-    /// Mini-batch size.
-    #[arg(long, default_value_t = 50)]
-    pub batch: usize,
-    /// Adam learning rate.
-    #[arg(long, default_value_t = 0.06)]
-    pub lr: f64,
-    /// Seed (same seed, same data: bit-identical network).
-    #[arg(long, default_value_t = 0)]
-    pub seed: u64,
-    /// Attack radius in normalised input units.
-    #[arg(long, default_value_t = 0.005)]
-    pub eps: f64,
-    /// Lipschitz constant L for `lipschitz` (normalised units).
-    #[arg(long, default_value_t = 0.5)]
-    pub lipschitz: f64,
-    /// Weight of the Lipschitz or property term.
-    #[arg(long)]
-    pub weight: Option<f64>,
-    /// dl2/goedel: add the Lipschitz penalty of `lipschitz` (constant --lipschitz) with
-    /// this weight, as the case study's Goedel + Lipschitz and DL2 + Lipschitz networks
-    #[arg(long)]
-    pub lipschitz_weight: Option<f64>,
-    /// No ReLU on the output layer (a linear output, as the case study's 6-64-32-1
-    /// property-trained networks); the published 6-6-4-1 networks have one
-    #[arg(long)]
-    pub linear_output: bool,
-    /// ystar of the case-study properties P1-P4 (models/alsomitra/alsomitra.spec) used
-    /// by dl2/goedel without --spec.
-    #[arg(long, default_value_t = 2.0)]
-    pub ystar: f64,
-    /// Take the dl2/goedel properties from this specification instead of the case
-    /// study's (models/alsomitra/alsomitra.spec, compiled in).
-    #[arg(long)]
-    pub spec: Option<PathBuf>,
-    /// Properties of --spec to train for (comma-separated; default: every property
-    /// without data-set quantifiers).
-    #[arg(long)]
-    pub properties: Option<String>,
-    /// Parameter bindings for --spec (repeatable): --param ystar=2.
-    #[arg(long = "param", value_name = "NAME=VALUE")]
-    pub params: Vec<String>,
-    /// Output network (ONNX, raw units with its normalisation layers).
-    #[arg(long)]
-    pub out: PathBuf,
-    /// Training log CSV (default: next to --out, `<stem>.log.csv`).
-    #[arg(long)]
-    pub log: Option<PathBuf>,
-    /// Print the metrics as JSON.
-    #[arg(long)]
-    pub json: bool,
-    /// Restarts from a fresh initialisation allowed when training gives a dead, constant
-    /// or useless (training R^2 <= 0) network; restart k uses the k-th SplitMix64 output
-    /// from --seed. Exit code 1 when every attempt was degenerate.
-    #[arg(long, default_value_t = DEFAULT_MAX_RESTARTS)]
-    pub max_restarts: usize,
-    /// Least R^2 on the training rows a finished network must reach, else training
-    /// restarts (default 0.9 for plain and adversarial, whose published networks reach
-    /// it; 0 for lipschitz, dl2 and goedel, which trade accuracy for their property).
-    /// A network with R^2 <= 0 is always refused.
-    #[arg(long)]
-    pub min_r2: Option<f64>,
-    /// Settings of --method closed-loop.
-    #[command(flatten)]
-    pub closed_loop: Box<ClosedLoopArgs>,
-}
-
-/// Flags of `samara train --method closed-loop`.
-#[derive(clap::Args, Debug)]
-pub struct ClosedLoopArgs {
-    /// closed-loop: the goal |x + y| <= Y at the horizon (t = 20) that reach must prove
-    /// (default 2; with --spec, the goal of its loop).
-    #[arg(long)]
-    pub goal_ystar: Option<f64>,
-    /// closed-loop with --spec: the loop to train for (default: the spec's first). Its
-    /// start, period, horizon, clip and goal replace --y0, --goal-ystar and --goal-from.
-    #[arg(long = "loop", value_name = "NAME", requires = "spec")]
-    pub loop_name: Option<String>,
-    /// closed-loop: also for every t in [T*, 20] (the goal over a window).
-    #[arg(long)]
-    pub goal_from: Option<f64>,
-    /// closed-loop: the interval of initial y, A:B (default the published
-    /// 0.1/0.07:0.3/0.07); the other states start at (1, 0, 0, 0, 0).
-    #[arg(long)]
-    pub y0: Option<String>,
-    /// closed-loop: the flights are trained to |x + y| <= Y - margin, leaving the
-    /// enclosures room.
-    #[arg(long, default_value_t = 0.75)]
-    pub margin: f64,
-    /// closed-loop: most train-then-reach rounds.
-    #[arg(long, default_value_t = 6)]
-    pub rounds: usize,
-    /// closed-loop: Adam steps per round (a round stops early once every flight meets
-    /// the training bound).
-    #[arg(long, default_value_t = 150)]
-    pub steps_per_round: usize,
-    /// closed-loop: Adam learning rate of the rounds (--lr is the data-only training's).
-    #[arg(long, default_value_t = 0.005)]
-    pub round_lr: f64,
-    /// closed-loop: weight of the PID data MSE (normalised units) against the mean
-    /// closed-loop penalty.
-    #[arg(long, default_value_t = 100.0)]
-    pub data_weight: f64,
-    /// closed-loop: sub-boxes of reach in each round (the full --max-leaves is tried when
-    /// this budget leaves the goal undecided, and in the last round).
-    #[arg(long, default_value_t = 16)]
-    pub round_leaves: usize,
-    /// closed-loop: sub-boxes of the full reach.
-    #[arg(long, default_value_t = 64)]
-    pub max_leaves: usize,
-}
-
 /// `--min-r2` when not given: 0.9 for the accuracy-only methods.
 pub const DEFAULT_MIN_R2: f64 = 0.9;
-
-/// Refuse flag values that no training can use, naming the flag and the fix (the
-/// library checks the rest of the settings).
-fn check_flags(a: &TrainArgs) -> Result<()> {
-    if !(a.lipschitz > 0.0 && a.lipschitz.is_finite()) {
-        bail!(
-            "--lipschitz {}: the Lipschitz constant must be a positive number, e.g. 0.5",
-            a.lipschitz
-        );
-    }
-    if let Some(w) = a.weight {
-        if !(w >= 0.0 && w.is_finite()) {
-            bail!("--weight {w}: the penalty weight must be a finite number >= 0, e.g. 10");
-        }
-    }
-    if !(a.ystar >= 0.0 && a.ystar.is_finite()) {
-        bail!(
-            "--ystar {}: the threshold must be a finite number >= 0, e.g. 2",
-            a.ystar
-        );
-    }
-    Ok(())
-}
 
 /// The parent folder of an output file ("." for a bare file name).
 fn parent(p: &Path) -> &Path {
@@ -297,7 +137,7 @@ fn spec_properties(
 /// Run `samara train`.
 pub fn run(a: &TrainArgs) -> Result<ExitCode> {
     let log_path = check_outputs(a)?;
-    check_flags(a)?;
+    a.validate()?;
     let arch: Vec<usize> = a
         .arch
         .split(',')
@@ -536,7 +376,7 @@ fn run_closed_loop(
         bail!("--round-leaves and --max-leaves must be at least 1");
     }
     let y0 = match &a.y0 {
-        Some(s) => crate::reach::parse_interval(s, &format!("--y0 {s:?}"))?,
+        Some(s) => samara_app::reach::args::parse_interval(s, &format!("--y0 {s:?}"))?,
         None => base.y0,
     };
     let (png, svg) = rounds_figure_paths(&t.out);

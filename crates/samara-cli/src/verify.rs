@@ -1,311 +1,33 @@
 //! `samara check | verify | critical | robustness | export-vnnlib | verify-vnnlib`, and
 //! (in `vnncomp.rs`) `samara vnncomp`.
 
-#[path = "vnncomp.rs"]
-pub mod vnncomp;
-pub use vnncomp::{run_vnncomp, VnncompArgs};
-#[path = "shard.rs"]
-pub mod shard;
-
+use crate::shard;
 use anyhow::{anyhow, bail, Result};
+pub use samara_app::args::{
+    CheckArgs, CriticalArgs, ExportArgs, RobustnessArgs, SpecArgs, VerifyArgs, VerifyVnnlibArgs,
+};
+use samara_app::bind::{load_network, read_data, timeout_flag};
 use samara_app::robustness::{
     merge_sweep, Form, PointText, SweepRun, SweepShard, SweepShardLine, Table,
 };
 use samara_app::shard::Exact;
 use samara_app::verify::{PropertyRun, RowCounterexample, VerdictTag};
-use samara_app::{Front, Holds, VerdictRow};
-use samara_spec::normal::Var;
-use samara_spec::{vnnlib, Spec};
-use samara_verify::robustness::{sweep_until, Reference};
+use samara_app::vnncomp::{decide, load_instance, result_text, InstanceVerdict};
+use samara_app::{Holds, VerdictRow};
+use samara_spec::vnnlib;
+use samara_verify::robustness::sweep_until;
 use samara_verify::{LpTighten, Settings, Verdict};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
-use vnncomp::{decide, result_text, InstanceVerdict};
-
-/// Flags shared by the spec commands.
-#[derive(clap::Args, Debug, Clone)]
-pub struct SpecArgs {
-    /// The specification file.
-    pub spec: PathBuf,
-    /// Bind a network name to an ONNX file (repeatable): --network f=net.onnx.
-    #[arg(long = "network", value_name = "NAME=FILE")]
-    pub networks: Vec<String>,
-    /// Bind a parameter (repeatable): --param ystar=2.
-    #[arg(long = "param", value_name = "NAME=VALUE")]
-    pub params: Vec<String>,
-    /// Bind a data set (repeatable): --dataset train=data.csv. Only the properties that
-    /// quantify over a data set (`for p in data NAME`) need it; without this flag the
-    /// spec's `dataset` path is used, relative to the spec file. The published training
-    /// points are `../shared/reference/Training_Data_Normalised.csv`.
-    #[arg(long = "dataset", value_name = "NAME=FILE")]
-    pub datasets: Vec<String>,
-}
-
-/// Flags of `samara check`.
-#[derive(clap::Args, Debug)]
-pub struct CheckArgs {
-    #[command(flatten)]
-    /// Spec and bindings.
-    pub s: SpecArgs,
-}
-
-/// Flags of `samara verify`.
-#[derive(clap::Args, Debug)]
-pub struct VerifyArgs {
-    #[command(flatten)]
-    /// Worker threads.
-    pub threads: crate::threads::ThreadsArg,
-    #[command(flatten)]
-    /// Spec and bindings.
-    pub s: SpecArgs,
-    /// Only this property (default: all).
-    #[arg(long)]
-    pub property: Option<String>,
-    /// Time limit of the whole command in seconds (>= 0; `inf` for none): every query
-    /// gets what is left of it. A query cut short is `unknown` with its reason, never
-    /// proved or violated.
-    #[arg(long, default_value_t = 60.0)]
-    pub timeout: f64,
-    /// Tighten unstable neurons' bounds with LPs at the root of each search
-    /// (`samara_verify::tighten`; off by default).
-    #[arg(long)]
-    pub lp_tighten: bool,
-    /// Node limit per search (branch-and-bound nodes per disjunct); a search that reaches
-    /// it is `unknown` (node_limit).
-    #[arg(long, default_value_t = 200_000)]
-    pub max_nodes: usize,
-    /// JSON output.
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// Flags of `samara critical`.
-#[derive(clap::Args, Debug)]
-pub struct CriticalArgs {
-    #[command(flatten)]
-    /// Worker threads.
-    pub threads: crate::threads::ThreadsArg,
-    #[command(flatten)]
-    /// Spec and bindings; `--param NAME` without a value names the parameter whose
-    /// critical value is computed (it must be declared with a range).
-    pub s: SpecArgs,
-    /// The property.
-    #[arg(long)]
-    pub property: String,
-    /// Time limit of the whole command in seconds (>= 0; `inf` for none), shared by its
-    /// two searches (the supremum's, then the infimum's). A search cut short reports
-    /// `unknown` with its reason (exit 1), never a critical value.
-    #[arg(long, default_value_t = 60.0)]
-    pub timeout: f64,
-    /// Tighten unstable neurons' bounds with LPs at the root of each search
-    /// (`samara_verify::tighten`; off by default).
-    #[arg(long)]
-    pub lp_tighten: bool,
-    /// Node limit per search (branch-and-bound nodes per disjunct); a search that reaches
-    /// it is `unknown` (node_limit).
-    #[arg(long, default_value_t = 200_000)]
-    pub max_nodes: usize,
-    /// JSON output.
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// Flags of `samara robustness`.
-#[derive(clap::Args, Debug)]
-pub struct RobustnessArgs {
-    #[command(flatten)]
-    /// Worker threads.
-    pub threads: crate::threads::ThreadsArg,
-    /// The network (ONNX). Data and eps are in the units the network takes.
-    #[arg(long)]
-    pub network: PathBuf,
-    /// Data set (CSV or IDX): inputs, then the label.
-    #[arg(long)]
-    pub data: PathBuf,
-    /// Radii (comma-separated; each positive, finite and at most 1e6; repeated values
-    /// count once).
-    #[arg(long, default_value = "1e-5,1e-4,1e-3,1e-2")]
-    pub eps: String,
-    /// Bounds L (comma-separated; each finite and >= 0; repeated values count once).
-    #[arg(long, default_value = "1e-5,1e-4,1e-3,1e-2")]
-    pub lipschitz: String,
-    /// Reference of the published form: label or network.
-    #[arg(long, default_value = "label")]
-    pub reference: String,
-    /// published (|f(x') - ref| <= L / eps) or lipschitz (|f(x') - f(x)| <= L ||x' - x||).
-    #[arg(long, default_value = "published")]
-    pub form: String,
-    /// Time limit of the whole command in seconds (>= 0; `inf` for none): every point's
-    /// search stops at it; a point whose search is cut short counts as unknown unless
-    /// its bounds already settle it.
-    #[arg(long, default_value_t = 30.0)]
-    pub timeout: f64,
-    /// Node limit of each point's search; a point whose search reaches it counts as
-    /// unknown unless its bounds already settle it.
-    #[arg(long, default_value_t = 200_000)]
-    pub max_nodes: usize,
-    /// Per-point results CSV (refused if it is the --data or --network file). With
-    /// --shard: this shard's partial result (JSON, for `samara merge robustness`).
-    #[arg(long)]
-    pub out: Option<PathBuf>,
-    /// JSON output.
-    #[arg(long)]
-    pub json: bool,
-    /// Compute only shard I of N (0-based): the data set's points split into N
-    /// contiguous parts. Needs --out; `samara merge robustness` puts the N files together.
-    #[arg(long, value_name = "I/N", allow_hyphen_values = true, value_parser = shard::parse_shard)]
-    pub shard: Option<shard::Shard>,
-}
-
-/// Flags of `samara verify-vnnlib`.
-#[derive(clap::Args, Debug)]
-pub struct VerifyVnnlibArgs {
-    #[command(flatten)]
-    /// Worker threads.
-    pub threads: crate::threads::ThreadsArg,
-    /// The network (ONNX).
-    #[arg(long)]
-    pub network: PathBuf,
-    /// The property (VNN-LIB 1.0): a satisfying point is a counterexample.
-    #[arg(long)]
-    pub property: PathBuf,
-    /// Time limit in seconds (>= 0; `inf` for none).
-    #[arg(long, default_value_t = 60.0)]
-    pub timeout: f64,
-    /// Node limit per search (branch-and-bound nodes per disjunct); a search that reaches
-    /// it is `unknown` (node_limit).
-    #[arg(long, default_value_t = 200_000)]
-    pub max_nodes: usize,
-    /// Also write the verdict to FILE in the competition's result format (atomically):
-    /// `unsat`, `timeout`, `unknown`, or `sat` followed by the counterexample
-    /// `((X_0 v)` ... ` (Y_m v))`, one variable per line, outputs by the network's own f64
-    /// evaluator.
-    #[arg(long, value_name = "FILE")]
-    pub result: Option<PathBuf>,
-    /// JSON output.
-    #[arg(long)]
-    pub json: bool,
-}
-
-/// Flags of `samara export-vnnlib`.
-#[derive(clap::Args, Debug)]
-pub struct ExportArgs {
-    #[command(flatten)]
-    /// Spec and bindings.
-    pub s: SpecArgs,
-    /// Output directory (one .vnnlib per property instance). It must be empty or not
-    /// exist yet: a folder that holds files is refused (old and new files would mix);
-    /// a folder this run created is removed again if the export fails.
-    #[arg(long)]
-    pub out: PathBuf,
-    /// One file per disjunct of the counterexample region (for tools that cannot read `or`).
-    #[arg(long)]
-    pub split_disjuncts: bool,
-    /// Only this property (default: all). The command exits 1 if any instance of the
-    /// selected properties could not be written.
-    #[arg(long)]
-    pub property: Option<String>,
-}
-
-fn kv(s: &str, flag: &str) -> Result<(String, String)> {
-    let (k, v) = s
-        .split_once('=')
-        .ok_or_else(|| anyhow!("--{flag} {s:?}: expected NAME=VALUE (e.g. --{flag} NAME=VALUE)"))?;
-    Ok((k.trim().to_string(), v.trim().to_string()))
-}
-
-/// Load an ONNX network, naming the flag on failure (the error's own text only: its
-/// source is already part of it).
-/// (`flag` ends with `=` for a `NAME=FILE` flag. The loaders' errors start with the
-/// file's path, so the message reads `--flag FILE: what`.)
-pub fn load_network(path: &Path, flag: &str) -> Result<samara_nn::Network> {
-    samara_nn::load(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
-}
-
-fn read_data(path: &Path, flag: &str) -> Result<samara_nn::data::Table> {
-    samara_nn::data::read_table(path).map_err(|e| anyhow!("{}{e}", flag_prefix(flag)))
-}
-
-fn flag_prefix(flag: &str) -> String {
-    if flag.ends_with('=') {
-        flag.to_string()
-    } else {
-        format!("{flag} ")
-    }
-}
-
-/// `--timeout`: a number >= 0 (`inf` allowed: no limit).
-fn check_timeout(t: f64) -> Result<()> {
-    if t.is_nan() || t < 0.0 {
-        bail!(
-            "--timeout {t}: must be a number of seconds >= 0 (e.g. --timeout 60; inf for no limit)"
-        );
-    }
-    Ok(())
-}
 
 /// A spec with its networks, parameters and data sets bound (owned by the run).
 pub type Loaded = samara_app::Loaded<'static>;
 
-/// Load a spec and its bindings; every flag is checked here (exit 2 on a bad one).
-/// `free_params`: whether a bare `--param NAME` (no value) is allowed (`critical`).
-/// The checks are the library's ([`samara_app::Loaded`]); a units warning is printed
-/// as soon as its network is bound.
+/// Load a spec and its bindings ([`SpecArgs::load`]); a units warning is printed as soon
+/// as its network is bound.
 pub fn load(a: &SpecArgs, free_params: bool) -> Result<Loaded> {
-    let spec = Spec::read(&a.spec).map_err(|e| anyhow!("{e}"))?;
-    let mut l = Loaded::new(
-        std::borrow::Cow::Owned(spec),
-        a.spec.display().to_string(),
-        Front::Cli,
-    );
-    let mut seen = std::collections::HashSet::new();
-    for s in &a.networks {
-        let (k, v) = kv(s, "network")?;
-        l.declared_network(&k, &format!("--network {k}=..."))?;
-        if !seen.insert(k.clone()) {
-            bail!("--network {k}=...: given twice; bind each network once");
-        }
-        let file = PathBuf::from(&v);
-        let net = load_network(&file, &format!("--network {k}="))?;
-        l.bind_network(&k, net, &format!("--network {k}={v}"), Some(&file))?;
-        for w in l.warnings.drain(..) {
-            eprintln!("warning: {w}");
-        }
-    }
-    for s in &a.params {
-        if !s.contains('=') {
-            let k = s.trim();
-            if !free_params {
-                bail!(
-                    "--param {k}: no value; pass --param {k}=VALUE (only `samara critical` takes a bare --param NAME: the parameter to search)"
-                );
-            }
-            l.declared_param(k, &format!("--param {k}"))?;
-            continue;
-        }
-        let (k, v) = kv(s, "param")?;
-        let label = format!("--param {k}={v}");
-        l.declared_param(&k, &label)?;
-        if l.b.params.contains_key(&k) {
-            bail!("--param {k}: given twice; bind each parameter once");
-        }
-        let x: f64 = v
-            .parse()
-            .map_err(|_| anyhow!("--param {k}={v}: not a number; pass e.g. --param {k}=2"))?;
-        let searched = a.params.iter().any(|p| p.trim() == k).then_some(k.as_str());
-        l.bind_param(&k, x, &label, searched)?;
-    }
-    // Values outside a declared `param NAME in [lo, hi]` are refused here (exit 2).
-    let mut l = l.finish("--param")?;
-    for s in &a.datasets {
-        let (k, v) = kv(s, "dataset")?;
-        if l.b.datasets.contains_key(&k) {
-            bail!("--dataset {k}=...: given twice; bind each data set once");
-        }
-        l.bind_dataset(&k, Path::new(&v), &format!("--dataset {k}={v}"))?;
-    }
-    Ok(l)
+    Ok(a.load(free_params, |w| eprintln!("warning: {w}"))?)
 }
 
 /// Run `samara check`: exit 2 on a bad flag or spec, 1 if a property cannot be lowered
@@ -360,17 +82,17 @@ pub fn run_check(a: &CheckArgs) -> Result<ExitCode> {
 /// Run `samara verify`: the library's [`samara_app::run_verify`], one line per property
 /// (or the rows as JSON).
 pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     // `--timeout` is a deadline for the whole command: every instance gets what is left.
     let start = Instant::now();
     let l = load(&a.s, false)?;
     let settings = Settings {
         timeout: a.timeout,
-        max_nodes: a.max_nodes,
-        lp_tighten: tighten_mode(a.lp_tighten),
+        max_nodes: a.search.max_nodes,
+        lp_tighten: tighten_mode(a.search.lp_tighten),
         ..Default::default()
     };
-    let json_out = a.json;
+    let json_out = a.search.json;
     let run = samara_app::run_verify(&l, a.property.as_deref(), &settings, start, true, |p| {
         if !json_out {
             print_property(p);
@@ -384,7 +106,7 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
                 );
         }
     })?;
-    if a.json {
+    if a.search.json {
         let rows: Vec<&VerdictRow> = run.rows().collect();
         println!(
             "{}",
@@ -458,7 +180,7 @@ fn tighten_mode(on: bool) -> LpTighten {
 /// search was cut short (`unknown`). The decision is the library's
 /// ([`samara_app::critical_value`]).
 pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     let l = load(&a.s, true)?;
     let free: Vec<&String> = a.s.params.iter().filter(|s| !s.contains('=')).collect();
     let [of] = free.as_slice() else {
@@ -471,12 +193,12 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
         &of,
         &Settings {
             timeout: a.timeout,
-            max_nodes: a.max_nodes,
-            lp_tighten: tighten_mode(a.lp_tighten),
+            max_nodes: a.search.max_nodes,
+            lp_tighten: tighten_mode(a.search.lp_tighten),
             ..Default::default()
         },
     )?;
-    if a.json {
+    if a.search.json {
         println!(
             "{}",
             serde_json::to_string_pretty(&serde_json::to_value(&v)?)?
@@ -532,32 +254,9 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
     })
 }
 
-/// A comma-separated list of numbers, each checked by `ok` (whose text says what is
-/// allowed), repeated values dropped (a note says so).
-fn list(s: &str, flag: &str, ok: fn(f64) -> bool, allowed: &str) -> Result<Vec<f64>> {
-    let mut out: Vec<f64> = Vec::new();
-    for x in s.split(',') {
-        let v = x.trim().parse::<f64>().map_err(|_| {
-            anyhow!("--{flag} {s:?}: {:?} is not a number; expected comma-separated numbers, e.g. --{flag} 1e-3,1e-2", x.trim())
-        })?;
-        if !ok(v) {
-            bail!(
-                "--{flag} {s:?}: {} is out of range; each value must be {allowed}",
-                x.trim()
-            );
-        }
-        if out.contains(&v) {
-            eprintln!("note: --{flag} repeats {v:e}; it is counted once");
-            continue;
-        }
-        out.push(v);
-    }
-    Ok(out)
-}
-
 /// Run `samara robustness`.
 pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     // `--timeout` is a deadline for the whole command (each search also stops at it).
     let start = Instant::now();
     let deadline = a
@@ -576,60 +275,14 @@ pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
             &[("--data", &a.data), ("--network", &a.network)],
         )?;
     }
-    let eps = list(
-        &a.eps,
-        "eps",
-        |e| e > 0.0 && e <= 1e6,
-        "a radius > 0 and at most 1e6 (in the network's input units)",
-    )?;
-    let ls = list(
-        &a.lipschitz,
-        "lipschitz",
-        |l| l.is_finite() && l >= 0.0,
-        "finite and >= 0",
-    )?;
-    let reference = match a.reference.as_str() {
-        "label" => Reference::Label,
-        "network" => Reference::Network,
-        o => bail!("--reference {o:?}: choose label or network"),
-    };
-    if !["published", "lipschitz"].contains(&a.form.as_str()) {
-        bail!("--form {:?}: choose published or lipschitz", a.form);
+    let checked = a.validate()?;
+    for n in &checked.notes {
+        eprintln!("{n}");
     }
+    let (eps, ls, reference) = (checked.eps, checked.lipschitz, checked.reference);
     let net = load_network(&a.network, "--network")?;
     let t = read_data(&a.data, "--data")?;
-    let n = net.n_inputs();
-    if t.cols < n {
-        bail!(
-            "--data {}: {} columns but the network has {n} inputs",
-            a.data.display(),
-            t.cols
-        );
-    }
-    if reference == Reference::Label && t.cols < n + 1 {
-        bail!(
-            "--data {}: {} columns, the network's {n} inputs and no label column; add the label column (the reference of --reference label) or pass --reference network",
-            a.data.display(),
-            t.cols
-        );
-    }
-    let rows: Vec<Vec<f64>> = (0..t.rows()).map(|i| t.row(i).to_vec()).collect();
-    let used = if reference == Reference::Label {
-        n + 1
-    } else {
-        n
-    };
-    for (i, r) in rows.iter().enumerate() {
-        if let Some(j) = r.iter().take(used).position(|v| !v.is_finite()) {
-            bail!(
-                "--data {}: row {} column {} is {}, not a finite number; fix or drop the row",
-                a.data.display(),
-                i + 1,
-                j + 1,
-                r[j]
-            );
-        }
-    }
+    let rows = a.data_rows(net.n_inputs(), &t, reference)?;
     let t0 = Instant::now();
     let settings = Settings {
         timeout: a.timeout,
@@ -723,7 +376,7 @@ struct Sweep<'a> {
 
 /// `samara merge robustness`: the shards' points in order
 /// (`samara_app::robustness::merge_sweep`), then the one-process report.
-fn merge_robustness(
+pub(crate) fn merge_robustness(
     shards: &samara_app::shard::Shards,
     out: Option<&Path>,
     json_out: bool,
@@ -753,22 +406,7 @@ fn report_robustness(w: &Sweep) -> Result<ExitCode> {
     })?;
     let t = Table::of(form, eps, ls, w.n_rows, secs, points);
     if let Some(p) = w.out {
-        let mut csv = String::from(
-            "index,eps,f_min,f_max,reference,max_deviation,lipschitz_lower,lipschitz_upper\n",
-        );
-        for p in points {
-            csv.push_str(&format!(
-                "{},{:?},{:?},{:?},{:?},{:?},{:?},{:?}\n",
-                p.index,
-                p.eps,
-                p.f_min,
-                p.f_max,
-                p.reference,
-                p.max_deviation,
-                p.lipschitz_lower,
-                p.lipschitz_upper
-            ));
-        }
+        let csv = samara_app::robustness::points_csv(points);
         samara_report::write_atomic(p, csv.as_bytes())
             .map_err(|e| anyhow!("--out {}: {e}", p.display()))?;
     }
@@ -801,30 +439,12 @@ fn report_robustness(w: &Sweep) -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// The name of a VNN-LIB variable.
-fn vnn_name(v: Var) -> String {
-    match v {
-        Var::Input { index, .. } => format!("X_{index}"),
-        Var::Output { index, .. } => format!("Y_{index}"),
-        Var::Free(k) => format!("P_{k}"),
-    }
-}
-
-/// The same kind of variable at another index.
-fn var_at(v: Var, index: usize) -> Var {
-    match v {
-        Var::Input { app, .. } => Var::Input { app, index },
-        Var::Output { app, .. } => Var::Output { app, index },
-        Var::Free(_) => Var::Free(index),
-    }
-}
-
 /// Run `samara verify-vnnlib`: prints `unsat` (proved), `sat` (violated, with the
 /// counterexample) or `unknown`, as VNN-COMP tools do. Box-shaped properties go to the
 /// input-split engine, the rest to the ReLU-phase engine ([`samara_verify::route`]).
 pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
     let start = std::time::Instant::now();
-    check_timeout(a.timeout)?;
+    timeout_flag(a.timeout)?;
     if let Some(r) = &a.result {
         samara_report::guard::check_output_file(
             "--result",
@@ -832,7 +452,7 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
             &[("--network", &a.network), ("--property", &a.property)],
         )?;
     }
-    let (net, q) = vnncomp::load_instance(&a.network, &a.property, "--network", "--property")?;
+    let (net, q) = load_instance(&a.network, &a.property, "--network", "--property")?;
     // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
     // lowered to dense maps) takes seconds of it.
     let left = (a.timeout - start.elapsed().as_secs_f64()).max(0.0);

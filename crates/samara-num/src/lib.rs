@@ -17,6 +17,7 @@ mod interval;
 mod outcome;
 mod scalar;
 mod series;
+mod timeout;
 mod tm;
 pub mod tm_reduce;
 
@@ -26,4 +27,5 @@ pub use interval::Interval;
 pub use outcome::{Outcome, Status};
 pub use scalar::{Scalar, Sign};
 pub use series::{conv, dconv, Series};
+pub use timeout::{BadTimeout, Timeout};
 pub use tm::Tm;

@@ -185,7 +185,9 @@ pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxA
     let plain: Vec<Case> = cases.iter().map(|c| c.1.clone()).collect();
     let spent = t0.elapsed().as_secs_f64();
     let settings = search::Settings {
-        timeout: timeout.map(|t| Duration::from_secs_f64((t - spent).max(0.0))),
+        timeout: timeout
+            .map(|t| Duration::from_secs_f64((t - spent).max(0.0)))
+            .into(),
         ..Default::default()
     };
     let (outcome, _) = search::solve(&net.maps, &plain, &settings);

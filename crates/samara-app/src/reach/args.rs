@@ -1,0 +1,813 @@
+//! The settings of `samara reach` as the command line gives them ([`ReachArgs`], the
+//! flags themselves, deriving `clap::Args`) and every check of them: the built-in
+//! glider's [`ReachSettings`] ([`ReachArgs::builtin_settings`]), the Taylor-model
+//! settings ([`ReachArgs::taylor_settings`]), the sub-box and sample budgets, the flags
+//! that do not apply to a path, `--grid` and `--target-ratio`, the loop of a `--spec`
+//! and the built-in setting as a system file. The CLI parses, calls these, runs the
+//! engine and prints; the limits live here.
+
+use crate::bind::{check_horizon_period, check_period_count, num as fmt_num};
+use crate::shard::{parse_shard, Shard};
+use crate::simulate::MAX_STATE;
+use crate::{input, AppError, Front};
+use samara_plant::{Model, STATE_NAMES};
+use samara_reach::system::{NetworkError, SystemReachSettings};
+use samara_reach::{Goal, ReachSettings};
+use samara_spec::lower::NetDecl;
+use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+type Result<T> = std::result::Result<T, AppError>;
+
+/// Most control periods of a reachability run (the published run has 40; every period
+/// costs a set-valued integration per sub-box).
+pub const MAX_PERIODS: f64 = 10_000.0;
+/// Longest control period of a reachability run.
+pub const MAX_PERIOD: f64 = 10.0;
+/// Most sub-boxes (`--max-leaves`).
+pub const MAX_LEAVES: usize = 100_000;
+/// Most simulated trajectories (`--samples`).
+pub const MAX_SAMPLES: usize = 100_000;
+/// Most sampled points kept in memory (samples x horizon / 0.05).
+pub const MAX_SAMPLE_POINTS: f64 = 1e7;
+/// Most a target ratio may be (beyond it the target says nothing).
+pub const MAX_RATIO: f64 = 1e6;
+/// Most worker threads.
+pub const MAX_THREADS: usize = 1024;
+/// The built-in glider's `--lift-at` on Taylor-model sets (docs/reach.md).
+pub const GLIDER_LIFT_AT: f64 = 1e-3;
+
+/// The published initial heights: y0 in [0.1/0.07, 0.3/0.07].
+const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
+
+/// Flags of `samara reach`. The defaults are the published CORA setting: reduced
+/// model, start (1, 0, 0, 0, 0, y0) with y0 in [1.4286, 4.2857], period 0.5, horizon 20.
+#[derive(clap::Args, Debug, Clone, Serialize)]
+pub struct ReachArgs {
+    /// The controller network (`.onnx`, 6 raw inputs v_xp, v_yp, omega, theta, x, y;
+    /// 1 raw output ex), e.g. base_model_denorm.onnx.
+    #[arg(long)]
+    pub network: PathBuf,
+    /// Plant variant: reduced (the published reachability model), plate6 (the
+    /// simulation model) or full (four-quadrant model).
+    #[arg(long, default_value = "reduced")]
+    pub model: String,
+    /// Initial interval of the height y: `A:B` (or a single value A), ends in
+    /// [-1000, 1000]. Default 1.4285714285714286:4.285714285714286 (= 0.1/0.07 : 0.3/0.07).
+    #[arg(long, allow_hyphen_values = true)]
+    pub y0: Option<String>,
+    /// Initial interval of one state, `NAME=A:B` or `NAME=A` (repeatable); NAME is one
+    /// of v_xp, v_yp, omega, theta, x, y (and E for plate6/full). Other states start at
+    /// (1, 0, 0, 0, 0, y0[, 0]). Ends in [-1000, 1000].
+    #[arg(long = "init", value_name = "NAME=A:B", allow_hyphen_values = true)]
+    pub init: Vec<String>,
+    /// Horizon (a positive multiple of the period, at most 10000 periods).
+    #[arg(long, default_value_t = 20.0, allow_hyphen_values = true)]
+    pub horizon: f64,
+    /// Control period (sample and hold), in [0.001, 10].
+    #[arg(long, default_value_t = 0.5, allow_hyphen_values = true)]
+    pub period: f64,
+    /// Goal: |x + y| <= Y at the horizon (or on [T*, horizon] with --goal-from).
+    #[arg(long, allow_hyphen_values = true)]
+    pub goal_ystar: Option<f64>,
+    /// Start T* of the goal's time window (needs --goal-ystar).
+    #[arg(long, allow_hyphen_values = true)]
+    pub goal_from: Option<f64>,
+    /// Do not clip the controller's output to [0.181, 0.193] (as the CORA model).
+    #[arg(long)]
+    pub no_clip: bool,
+    /// Worker threads, 1 to 1024 (default: all cores).
+    #[arg(long, allow_hyphen_values = true)]
+    pub threads: Option<usize>,
+    /// Largest number of sub-boxes of the initial set, 1 to 100000 (default 64; more
+    /// gives tighter sets, slower).
+    #[arg(long, allow_hyphen_values = true)]
+    pub max_leaves: Option<usize>,
+    /// Simulated trajectories for falsification, the sampled range and the figure, 1 to
+    /// 100000 and at most 10^7 sampled points (about samples x horizon / 0.05) (default 200).
+    #[arg(long, allow_hyphen_values = true)]
+    pub samples: Option<usize>,
+    /// Output directory (created if missing; removed again if the run fails and created
+    /// it). It may not be, or lie inside, the --network file. With --shard: the shard's
+    /// partial result (a JSON file, for `samara merge reach`).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Print a JSON summary on stdout instead of the human line.
+    #[arg(long)]
+    pub json: bool,
+    /// A system file (docs/system.md, e.g. examples/archcomp/tora.sys): any plant with
+    /// its initial set, period, horizon, actuation and goals; the sets are Taylor models
+    /// and --network is its controller (`.onnx` or `.nnet`).
+    #[arg(long)]
+    pub system: Option<PathBuf>,
+    /// Order of the Taylor models with --system or --sets taylor, 1 to 8 (default 4; for
+    /// the built-in glider, when neither this nor --network-error is given, 2 with
+    /// --network-error symbolic:7, its measured best).
+    #[arg(long, allow_hyphen_values = true)]
+    pub order: Option<usize>,
+    /// Set representation of the built-in glider setting: `zonotope` (affine sets with
+    /// interval remainders, the Lohner flow), `taylor` (Taylor models in the initial-set
+    /// parameters: the same setting run as the shipped system file) or `auto` (zonotope
+    /// sets, the faster and tighter on every glider setting measured; where they leave
+    /// the goal unknown, Taylor-model sets as well, written to OUT/taylor, with --order,
+    /// --timeout and --network-error). --system always uses Taylor models.
+    #[arg(long, default_value = "zonotope")]
+    pub sets: String,
+    /// Wall-clock budget in seconds for Taylor-model runs (--system, --sets taylor),
+    /// finite and positive: when spent, the run stops splitting and reports `unknown`
+    /// with the reason (checked between splitting rounds).
+    #[arg(long, allow_hyphen_values = true)]
+    pub timeout: Option<f64>,
+    /// How the network step's error enters Taylor-model sets (--system, --sets taylor):
+    /// `interval` (a remainder per input: cheapest), `symbolic` or `symbolic:N` (a fresh
+    /// parameter per input and period, at most N beyond the state count, default 20:
+    /// keeps the driven states correlated), or `auto` (default: tried on the whole
+    /// initial set cheapest first, docs/reach.md; the built-in glider: see --order).
+    #[arg(long)]
+    pub network_error: Option<String>,
+    /// With symbolic remainders (--network-error symbolic), the share of a state's width
+    /// that the flow's interval remainders may reach inside a period before they become
+    /// parameters, in (0, 1]. Smaller: tighter, more reductions. Default 0.05 for system
+    /// files (ARCH-COMP's measured best); 0.001 for the built-in glider on Taylor-model
+    /// sets (docs/reach.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub lift_at: Option<f64>,
+    /// With symbolic remainders, how much each lifted parameter weighs toward --order:
+    /// 1 (default) as much as an initial parameter; the order itself: lifted
+    /// parameters enter linearly only (mixed-degree Taylor models, far fewer terms,
+    /// so more of them can be kept; docs/reach.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub lifted_weight: Option<i64>,
+    /// A spec file whose closed loop to fly (`loop`, `start`, `goal` statements; e.g.
+    /// models/alsomitra/alsomitra.spec, loop `published`): model, initial set, period,
+    /// horizon, clip and goal come from it, so the flags that set them are refused
+    /// beside it. --network is then the loop's network as the spec declares it: the
+    /// spec's `normalise` lines are composed into it (for the shipped spec, a
+    /// normalised network such as base_model_norm.onnx).
+    #[arg(long, conflicts_with_all = ["model", "y0", "init", "horizon", "period", "goal_ystar", "goal_from", "no_clip", "system"])]
+    pub spec: Option<PathBuf>,
+    /// The loop of --spec to fly (default: its first).
+    #[arg(long = "loop", value_name = "NAME", requires = "spec")]
+    pub loop_name: Option<String>,
+    /// Compute only part I of N (0-based) of the run. Zonotope sets: the initial pieces
+    /// (the initial set cut along its widest parameter, usually the height) in N
+    /// contiguous ranges, each piece refined on its own. Taylor-model sets (--system,
+    /// --sets taylor): the cells of --grid in N contiguous ranges. --out is then the
+    /// shard file; `samara merge reach` puts the N files together into the one-process
+    /// reach.json (and, for zonotope sets, the figures)
+    #[arg(long, value_name = "I/N", allow_hyphen_values = true, value_parser = parse_shard)]
+    pub shard: Option<Shard>,
+    /// With Taylor-model sets (--system, --sets taylor): cut the initial set into a fixed
+    /// grid first, NAME=K cutting state NAME into K equal pieces (repeatable; other
+    /// states uncut), and fly every cell as its own run, with its own --max-leaves
+    /// budget (docs/reach.md, "Grids and shards"). What --shard divides
+    #[arg(long, value_name = "NAME=K")]
+    pub grid: Vec<String>,
+    /// Adaptive splitting toward a width target (Taylor-model sets): cut the initial set
+    /// where a cell's enclosure is lost or its x + y (a system file's first `goal band
+    /// ... at end`) at the horizon leaves the band that keeps the hull within R times
+    /// the spread of the --samples flights; --max-leaves bounds the cells, --grid gives
+    /// the starting cells (docs/reach.md, "Adaptive splitting").
+    #[arg(long, value_name = "R", allow_hyphen_values = true)]
+    pub target_ratio: Option<f64>,
+}
+
+/// Refuse 0 and more than [`MAX_THREADS`] worker threads, naming the flag.
+pub fn check_threads(threads: Option<usize>) -> Result<()> {
+    match threads {
+        Some(0) => input("--threads 0: give at least 1 (or leave it out to use all cores)"),
+        Some(n) if n > MAX_THREADS => input(format!(
+            "--threads {n}: at most {MAX_THREADS} worker threads are allowed (more than the cores only costs memory); leave it out to use all cores"
+        )),
+        _ => Ok(()),
+    }
+}
+
+/// Parse `A:B` or `A` into a finite, non-inverted interval inside
+/// [-[`MAX_STATE`], [`MAX_STATE`]]; `what` names the flag and its value in messages
+/// (e.g. `--y0 "3:2"`).
+pub fn parse_interval(s: &str, what: &str) -> Result<(f64, f64)> {
+    let bad = || {
+        AppError::Input(format!(
+            "{what}: expected A:B (e.g. 1.4286:4.2857) or a single value A, with finite numbers"
+        ))
+    };
+    let parts: Vec<&str> = s.split(':').collect();
+    let (a, b) = match parts.as_slice() {
+        [a] => {
+            let a: f64 = a.trim().parse().map_err(|_| bad())?;
+            (a, a)
+        }
+        [a, b] => (
+            a.trim().parse::<f64>().map_err(|_| bad())?,
+            b.trim().parse::<f64>().map_err(|_| bad())?,
+        ),
+        _ => return Err(bad()),
+    };
+    if !(a.is_finite() && b.is_finite()) {
+        return input(format!("{what}: the interval ends must be finite numbers"));
+    }
+    if a > b {
+        return input(format!("{what}: the interval is empty (inverted, {a} > {b}); give A:B with A <= B, e.g. {b}:{a}"));
+    }
+    let m = MAX_STATE;
+    if a < -m || b > m {
+        return input(format!("{what}: the interval ends must lie in [-{m}, {m}], the range in which the nondimensional model means anything (published: y0 in [1.43, 4.29], the other states 0 or 1); give a smaller interval"));
+    }
+    Ok((a, b))
+}
+
+/// The settings of the loop of `--spec` (with `--loop`, or the first) and the
+/// declaration of the network that flies it.
+pub fn spec_settings(path: &Path, name: Option<&str>) -> Result<(ReachSettings, NetDecl)> {
+    let spec = samara_spec::Spec::read(path).map_err(|e| AppError::Input(e.to_string()))?;
+    let names: Vec<&str> = spec.loops.iter().map(|l| l.name.as_str()).collect();
+    let lp = match name {
+        Some(n) => spec.closed_loop(n).ok_or_else(|| {
+            AppError::Input(format!(
+                "--loop {n}: {} states no loop `{n}`; its loops: {}",
+                path.display(),
+                if names.is_empty() { "none".into() } else { names.join(", ") }
+            ))
+        })?,
+        None => spec.loops.first().ok_or_else(|| {
+            AppError::Input(format!(
+                "--spec {}: states no closed loop; add `loop NAME of f: model reduced, period 0.5, horizon 20`, `start NAME: ...` and `goal NAME: |x + y| <= 2 at 20` (docs/spec.md, Closed loops)",
+                path.display()
+            ))
+        })?,
+    };
+    if lp.period > MAX_PERIOD {
+        return input(format!(
+            "{}:{}:{}: reach takes periods up to {MAX_PERIOD}; e.g. period 0.5",
+            path.display(),
+            lp.pos.line,
+            lp.pos.col
+        ));
+    }
+    check_period_count(Front::Cli, lp.horizon, lp.period, MAX_PERIODS)?;
+    let net = spec
+        .networks
+        .iter()
+        .find(|n| n.name == lp.net)
+        .cloned()
+        .ok_or_else(|| {
+            AppError::Input(format!("loop `{}`: unknown network `{}`", lp.name, lp.net))
+        })?;
+    Ok((ReachSettings::from_loop(lp), net))
+}
+
+/// The raw-unit controller of a loop: the file bound to the spec's network with the
+/// spec's normalisation composed (`raw = C + S z`, `out_raw = offset + scale out`).
+pub fn spec_controller(
+    net: samara_nn::Network,
+    d: &NetDecl,
+    file: &Path,
+) -> Result<samara_nn::Network> {
+    if d.in_norm.is_none() && d.out_norm.is_none() {
+        return Ok(net);
+    }
+    if net.input_norm.is_some() || net.output_denorm.is_some() {
+        return input(format!(
+            "--network {}: the file carries its own normalisation layers (it takes raw units), but the spec declares `normalise {}` (its network takes normalised units): pass the normalised file (e.g. base_model_norm.onnx), or fly the raw file without --spec",
+            file.display(),
+            d.name
+        ));
+    }
+    Ok(samara_nn::Network {
+        input_norm: d
+            .in_norm
+            .as_ref()
+            .map(|(c, s)| samara_nn::Affine::normalise(c, s)),
+        output_denorm: d
+            .out_norm
+            .as_ref()
+            .map(|(c, s)| samara_nn::Affine::denormalise(c, s)),
+        ..net
+    })
+}
+
+impl ReachArgs {
+    /// Whether the run uses Taylor-model sets (`--system`, `--sets taylor`,
+    /// `--target-ratio`); they shard by their `--grid`, zonotope runs by their initial
+    /// pieces.
+    pub fn taylor(&self) -> bool {
+        self.system.is_some() || self.sets == "taylor" || self.target_ratio.is_some()
+    }
+
+    /// The built-in glider setting the flags give (`--model`, `--y0`, `--init`,
+    /// `--horizon`, `--period`, clip, goal, budgets), every limit checked.
+    pub fn builtin_settings(&self) -> Result<ReachSettings> {
+        let a = self;
+        let model = Model::from_name(&a.model).ok_or_else(|| {
+            AppError::Input(format!(
+                "--model {:?}: unknown model; choose one of reduced, plate6, full",
+                a.model
+            ))
+        })?;
+        let mut s = ReachSettings::published(model);
+        s.init[5] = Y0_DEFAULT;
+        if let Some(y0) = &a.y0 {
+            s.init[5] = parse_interval(y0, &format!("--y0 {y0:?}"))?;
+        }
+        let names = &STATE_NAMES[..model.dim()];
+        let mut seen: Vec<usize> = Vec::new();
+        for spec in &a.init {
+            let (name, iv) = spec.split_once('=').ok_or_else(|| {
+                AppError::Input(format!(
+                    "--init {spec:?}: expected NAME=A:B (e.g. --init theta=-0.01:0.01)"
+                ))
+            })?;
+            let name = name.trim();
+            let i = names.iter().position(|n| *n == name).ok_or_else(|| {
+                let extra = if name == "E" {
+                    format!(" (model {} has no filter state E)", model.name())
+                } else {
+                    String::new()
+                };
+                AppError::Input(format!(
+                    "--init {spec:?}: unknown state {name:?}{extra}; choose one of {}",
+                    names.join(", ")
+                ))
+            })?;
+            if i == 5 && a.y0.is_some() {
+                return input(format!(
+                    "--init {spec:?}: y is also given by --y0; give it once"
+                ));
+            }
+            if seen.contains(&i) {
+                return input(format!(
+                    "--init {spec:?}: state {name} is given twice; give it once"
+                ));
+            }
+            seen.push(i);
+            s.init[i] = parse_interval(iv, &format!("--init {spec:?}"))?;
+        }
+        check_horizon_period(Front::Cli, a.horizon, a.period)?;
+        if a.period > MAX_PERIOD {
+            return input(format!("--period {}: reach takes periods up to {MAX_PERIOD} (the validated integrator takes at most 400 steps of at most 0.0625 per period, so a longer hold cannot be enclosed); e.g. --period 0.5", a.period));
+        }
+        check_period_count(Front::Cli, a.horizon, a.period, MAX_PERIODS)?;
+        s.horizon = a.horizon;
+        s.period = a.period;
+        let k = a.horizon / a.period;
+        if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
+            let n = k.floor().max(1.0);
+            return input(format!(
+                "--horizon {} is not a positive multiple of --period {}: choose e.g. --horizon {} (or another period)",
+                a.horizon,
+                a.period,
+                n * a.period
+            ));
+        }
+        if a.no_clip {
+            s.clip = None;
+        }
+        match (a.goal_ystar, a.goal_from) {
+            (None, Some(f)) => {
+                return input(format!(
+                    "--goal-from {}: needs a goal; add --goal-ystar Y (e.g. --goal-ystar 2)",
+                    fmt_num(f)
+                ))
+            }
+            (Some(y), from) => {
+                if !(y.is_finite() && y >= 0.0) {
+                    return input(format!(
+                        "--goal-ystar {}: the band half-width must be a finite number >= 0 (e.g. --goal-ystar 2)",
+                        fmt_num(y)
+                    ));
+                }
+                if let Some(f) = from {
+                    if !(f.is_finite() && f >= 0.0 && f <= a.horizon) {
+                        return input(format!(
+                            "--goal-from {}: the window start must lie in [0, horizon = {}]",
+                            fmt_num(f),
+                            a.horizon
+                        ));
+                    }
+                }
+                s.goal = Some(Goal { ystar: y, from });
+            }
+            (None, None) => {}
+        }
+        a.check_budget(s.max_leaves)?;
+        if let Some(n) = a.max_leaves {
+            s.max_leaves = n;
+        }
+        if let Some(n) = a.samples {
+            s.samples = n;
+        }
+        // Sampled trajectories are recorded every 0.05 (or the finest step above that
+        // which divides the period).
+        let q = a.period / 0.05;
+        let per_period = if (q - q.round()).abs() <= 1e-9 * q.max(1.0) && q.round() >= 1.0 {
+            q.round()
+        } else {
+            q.ceil().max(1.0)
+        };
+        let points = s.samples as f64 * (a.horizon / a.period).round() * per_period;
+        if points > MAX_SAMPLE_POINTS {
+            return input(format!(
+                "--samples {} with --horizon {}: {points:e} sampled points (one about every 0.05 time units per trajectory); at most {MAX_SAMPLE_POINTS:e} are kept in memory: pass fewer --samples or a shorter --horizon",
+                s.samples,
+                a.horizon
+            ));
+        }
+        Ok(s)
+    }
+
+    /// `--max-leaves`, `--samples` and `--threads`, checked the same way for both paths
+    /// (the built-in glider and system files); `default_leaves` is the path's sub-box
+    /// budget, named in the messages.
+    pub fn check_budget(&self, default_leaves: usize) -> Result<()> {
+        if let Some(n) = self.max_leaves {
+            if n == 0 {
+                return input(format!(
+                    "--max-leaves 0: give at least 1 (default {default_leaves})"
+                ));
+            }
+            if n > MAX_LEAVES {
+                return input(format!("--max-leaves {n}: at most {MAX_LEAVES} sub-boxes are allowed (each is a full reachability run; the default is {default_leaves})"));
+            }
+        }
+        if let Some(n) = self.samples {
+            if n == 0 {
+                return input(
+                    "--samples 0: give at least 1 (default 200); falsification needs trajectories",
+                );
+            }
+            if n > MAX_SAMPLES {
+                return input(format!("--samples {n}: at most {MAX_SAMPLES} trajectories are allowed (each is kept in memory; the default is 200)"));
+            }
+        }
+        check_threads(self.threads)
+    }
+
+    /// `--order`, `--timeout`, `--network-error`, `--lift-at` and `--lifted-weight` do
+    /// not apply to zonotope sets.
+    pub fn check_zonotope_flags(&self) -> Result<()> {
+        if self.order.is_some() {
+            return input("--order applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no order");
+        }
+        if self.timeout.is_some() {
+            return input("--timeout applies to Taylor-model sets (--sets taylor or --system); bound the zonotope run with --max-leaves");
+        }
+        if self.network_error.is_some() {
+            return input("--network-error applies to Taylor-model sets (--sets taylor or --system); the zonotope sets keep the network's error as generators already");
+        }
+        if self.lift_at.is_some() {
+            return input("--lift-at applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no lifted remainders");
+        }
+        if self.lifted_weight.is_some() {
+            return input("--lifted-weight applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no lifted parameters");
+        }
+        Ok(())
+    }
+
+    /// Flags of the built-in glider setting that do not apply to a system file (which
+    /// states its own initial set, period, horizon, clip and goals), and `--sets`.
+    pub fn check_system_flags(&self) -> Result<()> {
+        let a = self;
+        let given: Vec<&str> = [
+            (a.y0.is_some(), "--y0"),
+            (!a.init.is_empty(), "--init"),
+            (a.goal_ystar.is_some(), "--goal-ystar"),
+            (a.goal_from.is_some(), "--goal-from"),
+            (a.no_clip, "--no-clip"),
+            (a.model != "reduced", "--model"),
+        ]
+        .iter()
+        .filter(|(on, _)| *on)
+        .map(|(_, n)| *n)
+        .collect();
+        if !given.is_empty() {
+            return input(format!(
+                "{} do(es) not apply with --system: the system file states its model, initial set (`init`), goals (`goal`), clip and period; edit the file",
+                given.join(", ")
+            ));
+        }
+        if a.sets != "zonotope" {
+            return input(
+                "--sets does not apply with --system: system files always use Taylor-model sets",
+            );
+        }
+        Ok(())
+    }
+
+    /// The built-in glider's tuning on Taylor-model sets, for the flags left out
+    /// (docs/reach.md): adaptive runs take the six-state covering run's order 4,
+    /// `symbolic:40` and lifted weight 2; other runs order 2 with `symbolic:7` (which
+    /// proves the full model's published setting in 46 s where the automatic ladder
+    /// times out); both lift the flow's remainders at [`GLIDER_LIFT_AT`] (2-4x tighter
+    /// multi-state sets).
+    pub fn glider_tuned(&self) -> ReachArgs {
+        let mut t = self.clone();
+        if self.order.is_none() && self.network_error.is_none() {
+            if self.target_ratio.is_some() {
+                t.order = Some(4);
+                t.network_error = Some("symbolic:40".into());
+                t.lifted_weight = self.lifted_weight.or(Some(2));
+            } else {
+                t.order = Some(2);
+                t.network_error = Some("symbolic:7".into());
+            }
+        }
+        t.lift_at = self.lift_at.or(Some(GLIDER_LIFT_AT));
+        t
+    }
+
+    /// The Taylor-model settings the flags give (`--order`, `--timeout`,
+    /// `--network-error`, `--lift-at`, `--lifted-weight`), checked; `--sets auto` checks
+    /// them before its zonotope run.
+    pub fn taylor_settings(&self) -> Result<SystemReachSettings> {
+        let a = self;
+        let mut s = SystemReachSettings::default();
+        if let Some(k) = a.order {
+            if !(1..=8).contains(&k) {
+                return input(format!(
+                    "--order {k}: give 1 to 8 (3-5 is usual; higher orders cost more per step)"
+                ));
+            }
+            s.order = k;
+        }
+        if let Some(t) = a.timeout {
+            if !(t.is_finite() && t > 0.0 && t <= 1e7) {
+                return input(format!(
+                    "--timeout {t}: give a number of seconds, positive and at most 1e7"
+                ));
+            }
+            s.timeout = Some(t);
+        }
+        if let Some(v) = a.lift_at {
+            if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+                return input(format!(
+                    "--lift-at {v}: give a share of the width in (0, 1], such as 0.05 or 0.001"
+                ));
+            }
+            s.flow.lift_at = v;
+        }
+        if let Some(v) = &a.network_error {
+            s.network_error = NetworkError::parse(v)
+                .map_err(|e| AppError::Input(format!("--network-error {v:?}: {e}")))?;
+            // Symbolic remainders go with order 3 unless --order says otherwise (as in
+            // the automatic choice, samara_reach::system::NETWORK_ERROR_LADDER).
+            if a.order.is_none() && matches!(s.network_error, Some(NetworkError::Symbolic { .. })) {
+                s.order = 3;
+            }
+        }
+        if let Some(v) = a.lifted_weight {
+            if !(1..=s.order as i64).contains(&v) {
+                return input(format!(
+                    "--lifted-weight {v}: give 1 to the order ({}): 1 weighs lifted parameters as initial ones, the order makes them linear",
+                    s.order
+                ));
+            }
+            s.flow.lifted_weight = v as u32;
+        }
+        Ok(s)
+    }
+
+    /// The Taylor-model settings of a run on a checked system: [`Self::taylor_settings`]
+    /// with the system's `measures`, the budgets checked and applied.
+    pub fn system_settings(
+        &self,
+        measures: Vec<samara_reach::system::Measure>,
+    ) -> Result<SystemReachSettings> {
+        let mut s = self.taylor_settings()?;
+        s.measures = measures;
+        self.check_budget(s.max_boxes)?;
+        if let Some(n) = self.max_leaves {
+            s.max_boxes = n;
+        }
+        if let Some(n) = self.samples {
+            s.samples = n;
+        }
+        Ok(s)
+    }
+
+    /// `--grid NAME=K ...` as pieces per state (`None` without the flag), checked
+    /// against the system's states and initial set.
+    pub fn grid_pieces(&self, sys: &samara_system::System) -> Result<Option<Vec<usize>>> {
+        if self.grid.is_empty() {
+            return Ok(None);
+        }
+        let mut pieces = vec![1usize; sys.dim()];
+        let mut seen = vec![false; sys.dim()];
+        for g in &self.grid {
+            let (name, k) = g.split_once('=').ok_or_else(|| {
+                AppError::Input(format!("--grid {g:?}: expected NAME=K, a state and its number of pieces (e.g. --grid theta=3)"))
+            })?;
+            let i = sys
+                .states
+                .iter()
+                .position(|n| n == name.trim())
+                .ok_or_else(|| {
+                    AppError::Input(format!(
+                        "--grid {g:?}: no state `{}`; the states are {}",
+                        name.trim(),
+                        sys.states.join(", ")
+                    ))
+                })?;
+            let k: usize = k.trim().parse().ok().filter(|k| *k >= 1).ok_or_else(|| {
+                AppError::Input(format!(
+                    "--grid {g:?}: K must be a whole number of pieces, at least 1"
+                ))
+            })?;
+            if seen[i] {
+                return input(format!(
+                    "--grid {g:?}: state `{}` is cut twice; give each state once",
+                    sys.states[i]
+                ));
+            }
+            seen[i] = true;
+            pieces[i] = k;
+        }
+        samara_reach::grid::cell_count(sys, &pieces)
+            .map_err(|e| AppError::Input(format!("--grid: {e}")))?;
+        Ok(Some(pieces))
+    }
+
+    /// `--target-ratio R` with what an adaptive run needs: R in [1, [`MAX_RATIO`]], no
+    /// `--shard`, a measure at the horizon (`system` names the system file).
+    pub fn check_adaptive(&self, ratio: f64, has_measure: bool, system: &Path) -> Result<()> {
+        if !(ratio.is_finite() && (1.0..=MAX_RATIO).contains(&ratio)) {
+            return input(format!("--target-ratio {ratio}: give a number from 1 to {MAX_RATIO:e}: the enclosure's width over the flights' spread, which is never below 1 (2 is issue 14's criterion)"));
+        }
+        if self.shard.is_some() {
+            return input("--shard with --target-ratio: adaptive runs are not sharded yet; run them in one process (--threads N), or shard a fixed --grid without --target-ratio");
+        }
+        if !has_measure {
+            return input(format!("--target-ratio needs a measure at the horizon: {} has no `goal band |...| <= ... at end`; add one (its expression is what the target measures)", system.display()));
+        }
+        Ok(())
+    }
+}
+
+/// Refuse a network that does not fit a system file (`flag` names the network's flag in
+/// the message, for `simulate` and `reach`).
+pub fn check_fits(
+    flag: &str,
+    net_path: &Path,
+    net: &samara_nn::Network,
+    sys: &samara_system::System,
+    sys_path: &Path,
+) -> Result<()> {
+    if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
+        return input(format!(
+            "{flag} {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
+            net_path.display(),
+            net.n_inputs(),
+            net.n_outputs(),
+            sys_path.display(),
+            sys.n_observed(),
+            sys.n_net_outputs
+        ));
+    }
+    Ok(())
+}
+
+/// The built-in glider setting (`--model`, `--y0`, `--init`, `--period`, `--horizon`,
+/// clip, goal) as a system: the shipped `examples/archcomp/alsomitra_<model>.sys`
+/// (embedded; bit-identical to the built-in right-hand sides, see docs/system.md) with
+/// its period, horizon, actuation, initial set and goal lines replaced by the flags'.
+pub fn builtin_system(s: &ReachSettings) -> Result<samara_system::System> {
+    let (file, text) = match s.model {
+        Model::Reduced => (
+            "alsomitra_reduced.sys",
+            include_str!("../../../../examples/archcomp/alsomitra_reduced.sys"),
+        ),
+        Model::Plate6 => (
+            "alsomitra_plate6.sys",
+            include_str!("../../../../examples/archcomp/alsomitra_plate6.sys"),
+        ),
+        Model::Full => (
+            "alsomitra_full.sys",
+            include_str!("../../../../examples/archcomp/alsomitra_full.sys"),
+        ),
+    };
+    let replaced = ["period", "horizon", "actuate", "init", "goal", "reset"];
+    let mut src: String = text
+        .lines()
+        .filter(|l| {
+            let w = l.split_whitespace().next().unwrap_or("");
+            !replaced.contains(&w)
+        })
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let names = ["v_xp", "v_yp", "omega", "theta", "x", "y", "E"];
+    src.push_str(&format!("period {:?}\nhorizon {:?}\n", s.period, s.horizon));
+    match s.clip {
+        Some((lo, hi)) => src.push_str(&format!("actuate ex = net[0] clip [{lo:?}, {hi:?}]\n")),
+        None => src.push_str("actuate ex = net[0]\n"),
+    }
+    if s.init.len() == 7 && s.reset_filter {
+        src.push_str("reset E = 0\n");
+    }
+    for (n, (lo, hi)) in names.iter().zip(&s.init) {
+        if lo == hi {
+            src.push_str(&format!("init {n} = {lo:?}\n"));
+        } else {
+            src.push_str(&format!("init {n} in [{lo:?}, {hi:?}]\n"));
+        }
+    }
+    if let Some(g) = &s.goal {
+        match g.from {
+            None => src.push_str(&format!("goal band |x + y| <= {:?} at end\n", g.ystar)),
+            Some(f) => src.push_str(&format!(
+                "goal band |x + y| <= {:?} always [{f:?}, {:?}]\n",
+                g.ystar, s.horizon
+            )),
+        }
+    }
+    samara_system::System::parse(&src, &format!("{file} (built-in setting)"))
+        .map_err(|e| AppError::Input(format!("the built-in setting as a system file: {e}")))
+}
+
+/// The published setting's measure on a system: x + y (its width against the
+/// flights').
+pub fn x_plus_y(sys: &samara_system::System) -> samara_reach::system::Measure {
+    let mut coef = vec![0.0; sys.dim()];
+    for (i, n) in sys.states.iter().enumerate() {
+        if n == "x" || n == "y" {
+            coef[i] = 1.0;
+        }
+    }
+    samara_reach::system::Measure {
+        name: "x + y".into(),
+        coef,
+        offset: 0.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::Parser;
+
+    #[derive(Parser)]
+    struct Cli {
+        #[command(flatten)]
+        a: ReachArgs,
+    }
+
+    fn args(flags: &[&str]) -> ReachArgs {
+        let mut v = vec!["reach", "--network", "n.onnx", "--out", "o"];
+        v.extend_from_slice(flags);
+        Cli::parse_from(v).a
+    }
+
+    #[test]
+    fn the_published_setting_is_the_default() {
+        let s = args(&[]).builtin_settings().unwrap();
+        assert_eq!(s.init[5], (0.1 / 0.07, 0.3 / 0.07));
+        assert_eq!((s.horizon, s.period), (20.0, 0.5));
+    }
+
+    #[test]
+    fn each_limit_names_its_flag() {
+        for (flags, start) in [
+            (
+                &["--period", "11"][..],
+                "--period 11: reach takes periods up to 10",
+            ),
+            (
+                &["--horizon", "20.3"],
+                "--horizon 20.3 is not a positive multiple",
+            ),
+            (&["--goal-from", "1"], "--goal-from 1: needs a goal"),
+            (&["--max-leaves", "0"], "--max-leaves 0: give at least 1"),
+            (&["--threads", "0"], "--threads 0: give at least 1"),
+            (&["--y0", "3:2"], "--y0 \"3:2\": the interval is empty"),
+            (
+                &["--init", "E=0"],
+                "--init \"E=0\": unknown state \"E\" (model reduced",
+            ),
+        ] {
+            let e = args(flags).builtin_settings().unwrap_err().to_string();
+            assert!(e.starts_with(start), "{flags:?}: {e}");
+        }
+        let e = args(&["--order", "9"]).taylor_settings().unwrap_err();
+        assert!(e.to_string().starts_with("--order 9: give 1 to 8"));
+        let e = args(&["--order", "2"]).check_zonotope_flags().unwrap_err();
+        assert!(e
+            .to_string()
+            .starts_with("--order applies to Taylor-model sets"));
+    }
+
+    #[test]
+    fn the_glider_tuning_fills_only_what_is_left_out() {
+        let t = args(&[]).glider_tuned();
+        assert_eq!(
+            (t.order, t.network_error.as_deref()),
+            (Some(2), Some("symbolic:7"))
+        );
+        assert_eq!(t.lift_at, Some(GLIDER_LIFT_AT));
+        let t = args(&["--target-ratio", "2"]).glider_tuned();
+        assert_eq!((t.order, t.lifted_weight), (Some(4), Some(2)));
+        let t = args(&["--order", "3", "--lift-at", "0.05"]).glider_tuned();
+        assert_eq!(
+            (t.order, t.network_error, t.lift_at),
+            (Some(3), None, Some(0.05))
+        );
+    }
+}
