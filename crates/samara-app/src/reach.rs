@@ -1095,6 +1095,27 @@ pub struct ShardLine {
     pub out: PathBuf,
 }
 
+/// A glider run's final sub-boxes as its figure draws them (`samara_report::reach`):
+/// each sub-box's set at every control instant, projected onto x and y (states 4 and 5).
+pub fn figure_sets(leaves: &[LeafRecord]) -> Vec<Vec<XyBox>> {
+    leaves
+        .iter()
+        .map(|l| l.steps.iter().map(|st| [st.bbox[4], st.bbox[5]]).collect())
+        .collect()
+}
+
+/// A glider run's sampled trajectories as its figure draws them, labelled by `y0`
+/// (state 5).
+pub fn figure_samples(samples: &[Sample]) -> Vec<Trajectory<'_>> {
+    samples
+        .iter()
+        .map(|s| Trajectory {
+            y0: s.initial[5],
+            xy: &s.xy,
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1222,25 +1243,4 @@ mod tests {
         assert!(back.leaves[0].max_dev.is_nan());
         assert_eq!(back.leaves[1].steps[0].x_plus_y[1], 0.1);
     }
-}
-
-/// A glider run's final sub-boxes as its figure draws them (`samara_report::reach`):
-/// each sub-box's set at every control instant, projected onto x and y (states 4 and 5).
-pub fn figure_sets(leaves: &[LeafRecord]) -> Vec<Vec<XyBox>> {
-    leaves
-        .iter()
-        .map(|l| l.steps.iter().map(|st| [st.bbox[4], st.bbox[5]]).collect())
-        .collect()
-}
-
-/// A glider run's sampled trajectories as its figure draws them, labelled by `y0`
-/// (state 5).
-pub fn figure_samples(samples: &[Sample]) -> Vec<Trajectory<'_>> {
-    samples
-        .iter()
-        .map(|s| Trajectory {
-            y0: s.initial[5],
-            xy: &s.xy,
-        })
-        .collect()
 }
