@@ -159,14 +159,14 @@ pub fn reach_system(
                 )
             } else if lost > 0 {
                 format!(
-                    "{lost} of {} sub-boxes lost their enclosure ({}) within the budget of {} sub-boxes (--max-boxes)",
+                    "{lost} of {} sub-boxes lost their enclosure ({}) within the budget of {} sub-boxes (raise --max-leaves)",
                     leaves.len(),
                     leaves.iter().find_map(|l| l.failure.clone()).unwrap_or_default(),
                     s.max_boxes
                 )
             } else {
                 format!(
-                    "{} of {} sub-boxes leave a goal undecided within the budget of {} sub-boxes (--max-boxes)",
+                    "{} of {} sub-boxes leave a goal undecided within the budget of {} sub-boxes (raise --max-leaves)",
                     r.unsettled,
                     leaves.len(),
                     s.max_boxes
