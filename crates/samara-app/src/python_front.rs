@@ -699,7 +699,11 @@ impl SystemRequest {
             max_boxes: self.max_leaves,
             samples: self.samples,
             seed: self.seed,
-            timeout: self.timeout,
+            // Checked above: finite and positive, so it is a limit; none without one.
+            timeout: self
+                .timeout
+                .map(|t| samara_num::Timeout::from_secs_f64(t).unwrap_or_default())
+                .unwrap_or_default(),
             network_error,
             measures: end_band_measures(sys),
             ..SystemReachSettings::default()

@@ -123,11 +123,9 @@ pub fn reach_cells(
             let mut cs = s.clone();
             cs.samples = samples;
             cs.seed = s.seed.wrapping_add(c as u64);
-            if let Some(t) = s.timeout {
-                // What is left of the range's budget (a cell started after it is spent
-                // stops at once and reports so).
-                cs.timeout = Some((t - t0.elapsed().as_secs_f64()).max(1e-6));
-            }
+            // What is left of the range's budget (a cell started after it is spent
+            // stops at once and reports so).
+            cs.timeout = s.timeout.left(t0);
             let mut csys = sys.clone();
             csys.init = cell_box(&sys.init, pieces, c);
             reach_system(&csys, net, &cs)

@@ -241,7 +241,7 @@ fn settings(seed: u64) -> SystemReachSettings {
         max_boxes: 3,
         samples: 4,
         seed,
-        timeout: Some(3.0),
+        timeout: samara_num::Timeout::from_secs_f64(3.0).unwrap(),
         network_error: Some(if seed % 4 == 3 {
             NetworkError::Symbolic { extra: 6 }
         } else {

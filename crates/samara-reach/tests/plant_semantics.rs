@@ -153,7 +153,7 @@ fn sliding_mode_reach_ends_within_its_timeout() {
     let sys = System::parse(src, "slide.sys").unwrap();
     let net = small_net();
     let s = SystemReachSettings {
-        timeout: Some(2.0),
+        timeout: samara_num::Timeout::from_secs_f64(2.0).unwrap(),
         ..Default::default()
     };
     let start = std::time::Instant::now();

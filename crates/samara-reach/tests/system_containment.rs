@@ -402,7 +402,7 @@ fn budget_limited_run_reports_the_share_enclosed() {
     let sys = system("double_pendulum.sys");
     let net = fixture("controller_double_pendulum_less_robust.onnx");
     let s = SystemReachSettings {
-        timeout: Some(4.0),
+        timeout: samara_num::Timeout::from_secs_f64(4.0).unwrap(),
         ..Default::default()
     };
     let r = reach_system(&sys, &net, &s).unwrap();
@@ -446,7 +446,7 @@ fn double_pendulum_less_robust_is_proved_and_contains_2000_flights() {
         order: 3,
         max_boxes: 128,
         network_error: Some(NetworkError::Symbolic { extra: 10 }),
-        timeout: Some(1800.0),
+        timeout: samara_num::Timeout::from_secs_f64(1800.0).unwrap(),
         ..Default::default()
     };
     proved_with_2000_flights_inside("double pendulum (less robust)", &sys, &net, &s, 17);
@@ -489,7 +489,7 @@ fn alsomitra_full_adversarial_is_proved_and_contains_2000_flights() {
     let s = SystemReachSettings {
         order: 2,
         network_error: Some(NetworkError::Symbolic { extra: 7 }),
-        timeout: Some(1200.0),
+        timeout: samara_num::Timeout::from_secs_f64(1200.0).unwrap(),
         // As `samara reach --sets taylor` flies the glider (its --lift-at default).
         flow: samara_reach::tmflow::TmFlowSettings {
             lift_at: 1e-3,
@@ -746,7 +746,7 @@ fn alsomitra_adversarial_taylor_sets_contain_2000_flights() {
         order: 2,
         max_boxes: 1,
         network_error: Some(NetworkError::Symbolic { extra: 10 }),
-        timeout: Some(150.0),
+        timeout: samara_num::Timeout::from_secs_f64(150.0).unwrap(),
         ..SystemReachSettings::default()
     };
     let r = reach_system(&sys, &net, &settings).unwrap();
@@ -830,7 +830,7 @@ fn field_benchmarks_sets_contain_flights() {
         let net = samara_nn::onnx::load(&p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         let s = SystemReachSettings {
             max_boxes: 16,
-            timeout: Some(60.0),
+            timeout: samara_num::Timeout::from_secs_f64(60.0).unwrap(),
             ..Default::default()
         };
         let t = std::time::Instant::now();

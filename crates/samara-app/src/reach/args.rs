@@ -536,7 +536,8 @@ impl ReachArgs {
                     "--timeout {t}: give a number of seconds, positive and at most 1e7"
                 ));
             }
-            s.timeout = Some(t);
+            // Checked above: finite and positive, so it is a limit.
+            s.timeout = samara_num::Timeout::from_secs_f64(t).unwrap_or_default();
         }
         if let Some(v) = a.lift_at {
             if !(v.is_finite() && v > 0.0 && v <= 1.0) {

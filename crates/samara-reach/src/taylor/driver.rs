@@ -244,11 +244,7 @@ pub(crate) fn checked_settings(
     s.flow.order = s.order as u32;
     // The budget also bounds each sub-box's flight (one wide network can take minutes
     // per box), not only the splitting rounds.
-    let deadline = s.timeout.and_then(|t| {
-        std::time::Duration::try_from_secs_f64(t)
-            .ok()
-            .and_then(|d| t0.checked_add(d))
-    });
+    let deadline = s.timeout.deadline_from(t0);
     Ok((s, deadline))
 }
 

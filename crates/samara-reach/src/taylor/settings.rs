@@ -20,9 +20,9 @@ pub struct SystemReachSettings {
     pub seed: u64,
     /// The flowpipe's settings.
     pub flow: TmFlowSettings,
-    /// Wall-clock budget in seconds; the run stops splitting and reports `unknown`
-    /// when it is spent (default: none).
-    pub timeout: Option<f64>,
+    /// Wall-clock budget; the run stops splitting and reports `unknown` when it is
+    /// spent (default: none).
+    pub timeout: samara_num::Timeout,
     /// Re-parameterise the set at a control instant when its remainders have grown
     /// ([`precondition`]; default on).
     pub precondition: bool,
@@ -179,7 +179,7 @@ impl Default for SystemReachSettings {
             samples: 200,
             seed: 1,
             flow: TmFlowSettings::default(),
-            timeout: None,
+            timeout: samara_num::Timeout::none(),
             precondition: true,
             network_error: None,
             measures: Vec::new(),
