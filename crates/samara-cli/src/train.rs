@@ -2,9 +2,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 pub use samara_app::args::TrainArgs;
-use samara_app::train::{
-    ClosedLoopSummary, LoopGoal, Pretrain, RestartEntry, RoundEntry, TrainSummary,
-};
+use samara_app::train::{ClosedLoopSummary, LoopGoal, Pretrain, RestartEntry, RoundEntry};
 use samara_report::guard::{check_output_file, resolve, OutDir};
 use samara_train::{
     read_table, train, Attack, Logic, Method, MinMax, Restart, TrainError, TrainOptions,
@@ -232,6 +230,8 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
         }
         Err(e) => return Err(e.into()),
     };
+    // The numbers of `--json`, taken before the network is moved out of the outcome.
+    let report = samara_app::python_front::TrainReport::of(&a.method, &o, &outcome);
     let mut net = outcome.network;
     if net.n_inputs() == 6 && net.n_outputs() == 1 {
         net = net.with_names(&samara_nn::STATE_INPUTS, &["ex"])?;
@@ -247,22 +247,7 @@ pub fn run(a: &TrainArgs) -> Result<ExitCode> {
     log_dir.keep();
     let m = &outcome.metrics;
     if a.json {
-        let s = TrainSummary {
-            method: a.method.clone(),
-            out: a.out.display().to_string(),
-            log: log_path.display().to_string(),
-            test_rows: m.n_test,
-            r2: m.r2,
-            rmse: m.rmse,
-            mae: m.mae,
-            eps: a.eps,
-            attack_worst_deviation: m.attack_worst,
-            attack_mean_deviation: m.attack_mean,
-            seed: a.seed,
-            init_seed: outcome.init_seed,
-            restarts: outcome.restarts.len(),
-            restart_log: outcome.restarts.iter().map(RestartEntry::from).collect(),
-        };
+        let s = report.summary(a.out.display().to_string(), log_path.display().to_string());
         println!("{}", crate::json_text(&s, true)?);
     } else {
         print_restarts(&outcome.restarts);
