@@ -41,20 +41,14 @@ pub fn make_controller(spec: &str, no_clip: bool) -> Result<Box<dyn Controller>>
                 path.display()
             );
         }
-        let net = glider_network(path).with_context(|| {
+        let net = samara_nn::load(path).with_context(|| {
             format!(
                 "--controller {}: cannot load the network; give an ONNX file samara can read",
                 path.display()
             )
         })?;
-        if net.n_inputs() != 6 || net.n_outputs() != 1 {
-            bail!(
-                "{}: the network has {} inputs and {} outputs; a controller needs 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and 1 output (ex)",
-                path.display(),
-                net.n_inputs(),
-                net.n_outputs()
-            );
-        }
+        // The library's shape check and naming, as Python's `simulate` has them.
+        let net = samara_app::python_front::glider_controller(&path.display().to_string(), &net)?;
         let clip = if no_clip { None } else { Some(EX_RANGE) };
         let label = path
             .file_stem()
