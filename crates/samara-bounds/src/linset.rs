@@ -120,15 +120,7 @@ pub enum LinsetError {
     },
 }
 
-/// `(k + 2) * EPSILON`, at least twice Higham's `gamma_k` (as in [`crate::symbolic`]).
-fn gamma(k: usize) -> f64 {
-    (k as f64 + 2.0) * f64::EPSILON
-}
-
-/// Inflate a non-negative error by `1e-9` relative and round up.
-fn inflate(e: f64) -> f64 {
-    (e * (1.0 + 1e-9)).next_up()
-}
+use samara_num::round::{gamma, inflate};
 
 /// Lower and upper lines of one activation over its pre-activation range:
 /// `al z + bl <= f(z) <= au z + bu` for every real `z` in the range, exactly.

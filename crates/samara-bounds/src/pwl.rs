@@ -104,24 +104,8 @@ impl PwlNet {
     }
 }
 
-/// Interval `[lo, hi]` arithmetic helpers with outward rounding (one ulp per operation).
-pub fn down(x: f64) -> f64 {
-    if x.is_finite() {
-        x.next_down()
-    } else {
-        x
-    }
-}
-
-/// The next float above `x` when `x` is finite (an upper bound rounded outward), `x`
-/// itself otherwise.
-pub fn up(x: f64) -> f64 {
-    if x.is_finite() {
-        x.next_up()
-    } else {
-        x
-    }
-}
+/// Outward rounding by one ulp (NaN to the infinite end): samara-num's one definition.
+pub use samara_num::round::{down, up};
 
 /// Sound bounds of `W a + b` for `a` in the box `[alo, ahi]` (outward rounded).
 pub fn affine_bounds(m: &Affine, alo: &[f64], ahi: &[f64]) -> (Vec<f64>, Vec<f64>) {

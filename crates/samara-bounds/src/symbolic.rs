@@ -122,16 +122,7 @@ fn coef_magnitude(c: &[f64], xmax: &[f64]) -> f64 {
     c.iter().zip(xmax).map(|(c, x)| c.abs() * x).sum::<f64>()
 }
 
-/// `(k + 2) * EPSILON`, at least twice Higham's `gamma_k` for the `k` used here.
-fn gamma(k: usize) -> f64 {
-    (k as f64 + 2.0) * f64::EPSILON
-}
-
-/// Inflate a non-negative error term by a relative `1e-9` and round up, so that its own
-/// f64 evaluation cannot make it too small.
-fn inflate(e: f64) -> f64 {
-    (e * (1.0 + 1e-9)).next_up()
-}
+use samara_num::round::{gamma, inflate};
 
 /// Symbolic bounds of one layer's neurons.
 #[derive(Clone, Debug)]

@@ -22,21 +22,7 @@ pub struct Interval {
     pub hi: f64,
 }
 
-fn dn(x: f64) -> f64 {
-    if x.is_nan() {
-        f64::NEG_INFINITY
-    } else {
-        x.next_down()
-    }
-}
-
-fn up(x: f64) -> f64 {
-    if x.is_nan() {
-        f64::INFINITY
-    } else {
-        x.next_up()
-    }
-}
+use crate::round::{down as dn, up};
 
 fn dn4(x: f64) -> f64 {
     dn(dn(dn(dn(x))))

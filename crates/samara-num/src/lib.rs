@@ -15,6 +15,7 @@ mod dual;
 mod idual;
 mod interval;
 mod outcome;
+pub mod round;
 mod scalar;
 mod series;
 mod timeout;

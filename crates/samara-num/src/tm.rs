@@ -58,6 +58,7 @@
 #![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
 
 use crate::interval::Interval;
+use crate::round::{down as dn, sum_dn, sum_up, up, UNIT_ROUNDOFF};
 use crate::scalar::{Scalar, Sign};
 use crate::series::Series;
 use std::borrow::Cow;
@@ -70,7 +71,7 @@ use std::rc::Rc;
 use std::sync::{Mutex, OnceLock};
 
 /// Unit roundoff of binary64, round-to-nearest.
-const U: f64 = f64::EPSILON * 0.5;
+const U: f64 = UNIT_ROUNDOFF;
 /// Smallest positive subnormal, `2^-1074`.
 const ETA: f64 = f64::MIN_POSITIVE * f64::EPSILON;
 /// Largest Taylor degree of the elementary-function expansions (the series hold 10 terms).
@@ -113,15 +114,6 @@ impl Hasher for FxHasher {
 
 type FxMap<K, V> = HashMap<K, V, BuildHasherDefault<FxHasher>>;
 
-#[inline(always)]
-fn up(x: f64) -> f64 {
-    if x.is_nan() {
-        f64::INFINITY
-    } else {
-        x.next_up()
-    }
-}
-
 /// Upper bound of the exact sum of `n` non-negative floats from `s`, their float sum
 /// in round-to-nearest, in any order of additions: `|s - exact| <= gamma_{n-1} exact`
 /// (Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed. 2002, (4.4)), so
@@ -153,48 +145,6 @@ fn nonneg_dot_bound(s: f64, n: usize) -> f64 {
         return s;
     }
     nonneg_sum_bound(up(s + n as f64 * ETA), n + 1)
-}
-
-#[inline(always)]
-fn dn(x: f64) -> f64 {
-    if x.is_nan() {
-        f64::NEG_INFINITY
-    } else {
-        x.next_down()
-    }
-}
-
-/// Upper bound of `a + b`: the float sum, raised by one ulp only when TwoSum shows it
-/// is below the exact sum (Knuth's TwoSum is exact in round-to-nearest).
-#[inline(always)]
-fn sum_up(a: f64, b: f64) -> f64 {
-    let s = a + b;
-    if !s.is_finite() {
-        return if s.is_nan() { f64::INFINITY } else { s };
-    }
-    let bb = s - a;
-    let e = (a - (s - bb)) + (b - bb);
-    if e > 0.0 {
-        s.next_up()
-    } else {
-        s
-    }
-}
-
-/// Lower bound of `a + b` (see [`sum_up`]).
-#[inline(always)]
-fn sum_dn(a: f64, b: f64) -> f64 {
-    let s = a + b;
-    if !s.is_finite() {
-        return if s.is_nan() { f64::NEG_INFINITY } else { s };
-    }
-    let bb = s - a;
-    let e = (a - (s - bb)) + (b - bb);
-    if e < 0.0 {
-        s.next_down()
-    } else {
-        s
-    }
 }
 
 /// Interval sum, each end rounded outward only when inexact.

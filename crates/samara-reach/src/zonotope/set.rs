@@ -8,12 +8,8 @@
 
 use samara_num::Interval;
 
-/// Relative widening of a sum of `k` rounded terms: `(k + 2) * 2^-52`, far above the
-/// accumulated rounding error of a length-`k` dot product (Higham, *Accuracy and
-/// Stability*, 3.1).
-pub(crate) fn gamma(k: usize) -> f64 {
-    (k as f64 + 2.0) * f64::EPSILON
-}
+/// Relative widening of a sum of `k` rounded terms (samara-num's one definition).
+pub(crate) use samara_num::round::gamma;
 
 /// `sum |v_i|`, rounded up.
 pub(crate) fn abs_sum_up(v: impl Iterator<Item = f64>) -> f64 {
