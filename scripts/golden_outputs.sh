@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Capture the `--json` outputs, exit codes and written files of the commands whose
-# results issue 38 moves into typed library values, so that a refactoring can be
-# checked byte for byte:
+# Capture the outputs (stdout and stderr, `--json` and human), exit codes and written
+# files of every command, and the messages of refused inputs, so that a refactoring can
+# be checked byte for byte (docs/architecture.md, "Checking a refactoring byte for
+# byte"):
 #
 #   scripts/golden_outputs.sh /tmp/golden-before          # with the old binary
 #   ... change the code, cargo build --release -p samara-cli ...
@@ -14,17 +15,18 @@
 # counterexample on every run.
 #
 # The comparison masks only what differs between any two runs: wall times (the JSON
-# fields `seconds`, `total_seconds`, `elapsed_s` and `wall_seconds` at any depth, the `seconds` column
-# of results CSVs, numbers followed by ` s` or `s` in human text), the shard files'
-# `digest` (their seal, a hash over content that includes the wall times) and the
-# output folder's own path (replaced by <OUT>). Everything else must be identical.
+# fields `elapsed_s` and any ending in `seconds` at any depth, the `seconds` column of
+# results CSVs, the time columns of closed-loop training's rounds log, and numbers
+# followed by ` s` or `s` in human text, with the spaces that pad them), the shard
+# files' `digest` (their seal, a hash over content that includes the wall times) and
+# the output folder's own path (replaced by <OUT>). Everything else must be identical.
 set -euo pipefail
 
 if [[ "${1:-}" == "--compare" ]]; then
     [[ $# -eq 3 ]] || { echo "usage: $0 --compare BEFORE AFTER" >&2; exit 2; }
     exec python3 - "$2" "$3" <<'PY'
 import json, os, re, sys
-KEYS = re.compile(r'("(?:seconds|total_seconds|elapsed_s|wall_seconds|digest)"\s*:\s*)("[^"]*"|[-0-9.eE+]+|null)')
+KEYS = re.compile(r'("(?:[a-z_]*seconds|elapsed_s|digest)"\s*:\s*)("[^"]*"|[-0-9.eE+]+|null)')
 def masked(path, root):
     data = open(path, "rb").read().replace(os.path.abspath(root).encode(), b"<OUT>")
     name = os.path.basename(path)
@@ -37,7 +39,12 @@ def masked(path, root):
     if name.endswith(".csv") and text.startswith("onnx,vnnlib,timeout,result,seconds"):
         lines = [l.split(",") for l in text.splitlines()]
         return "\n".join(",".join(f if i != 4 else "<time>" for i, f in enumerate(l)) for l in lines)
-    return re.sub(r"[0-9.]+(e-?[0-9]+)? ?s\b", "<time> s", text)
+    if name.endswith(".csv") and text.startswith("round,steps,"):
+        # Closed-loop training's rounds log: its last two columns are wall times.
+        lines = [l.split(",") for l in text.splitlines()]
+        return "\n".join(",".join(l[:-2] + ["<time>", "<time>"]) for l in lines)
+    # A time right-aligned in a column: its padding goes with it.
+    return re.sub(r" *[0-9.]+(e-?[0-9]+)? ?s\b", " <time> s", text)
 def files(root):
     out = {}
     for d, _, fs in os.walk(root):
@@ -145,4 +152,52 @@ run train train --data "$OUT/train_data.csv" --epochs 20 --seed 1 --min-r2 0 \
     --out "$OUT/train.onnx" --json
 run train_human train --data "$OUT/train_data.csv" --epochs 5 --seed 2 --min-r2 0 \
     --out "$OUT/train_human.onnx"
+# The human (non --json) forms of the same commands, and the commands whose output is
+# only text or files: check, export-vnnlib, closed-loop training, and refused inputs.
+run check check "$SPEC"
+run verify_human verify "$SPEC" --network "f=$NET"
+for p in p1 p2 p3 p4; do
+    run "critical_human_$p" critical "$SPEC" --network "f=$NET" --property "$p" --param ystar
+done
+run robustness_human robustness --network "$NET" --data "$OUT/robustness_data.csv" \
+    --eps 1e-4,1e-3 --lipschitz 1e-5,1e-3,1e-2
+run robustness_merge_human merge robustness "$OUT/robustness_shard0.json" \
+    "$OUT/robustness_shard1.json"
+run export_vnnlib export-vnnlib "$SPEC" --network "f=$NET" --out "$OUT/vnnlib"
+run verify_vnnlib_human verify-vnnlib --network "$ACAS/ACASXU_run2a_1_2_batch_2000.onnx" \
+    --property "$ACAS/prop_2.vnnlib"
+run verify_vnnlib_unsat verify-vnnlib --network "$ACAS/ACASXU_run2a_1_1_batch_2000.onnx" \
+    --property "$ACAS/prop_1.vnnlib" --json
+run vnncomp_human vnncomp "$OUT/instances.csv" --root "$ACAS" --out "$OUT/vnncomp_human.csv"
+run vnncomp_merge_human merge vnncomp "$OUT/vnncomp_shard0.json" "$OUT/vnncomp_shard1.json" \
+    --out "$OUT/vnncomp_merged_human.csv"
+run reach_human reach --network "$DENORM" --threads 1 --horizon 5 --out "$OUT/reach_human"
+run reach_system_human reach --system examples/archcomp/acc.sys \
+    --network crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx \
+    --threads 1 --out "$OUT/reach_system_human"
+run simulate_system_human simulate --system examples/archcomp/acc.sys \
+    --controller crates/samara-reach/tests/data/archcomp/controller_acc_5_20.onnx \
+    --out "$OUT/simulate_system_human"
+run simulate_net simulate --controller "$DENORM" --y0 2 --horizon 4 --no-plot \
+    --out "$OUT/simulate_net" --json
+run train_dl2 train --data "$OUT/train_data.csv" --epochs 3 --seed 1 --method dl2 \
+    --out "$OUT/train_dl2.onnx" --json
+run train_closed_loop train --data "$OUT/train_data.csv" --method closed-loop --epochs 20 \
+    --seed 1 --min-r2 0 --rounds 1 --steps-per-round 2 --round-leaves 2 --max-leaves 2 \
+    --out "$OUT/train_cl.onnx" --json
+# Refused inputs: the message and exit code 2.
+run err_simulate_constant simulate --controller constant:0.5 --out "$OUT/e1"
+run err_simulate_pid simulate --model reduced --out "$OUT/e2"
+run err_simulate_net simulate --controller "$ACAS/ACASXU_run2a_1_1_batch_2000.onnx" --out "$OUT/e3"
+run err_simulate_integrator simulate --integrator euler --out "$OUT/e4"
+run err_simulate_multiple simulate --horizon 1.2 --period 0.5 --out "$OUT/e5"
+run err_train_method train --data "$OUT/train_data.csv" --method nope --out "$OUT/e6.onnx"
+run err_train_attack train --data "$OUT/train_data.csv" --method adversarial --attack x \
+    --out "$OUT/e7.onnx"
+run err_train_arch train --data "$OUT/train_data.csv" --method dl2 --arch 5,4,1 --out "$OUT/e8.onnx"
+run err_train_log train --data "$OUT/train_data.csv" --out "$OUT/e9.onnx" --log "$OUT/e9.onnx"
+run err_train_margin train --data "$OUT/train_data.csv" --method closed-loop --margin 3 \
+    --out "$OUT/e10.onnx"
+run err_reach_network reach --network "$OUT/missing.onnx" --out "$OUT/e11"
+run err_export_nonempty export-vnnlib "$SPEC" --network "f=$NET" --out "$OUT/vnnlib"
 echo "wrote $OUT" >&2

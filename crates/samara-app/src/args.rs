@@ -509,31 +509,23 @@ impl RobustnessArgs {
     /// and `--form`, checked.
     pub fn validate(&self) -> Result<RobustnessChecked, AppError> {
         let mut notes = Vec::new();
+        use crate::robustness::{bound_ok, parse_form, parse_reference, radius_ok};
         let eps = list(
             &self.eps,
             "eps",
-            |e| e > 0.0 && e <= 1e6,
-            "a radius > 0 and at most 1e6 (in the network's input units)",
+            radius_ok,
+            crate::robustness::RADIUS_ALLOWED,
             &mut notes,
         )?;
         let lipschitz = list(
             &self.lipschitz,
             "lipschitz",
-            |l| l.is_finite() && l >= 0.0,
-            "finite and >= 0",
+            bound_ok,
+            crate::robustness::BOUND_ALLOWED,
             &mut notes,
         )?;
-        let reference = match self.reference.as_str() {
-            "label" => Reference::Label,
-            "network" => Reference::Network,
-            o => return input(format!("--reference {o:?}: choose label or network")),
-        };
-        if !["published", "lipschitz"].contains(&self.form.as_str()) {
-            return input(format!(
-                "--form {:?}: choose published or lipschitz",
-                self.form
-            ));
-        }
+        let reference = parse_reference(crate::Front::Cli, &self.reference)?;
+        parse_form(crate::Front::Cli, &self.form)?;
         Ok(RobustnessChecked {
             eps,
             lipschitz,

@@ -11,7 +11,11 @@
 //! - [`reach`]: reachability results (`reach.json`, summaries, the human lines) and the
 //!   reach shard files with their merge;
 //! - [`shard`]: the shard files of `--shard I/N` runs and their checks;
-//! - [`simulate`], [`train`]: the summaries of simulation and training runs;
+//! - [`simulate`], [`train`]: simulation and training runs (their checks, the runs,
+//!   their files and summaries);
+//! - [`check`], [`export`]: `samara check` (every property lowered) and
+//!   `samara export-vnnlib`; the human lines of verify and critical are methods of
+//!   their results;
 //! - [`python_front`]: the checks and results of the Python package's calls;
 //! - [`vnncomp`]: deciding one VNN-COMP instance with the counterexample re-check and
 //!   downgrade policy, and the competition's result words and files.
@@ -20,7 +24,11 @@
 //! map with sorted keys) is the `--json` document of the CLI.
 
 pub mod args;
+pub mod benchmark;
 pub mod bind;
+pub mod check;
+pub mod export;
+mod human;
 pub mod python_front;
 pub mod reach;
 pub mod robustness;
@@ -85,4 +93,30 @@ pub mod nan_as_null {
     pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
         Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
     }
+}
+
+/// The JSON text of a typed result as the CLI prints it and writes its files: through
+/// `serde_json::Value`, so keys are sorted (the layout every `--json` document and
+/// output file has had), pretty-printed.
+pub fn json_pretty<T: Serialize>(v: &T) -> serde_json::Result<String> {
+    serde_json::to_string_pretty(&serde_json::to_value(v)?)
+}
+
+/// The message of `e` and its causes joined by `: `, skipping a cause whose text the
+/// message already carries (library errors often print their source themselves, as in
+/// `cannot read: No such file or directory (os error 2)`; anyhow's `{:#}` would then
+/// print the OS error twice). The CLI prints its errors so.
+pub fn error_text(e: &anyhow::Error) -> String {
+    let mut msg = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if c.is_empty() || msg.contains(&c) {
+            continue;
+        }
+        if !msg.is_empty() {
+            msg.push_str(": ");
+        }
+        msg.push_str(&c);
+    }
+    msg
 }

@@ -15,13 +15,13 @@
 //! Messages name arguments through [`Front`], so the same checks read `--goal-ystar` on
 //! the command line and `goal_ystar` in Python.
 
-use crate::bind::{check_horizon_period, check_period_count, num, Front, MIN_PERIOD};
-use crate::robustness::{Form, Table};
+use crate::bind::{check_horizon_period, check_period_count, num, Front};
+use crate::robustness::Table;
 use crate::{input, AppError};
 use samara_plant::{Model, STATE_NAMES};
 use samara_reach::system::SystemReach;
 use samara_reach::{Goal, ReachSettings};
-use samara_train::{Attack, Logic, Method, MinMax};
+use samara_train::{Method, MinMax};
 use samara_verify::robustness::{sweep_with, PointBall, Reference};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -31,11 +31,11 @@ type Result<T> = std::result::Result<T, AppError>;
 
 /// Longest control period `samara.reach` takes (the validated integrator takes at
 /// most 400 steps of at most 0.0625 per period).
-pub const REACH_MAX_PERIOD: f64 = 10.0;
+pub const REACH_MAX_PERIOD: f64 = crate::reach::args::MAX_PERIOD;
 /// Most control periods of a `samara.reach` run.
-pub const REACH_MAX_PERIODS: f64 = 10_000.0;
+pub const REACH_MAX_PERIODS: f64 = crate::reach::args::MAX_PERIODS;
 /// Most sub-boxes, and most sampled flights, of a reach run.
-pub const REACH_MAX_COUNT: usize = 100_000;
+pub const REACH_MAX_COUNT: usize = crate::reach::args::MAX_LEAVES;
 
 /// The arguments of a zonotope reach run of the glider (`samara.reach`).
 #[derive(Clone, Debug, Default)]
@@ -74,7 +74,7 @@ impl ReachRequest {
             ));
         };
         let mut s = ReachSettings::published(m);
-        s.init[5] = (0.1 / 0.07, 0.3 / 0.07);
+        s.init[5] = crate::reach::args::Y0_DEFAULT;
         let names = &STATE_NAMES[..m.dim()];
         for (k, &(lo, hi)) in &self.init {
             let Some(i) = names.iter().position(|n| n == k) else {
@@ -93,33 +93,47 @@ impl ReachRequest {
             s.init[i] = (lo, hi);
         }
         let (h, p) = (self.horizon, self.period);
-        check_times(front, h, p, REACH_MAX_PERIOD, REACH_MAX_PERIODS)?;
+        let (hf, pf) = (front.arg("horizon"), front.arg("period"));
+        check_horizon_period(front, h, p)?;
+        if p > REACH_MAX_PERIOD {
+            return input(format!("{pf} {p}: reach takes periods up to {REACH_MAX_PERIOD} (the validated integrator takes at most 400 steps of at most 0.0625 per period, so a longer hold cannot be enclosed); e.g. {}", front.eg("period", "0.5")));
+        }
+        check_period_count(front, h, p, REACH_MAX_PERIODS)?;
+        let k = h / p;
+        if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
+            let n = k.floor().max(1.0);
+            return input(format!(
+                "{hf} {h} is not a positive multiple of {pf} {p}: choose e.g. {} (or another period)",
+                front.eg("horizon", &(n * p).to_string())
+            ));
+        }
         s.horizon = h;
         s.period = p;
         if !self.clip {
             s.clip = None;
         }
+        let (yf, ff) = (front.arg("goal_ystar"), front.arg("goal_from"));
         match (self.goal_ystar, self.goal_from) {
-            (None, Some(_)) => {
+            (None, Some(f)) => {
                 return input(format!(
-                    "{}: needs a goal; pass {} too",
-                    front.arg("goal_from"),
-                    front.arg("goal_ystar")
+                    "{ff} {}: needs a goal; add {} (e.g. {})",
+                    num(f),
+                    front.eg("goal_ystar", "Y"),
+                    front.eg("goal_ystar", "2")
                 ))
             }
             (Some(y), from) => {
                 if !(y.is_finite() && y >= 0.0) {
                     return input(format!(
-                        "{} {}: the band half-width must be a finite number >= 0",
-                        front.arg("goal_ystar"),
-                        num(y)
+                        "{yf} {}: the band half-width must be a finite number >= 0 (e.g. {})",
+                        num(y),
+                        front.eg("goal_ystar", "2")
                     ));
                 }
                 if let Some(f) = from {
                     if !(f.is_finite() && f >= 0.0 && f <= h) {
                         return input(format!(
-                            "{} {}: the window start must lie in [0, horizon = {h}]",
-                            front.arg("goal_from"),
+                            "{ff} {}: the window start must lie in [0, horizon = {h}]",
                             num(f)
                         ));
                     }
@@ -128,19 +142,12 @@ impl ReachRequest {
             }
             (None, None) => {}
         }
-        for (name, v, default, slot) in [
-            ("max_leaves", self.max_leaves, 64, &mut s.max_leaves),
-            ("samples", self.samples, 200, &mut s.samples),
-        ] {
-            if let Some(n) = v {
-                if n == 0 || n > REACH_MAX_COUNT {
-                    return input(format!(
-                        "{} {n}: give 1 to {REACH_MAX_COUNT} (default {default})",
-                        front.arg(name)
-                    ));
-                }
-                *slot = n;
-            }
+        check_budget(front, self.max_leaves, self.samples, s.max_leaves)?;
+        if let Some(n) = self.max_leaves {
+            s.max_leaves = n;
+        }
+        if let Some(n) = self.samples {
+            s.samples = n;
         }
         if let Some(v) = self.seed {
             s.seed = v;
@@ -149,32 +156,35 @@ impl ReachRequest {
     }
 }
 
-/// The horizon and period of a closed-loop run: the library's checks
-/// ([`check_horizon_period`], [`check_period_count`] with at most `max_periods`), a
-/// period of at most `max_period` and a whole number of periods.
-pub fn check_times(
+/// The sub-box budget and the sampled flights of a reach run: at least 1 and at most
+/// [`REACH_MAX_COUNT`] each (`default_leaves`, the run's default budget, is named in the
+/// messages).
+pub fn check_budget(
     front: Front,
-    horizon: f64,
-    period: f64,
-    max_period: f64,
-    max_periods: f64,
+    max_leaves: Option<usize>,
+    samples: Option<usize>,
+    default_leaves: usize,
 ) -> Result<()> {
-    check_horizon_period(front, horizon, period)?;
-    if period > max_period {
-        return input(format!(
-            "{} {period}: the control period must lie in [{MIN_PERIOD}, {max_period}] (e.g. {})",
-            front.arg("period"),
-            front.eg("period", "0.5")
-        ));
+    let (lf, sf) = (front.arg("max_leaves"), front.arg("samples"));
+    if let Some(n) = max_leaves {
+        if n == 0 {
+            return input(format!(
+                "{lf} 0: give at least 1 (default {default_leaves})"
+            ));
+        }
+        if n > REACH_MAX_COUNT {
+            return input(format!("{lf} {n}: at most {REACH_MAX_COUNT} sub-boxes are allowed (each is a full reachability run; the default is {default_leaves})"));
+        }
     }
-    check_period_count(front, horizon, period, max_periods)?;
-    let k = horizon / period;
-    if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
-        return input(format!(
-            "{} {horizon} is not a positive multiple of {} {period}",
-            front.arg("horizon"),
-            front.arg("period")
-        ));
+    if let Some(n) = samples {
+        if n == 0 {
+            return input(format!(
+                "{sf} 0: give at least 1 (default 200); falsification needs trajectories"
+            ));
+        }
+        if n > REACH_MAX_COUNT {
+            return input(format!("{sf} {n}: at most {REACH_MAX_COUNT} trajectories are allowed (each is kept in memory; the default is 200)"));
+        }
     }
     Ok(())
 }
@@ -224,10 +234,10 @@ pub fn check_threads(front: Front, threads: Option<usize>) -> Result<()> {
 }
 
 /// The training method `method` (plain, adversarial, lipschitz, dl2, goedel) with its
-/// options. dl2 and goedel train for P1-P4 as `models/alsomitra/alsomitra.spec` states
-/// them (compiled into samara-train), lowered in the units of the network being
-/// trained (`mm`) over the box of `data`, with `ystar` bound: what `samara train` does
-/// without `--spec`.
+/// options: [`crate::train::method`], the check `samara train` makes. dl2 and goedel
+/// train for P1-P4 as `models/alsomitra/alsomitra.spec` states them (compiled into
+/// samara-train), lowered in the units of the network being trained (`mm`) over the box
+/// of `data`, with `ystar` bound: what `samara train` does without `--spec`.
 #[allow(clippy::too_many_arguments)]
 pub fn train_method(
     front: Front,
@@ -240,61 +250,17 @@ pub fn train_method(
     mm: &MinMax,
     arch: &[usize],
 ) -> Result<Method> {
-    Ok(match method {
-        "plain" => Method::Plain,
-        "adversarial" => Method::Adversarial(match attack {
-            "fgsm" => Attack::Fgsm,
-            "pgd" => Attack::Pgd { steps: 10 },
-            other => {
-                return input(format!(
-                    "{} {other:?}: choose fgsm or pgd",
-                    front.arg("attack")
-                ))
-            }
-        }),
-        "lipschitz" => Method::Lipschitz {
-            l: lipschitz,
-            weight: weight.unwrap_or(10.0),
-        },
-        "dl2" | "goedel" => {
-            if data.cols != 7 || arch.first() != Some(&6) {
-                return input(format!(
-                    "{} {method:?}: the built-in properties P1-P4 need the case study's 6 inputs and 1 output",
-                    front.arg("method")
-                ));
-            }
-            let spec = samara_train::case_study_spec();
-            let mut b = samara_spec::Bindings::default();
-            b.params.insert("ystar".into(), ystar);
-            let names: Vec<String> = spec
-                .properties
-                .iter()
-                .filter(|p| p.binders.is_empty())
-                .map(|p| p.name.clone())
-                .collect();
-            let data_mm = MinMax::of(data);
-            let domain: Vec<(f64, f64)> = (0..6)
-                .map(|j| (data_mm.min[j], data_mm.min[j] + data_mm.range[j]))
-                .collect();
-            let props = samara_train::spec_properties(&spec, &names, &b, mm, Some(domain))
-                .map_err(|e| AppError::Input(e.to_string()))?;
-            Method::Properties {
-                logic: if method == "dl2" {
-                    Logic::Dl2
-                } else {
-                    Logic::Goedel
-                },
-                props,
-                weight: weight.unwrap_or(1.0),
-            }
-        }
-        other => {
-            return input(format!(
-                "{} {other:?}: choose plain, adversarial, lipschitz, dl2 or goedel (closed-loop: use the CLI)",
-                front.arg("method")
-            ))
-        }
-    })
+    let arch_text = format!("{arch:?}");
+    let r = crate::train::MethodRequest {
+        method,
+        attack,
+        lipschitz,
+        weight,
+        ystar,
+        arch_text: &arch_text,
+        ..Default::default()
+    };
+    crate::train::method(front, &r, data, mm, arch)
 }
 
 /// The least held-out R^2 a training run of method `m` must reach unless told
@@ -302,7 +268,7 @@ pub fn train_method(
 /// adversarial), 0 for the methods that trade accuracy for a property.
 pub fn default_min_r2(m: &Method) -> f64 {
     match m {
-        Method::Plain | Method::Adversarial(_) => 0.9,
+        Method::Plain | Method::Adversarial(_) => crate::train::DEFAULT_MIN_R2,
         _ => 0.0,
     }
 }
@@ -470,10 +436,11 @@ pub fn robustness(
         return input(format!("{d}: {} values for {n} rows of {cols}", data.len()));
     }
     let mut es: Vec<f64> = Vec::new();
+    use crate::robustness::{bound_ok, radius_ok, BOUND_ALLOWED, RADIUS_ALLOWED};
     for &e in eps {
-        if !(e > 0.0 && e <= 1e6) {
+        if !radius_ok(e) {
             return input(format!(
-                "{} {e}: out of range; each value must be a radius > 0 and at most 1e6 (in the network's input units)",
+                "{} {e}: out of range; each value must be {RADIUS_ALLOWED}",
                 front.arg("eps")
             ));
         }
@@ -483,9 +450,9 @@ pub fn robustness(
     }
     let mut ls: Vec<f64> = Vec::new();
     for &l in lipschitz {
-        if !(l.is_finite() && l >= 0.0) {
+        if !bound_ok(l) {
             return input(format!(
-                "{} {l}: out of range; each value must be finite and >= 0",
+                "{} {l}: out of range; each value must be {BOUND_ALLOWED}",
                 front.arg("lipschitz")
             ));
         }
@@ -493,22 +460,8 @@ pub fn robustness(
             ls.push(l);
         }
     }
-    let reference = match reference {
-        "label" => Reference::Label,
-        "network" => Reference::Network,
-        o => {
-            return input(format!(
-                "{} {o:?}: choose label or network",
-                front.arg("reference")
-            ))
-        }
-    };
-    let Some(form) = Form::parse(form) else {
-        return input(format!(
-            "{} {form:?}: choose published or lipschitz",
-            front.arg("form")
-        ));
-    };
+    let reference = crate::robustness::parse_reference(front, reference)?;
+    let form = crate::robustness::parse_form(front, form)?;
     let ni = net.n_inputs();
     let used = if reference == Reference::Label {
         ni + 1
@@ -643,16 +596,7 @@ impl SystemRequest {
     ) -> Result<SystemPlan> {
         use samara_reach::system::{end_band_measures, NetworkError, SystemReachSettings};
         let a = |n: &str| front.arg(n);
-        if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
-            return input(format!(
-                "{}: {} inputs and {} outputs; the system {file} observes {} values and reads {} network outputs: pass the controller made for it",
-                a("network"),
-                net.n_inputs(),
-                net.n_outputs(),
-                sys.n_observed(),
-                sys.n_net_outputs
-            ));
-        }
+        crate::reach::args::check_fits(&a("network"), net, sys, file)?;
         let order = self.order;
         if !(1..=8).contains(&order) {
             return input(format!(
@@ -674,11 +618,12 @@ impl SystemRequest {
                 a("lift_at")
             ));
         }
-        for (name, n) in [("max_leaves", self.max_leaves), ("samples", self.samples)] {
-            if !(1..=REACH_MAX_COUNT).contains(&n) {
-                return input(format!("{} {n}: give 1 to {REACH_MAX_COUNT}", a(name)));
-            }
-        }
+        check_budget(
+            front,
+            Some(self.max_leaves),
+            Some(self.samples),
+            SystemReachSettings::default().max_boxes,
+        )?;
         if let Some(t) = self.timeout {
             if !(t.is_finite() && t > 0.0) {
                 return input(format!(
@@ -837,55 +782,26 @@ pub struct SimulatePlan {
 impl SimulateRequest {
     /// Check the arguments (most periods: `max_periods`).
     pub fn plan(self, front: Front, max_periods: f64) -> Result<SimulatePlan> {
-        use samara_plant::{Plant, EX_RANGE};
-        use samara_sim::{
-            published_starts, ConstantController, Integrator, LoopSettings, NetworkController,
-            PidController,
+        use samara_plant::Plant;
+        let (model, settings) = crate::simulate::glider_loop(
+            front,
+            &self.model,
+            &self.integrator,
+            self.horizon,
+            self.period,
+            max_periods,
+        )?;
+        let controller = match &self.controller {
+            ControllerRequest::Pid | ControllerRequest::Network { .. } => front.arg("controller"),
+            ControllerRequest::Constant(_) => format!("{} constant", front.arg("controller")),
         };
-        let Some(model) = Model::from_name(&self.model) else {
-            return input(format!(
-                "{} {:?}: unknown model; choose one of plate6, reduced, full",
-                front.arg("model"),
-                self.model
-            ));
-        };
-        let Some(integrator) = Integrator::from_name(&self.integrator) else {
-            return input(format!(
-                "{} {:?}: unknown integrator; choose ode45, tight, dp5 or rk4",
-                front.arg("integrator"),
-                self.integrator
-            ));
-        };
-        let (h, p) = (self.horizon, self.period);
-        check_times(front, h, p, crate::bind::MAX_PERIOD, max_periods)?;
-        let controller: Box<dyn samara_sim::Controller + Send> = match self.controller {
-            ControllerRequest::Pid => {
-                if !model.has_filter() {
-                    return input(format!(
-                        "{} 'pid' needs the filter state E, which model `reduced` does not have; use {} or 'full', or another controller",
-                        front.arg("controller"),
-                        front.eg("model", "'plate6'")
-                    ));
-                }
-                Box::new(PidController::default())
-            }
-            ControllerRequest::Constant(ex) => {
-                if !(EX_RANGE.0..=EX_RANGE.1).contains(&ex) {
-                    return input(format!(
-                        "{} constant ex = {ex} is outside the allowed range [{}, {}]; choose a value inside it",
-                        front.arg("controller"),
-                        EX_RANGE.0,
-                        EX_RANGE.1
-                    ));
-                }
-                Box::new(ConstantController(ex))
-            }
-            ControllerRequest::Network { net, clip } => {
-                let net = glider_controller(&front.arg("controller"), &net)?;
-                let c = if clip { Some(EX_RANGE) } else { None };
-                Box::new(NetworkController::new(net, c, "network"))
-            }
-        };
+        let controller = crate::simulate::glider_controller(
+            front,
+            self.controller,
+            model,
+            &controller,
+            "network",
+        )?;
         let starts = match self.y0 {
             Some(v) => {
                 if v.is_empty() || v.len() > 100_000 {
@@ -903,24 +819,8 @@ impl SimulateRequest {
                 }
                 v
             }
-            None => published_starts(),
+            None => samara_sim::published_starts(),
         };
-        // Dense output every 0.01 when it divides the period, else 50 points a period.
-        let output_step = if (p / 0.01 - (p / 0.01).round()).abs() < 1e-9 {
-            Some(0.01)
-        } else {
-            Some(p / 50.0)
-        };
-        let settings = LoopSettings {
-            period: p,
-            horizon: h,
-            integrator,
-            reset_filter: true,
-            output_step,
-        };
-        settings
-            .steps()
-            .map_err(|e| AppError::Input(front.words(&e.to_string())))?;
         Ok(SimulatePlan {
             plant: Plant::new(model),
             controller,
@@ -1039,8 +939,14 @@ mod tests {
         };
         let py = r.settings(Front::Python).unwrap_err().to_string();
         let cli = r.settings(Front::Cli).unwrap_err().to_string();
-        assert_eq!(py, "goal_from: needs a goal; pass goal_ystar too");
-        assert_eq!(cli, "--goal-from: needs a goal; pass --goal-ystar too");
+        assert_eq!(
+            py,
+            "goal_from 1: needs a goal; add goal_ystar=Y (e.g. goal_ystar=2)"
+        );
+        assert_eq!(
+            cli,
+            "--goal-from 1: needs a goal; add --goal-ystar Y (e.g. --goal-ystar 2)"
+        );
         let r = ReachRequest {
             horizon: 1.2,
             ..request()
@@ -1055,7 +961,10 @@ mod tests {
             ..request()
         };
         let m = r.settings(Front::Python).unwrap_err().to_string();
-        assert!(m.starts_with("max_leaves 0: give 1 to 100000"), "{m}");
+        assert!(
+            m.starts_with("max_leaves 0: give at least 1 (default 64)"),
+            "{m}"
+        );
     }
 
     #[test]

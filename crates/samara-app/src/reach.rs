@@ -11,6 +11,7 @@
 
 pub mod adaptive;
 pub mod args;
+pub mod glider;
 pub mod system;
 
 use crate::shard::{pair, unpair, Exact, ExactPair, Shard};

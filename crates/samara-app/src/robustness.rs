@@ -112,6 +112,50 @@ impl Table {
     }
 }
 
+/// A radius of a robustness sweep: greater than 0 and at most 1e6.
+pub fn radius_ok(e: f64) -> bool {
+    e > 0.0 && e <= 1e6
+}
+
+/// What [`radius_ok`] allows, for messages.
+pub const RADIUS_ALLOWED: &str = "a radius > 0 and at most 1e6 (in the network's input units)";
+
+/// A Lipschitz bound of a robustness table: finite and at least 0.
+pub fn bound_ok(l: f64) -> bool {
+    l.is_finite() && l >= 0.0
+}
+
+/// What [`bound_ok`] allows, for messages.
+pub const BOUND_ALLOWED: &str = "finite and >= 0";
+
+/// The reference of the published form, by name (`label` or `network`); the message
+/// names the argument in `front`'s words.
+pub fn parse_reference(
+    front: crate::Front,
+    s: &str,
+) -> Result<samara_verify::robustness::Reference, AppError> {
+    use samara_verify::robustness::Reference;
+    match s {
+        "label" => Ok(Reference::Label),
+        "network" => Ok(Reference::Network),
+        o => input(format!(
+            "{} {o:?}: choose label or network",
+            front.arg("reference")
+        )),
+    }
+}
+
+/// The form of the robustness property, by name (`published` or `lipschitz`).
+pub fn parse_form(front: crate::Front, s: &str) -> Result<Form, AppError> {
+    match Form::parse(s) {
+        Some(f) => Ok(f),
+        None => input(format!(
+            "{} {s:?}: choose published or lipschitz",
+            front.arg("form")
+        )),
+    }
+}
+
 /// `run` of a robustness shard: the inputs' digests and the settings every shard of one
 /// sweep shares, numbers as exact text.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -344,4 +388,199 @@ pub fn points_csv(points: &[samara_verify::robustness::PointBall]) -> String {
         ));
     }
     csv
+}
+
+/// A finished robustness sweep (one process, or merged shards), to be reported.
+#[derive(Clone, Copy, Debug)]
+pub struct Sweep<'a> {
+    /// `--form`.
+    pub form: &'a str,
+    /// The radii.
+    pub eps: &'a [f64],
+    /// The bounds L.
+    pub ls: &'a [f64],
+    /// Rows of the data set.
+    pub n_rows: usize,
+    /// Wall time.
+    pub secs: f64,
+    /// Every (row, radius).
+    pub points: &'a [PointBall],
+    /// The per-point CSV to write, if any.
+    pub out: Option<&'a std::path::Path>,
+}
+
+/// The robustness table (`--json`) and its human form.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SweepReport {
+    /// The table.
+    pub table: Table,
+    /// The table as text: the success rate per radius (rows) and bound (columns).
+    pub human: String,
+}
+
+/// Tabulate a finished sweep and write its per-point CSV (`w.out`).
+pub fn report(w: &Sweep) -> anyhow::Result<SweepReport> {
+    use std::fmt::Write as _;
+    let form = Form::parse(w.form).ok_or_else(|| {
+        anyhow::anyhow!(
+            "form {:?}: not a robustness form (published or lipschitz)",
+            w.form
+        )
+    })?;
+    let t = Table::of(form, w.eps, w.ls, w.n_rows, w.secs, w.points);
+    if let Some(p) = w.out {
+        samara_report::write_atomic(p, points_csv(w.points).as_bytes())
+            .map_err(|e| anyhow::anyhow!("--out {}: {e}", p.display()))?;
+    }
+    let mut h = format!(
+        "{} form, {} points, {:.3} s; success rate (rows eps, columns L):\n{:>10}",
+        w.form, w.n_rows, w.secs, "eps \\ L"
+    );
+    for l in w.ls {
+        let _ = write!(h, "{l:>10.0e}");
+    }
+    h.push('\n');
+    for (e, row) in w.eps.iter().zip(&t.table) {
+        let _ = write!(h, "{e:>10.0e}");
+        for c in row {
+            let _ = write!(h, "{:>9.1}%", 100.0 * c.success_rate);
+        }
+        h.push('\n');
+    }
+    if t.any_unknown() {
+        h.push_str("(some points are unknown, neither proved nor violated: see --json)\n");
+    }
+    Ok(SweepReport { table: t, human: h })
+}
+
+/// What `samara robustness` gives back.
+#[derive(Clone, Debug)]
+pub enum SweepDone {
+    /// `--shard I/N`: the shard file was written; its `--json` line and human line.
+    Shard {
+        /// The `--json` line.
+        line: SweepShardLine,
+        /// The human line.
+        human: String,
+    },
+    /// The whole sweep, tabulated (its per-point CSV written with `--out`).
+    Table(SweepReport),
+}
+
+/// Run `samara robustness` with the verifier's `settings` until `deadline`: check the
+/// flags (each note to `on_note`), load the network and the data, sweep this shard's
+/// rows (all without `--shard`), then write the shard file or tabulate.
+pub fn run(
+    a: &crate::args::RobustnessArgs,
+    settings: &samara_verify::Settings,
+    deadline: Option<std::time::Instant>,
+    mut on_note: impl FnMut(&str),
+) -> anyhow::Result<SweepDone> {
+    if a.shard.is_some() && a.out.is_none() {
+        anyhow::bail!(
+            "--shard needs --out FILE (the shard's partial result, for `samara merge robustness`)"
+        );
+    }
+    if let Some(o) = &a.out {
+        samara_report::guard::check_output_file(
+            "--out",
+            o,
+            &[("--data", &a.data), ("--network", &a.network)],
+        )?;
+    }
+    let checked = a.validate()?;
+    for n in &checked.notes {
+        on_note(n);
+    }
+    let (eps, ls, reference) = (checked.eps, checked.lipschitz, checked.reference);
+    let net = crate::bind::load_network(&a.network, "--network")?;
+    let t = crate::bind::read_data(&a.data, "--data")?;
+    let rows = a.data_rows(net.n_inputs(), &t, reference)?;
+    let t0 = std::time::Instant::now();
+    let range = a.shard.map_or(0..rows.len(), |s| s.range(rows.len()));
+    let mut points = samara_verify::robustness::sweep_until(
+        &net,
+        &rows[range.clone()],
+        &eps,
+        reference,
+        None,
+        settings,
+        deadline,
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    for p in &mut points {
+        p.index += range.start;
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    let (Some(s), Some(out)) = (a.shard, &a.out) else {
+        return Ok(SweepDone::Table(report(&Sweep {
+            form: &a.form,
+            eps: &eps,
+            ls: &ls,
+            n_rows: rows.len(),
+            secs,
+            points: &points,
+            out: a.out.as_deref(),
+        })?));
+    };
+    let run = SweepRun {
+        inputs: crate::shard::digest_inputs([
+            (
+                "--network".to_string(),
+                a.network.as_path(),
+                "--network".to_string(),
+            ),
+            ("--data".to_string(), a.data.as_path(), "--data".to_string()),
+        ])?,
+        points: rows.len(),
+        eps: eps.iter().map(|e| Exact(*e)).collect(),
+        lipschitz: ls.iter().map(|l| Exact(*l)).collect(),
+        reference: a.reference.clone(),
+        form: a.form.clone(),
+        timeout: Exact(a.timeout),
+        max_nodes: a.max_nodes,
+    };
+    let result = SweepShard {
+        rows: (range.start, range.end),
+        seconds: secs,
+        points: points.iter().map(PointText::from).collect(),
+    };
+    crate::shard::write(out, "robustness", s, &run, &result)?;
+    Ok(SweepDone::Shard {
+        line: SweepShardLine {
+            shard: (s.i, s.n),
+            rows: (range.start, range.end),
+            out: out.clone(),
+        },
+        human: format!(
+            "shard {}/{}: rows {}..{} of {} ({} points x {} radii), {secs:.3} s; partial result in {} (merge with `samara merge robustness`)",
+            s.i,
+            s.n,
+            range.start,
+            range.end,
+            rows.len(),
+            range.len(),
+            eps.len(),
+            out.display()
+        ),
+    })
+}
+
+/// `samara merge robustness`: the shards' points in order ([`merge_sweep`]), reported as
+/// one process reports them (the per-point CSV written to `out`).
+pub fn merge(
+    shards: &crate::shard::Shards,
+    out: Option<&std::path::Path>,
+) -> anyhow::Result<SweepReport> {
+    let run: SweepRun = shards.run_as()?;
+    let m = merge_sweep(&run, &shards.results_as::<SweepShard>()?)?;
+    report(&Sweep {
+        form: &m.form,
+        eps: &m.eps,
+        ls: &m.ls,
+        n_rows: m.n_rows,
+        secs: m.seconds,
+        points: &m.points,
+        out,
+    })
 }

@@ -189,6 +189,19 @@ pub fn document(
     Ok(serde_json::to_string_pretty(&doc).expect("a JSON value prints"))
 }
 
+/// Write the shard file `out` of `kind` ([`document`]); a write error names `--out`.
+pub fn write(
+    out: &Path,
+    kind: &str,
+    shard: Shard,
+    run: &impl Serialize,
+    result: &impl Serialize,
+) -> anyhow::Result<()> {
+    let text = document(kind, shard, run, result)?;
+    samara_report::write_atomic(out, text.as_bytes())
+        .map_err(|e| anyhow::anyhow!("--out {}: {e}", out.display()))
+}
+
 /// The digests of the files a run reads, keyed by how the run names them (a path
 /// relative to the run's root, or a flag; `(name, path, flag for messages)`): `run.inputs`
 /// of the shard files. A file is read once however many instances use it.

@@ -169,6 +169,98 @@ fn parse_y0_values(s: &str, bad: &dyn Fn() -> AppError) -> Result<Vec<f64>, AppE
     }
 }
 
+/// The plant variant and the sample-and-hold loop of a glider simulation (`samara
+/// simulate`, `samara.simulate`): the model and integrator by name, the horizon and period
+/// (at most `max_periods` periods, a whole number of them), and dense output every 0.01
+/// when it divides the period, else 50 points a period.
+pub fn glider_loop(
+    front: Front,
+    model: &str,
+    integrator: &str,
+    horizon: f64,
+    period: f64,
+    max_periods: f64,
+) -> Result<(Model, LoopSettings), AppError> {
+    let Some(m) = Model::from_name(model) else {
+        return input(format!(
+            "{} {model:?}: unknown model; choose one of plate6, reduced, full",
+            front.arg("model")
+        ));
+    };
+    let Some(integrator) = Integrator::from_name(integrator) else {
+        return input(format!(
+            "{} {integrator:?}: unknown integrator; choose ode45, dop853 (or tight), dp5 or rk4",
+            front.arg("integrator")
+        ));
+    };
+    check_horizon_period(front, horizon, period)?;
+    check_period_count(front, horizon, period, max_periods)?;
+    let output_step = if (period / 0.01 - (period / 0.01).round()).abs() < 1e-9 {
+        Some(0.01)
+    } else {
+        Some(period / 50.0)
+    };
+    let settings = LoopSettings {
+        period,
+        horizon,
+        integrator,
+        reset_filter: true,
+        output_step,
+    };
+    settings
+        .steps()
+        .map_err(|e| AppError::Input(front.words(&e.to_string())))?;
+    Ok((m, settings))
+}
+
+/// The controller of a glider simulation for model `model`, checked: the PID needs the
+/// filter state, a constant must lie in the actuator's range, a network must have the
+/// glider's 6 raw inputs and 1 output ([`crate::python_front::glider_controller`]).
+/// `label` names the controller in messages (`--controller "constant:0.5":`, a file, or
+/// `controller`), `name` the network in figures.
+pub fn glider_controller(
+    front: Front,
+    c: crate::python_front::ControllerRequest,
+    model: Model,
+    label: &str,
+    name: &str,
+) -> Result<Box<dyn samara_sim::Controller + Send>, AppError> {
+    use crate::python_front::ControllerRequest as C;
+    use samara_plant::EX_RANGE;
+    use samara_sim::{ConstantController, NetworkController, PidController};
+    let q = |s: &str| match front {
+        Front::Cli => s.to_string(),
+        Front::Python => format!("'{s}'"),
+    };
+    Ok(match c {
+        C::Pid => {
+            if !model.has_filter() {
+                return input(format!(
+                    "{label} {} needs the filter state E, which model `reduced` does not have; use {} or {}, or another controller",
+                    q("pid"),
+                    front.eg("model", &q("plate6")),
+                    q("full")
+                ));
+            }
+            Box::new(PidController::default())
+        }
+        C::Constant(ex) => {
+            if !(EX_RANGE.0..=EX_RANGE.1).contains(&ex) {
+                return input(format!(
+                    "{label} ex = {ex} is outside the allowed range [{}, {}]; choose a value inside it",
+                    EX_RANGE.0, EX_RANGE.1
+                ));
+            }
+            Box::new(ConstantController(ex))
+        }
+        C::Network { net, clip } => {
+            let net = crate::python_front::glider_controller(label, &net)?;
+            let c = if clip { Some(EX_RANGE) } else { None };
+            Box::new(NetworkController::new(net, c, name))
+        }
+    })
+}
+
 /// The checked inputs of a `samara simulate` run of the built-in glider.
 #[derive(Clone, Debug)]
 pub struct SimPlan {
@@ -185,35 +277,15 @@ impl SimulateArgs {
     /// `--integrator`, `--horizon`, `--period`, `--y0`), every limit checked.
     pub fn plan(&self) -> Result<SimPlan, AppError> {
         let a = self;
-        let model = Model::from_name(&a.model).ok_or_else(|| {
-            AppError::Input(format!(
-                "--model {:?}: unknown model; choose one of plate6, reduced, full",
-                a.model
-            ))
-        })?;
-        let integrator = Integrator::from_name(&a.integrator).ok_or_else(|| {
-            AppError::Input(format!(
-            "--integrator {:?}: unknown integrator; choose ode45, dop853 (or tight), dp5 or rk4",
-            a.integrator
-        ))
-        })?;
-        check_horizon_period(Front::Cli, a.horizon, a.period)?;
-        check_period_count(Front::Cli, a.horizon, a.period, limits::MAX_PERIODS)?;
-        let output_step = if (a.period / 0.01 - (a.period / 0.01).round()).abs() < 1e-9 {
-            Some(0.01)
-        } else {
-            Some(a.period / 50.0)
-        };
-        let settings = LoopSettings {
-            period: a.period,
-            horizon: a.horizon,
-            integrator,
-            reset_filter: true,
-            output_step,
-        };
-        settings
-            .steps()
-            .map_err(|e| AppError::Input(e.to_string()))?;
+        let (model, settings) = glider_loop(
+            Front::Cli,
+            &a.model,
+            &a.integrator,
+            a.horizon,
+            a.period,
+            limits::MAX_PERIODS,
+        )?;
+        let output_step = settings.output_step;
         let starts = match &a.y0 {
             Some(s) => parse_y0(s)?,
             None => published_starts(),
@@ -266,5 +338,333 @@ impl SimulateArgs {
         ));
         }
         Ok(())
+    }
+}
+
+/// The files a built-in glider run writes into `--out`.
+pub const WRITES: [&str; 5] = [
+    "trajectories.csv",
+    "training_data.csv",
+    "normalisation.csv",
+    "trajectories.png",
+    "trajectories.svg",
+];
+
+impl SimulateArgs {
+    /// A built-in glider run, checked ([`SimulateArgs::plan`], then `--controller`: `pid`,
+    /// `constant:EX` or a network file, never under a name the run writes into
+    /// `--out`), with the warnings on a network in the wrong units
+    /// (`samara_reach::settings::units_warning`, the check `samara reach` makes).
+    pub fn prepare(&self) -> anyhow::Result<(crate::python_front::SimulatePlan, Vec<String>)> {
+        use crate::python_front::ControllerRequest as C;
+        use anyhow::{bail, Context};
+        use samara_plant::EX_RANGE;
+        let a = self;
+        let p = a.plan()?;
+        let spec = a.controller.as_str();
+        let mut label = "--controller".to_string();
+        let mut name = String::new();
+        let mut warnings = Vec::new();
+        let request = if spec == "pid" {
+            C::Pid
+        } else if let Some(v) = spec.strip_prefix("constant:") {
+            let ex: f64 = v.trim().parse().map_err(|_| {
+                anyhow::anyhow!(
+                    "--controller {spec:?}: {v:?} is not a number; use e.g. constant:0.187"
+                )
+            })?;
+            label = format!("--controller {spec:?}:");
+            C::Constant(ex)
+        } else {
+            let path = std::path::Path::new(spec);
+            // Never write over the controller file (an input), before anything is computed.
+            samara_report::guard::check_output_dir(
+                "--out",
+                &a.out,
+                &WRITES,
+                &[("--controller", path)],
+            )?;
+            if path.extension().and_then(|e| e.to_str()) != Some("onnx") && !path.exists() {
+                bail!("--controller {spec:?}: expected `pid`, `constant:EX` or the path of an .onnx network");
+            }
+            if !path.exists() {
+                bail!(
+                    "--controller {}: no such file; give the path of an .onnx network",
+                    path.display()
+                );
+            }
+            let net = samara_nn::load(path).with_context(|| {
+                format!(
+                    "--controller {}: cannot load the network; give an ONNX file samara can read",
+                    path.display()
+                )
+            })?;
+            label = path.display().to_string();
+            name = path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "network".into());
+            if net.n_inputs() == 6 && net.n_outputs() == 1 {
+                let plant = samara_plant::Plant::new(p.model);
+                let starts: Vec<Vec<f64>> = p
+                    .starts
+                    .iter()
+                    .map(|&y0| samara_sim::initial_state(&plant, y0))
+                    .collect();
+                warnings.extend(
+                    samara_reach::settings::units_warning(&net, &starts, EX_RANGE)
+                        .map(|w| format!("--controller {}: {w}", a.controller)),
+                );
+            }
+            C::Network {
+                net,
+                clip: !a.no_clip,
+            }
+        };
+        let controller = glider_controller(Front::Cli, request, p.model, &label, &name)?;
+        let plan = crate::python_front::SimulatePlan {
+            plant: samara_plant::Plant::new(p.model),
+            controller,
+            settings: p.settings,
+            starts: p.starts,
+        };
+        Ok((plan, warnings))
+    }
+}
+
+/// Write a built-in glider run's data into `out`: `trajectories.csv` (every start's
+/// dense output), the training data set and its normalisation constants.
+pub fn write_data(out: &std::path::Path, dim: usize, flights: &[Flight]) -> anyhow::Result<()> {
+    use samara_report::write_atomic;
+    use samara_sim::dataset::{normalisation_csv, training_csv};
+    use std::fmt::Write as _;
+    let mut traj = format!("start,y0,t,{},ex\n", STATE_NAMES[..dim].join(","));
+    for (i, f) in flights.iter().enumerate() {
+        for (t, s, ex) in f.dense.iter() {
+            let _ = write!(traj, "{},{:?},{:?}", i + 1, f.initial[5], t);
+            for v in s {
+                let _ = write!(traj, ",{v:?}");
+            }
+            let _ = writeln!(traj, ",{ex:?}");
+        }
+    }
+    write_atomic(&out.join("trajectories.csv"), traj.as_bytes())?;
+    let rows = samara_sim::training_rows(flights);
+    write_atomic(
+        &out.join("training_data.csv"),
+        training_csv(&rows).as_bytes(),
+    )?;
+    let (lo, range) = samara_sim::minmax(&rows);
+    write_atomic(
+        &out.join("normalisation.csv"),
+        normalisation_csv(&lo, &range).as_bytes(),
+    )?;
+    Ok(())
+}
+
+impl SimulateSummary {
+    /// The `--json` summary of a built-in glider run of `a` that flew `flights` in
+    /// `wall` seconds.
+    pub fn of(
+        a: &SimulateArgs,
+        model: Model,
+        settings: &LoopSettings,
+        flights: &[Flight],
+        wall: f64,
+        warnings: Vec<String>,
+    ) -> Self {
+        SimulateSummary {
+            model: model.name().to_string(),
+            controller: a.controller.clone(),
+            integrator: a.integrator.clone(),
+            period: settings.period,
+            horizon: settings.horizon,
+            starts: flights
+                .iter()
+                .map(|f| StartSummary::of(f, model.dim()))
+                .collect(),
+            wall_seconds: wall,
+            out: a.out.display().to_string(),
+            warnings,
+        }
+    }
+}
+
+/// A finished `samara simulate --system` run: its trajectories written.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SystemSimDone {
+    /// The `--json` summary.
+    pub summary: SystemSimSummary,
+    /// The human lines (stdout).
+    pub human: Vec<String>,
+}
+
+/// Run `samara simulate --system FILE`: fly the system under the network
+/// `--controller` from `--samples` starts (the initial box's lower and upper corners,
+/// its centre, then seeded uniform samples), write `trajectories.csv` and check the
+/// file's goals along every flight.
+pub fn run_system(a: &SimulateArgs, path: &std::path::Path) -> anyhow::Result<SystemSimDone> {
+    use anyhow::{anyhow, bail, Context};
+    use rand::{Rng, SeedableRng};
+    a.check_system_flags()?;
+    let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
+    if a.controller == "pid" || a.controller.starts_with("constant:") {
+        bail!("--system needs a network controller: --controller NET.onnx (inputs: the file's `observe` list, outputs: its net[i])");
+    }
+    let net_path = std::path::Path::new(&a.controller);
+    let net = samara_nn::load(net_path)
+        .with_context(|| format!("--controller {}", net_path.display()))?;
+    crate::reach::args::check_fits(
+        &format!("--controller {}", net_path.display()),
+        &net,
+        &sys,
+        &path.display().to_string(),
+    )?;
+    a.check_system_rows(&sys)?;
+    samara_report::guard::check_output_dir(
+        "--out",
+        &a.out,
+        &["trajectories.csv"],
+        &[("--system", path), ("--controller", net_path)],
+    )?;
+    let out = samara_report::guard::OutDir::prepare(&a.out)?;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0);
+    let starts: Vec<Vec<f64>> = (0..a.samples)
+        .map(|k| {
+            sys.init
+                .iter()
+                .map(|&(lo, hi)| match k {
+                    0 => lo,
+                    1 => hi,
+                    2 => 0.5 * (lo + hi),
+                    _ if lo < hi => rng.gen_range(lo..=hi),
+                    _ => lo,
+                })
+                .collect()
+        })
+        .collect();
+    let t0 = std::time::Instant::now();
+    let eval = |o: &[f64]| net.eval_f64(o);
+    let mut csv = String::from("start,t");
+    for n in sys.states.iter().chain(&sys.inputs) {
+        csv.push(',');
+        csv.push_str(n);
+    }
+    csv.push('\n');
+    let mut violations = Vec::new();
+    for (k, x0) in starts.iter().enumerate() {
+        let f = samara_system::sim::fly(&sys, &eval, x0, 10)
+            .map_err(|e| anyhow!("{}: start {k} {x0:?}: {e}", path.display()))?;
+        for ((t, x), u) in f.t.iter().zip(&f.states).zip(&f.inputs) {
+            csv.push_str(&format!("{k},{}", samara_report::fmt_f64(*t)));
+            for v in x.iter().chain(u) {
+                csv.push(',');
+                csv.push_str(&samara_report::fmt_f64(*v));
+            }
+            csv.push('\n');
+        }
+        let holds = samara_system::sim::goals_hold(&sys, &f);
+        for (g, ok) in sys.goals.iter().zip(holds) {
+            if !ok {
+                violations.push(GoalViolation {
+                    start: k,
+                    initial: x0.clone(),
+                    goal: g.text.clone(),
+                });
+            }
+        }
+    }
+    samara_report::write_atomic(&a.out.join("trajectories.csv"), csv.as_bytes())?;
+    out.keep();
+    let wall = t0.elapsed().as_secs_f64();
+    let mut human = vec![format!(
+        "{}: {} flights, {} goal violations ({wall:.2} s); trajectories in {}",
+        path.display(),
+        starts.len(),
+        violations.len(),
+        a.out.join("trajectories.csv").display()
+    )];
+    if let Some(v) = violations.first() {
+        human.push(format!("first violation: {}", serde_json::to_value(v)?));
+    }
+    Ok(SystemSimDone {
+        summary: SystemSimSummary {
+            system: sys.name.clone(),
+            starts: starts.len(),
+            goals: sys.goals.iter().map(|g| g.text.clone()).collect(),
+            violations,
+            wall_seconds: wall,
+        },
+        human,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::python_front::ControllerRequest as C;
+
+    fn message(front: Front, c: C, model: Model, label: &str) -> String {
+        match glider_controller(front, c, model, label, "n") {
+            Ok(_) => String::new(),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    /// One check serves `samara simulate` and `samara.simulate`, each in its own words
+    /// (the texts both printed before the two copies became one).
+    #[test]
+    fn one_controller_check_speaks_each_front() {
+        assert_eq!(
+            message(Front::Cli, C::Pid, Model::Reduced, "--controller"),
+            "--controller pid needs the filter state E, which model `reduced` does not have; use --model plate6 or full, or another controller"
+        );
+        assert_eq!(
+            message(Front::Python, C::Pid, Model::Reduced, "controller"),
+            "controller 'pid' needs the filter state E, which model `reduced` does not have; use model='plate6' or 'full', or another controller"
+        );
+        assert_eq!(
+            message(
+                Front::Cli,
+                C::Constant(0.5),
+                Model::Plate6,
+                "--controller \"constant:0.5\":"
+            ),
+            "--controller \"constant:0.5\": ex = 0.5 is outside the allowed range [0.181, 0.193]; choose a value inside it"
+        );
+        assert_eq!(
+            message(
+                Front::Python,
+                C::Constant(0.5),
+                Model::Plate6,
+                "controller constant"
+            ),
+            "controller constant ex = 0.5 is outside the allowed range [0.181, 0.193]; choose a value inside it"
+        );
+        assert_eq!(message(Front::Cli, C::Pid, Model::Plate6, "x"), "");
+        assert_eq!(
+            message(Front::Python, C::Constant(0.187), Model::Reduced, "x"),
+            ""
+        );
+    }
+
+    #[test]
+    fn one_loop_check_names_each_fronts_argument() {
+        let cli = glider_loop(Front::Cli, "plate6", "euler", 20.0, 0.5, 1e6).unwrap_err();
+        assert_eq!(
+            cli.to_string(),
+            "--integrator \"euler\": unknown integrator; choose ode45, dop853 (or tight), dp5 or rk4"
+        );
+        let py = glider_loop(Front::Python, "plate7", "ode45", 20.0, 0.5, 1e6).unwrap_err();
+        assert_eq!(
+            py.to_string(),
+            "model \"plate7\": unknown model; choose one of plate6, reduced, full"
+        );
+        let (m, s) = glider_loop(Front::Python, "reduced", "rk4", 2.0, 0.25, 1e6).unwrap();
+        assert_eq!(
+            (m, s.period, s.horizon, s.output_step),
+            (Model::Reduced, 0.25, 2.0, Some(0.01))
+        );
+        assert_eq!(s.steps().unwrap(), 8);
     }
 }

@@ -178,11 +178,10 @@ fn main() -> ExitCode {
 /// The JSON text of a typed result as the CLI prints it: through `serde_json::Value`, so
 /// keys are sorted (the layout every `--json` document and output file has had).
 pub(crate) fn json_text<T: serde::Serialize>(v: &T, pretty: bool) -> anyhow::Result<String> {
-    let v = serde_json::to_value(v)?;
     Ok(if pretty {
-        serde_json::to_string_pretty(&v)?
+        samara_app::json_pretty(v)?
     } else {
-        v.to_string()
+        serde_json::to_value(v)?.to_string()
     })
 }
 
@@ -223,23 +222,9 @@ fn quiet_on_broken_pipe() {
     }));
 }
 
-/// The message of `e` and its causes joined by `: `, skipping a cause whose text the
-/// message already carries (library errors often print their source themselves, as in
-/// `cannot read: No such file or directory (os error 2)`; anyhow's `{:#}` would then
-/// print the OS error twice).
+/// The message of `e` and its causes (`samara_app::error_text`: each cause once).
 fn error_chain(e: &anyhow::Error) -> String {
-    let mut msg = String::new();
-    for cause in e.chain() {
-        let c = cause.to_string();
-        if c.is_empty() || msg.contains(&c) {
-            continue;
-        }
-        if !msg.is_empty() {
-            msg.push_str(": ");
-        }
-        msg.push_str(&c);
-    }
-    msg
+    samara_app::error_text(e)
 }
 
 #[cfg(test)]

@@ -8,12 +8,13 @@
 use crate::json_text;
 use anyhow::{anyhow, Result};
 use samara_app::reach::adaptive::{
-    adaptive_text, AdaptiveEcho, AdaptiveReport, AdaptiveSettingsEcho, AdaptiveSummary,
+    adaptive_success, adaptive_text, AdaptiveEcho, AdaptiveReport, AdaptiveSettingsEcho,
+    AdaptiveSummary,
 };
 use samara_app::reach::args::ReachArgs;
 use samara_app::reach::system::{human_line, SystemSettingsEcho, SystemSummary};
 use samara_reach::adaptive::{reach_adaptive, AdaptiveSettings};
-use samara_reach::system::{SystemReachSettings, SystemVerdict};
+use samara_reach::system::SystemReachSettings;
 use samara_report::write_atomic;
 use std::path::Path;
 use std::process::ExitCode;
@@ -78,11 +79,7 @@ pub(crate) fn run(
         eprintln!("wrote {}", a.out.display());
     }
     out.keep();
-    let goals_ok = matches!(
-        res.reach.verdict,
-        SystemVerdict::Proved | SystemVerdict::NoGoal
-    );
-    Ok(if res.met && goals_ok {
+    Ok(if adaptive_success(&res) {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)

@@ -9,8 +9,8 @@ use crate::shard::{self, Shard};
 use anyhow::{anyhow, bail, Context, Result};
 use samara_app::reach::args::{check_fits, ReachArgs};
 use samara_app::reach::system::{
-    human_line, merge_taylor, percent, success, SystemReport, SystemSettingsEcho, SystemSummary,
-    TaylorRun, TaylorShard, TaylorShardLine,
+    human_line, merge_taylor, success, SystemReport, SystemSettingsEcho, SystemSummary, TaylorRun,
+    TaylorShard,
 };
 use samara_app::shard::Shards;
 use samara_reach::grid;
@@ -43,7 +43,12 @@ pub fn run_system(
     net: &samara_nn::Network,
     measures: Vec<Measure>,
 ) -> Result<ExitCode> {
-    check_fits("--network", &a.network, net, sys, path)?;
+    check_fits(
+        &format!("--network {}", a.network.display()),
+        net,
+        sys,
+        &path.display().to_string(),
+    )?;
     let s = a.system_settings(measures)?;
     let pieces = a.grid_pieces(sys)?;
     if let Some(r) = a.target_ratio {
@@ -139,30 +144,11 @@ fn run_shard(
         network_name: a.network.display().to_string(),
         reach: res,
     };
-    shard::write(&a.out, "reach", sh, &run, &result)?;
-    let res = &result.reach;
+    let (line, human) = result.write(&a.out, sh, &run)?;
     if a.json {
-        let line = TaylorShardLine {
-            shard: (sh.i, sh.n),
-            cells: (range.start, range.end),
-            verdict: res.verdict.clone(),
-            covered: res.covered,
-            out: a.out.clone(),
-        };
         println!("{}", json_text(&line, false)?);
     } else {
-        println!(
-            "shard {}/{}: cells {}..{} of {total}: {} ({} sub-boxes, {:.2} s, sets to the horizon for {} of these cells); partial result in {} (merge with `samara merge reach`)",
-            sh.i,
-            sh.n,
-            range.start,
-            range.end,
-            res.verdict.name(),
-            res.boxes,
-            res.seconds,
-            percent(res.covered),
-            a.out.display()
-        );
+        println!("{human}");
     }
     Ok(ExitCode::SUCCESS)
 }

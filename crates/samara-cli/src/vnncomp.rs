@@ -4,43 +4,12 @@
 
 use anyhow::{anyhow, Result};
 pub use samara_app::args::VnncompArgs;
+use samara_app::benchmark::Tally;
 pub use samara_app::vnncomp::{decide, load_instance};
-use samara_app::vnncomp::{
-    parse_instances, InstanceResult as Part, Line, VnncompRun, VnncompShard, Word,
-};
-use std::collections::BTreeMap;
+use samara_app::vnncomp::{parse_instances, InstanceResult as Part, VnncompRun, VnncompShard};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
-
-/// The `run` record of a vnncomp run: every input's content digest and the settings.
-fn vnncomp_run(a: &VnncompArgs, text: &str, all: &[Line], root: &Path) -> Result<VnncompRun> {
-    let files = all.iter().flat_map(|l| {
-        let at = format!("{}:{}:", a.instances.display(), l.lineno);
-        [
-            (l.onnx.clone(), root.join(&l.onnx), format!("{at} onnx")),
-            (
-                l.vnnlib.clone(),
-                root.join(&l.vnnlib),
-                format!("{at} vnnlib"),
-            ),
-        ]
-    });
-    let files: Vec<(String, PathBuf, String)> = files.collect();
-    Ok(VnncompRun {
-        instances: crate::shard::digest(text.as_bytes()),
-        instances_file: crate::shard::resolved(&a.instances),
-        n_instances: all.len(),
-        root: crate::shard::resolved(root),
-        inputs: crate::shard::digest_inputs(
-            files
-                .iter()
-                .map(|(n, p, f)| (n.clone(), p.as_path(), f.clone())),
-        )?,
-        timeout_scale: format!("{:?}", a.timeout_scale),
-        max_nodes: a.max_nodes,
-    })
-}
 
 /// Run `samara vnncomp`: exit 0 when the benchmark ran (verdicts are data), 2 on bad
 /// input (every instance is loaded and checked before the first is run).
@@ -72,7 +41,9 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     // A shard seals every input of the whole run (not only its own lines), so the merge
     // sees a file edited between two shards' runs.
     let run = match a.shard {
-        Some(_) => Some(serde_json::to_value(vnncomp_run(a, &text, &all, &root)?)?),
+        Some(_) => Some(serde_json::to_value(VnncompRun::of(
+            a, &text, &all, &root,
+        )?)?),
         None => None,
     };
     // Load everything first: a bad instance is an input error before any computation.
@@ -105,14 +76,12 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         p
     };
     let t0 = Instant::now();
-    let mut csv = String::from(HEADER);
+    let mut tally = Tally::new();
     let mut shard_doc = VnncompShard {
         instances: [range.start, range.end],
         done: 0,
         parts: Vec::new(),
     };
-    let mut rows = Vec::new();
-    let mut counts: BTreeMap<Word, usize> = Default::default();
     if let (Some(s), Some(run)) = (a.shard, &run) {
         // At once, so a shard with no instances (N above their number) still leaves its
         // file, and a cut-short shard leaves one that the merge refuses.
@@ -125,22 +94,19 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
             bar.suspend(|| eprintln!("note: {n}"));
         }
         let part = Part::of(l.lineno, &l.onnx, &l.vnnlib, t, &d);
-        *counts.entry(part.result).or_default() += 1;
-        let row = serde_json::to_string(&serde_json::to_value(part.row())?)?;
         let progress = part.progress();
+        tally.add(&part, a.shard.is_none())?;
         if let (Some(s), Some(run)) = (a.shard, &run) {
             shard_doc.parts.push(part);
             shard_doc.done = shard_doc.parts.len();
             crate::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
         } else {
-            csv.push_str(&part.csv_line());
-            samara_report::write_atomic(&a.out, csv.as_bytes())
+            samara_report::write_atomic(&a.out, tally.csv.as_bytes())
                 .map_err(|e| anyhow!("--out {}: {e}", a.out.display()))?;
         }
         if !a.json {
             bar.suspend(|| println!("{progress}"));
         }
-        rows.push(row);
         bar.inc(1);
     }
     bar.finish_and_clear();
@@ -150,7 +116,8 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
             let line = samara_app::vnncomp::ShardLine {
                 shard: (s.i, s.n),
                 instances: (range.start, range.end),
-                counts: word_counts(&counts)
+                counts: tally
+                    .word_counts()
                     .into_iter()
                     .map(|(w, n)| (w.to_string(), n))
                     .collect(),
@@ -171,50 +138,8 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         }
         return Ok(ExitCode::SUCCESS);
     }
-    summary(lines.len(), &counts, &rows, total, &a.out, a.json)?;
+    println!("{}", tally.summary(total, &a.out, a.json)?);
     Ok(ExitCode::SUCCESS)
-}
-
-/// The results CSV's header.
-const HEADER: &str = "onnx,vnnlib,timeout,result,seconds,engine,detail\n";
-
-/// The counts by result word, keyed by the word's text.
-fn word_counts(counts: &BTreeMap<Word, usize>) -> BTreeMap<&'static str, usize> {
-    counts.iter().map(|(w, n)| (w.text(), *n)).collect()
-}
-
-/// The closing summary on stdout: `--json` (every instance's row, as serialised, and the
-/// counts) or one line.
-fn summary(
-    n: usize,
-    counts: &BTreeMap<Word, usize>,
-    rows: &[String],
-    total: f64,
-    out: &Path,
-    json_out: bool,
-) -> Result<()> {
-    let summary: Vec<String> = [Word::Unsat, Word::Sat, Word::Timeout, Word::Unknown]
-        .iter()
-        .map(|w| format!("{} {}", w.text(), counts.get(w).copied().unwrap_or(0)))
-        .collect();
-    if json_out {
-        // By hand, in serde_json's (sorted-key, compact) form: the rows are kept as they
-        // were serialised, so merged shards print the same numbers digit for digit.
-        println!(
-            "{{\"counts\":{},\"instances\":[{}],\"out\":{},\"total_seconds\":{}}}",
-            serde_json::to_string(&word_counts(counts))?,
-            rows.join(","),
-            serde_json::to_string(out)?,
-            serde_json::to_string(&total)?
-        );
-    } else {
-        println!(
-            "{n} instances: {}; {total:.1} s in all; results in {}",
-            summary.join(", "),
-            out.display()
-        );
-    }
-    Ok(())
 }
 
 /// `samara merge vnncomp`: the shards' instances in order, each checked against the run's
@@ -231,18 +156,13 @@ pub fn merge_vnncomp(
             println!("{}", p.progress());
         }
     })?;
-    let mut csv = String::from(HEADER);
-    let mut rows = Vec::new();
-    let mut counts: BTreeMap<Word, usize> = Default::default();
-    let mut total = 0.0;
+    let mut tally = Tally::new();
     for p in &parts {
-        *counts.entry(p.result).or_default() += 1;
-        csv.push_str(&p.csv_line());
-        rows.push(serde_json::to_string(&serde_json::to_value(p.row())?)?);
-        total += p.seconds;
+        tally.add(p, true)?;
     }
-    samara_report::write_atomic(out, csv.as_bytes())
+    let total = parts.iter().fold(0.0, |t, p| t + p.seconds);
+    samara_report::write_atomic(out, tally.csv.as_bytes())
         .map_err(|e| anyhow!("--out {}: {e}", out.display()))?;
-    summary(parts.len(), &counts, &rows, total, out, json_out)?;
+    println!("{}", tally.summary(total, out, json_out)?);
     Ok(ExitCode::SUCCESS)
 }

@@ -114,3 +114,14 @@ pub fn adaptive_text(r: &AdaptiveReach) -> String {
         r.target_ratio
     )
 }
+
+/// Whether an adaptive run succeeded (exit 0): the width target met and every goal
+/// proved, or no goal.
+pub fn adaptive_success(r: &AdaptiveReach) -> bool {
+    use samara_reach::system::SystemVerdict;
+    r.met
+        && matches!(
+            r.reach.verdict,
+            SystemVerdict::Proved | SystemVerdict::NoGoal
+        )
+}

@@ -6,13 +6,13 @@
 //! and the built-in setting as a system file. The CLI parses, calls these, runs the
 //! engine and prints; the limits live here.
 
-use crate::bind::{check_horizon_period, check_period_count, num as fmt_num};
+use crate::bind::check_period_count;
 use crate::shard::{parse_shard, Shard};
 use crate::simulate::MAX_STATE;
 use crate::{input, AppError, Front};
 use samara_plant::{Model, STATE_NAMES};
 use samara_reach::system::{NetworkError, SystemReachSettings};
-use samara_reach::{Goal, ReachSettings};
+use samara_reach::ReachSettings;
 use samara_spec::lower::NetDecl;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
@@ -38,7 +38,7 @@ pub const MAX_THREADS: usize = 1024;
 pub const GLIDER_LIFT_AT: f64 = 1e-3;
 
 /// The published initial heights: y0 in [0.1/0.07, 0.3/0.07].
-const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
+pub const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
 
 /// Flags of `samara reach`. The defaults are the published CORA setting: reduced
 /// model, start (1, 0, 0, 0, 0, y0) with y0 in [1.4286, 4.2857], period 0.5, horizon 20.
@@ -305,13 +305,17 @@ impl ReachArgs {
                 a.model
             ))
         })?;
-        let mut s = ReachSettings::published(model);
-        s.init[5] = Y0_DEFAULT;
+        // The intervals as text, parsed here (with messages naming the flag and its
+        // text); the rest is checked by `ReachRequest::settings`, the check Python's
+        // `samara.reach` makes.
+        let mut init = std::collections::BTreeMap::new();
         if let Some(y0) = &a.y0 {
-            s.init[5] = parse_interval(y0, &format!("--y0 {y0:?}"))?;
+            init.insert(
+                "y".to_string(),
+                parse_interval(y0, &format!("--y0 {y0:?}"))?,
+            );
         }
         let names = &STATE_NAMES[..model.dim()];
-        let mut seen: Vec<usize> = Vec::new();
         for spec in &a.init {
             let (name, iv) = spec.split_once('=').ok_or_else(|| {
                 AppError::Input(format!(
@@ -335,68 +339,30 @@ impl ReachArgs {
                     "--init {spec:?}: y is also given by --y0; give it once"
                 ));
             }
-            if seen.contains(&i) {
+            if init.contains_key(name) {
                 return input(format!(
                     "--init {spec:?}: state {name} is given twice; give it once"
                 ));
             }
-            seen.push(i);
-            s.init[i] = parse_interval(iv, &format!("--init {spec:?}"))?;
+            init.insert(
+                name.to_string(),
+                parse_interval(iv, &format!("--init {spec:?}"))?,
+            );
         }
-        check_horizon_period(Front::Cli, a.horizon, a.period)?;
-        if a.period > MAX_PERIOD {
-            return input(format!("--period {}: reach takes periods up to {MAX_PERIOD} (the validated integrator takes at most 400 steps of at most 0.0625 per period, so a longer hold cannot be enclosed); e.g. --period 0.5", a.period));
+        let s = crate::python_front::ReachRequest {
+            model: a.model.clone(),
+            init,
+            horizon: a.horizon,
+            period: a.period,
+            goal_ystar: a.goal_ystar,
+            goal_from: a.goal_from,
+            clip: !a.no_clip,
+            max_leaves: a.max_leaves,
+            samples: a.samples,
+            seed: None,
         }
-        check_period_count(Front::Cli, a.horizon, a.period, MAX_PERIODS)?;
-        s.horizon = a.horizon;
-        s.period = a.period;
-        let k = a.horizon / a.period;
-        if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
-            let n = k.floor().max(1.0);
-            return input(format!(
-                "--horizon {} is not a positive multiple of --period {}: choose e.g. --horizon {} (or another period)",
-                a.horizon,
-                a.period,
-                n * a.period
-            ));
-        }
-        if a.no_clip {
-            s.clip = None;
-        }
-        match (a.goal_ystar, a.goal_from) {
-            (None, Some(f)) => {
-                return input(format!(
-                    "--goal-from {}: needs a goal; add --goal-ystar Y (e.g. --goal-ystar 2)",
-                    fmt_num(f)
-                ))
-            }
-            (Some(y), from) => {
-                if !(y.is_finite() && y >= 0.0) {
-                    return input(format!(
-                        "--goal-ystar {}: the band half-width must be a finite number >= 0 (e.g. --goal-ystar 2)",
-                        fmt_num(y)
-                    ));
-                }
-                if let Some(f) = from {
-                    if !(f.is_finite() && f >= 0.0 && f <= a.horizon) {
-                        return input(format!(
-                            "--goal-from {}: the window start must lie in [0, horizon = {}]",
-                            fmt_num(f),
-                            a.horizon
-                        ));
-                    }
-                }
-                s.goal = Some(Goal { ystar: y, from });
-            }
-            (None, None) => {}
-        }
-        a.check_budget(s.max_leaves)?;
-        if let Some(n) = a.max_leaves {
-            s.max_leaves = n;
-        }
-        if let Some(n) = a.samples {
-            s.samples = n;
-        }
+        .settings(Front::Cli)?;
+        check_threads(a.threads)?;
         // Sampled trajectories are recorded every 0.05 (or the finest step above that
         // which divides the period).
         let q = a.period / 0.05;
@@ -417,29 +383,16 @@ impl ReachArgs {
     }
 
     /// `--max-leaves`, `--samples` and `--threads`, checked the same way for both paths
-    /// (the built-in glider and system files); `default_leaves` is the path's sub-box
-    /// budget, named in the messages.
+    /// (the built-in glider and system files; `crate::python_front::check_budget`, as
+    /// Python's calls); `default_leaves` is the path's sub-box budget, named in the
+    /// messages.
     pub fn check_budget(&self, default_leaves: usize) -> Result<()> {
-        if let Some(n) = self.max_leaves {
-            if n == 0 {
-                return input(format!(
-                    "--max-leaves 0: give at least 1 (default {default_leaves})"
-                ));
-            }
-            if n > MAX_LEAVES {
-                return input(format!("--max-leaves {n}: at most {MAX_LEAVES} sub-boxes are allowed (each is a full reachability run; the default is {default_leaves})"));
-            }
-        }
-        if let Some(n) = self.samples {
-            if n == 0 {
-                return input(
-                    "--samples 0: give at least 1 (default 200); falsification needs trajectories",
-                );
-            }
-            if n > MAX_SAMPLES {
-                return input(format!("--samples {n}: at most {MAX_SAMPLES} trajectories are allowed (each is kept in memory; the default is 200)"));
-            }
-        }
+        crate::python_front::check_budget(
+            Front::Cli,
+            self.max_leaves,
+            self.samples,
+            default_leaves,
+        )?;
         check_threads(self.threads)
     }
 
@@ -644,22 +597,21 @@ impl ReachArgs {
     }
 }
 
-/// Refuse a network that does not fit a system file (`flag` names the network's flag in
-/// the message, for `simulate` and `reach`).
+/// Refuse a network that does not fit a system file: `label` names the network
+/// (`--network FILE`, or Python's `network`), `system` the system file, in the message.
+/// The one check of `samara reach --system`, `samara simulate --system` and Python's
+/// `samara.reach_system`.
 pub fn check_fits(
-    flag: &str,
-    net_path: &Path,
+    label: &str,
     net: &samara_nn::Network,
     sys: &samara_system::System,
-    sys_path: &Path,
+    system: &str,
 ) -> Result<()> {
     if !sys.fits_controller(net.n_inputs(), net.n_outputs()) {
         return input(format!(
-            "{flag} {} has {} inputs and {} outputs; {} observes {} values and reads {} network outputs: use the controller made for this system",
-            net_path.display(),
+            "{label} has {} inputs and {} outputs; {system} observes {} values and reads {} network outputs: use the controller made for this system",
             net.n_inputs(),
             net.n_outputs(),
-            sys_path.display(),
             sys.n_observed(),
             sys.n_net_outputs
         ));

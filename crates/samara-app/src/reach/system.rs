@@ -353,3 +353,37 @@ pub fn merge_taylor(run: &TaylorRun, shards: &[(PathBuf, TaylorShard)]) -> Resul
 pub fn is_taylor(run: &serde_json::Value) -> bool {
     run["sets"] == "taylor"
 }
+
+impl TaylorShard {
+    /// Write this shard (`sh` of the grid run `run`) as the shard file `out`; its
+    /// `--json` line and its human line.
+    pub fn write(
+        self,
+        out: &std::path::Path,
+        sh: crate::shard::Shard,
+        run: &TaylorRun,
+    ) -> anyhow::Result<(TaylorShardLine, String)> {
+        crate::shard::write(out, "reach", sh, run, &self)?;
+        let res = &self.reach;
+        let (a, b) = self.cells;
+        let line = TaylorShardLine {
+            shard: (sh.i, sh.n),
+            cells: (a, b),
+            verdict: res.verdict.clone(),
+            covered: res.covered,
+            out: out.to_path_buf(),
+        };
+        let human = format!(
+            "shard {}/{}: cells {a}..{b} of {}: {} ({} sub-boxes, {:.2} s, sets to the horizon for {} of these cells); partial result in {} (merge with `samara merge reach`)",
+            sh.i,
+            sh.n,
+            run.cells,
+            res.verdict.name(),
+            res.boxes,
+            res.seconds,
+            percent(res.covered),
+            out.display()
+        );
+        Ok((line, human))
+    }
+}
