@@ -199,7 +199,7 @@ pub fn verify_settings(
     lp_tighten: bool,
 ) -> Result<samara_verify::Settings> {
     use samara_verify::LpTighten;
-    if timeout.is_nan() || timeout < 0.0 {
+    let Ok(timeout) = samara_verify::Timeout::from_secs_f64(timeout) else {
         let none = match front {
             Front::Cli => "inf",
             Front::Python => "float('inf')",
@@ -209,7 +209,7 @@ pub fn verify_settings(
             front.arg("timeout"),
             front.eg("timeout", "60")
         ));
-    }
+    };
     Ok(samara_verify::Settings {
         timeout,
         max_nodes,
@@ -1017,7 +1017,10 @@ mod tests {
             "--timeout NaN: must be a number of seconds >= 0 (e.g. --timeout 60; inf for no limit)"
         );
         let s = verify_settings(Front::Python, f64::INFINITY, 10, true).unwrap();
-        assert_eq!((s.timeout, s.max_nodes), (f64::INFINITY, 10));
+        assert_eq!(
+            (s.timeout, s.max_nodes),
+            (samara_verify::Timeout::none(), 10)
+        );
     }
 
     #[test]

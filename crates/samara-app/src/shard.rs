@@ -103,6 +103,62 @@ impl<'de> Deserialize<'de> for Exact {
     }
 }
 
+/// An f64 of a shard's result that a merge must get back bit for bit, written as a JSON
+/// number when finite (the very bytes serde_json writes for an f64, read back exactly:
+/// the workspace's serde_json has `float_roundtrip`) and as its text otherwise
+/// (`"inf"`, `"-inf"`, `"NaN"`), where serde_json would write `null` and lose the value.
+/// Unlike [`Exact`], a result whose numbers are all finite keeps the bytes of plain
+/// f64s.
+#[derive(Clone, Copy, Debug)]
+pub struct Float(pub f64);
+
+impl PartialEq for Float {
+    /// The same bits (so a NaN equals itself, as the text it came from).
+    fn eq(&self, o: &Float) -> bool {
+        self.0.to_bits() == o.0.to_bits()
+    }
+}
+
+impl Serialize for Float {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        if self.0.is_finite() {
+            s.serialize_f64(self.0)
+        } else {
+            s.serialize_str(&format!("{:?}", self.0))
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for Float {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Float, D::Error> {
+        struct Visit;
+        impl serde::de::Visitor<'_> for Visit {
+            type Value = Float;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number, or \"inf\", \"-inf\" or \"NaN\"")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> std::result::Result<Float, E> {
+                Ok(Float(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> std::result::Result<Float, E> {
+                Ok(Float(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> std::result::Result<Float, E> {
+                Ok(Float(v as f64))
+            }
+            fn visit_str<E: serde::de::Error>(self, v: &str) -> std::result::Result<Float, E> {
+                match v {
+                    "inf" => Ok(Float(f64::INFINITY)),
+                    "-inf" => Ok(Float(f64::NEG_INFINITY)),
+                    "NaN" => Ok(Float(f64::NAN)),
+                    _ => Err(E::invalid_value(serde::de::Unexpected::Str(v), &self)),
+                }
+            }
+        }
+        d.deserialize_any(Visit)
+    }
+}
+
 /// An interval as two [`Exact`] ends.
 pub type ExactPair = [Exact; 2];
 
@@ -515,5 +571,33 @@ mod tests {
         assert!(e.to_string().contains("expected a number text"), "{e}");
         // A JSON number is not an exact text.
         assert!(serde_json::from_str::<Exact>("0.1").is_err());
+    }
+
+    #[test]
+    fn floats_keep_finite_bytes_and_read_back_bit_for_bit_non_finite_included() {
+        let finite = [0.1, -0.0, 1.0 / 3.0, f64::MIN_POSITIVE, f64::MAX, 2.0];
+        // Finite numbers: the bytes of a plain f64, so such shards are unchanged.
+        assert_eq!(
+            serde_json::to_string(&finite.map(Float)).unwrap(),
+            serde_json::to_string(&finite).unwrap()
+        );
+        let odd = [f64::INFINITY, f64::NEG_INFINITY, f64::NAN];
+        assert_eq!(
+            serde_json::to_string(&odd.map(Float)).unwrap(),
+            r#"["inf","-inf","NaN"]"#
+        );
+        // Through a JSON value, as shard files are read and written.
+        let xs: Vec<Float> = finite.iter().chain(&odd).map(|x| Float(*x)).collect();
+        let v = serde_json::to_value(&xs).unwrap();
+        let back: Vec<Float> = serde_json::from_value(v).unwrap();
+        for (x, b) in xs.iter().zip(&back) {
+            assert_eq!(x.0.to_bits(), b.0.to_bits(), "{x:?}");
+        }
+        let e = serde_json::from_str::<Float>("\"infinity\"").unwrap_err();
+        assert!(
+            e.to_string().contains("\"inf\", \"-inf\" or \"NaN\""),
+            "{e}"
+        );
+        assert!(serde_json::from_str::<Float>("null").is_err());
     }
 }

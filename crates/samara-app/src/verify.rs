@@ -7,7 +7,7 @@ use samara_spec::normal::{Goal, Query, Sense};
 use samara_spec::Instance;
 use samara_verify::engine::Point;
 use samara_verify::{
-    left_after, optimise, prove, vacuity, Prepared, Settings, UnknownReason, Verdict,
+    left_after, optimise, prove, vacuity, Prepared, Settings, Timeout, UnknownReason, Verdict,
 };
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -197,7 +197,9 @@ pub fn run_verify(
     // practice; it gets at most 10 s of what the deadline leaves (undecided: not called
     // vacuous).
     let vacuity_settings = || Settings {
-        timeout: left_after(settings, start).timeout.min(10.0),
+        timeout: left_after(settings, start)
+            .timeout
+            .min(Timeout::from_secs(10)),
         ..*settings
     };
     for (name, inst) in &lowered {
@@ -206,7 +208,7 @@ pub fn run_verify(
         for i in inst {
             let ti = Instant::now();
             let left = left_after(settings, start);
-            let v = if left.timeout > 0.0 {
+            let v = if !left.timeout.is_zero() {
                 prove(&i.query, &prep, &left)?
             } else {
                 Verdict::Unknown(UnknownReason::Timeout { nodes: 0 })

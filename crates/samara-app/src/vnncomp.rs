@@ -10,7 +10,7 @@ use samara_spec::normal::{Query, Var};
 use samara_spec::vnnlib;
 use samara_verify::engine::Point;
 use samara_verify::route::{prove_routed, Engine};
-use samara_verify::{Prepared, Settings, UnknownReason, Verdict};
+use samara_verify::{Prepared, Settings, Timeout, UnknownReason, Verdict};
 use serde::{Deserialize, Serialize};
 use std::collections::{BTreeMap, HashMap};
 use std::fmt::Write as _;
@@ -175,7 +175,7 @@ pub fn recheck(net: &Network, q: &Query, x: &[f64], disjunct: usize) -> Result<R
     })
 }
 
-/// Decide one instance (network `f` of `q`) within `timeout` seconds. A counterexample
+/// Decide one instance (network `f` of `q`) within `timeout`. A counterexample
 /// is re-checked ([`recheck`]) before it is reported: a point that the f64
 /// re-evaluation or exact rational arithmetic confirms stays `sat` (its f64 outputs are
 /// the ones written; a disagreement is said in [`Decided::note`]); any other becomes
@@ -183,7 +183,7 @@ pub fn recheck(net: &Network, q: &Query, x: &[f64], disjunct: usize) -> Result<R
 pub fn decide(
     net: Network,
     q: &Query,
-    timeout: f64,
+    timeout: Timeout,
     max_nodes: usize,
 ) -> Result<Decided, AppError> {
     let t0 = Instant::now();
@@ -195,7 +195,7 @@ pub fn decide(
         q,
         &prep,
         &Settings {
-            timeout: (timeout - t0.elapsed().as_secs_f64()).max(0.0),
+            timeout: timeout.left(t0),
             max_nodes,
             ..Default::default()
         },

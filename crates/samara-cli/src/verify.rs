@@ -41,12 +41,12 @@ pub fn run_check(a: &CheckArgs) -> Result<ExitCode> {
 /// Run `samara verify`: the library's [`samara_app::run_verify`], one line per property
 /// (or the rows as JSON).
 pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
-    timeout_flag(a.timeout)?;
+    let timeout = timeout_flag(a.timeout)?;
     // `--timeout` is a deadline for the whole command: every instance gets what is left.
     let start = Instant::now();
     let l = load(&a.s, false)?;
     let settings = Settings {
-        timeout: a.timeout,
+        timeout,
         max_nodes: a.search.max_nodes,
         lp_tighten: tighten_mode(a.search.lp_tighten),
         ..Default::default()
@@ -92,7 +92,7 @@ fn tighten_mode(on: bool) -> LpTighten {
 /// search was cut short (`unknown`). The decision is the library's
 /// ([`samara_app::critical_value`]).
 pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
-    timeout_flag(a.timeout)?;
+    let timeout = timeout_flag(a.timeout)?;
     let l = load(&a.s, true)?;
     let free: Vec<&String> = a.s.params.iter().filter(|s| !s.contains('=')).collect();
     let [of] = free.as_slice() else {
@@ -104,7 +104,7 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
         &a.property,
         &of,
         &Settings {
-            timeout: a.timeout,
+            timeout,
             max_nodes: a.search.max_nodes,
             lp_tighten: tighten_mode(a.search.lp_tighten),
             ..Default::default()
@@ -124,15 +124,12 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
 
 /// Run `samara robustness`.
 pub fn run_robustness(a: &RobustnessArgs) -> Result<ExitCode> {
-    timeout_flag(a.timeout)?;
+    let timeout = timeout_flag(a.timeout)?;
     // `--timeout` is a deadline for the whole command (each search also stops at it).
     let start = Instant::now();
-    let deadline = a
-        .timeout
-        .is_finite()
-        .then(|| start + std::time::Duration::from_secs_f64(a.timeout.min(1e9)));
+    let deadline = timeout.deadline_from(start);
     let settings = Settings {
-        timeout: a.timeout,
+        timeout,
         max_nodes: a.max_nodes,
         ..Default::default()
     };
@@ -172,7 +169,7 @@ fn print_table(r: &robustness::SweepReport, json: bool) -> Result<()> {
 /// input-split engine, the rest to the ReLU-phase engine ([`samara_verify::route`]).
 pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
     let start = std::time::Instant::now();
-    timeout_flag(a.timeout)?;
+    let timeout = timeout_flag(a.timeout)?;
     if let Some(r) = &a.result {
         samara_report::guard::check_output_file(
             "--result",
@@ -183,8 +180,7 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
     let (net, q) = load_instance(&a.network, &a.property, "--network", "--property")?;
     // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
     // lowered to dense maps) takes seconds of it.
-    let left = (a.timeout - start.elapsed().as_secs_f64()).max(0.0);
-    let d = decide(net, &q, left, a.max_nodes)?;
+    let d = decide(net, &q, timeout.left(start), a.max_nodes)?;
     if let Some(n) = &d.note {
         eprintln!("note: {n}");
     }

@@ -58,8 +58,8 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         )
         .map_err(|e| anyhow!("{at}: {e}"))?;
         let t = l.timeout * a.timeout_scale;
-        samara_app::bind::timeout_flag(t)?;
-        loaded.push((net, q, t));
+        let limit = samara_app::bind::timeout_flag(t)?;
+        loaded.push((net, q, t, limit));
     }
     let bar = {
         use std::io::IsTerminal;
@@ -87,9 +87,9 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         // file, and a cut-short shard leaves one that the merge refuses.
         crate::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
     }
-    for (l, (net, q, t)) in lines.iter().zip(loaded) {
+    for (l, (net, q, t, limit)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
-        let d = decide(net, &q, t, a.max_nodes)?;
+        let d = decide(net, &q, limit, a.max_nodes)?;
         if let Some(n) = &d.note {
             bar.suspend(|| eprintln!("note: {n}"));
         }

@@ -31,6 +31,11 @@ impl Timeout {
         Timeout(Some(d))
     }
 
+    /// A limit of `secs` whole seconds (defaults and tests: `Timeout::from_secs(60)`).
+    pub const fn from_secs(secs: u64) -> Self {
+        Timeout(Some(Duration::from_secs(secs)))
+    }
+
     /// A limit of `secs` seconds: `inf` is none, finite values above [`MAX_SECS`] are
     /// clamped to it; NaN and negative numbers are refused.
     pub fn from_secs_f64(secs: f64) -> Result<Self, BadTimeout> {
@@ -46,6 +51,12 @@ impl Timeout {
     /// Whether there is no limit.
     pub fn is_none(self) -> bool {
         self.0.is_none()
+    }
+
+    /// Whether the limit is zero: no time at all (what [`Timeout::left`] gives once a
+    /// limit is spent). None is not zero.
+    pub fn is_zero(self) -> bool {
+        self.0 == Some(Duration::ZERO)
     }
 
     /// The limit as a duration (`None`: no limit).
@@ -136,6 +147,9 @@ mod tests {
         assert!(Timeout::from_secs_f64(f64::NAN).is_err());
         assert!(Timeout::from_secs_f64(-1.0).is_err());
         assert_eq!(Timeout::none().secs(), f64::INFINITY);
+        assert_eq!(Timeout::from_secs(3).secs(), 3.0);
+        assert!(Timeout::from_secs(0).is_zero());
+        assert!(!Timeout::none().is_zero() && !Timeout::from_secs(1).is_zero());
     }
 
     #[test]

@@ -43,7 +43,7 @@ pub use result::{
     check_containment, GliderViolation, Leaf, ReachResult, ReachVerdict, StepSet, Verdict,
 };
 pub use sampling::{simulate_samples, Sample};
-pub use settings::{Goal, ReachError, ReachSettings, MAX_INIT, MAX_PERIODS};
+pub use settings::{plant_model, Goal, ReachError, ReachSettings, MAX_INIT, MAX_PERIODS};
 pub use zonotope::driver::reach;
 pub use zonotope::Zonotope;
 

@@ -161,6 +161,17 @@ pub fn units_warning(net: &Network, states: &[Vec<f64>], range: (f64, f64)) -> O
     ))
 }
 
+/// The built-in plant model of a plate variant (a spec loop's `model`; the same name):
+/// what the published glider engine flies.
+pub fn plant_model(v: samara_system::plate::Variant) -> Model {
+    use samara_system::plate::Variant;
+    match v {
+        Variant::Plate6 => Model::Plate6,
+        Variant::Reduced => Model::Reduced,
+        Variant::Full => Model::Full,
+    }
+}
+
 impl ReachSettings {
     /// The corners of the initial box over its first six parameters (the states with a
     /// non-zero width; at most 64 corners, the other states at their single value),
@@ -226,7 +237,7 @@ impl ReachSettings {
     /// The shipped case-study spec's loop `published` gives exactly
     /// `ReachSettings::published(Model::Reduced)` with the goal `|x + y| <= 2` at `t = 20`.
     pub fn from_loop(l: &samara_spec::LoopDecl) -> Self {
-        let mut s = ReachSettings::published(l.model);
+        let mut s = ReachSettings::published(plant_model(l.model));
         s.init = l.start.clone();
         s.period = l.period;
         s.horizon = l.horizon;

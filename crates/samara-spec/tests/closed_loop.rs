@@ -5,7 +5,7 @@
 //! at t = 20), and every mistake named with file:line:column and a fix.
 
 use samara_spec::Spec;
-use samara_system::plate::Model;
+use samara_system::plate::Variant;
 use std::path::Path;
 
 fn shipped() -> Spec {
@@ -19,7 +19,7 @@ fn the_shipped_loop_is_the_published_setting() {
     assert_eq!(spec.loops.len(), 1);
     let l = spec.closed_loop("published").unwrap();
     assert_eq!(l.net, "f");
-    assert_eq!(l.model, Model::Reduced);
+    assert_eq!(l.model, Variant::Reduced);
     assert_eq!((l.period, l.horizon), (0.5, 20.0));
     assert_eq!(l.clip, Some((0.181, 0.193)));
     // Bit for bit: the spec's decimals are the shortest ones of these two quotients.
@@ -34,6 +34,36 @@ fn the_shipped_loop_is_the_published_setting() {
     assert_eq!(l.start, want);
     let g = l.goal.as_ref().unwrap();
     assert_eq!((g.bound, g.from), (2.0, None));
+}
+
+/// The loop lowers to a system file: the shipped `alsomitra_reduced.sys` (which states
+/// the published setting itself, as the paper does) has the same states, period,
+/// horizon and initial set, and the loop's clip and no goals of its own.
+#[test]
+fn the_shipped_loop_lowers_to_the_shipped_system_file() {
+    let spec = shipped();
+    let sys = spec.closed_loop("published").unwrap().system();
+    let file = samara_system::System::from_file(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../examples/archcomp/alsomitra_reduced.sys"),
+    )
+    .unwrap();
+    assert_eq!(sys.states, file.states);
+    assert_eq!(sys.inputs, ["ex"]);
+    assert_eq!((sys.period, sys.horizon), (file.period, file.horizon));
+    assert_eq!(sys.init, file.init);
+    assert_eq!(sys.clips, [Some((0.181, 0.193))]);
+    assert!(sys.goals.is_empty());
+    assert!(sys.fits_controller(6, 1));
+    // A full-model loop: seven states, the filter state at rest.
+    let s = parse(&format!("{LOOP}{START}")).unwrap();
+    let sys = s.loops[0].system();
+    assert_eq!(sys.states.len(), 7);
+    assert_eq!(sys.init[6], (0.0, 0.0));
+    assert_eq!(
+        (sys.period, sys.horizon, sys.clips.clone()),
+        (0.25, 1.0, vec![None])
+    );
 }
 
 const HEAD: &str = "network f(v_xp, v_yp, omega, theta, x, y) -> (ex)\n";
@@ -53,7 +83,7 @@ const START: &str = "start l: v_xp = 1, v_yp = 0, omega = 0, theta = 0, x = 0, y
 fn a_loop_of_the_full_model_starts_its_filter_at_zero_and_takes_a_window_goal() {
     let s = parse(&format!("{LOOP}{START}goal l: |y + x| <= 1.5 from 0.5\n")).unwrap();
     let l = &s.loops[0];
-    assert_eq!(l.model, Model::Full);
+    assert_eq!(l.model, Variant::Full);
     assert_eq!(l.start.len(), 7);
     assert_eq!(l.start[6], (0.0, 0.0));
     assert_eq!(l.start[5], (2.0, 3.0));

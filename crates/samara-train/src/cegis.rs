@@ -164,7 +164,7 @@ impl CegisOptions {
     /// names the loop and says what to write).
     pub fn from_loop(l: &samara_spec::LoopDecl) -> Result<Self, TrainError> {
         let bad = |m: String| Err(TrainError::Settings(format!("loop `{}`: {m}", l.name)));
-        if l.model != Model::Reduced {
+        if samara_reach::plant_model(l.model) != Model::Reduced {
             return bad(format!(
                 "closed-loop training flies the reduced model, not {}: write `model reduced`",
                 l.model.name()

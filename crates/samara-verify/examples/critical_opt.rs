@@ -6,19 +6,25 @@
 #[path = "../tests/support/case_study.rs"]
 mod case_study;
 
-use samara_verify::{optimise, Prepared, Settings};
+use samara_verify::{optimise, Prepared, Settings, Timeout};
 use std::collections::HashMap;
 use std::time::Instant;
 
 fn main() {
-    let mut timeout = 60.0;
+    let mut timeout = Timeout::from_secs(60);
     let mut files = Vec::new();
     let mut only: Option<String> = None;
     let mut raw = false;
     let mut it = std::env::args().skip(1);
     while let Some(a) = it.next() {
         match a.as_str() {
-            "--timeout" => timeout = it.next().and_then(|t| t.parse().ok()).expect("--timeout S"),
+            "--timeout" => {
+                timeout = it
+                    .next()
+                    .and_then(|t| t.parse().ok())
+                    .and_then(|t| Timeout::from_secs_f64(t).ok())
+                    .expect("--timeout S: seconds >= 0")
+            }
             "--only" => only = it.next(),
             "--raw" => raw = true,
             f => files.push(f.to_string()),

@@ -8,7 +8,7 @@ mod case_study;
 use case_study::p1_to_p4;
 use samara_verify::milp::optimise_milp;
 use samara_verify::net::PwlNet;
-use samara_verify::{optimise, Prepared, Settings};
+use samara_verify::{optimise, Prepared, Settings, Timeout};
 use std::collections::HashMap;
 use std::time::Instant;
 
@@ -18,9 +18,10 @@ fn main() {
     );
     // `--timeout S` (first) bounds samara's search per property (default 600 s).
     let mut args: Vec<String> = std::env::args().skip(1).collect();
-    let mut timeout = 600.0;
+    let mut timeout = Timeout::from_secs(600);
     if args.first().map(String::as_str) == Some("--timeout") && args.len() >= 2 {
-        timeout = args[1].parse().expect("--timeout S: a number of seconds");
+        let secs: f64 = args[1].parse().expect("--timeout S: a number of seconds");
+        timeout = Timeout::from_secs_f64(secs).expect("--timeout S: seconds >= 0");
         args.drain(..2);
     }
     for path in args {

@@ -19,8 +19,8 @@ use crate::net::PwlNet;
 use crate::Counterexample;
 use samara_bounds::search::{self, Case, CasePoint, Outcome, OutputConstraint, StopReason};
 use samara_bounds::symbolic::Objective;
+use samara_num::Timeout;
 use samara_spec::normal::{Cmp, Goal, Query, Var};
-use std::time::Duration;
 
 /// The answer of the input-split route.
 #[derive(Clone, Debug, PartialEq)]
@@ -175,19 +175,16 @@ fn settle_constant_constraints(
 /// Decide a box-shaped query on `net` (`None` when the query is not box-shaped).
 /// `timeout` covers the whole call: the bound pass that settles constant constraints
 /// counts against it.
-pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Option<f64>) -> Option<BoxAnswer> {
+pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Timeout) -> Option<BoxAnswer> {
     let t0 = std::time::Instant::now();
-    let deadline = timeout.map(|t| t0 + Duration::from_secs_f64(t.max(0.0)));
+    let deadline = timeout.deadline_from(t0);
     let cases = settle_constant_constraints(&net.maps, to_cases(q)?, deadline);
     if cases.is_empty() {
         return Some(BoxAnswer::Proved);
     }
     let plain: Vec<Case> = cases.iter().map(|c| c.1.clone()).collect();
-    let spent = t0.elapsed().as_secs_f64();
     let settings = search::Settings {
-        timeout: timeout
-            .map(|t| Duration::from_secs_f64((t - spent).max(0.0)))
-            .into(),
+        timeout: timeout.left(t0),
         ..Default::default()
     };
     let (outcome, _) = search::solve(&net.maps, &plain, &settings);

@@ -13,6 +13,7 @@ use crate::lp::{Lp, LpResult, Row};
 use crate::net::{affine_bounds, PwlNet};
 use crate::tighten::{lp_tighten, InputConstraint, LpTighten};
 use samara_nn::Network;
+use samara_num::Timeout;
 use samara_spec::normal::{Cmp, Constraint, LinExpr, Var};
 use std::collections::BinaryHeap;
 use std::sync::Arc;
@@ -250,8 +251,8 @@ impl BabResult {
 /// Limits of a search.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
-    /// Wall-clock limit.
-    pub seconds: f64,
+    /// Wall-clock limit of the search.
+    pub timeout: Timeout,
     /// Node limit.
     pub nodes: usize,
     /// Stop once the gap `upper - best` is below this (absolute).
@@ -263,7 +264,7 @@ pub struct Limits {
 impl Default for Limits {
     fn default() -> Self {
         Limits {
-            seconds: 60.0,
+            timeout: Timeout::from_secs(60),
             nodes: 200_000,
             gap: 1e-9,
             tighten: LpTighten::Off,
@@ -755,8 +756,7 @@ impl Problem<'_> {
                 closed_upper = closed_upper.max(node.upper);
                 continue;
             }
-            // (A NaN limit counts as reached.)
-            let timed_out = t0.elapsed().as_secs_f64() >= limits.seconds || limits.seconds.is_nan();
+            let timed_out = limits.timeout.expired(t0, Instant::now());
             if nodes >= limits.nodes || timed_out {
                 complete = false;
                 stop = Some(if timed_out {

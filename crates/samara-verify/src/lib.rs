@@ -64,6 +64,7 @@ use engine::{Limits, Point, Problem};
 use net::PwlNet;
 use rayon::prelude::*;
 use samara_nn::Network;
+pub use samara_num::Timeout;
 use samara_spec::normal::{Goal, Query, Sense, Var};
 use std::collections::HashMap;
 use std::time::Instant;
@@ -72,8 +73,9 @@ pub use tighten::LpTighten;
 /// Verification settings.
 #[derive(Clone, Copy, Debug)]
 pub struct Settings {
-    /// Time limit per query (seconds).
-    pub timeout: f64,
+    /// Time limit per query (none: no limit). A search cut short by it is `unknown`
+    /// (timeout), never proved or violated.
+    pub timeout: Timeout,
     /// Node limit per disjunct.
     pub max_nodes: usize,
     /// Absolute optimality gap at which a critical value counts as exact.
@@ -88,7 +90,7 @@ pub struct Settings {
 impl Default for Settings {
     fn default() -> Self {
         Settings {
-            timeout: 60.0,
+            timeout: Timeout::from_secs(60),
             max_nodes: 200_000,
             gap: 1e-9,
             lp_tighten: LpTighten::Off,
@@ -517,14 +519,14 @@ pub fn vacuity(q: &Query, prep: &Prepared, s: &Settings) -> Result<Option<String
 /// queries, not each).
 pub fn left_after(s: &Settings, t0: Instant) -> Settings {
     Settings {
-        timeout: (s.timeout - t0.elapsed().as_secs_f64()).max(0.0),
+        timeout: s.timeout.left(t0),
         ..*s
     }
 }
 
 fn limits(s: &Settings, t0: Instant) -> Limits {
     Limits {
-        seconds: (s.timeout - t0.elapsed().as_secs_f64()).max(0.0),
+        timeout: s.timeout.left(t0),
         nodes: s.max_nodes,
         gap: s.gap,
         tighten: s.lp_tighten,
@@ -604,7 +606,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
                 let boxes: Vec<Vec<(f64, f64)>> =
                     q.applications.iter().map(|a| a.input_box.clone()).collect();
                 let boxes = engine::tighten(&boxes, &q.region[d]);
-                let left = (s.timeout - t0.elapsed().as_secs_f64()).max(0.0);
+                let left = s.timeout.left(t0);
                 match smooth::search(&nets, &boxes, &q.region[d], left, 2_000_000) {
                     smooth::SmoothResult::Proved => continue,
                     smooth::SmoothResult::Violated(pt) => {

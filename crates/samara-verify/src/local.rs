@@ -473,8 +473,8 @@ pub(crate) fn prove_near_point(
             }
             let mut sub = q0.clone();
             sub.applications[sh.ib].input_box = b;
-            let left = s.timeout - t0.elapsed().as_secs_f64();
-            if left <= 0.0 {
+            let left = s.timeout.left(t0);
+            if left.is_zero() {
                 return Some(Ok(Verdict::Unknown(UnknownReason::Timeout { nodes: 0 })));
             }
             match prove(

@@ -255,7 +255,7 @@ pub fn sweep(
     domain: Option<&[(f64, f64)]>,
 ) -> Result<Vec<PointBall>, String> {
     let s = Settings {
-        timeout: 30.0,
+        timeout: crate::Timeout::from_secs(30),
         ..Default::default()
     };
     sweep_with(net, rows, eps, reference, domain, &s)
@@ -289,10 +289,9 @@ pub fn sweep_until(
 ) -> Result<Vec<PointBall>, String> {
     let within = |s: &Settings| match deadline {
         Some(d) => Settings {
-            timeout: s.timeout.min(
-                d.saturating_duration_since(std::time::Instant::now())
-                    .as_secs_f64(),
-            ),
+            timeout: s.timeout.min(crate::Timeout::from_duration(
+                d.saturating_duration_since(std::time::Instant::now()),
+            )),
             ..*s
         },
         None => *s,

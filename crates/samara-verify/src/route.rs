@@ -70,8 +70,7 @@ pub fn prove_routed(
     let Some(pwl) = pwl.filter(|_| out_of_range(q).is_none()) else {
         return Ok((prove(q, prep, s)?, Engine::Phase));
     };
-    let timeout = s.timeout.is_finite().then_some(s.timeout);
-    let Some(answer) = prove_boxes(q, pwl, timeout) else {
+    let Some(answer) = prove_boxes(q, pwl, s.timeout) else {
         return Ok((prove(q, prep, s)?, Engine::Phase));
     };
     let reason = match answer {
@@ -79,8 +78,8 @@ pub fn prove_routed(
         BoxAnswer::Violated(c) => return Ok((Verdict::Violated(c), Engine::InputSplit)),
         BoxAnswer::Unknown(u) => box_reason(u),
     };
-    let left = s.timeout - t0.elapsed().as_secs_f64();
-    if matches!(reason, UnknownReason::Timeout { .. }) || left <= 0.0 {
+    let left = s.timeout.left(t0);
+    if matches!(reason, UnknownReason::Timeout { .. }) || left.is_zero() {
         return Ok((Verdict::Unknown(reason), Engine::InputSplit));
     }
     let v = prove(

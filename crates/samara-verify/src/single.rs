@@ -17,8 +17,9 @@
 
 use crate::engine::{repair_free, tighten, BabResult, Limits, Point, Problem};
 use samara_bounds::optimise::{self as opt, Accepted, LinearFn};
+use samara_num::Timeout;
 use samara_spec::normal::{Cmp, LinExpr, Var};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 /// Solve `p` by the optimiser when it fits (see the module doc), else by the old engine.
 pub fn solve(p: Problem<'_>, limits: Limits) -> BabResult {
@@ -26,7 +27,7 @@ pub fn solve(p: Problem<'_>, limits: Limits) -> BabResult {
     if solve_single(
         &p,
         Limits {
-            seconds: 0.0,
+            timeout: Timeout::from_secs(0),
             ..limits
         },
     )
@@ -52,14 +53,14 @@ pub fn solve(p: Problem<'_>, limits: Limits) -> BabResult {
         nodes: limits.nodes.min(PHASE_FIRST_NODES),
         ..limits
     });
-    let left = limits.seconds - t0.elapsed().as_secs_f64();
-    if first.complete || limits.nodes <= PHASE_FIRST_NODES || left.is_nan() || left <= 0.0 {
+    let left = limits.timeout.left(t0);
+    if first.complete || limits.nodes <= PHASE_FIRST_NODES || left.is_zero() {
         return first;
     }
     solve_single(
         &p,
         Limits {
-            seconds: left,
+            timeout: left,
             nodes: limits.nodes - first.nodes.min(limits.nodes),
             ..limits
         },
@@ -84,12 +85,12 @@ pub fn solve_prove(p: Problem<'_>, limits: Limits) -> BabResult {
         *v >= p.floor && p.stop_when.as_ref().is_some_and(|cs| pt.satisfies(cs))
     });
     let empty = r.complete && r.upper < p.floor;
-    let left = limits.seconds - t0.elapsed().as_secs_f64();
-    if found || empty || left.is_nan() || left <= 0.0 {
+    let left = limits.timeout.left(t0);
+    if found || empty || left.is_zero() {
         return r;
     }
     p.solve(Limits {
-        seconds: left,
+        timeout: left,
         ..limits
     })
 }
@@ -121,10 +122,7 @@ pub fn solve_single(p: &Problem<'_>, limits: Limits) -> Option<BabResult> {
     let nx = net.n_inputs();
     let ny = net.n_outputs();
     let nf = p.free.len();
-    if bx.len() != nx
-        || p.free.iter().any(|f| !f.0.is_finite() || !f.1.is_finite())
-        || limits.seconds.is_nan()
-    {
+    if bx.len() != nx || p.free.iter().any(|f| !f.0.is_finite() || !f.1.is_finite()) {
         return None;
     }
     let in_range = |e: &LinExpr| {
@@ -145,14 +143,14 @@ pub fn solve_single(p: &Problem<'_>, limits: Limits) -> Option<BabResult> {
     }
     // No time or no nodes: no claim, as the phase engine (even for a problem settled at
     // the root).
-    if limits.seconds <= 0.0 || limits.nodes == 0 {
+    if limits.timeout.is_zero() || limits.nodes == 0 {
         return Some(BabResult {
             best: None,
             upper: f64::INFINITY,
             complete: false,
             nodes: 0,
             thin_leaves: 0,
-            stop: Some(if limits.seconds <= 0.0 {
+            stop: Some(if limits.timeout.is_zero() {
                 crate::UnknownReason::Timeout { nodes: 0 }
             } else {
                 crate::UnknownReason::NodeLimit { nodes: 0 }
@@ -206,7 +204,7 @@ pub fn solve_single(p: &Problem<'_>, limits: Limits) -> Option<BabResult> {
         objective,
     };
     let settings = opt::Settings {
-        deadline: Some(t0 + Duration::from_secs_f64(limits.seconds.clamp(0.0, 1e9))),
+        deadline: limits.timeout.deadline_from(t0),
         max_nodes: limits.nodes,
         gap: limits.gap,
         floor: p.floor,

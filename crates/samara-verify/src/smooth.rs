@@ -10,6 +10,7 @@
 use crate::engine::Point;
 use crate::net::{affine_bounds, down, up};
 use samara_nn::{Activation, Layer, Network};
+use samara_num::Timeout;
 use samara_spec::normal::{Cmp, Constraint, Var};
 use std::time::Instant;
 
@@ -139,7 +140,7 @@ pub fn search(
     nets: &[&Network],
     boxes: &[Vec<(f64, f64)>],
     cs: &[Constraint],
-    seconds: f64,
+    timeout: Timeout,
     max_boxes: usize,
 ) -> SmoothResult {
     let t0 = Instant::now();
@@ -191,7 +192,7 @@ pub fn search(
     let mut n = 0usize;
     while let Some(Item { b, .. }) = heap.pop() {
         n += 1;
-        if n > max_boxes || t0.elapsed().as_secs_f64() > seconds {
+        if n > max_boxes || timeout.expired(t0, Instant::now()) {
             return SmoothResult::Unknown(if n > max_boxes {
                 crate::UnknownReason::NodeLimit { nodes: n - 1 }
             } else {

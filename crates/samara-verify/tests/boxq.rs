@@ -8,7 +8,7 @@ use samara_nn::{Activation, Network};
 use samara_spec::normal::{Application, Cmp, Constraint, Goal, LinExpr, Query, Var};
 use samara_verify::boxq::{prove_boxes, BoxAnswer};
 use samara_verify::net::PwlNet;
-use samara_verify::{prove, Prepared, Settings, Verdict};
+use samara_verify::{prove, Prepared, Settings, Timeout, Verdict};
 use std::collections::HashMap;
 use std::path::Path;
 
@@ -31,7 +31,8 @@ fn acas_xu_fixtures_match_the_competition_consensus() {
         let text = std::fs::read_to_string(fixture(&format!("{prop}.vnnlib"))).unwrap();
         let q = samara_spec::vnnlib::import(&text, prop, "f", prop).unwrap();
         let pwl = PwlNet::from_network(&n).unwrap();
-        let a = prove_boxes(&q, &pwl, Some(120.0)).expect("ACAS Xu queries are box-shaped");
+        let a =
+            prove_boxes(&q, &pwl, Timeout::from_secs(120)).expect("ACAS Xu queries are box-shaped");
         match (a, sat) {
             (BoxAnswer::Proved, false) => {}
             (BoxAnswer::Violated(c), true) => {
@@ -107,7 +108,7 @@ fn random_box_queries_agree_with_the_lp_branch_and_bound() {
             goal: Goal::Prove,
         };
         let pwl = PwlNet::from_network(&net).unwrap();
-        let a = prove_boxes(&q, &pwl, Some(60.0)).unwrap();
+        let a = prove_boxes(&q, &pwl, Timeout::from_secs(60)).unwrap();
         let mut nets = HashMap::new();
         nets.insert("f".to_string(), net.clone());
         let prep = Prepared::new(&nets);
@@ -115,7 +116,7 @@ fn random_box_queries_agree_with_the_lp_branch_and_bound() {
             &q,
             &prep,
             &Settings {
-                timeout: 60.0,
+                timeout: Timeout::from_secs(60),
                 ..Default::default()
             },
         )

@@ -7,7 +7,7 @@
 
 use rand::{Rng, SeedableRng};
 use samara_nn::{Activation, Affine, Layer, Network};
-use samara_verify::{prove, Prepared, Settings, Verdict};
+use samara_verify::{prove, Prepared, Settings, Timeout, Verdict};
 use std::collections::HashMap;
 use std::io::Write;
 
@@ -47,7 +47,7 @@ fn net(layers: Vec<Layer>) -> HashMap<String, Network> {
 fn verdicts(nets: &HashMap<String, Network>, s: &samara_spec::Spec) -> Vec<Verdict> {
     let prep = Prepared::new(nets);
     let st = Settings {
-        timeout: 20.0,
+        timeout: Timeout::from_secs(20),
         ..Default::default()
     };
     s.lower_prove("lip", &samara_spec::Bindings::default())
@@ -156,7 +156,7 @@ fn published_p5_lipschitz(step: usize) {
     nets.insert("f".to_string(), network.clone());
     let prep = Prepared::new(&nets);
     let st = Settings {
-        timeout: 30.0,
+        timeout: Timeout::from_secs(30),
         ..Default::default()
     };
     // The spec's units: f's output is denormalised (ex = 0.181 + 0.012 out), inputs are

@@ -11,6 +11,7 @@ use samara_spec::normal::{Cmp, Constraint, LinExpr, Var};
 use samara_verify::engine::{BabResult, Limits, Point, Problem};
 use samara_verify::net::PwlNet;
 use samara_verify::single::solve_single;
+use samara_verify::Timeout;
 
 /// A random query on `net`: box, `a . x <= c`, `x0 + x1 - t >= 0` with `t` free, the
 /// output below a sampled median; objective `t + b . x + e y` maximised.
@@ -104,7 +105,7 @@ fn problem<'a>(c: &'a Case, pwl: &'a PwlNet) -> Problem<'a> {
 
 fn limits(seconds: f64) -> Limits {
     Limits {
-        seconds,
+        timeout: Timeout::from_secs_f64(seconds).unwrap(),
         ..Limits::default()
     }
 }

@@ -4,7 +4,7 @@
 use rand::{Rng, SeedableRng};
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_spec::normal::{Application, Cmp, Constraint, Goal, LinExpr, Query, Var};
-use samara_verify::{prove, Prepared, Settings, Verdict};
+use samara_verify::{prove, Prepared, Settings, Timeout, Verdict};
 use std::collections::HashMap;
 
 fn net(r: &mut impl Rng, act: Activation) -> Network {
@@ -77,7 +77,7 @@ fn smooth_verdicts_are_sound() {
                 &query(t, 2),
                 &prep,
                 &Settings {
-                    timeout: 20.0,
+                    timeout: Timeout::from_secs(20),
                     ..Default::default()
                 },
             )

@@ -7,8 +7,8 @@ use rand::{Rng, SeedableRng};
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_spec::normal::{Application, Cmp, Constraint, Goal, LinExpr, Query, Sense, Var};
 use samara_verify::{
-    empty_input_box, optimise, premise_empty, prove, vacuity, Prepared, Settings, UnknownReason,
-    Verdict, VerifyError,
+    empty_input_box, optimise, premise_empty, prove, vacuity, Prepared, Settings, Timeout,
+    UnknownReason, Verdict, VerifyError,
 };
 use std::collections::HashMap;
 
@@ -87,10 +87,13 @@ fn no_time_or_no_nodes_is_unknown_never_proved() {
     let prep = Prepared::new(&m);
     let full = prove(&q, &prep, &Settings::default()).unwrap();
     assert_eq!(full, Verdict::Proved, "the reference answer");
+    // A NaN or negative limit cannot reach the search: `Timeout` refuses it.
+    assert!(Timeout::from_secs_f64(f64::NAN).is_err());
+    assert!(Timeout::from_secs_f64(-1.0).is_err());
     for (s, kind) in [
         (
             Settings {
-                timeout: 0.0,
+                timeout: Timeout::from_secs(0),
                 ..Default::default()
             },
             "timeout",
@@ -101,13 +104,6 @@ fn no_time_or_no_nodes_is_unknown_never_proved() {
                 ..Default::default()
             },
             "node_limit",
-        ),
-        (
-            Settings {
-                timeout: f64::NAN,
-                ..Default::default()
-            },
-            "timeout",
         ),
     ] {
         match prove(&q, &prep, &s).unwrap() {
@@ -143,7 +139,7 @@ fn critical_values_cut_short_are_incomplete_with_a_reason() {
         &q,
         &prep,
         &Settings {
-            timeout: 0.0,
+            timeout: Timeout::from_secs(0),
             ..Default::default()
         },
     )
@@ -292,7 +288,7 @@ fn premises_empty_over_the_domain_are_vacuous_and_only_those() {
     let (m, _) = hard();
     let prep = Prepared::new(&m);
     let s = Settings {
-        timeout: 10.0,
+        timeout: Timeout::from_secs(10),
         ..Default::default()
     };
     let region = |t: f64, strict: bool| {

@@ -7,7 +7,7 @@ use rand_chacha::ChaCha8Rng;
 use samara_nn::{Activation, Network};
 use samara_spec::normal::{Application, Cmp, Constraint, Goal, LinExpr, Query, Var};
 use samara_verify::route::{prove_routed, Engine};
-use samara_verify::{prove, Prepared, Settings, Verdict};
+use samara_verify::{prove, Prepared, Settings, Timeout, Verdict};
 use std::collections::HashMap;
 
 fn query(input_box: Vec<(f64, f64)>, terms: Vec<(Var, f64)>, constant: f64) -> Query {
@@ -41,7 +41,11 @@ fn box_queries_take_the_input_split_route_and_others_the_phase_route() {
         nets.insert("f".to_string(), net);
         let prep = Prepared::new(&nets);
         let s = Settings {
-            timeout: if trial % 2 == 0 { f64::INFINITY } else { 60.0 },
+            timeout: if trial % 2 == 0 {
+                Timeout::none()
+            } else {
+                Timeout::from_secs(60)
+            },
             ..Default::default()
         };
         // y0 - y1 <= t: box-shaped.

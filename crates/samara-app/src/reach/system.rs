@@ -295,8 +295,210 @@ pub struct TaylorShard {
     pub system_name: String,
     /// `--network` as given.
     pub network_name: String,
-    /// The cells' merged result.
+    /// The cells' merged result, every number kept exactly ([`reach_form`]: an
+    /// infinite bound of a lost enclosure stays infinite), so that the merge gives
+    /// what one process gives.
+    #[serde(with = "reach_form")]
     pub reach: SystemReach,
+}
+
+/// The serde form of [`TaylorShard::reach`]: [`SystemReach`] field for field with every
+/// f64 a [`Float`] (finite numbers keep their bytes; `inf`, `-inf` and `NaN` are
+/// written as text where `reach.json`'s plain f64s give `null`, which reads back as
+/// nothing). The fields left out are the ones `SystemReach` does not serialise
+/// (`flights`, a leaf's `decided`): empty when read back, as before.
+mod reach_form {
+    use crate::shard::Float;
+    use samara_reach::system::{
+        MeasureRange, NetworkError, SystemLeaf, SystemReach, SystemVerdict, SystemViolation,
+    };
+    use samara_reach::ReachVerdict;
+    use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+    type Rows = Vec<Vec<[Float; 2]>>;
+
+    fn rows(r: &[Vec<[f64; 2]>]) -> Rows {
+        r.iter().map(|row| boxes(row)).collect()
+    }
+
+    fn boxes(b: &[[f64; 2]]) -> Vec<[Float; 2]> {
+        b.iter().map(|iv| iv.map(Float)).collect()
+    }
+
+    fn unrows(r: Rows) -> Vec<Vec<[f64; 2]>> {
+        r.into_iter().map(unboxes).collect()
+    }
+
+    fn unboxes(b: Vec<[Float; 2]>) -> Vec<[f64; 2]> {
+        b.into_iter().map(|iv| iv.map(|x| x.0)).collect()
+    }
+
+    #[derive(Serialize, Deserialize)]
+    struct Violation {
+        initial: Vec<Float>,
+        goal: String,
+    }
+
+    #[derive(Serialize, Deserialize)]
+    struct Leaf {
+        init: Vec<[Float; 2]>,
+        instants: Rows,
+        periods: Rows,
+        failure: Option<String>,
+        stopped_at: Option<Float>,
+        end_measures: Vec<[Float; 2]>,
+    }
+
+    #[derive(Serialize, Deserialize)]
+    struct Measure {
+        name: String,
+        enclosure: Option<[Float; 2]>,
+        sampled: Option<[Float; 2]>,
+        ratio: Option<Float>,
+    }
+
+    #[derive(Serialize, Deserialize)]
+    struct Reach {
+        system: String,
+        verdict: ReachVerdict<Violation>,
+        instants: Rows,
+        periods: Rows,
+        boxes: usize,
+        covered: Float,
+        order: usize,
+        network_error: NetworkError,
+        seconds: Float,
+        leaves: Vec<Leaf>,
+        measures: Vec<Measure>,
+    }
+
+    pub fn serialize<S: Serializer>(r: &SystemReach, s: S) -> Result<S::Ok, S::Error> {
+        // Every field named, so that a field added to `SystemReach` fails to compile
+        // here until the form has it too.
+        let SystemReach {
+            system,
+            verdict,
+            instants,
+            periods,
+            boxes: n_boxes,
+            covered,
+            order,
+            network_error,
+            seconds,
+            leaves,
+            measures,
+            flights: _,
+        } = r;
+        Reach {
+            system: system.clone(),
+            verdict: match verdict {
+                ReachVerdict::Proved => ReachVerdict::Proved,
+                ReachVerdict::Violated(v) => ReachVerdict::Violated(Violation {
+                    initial: v.initial.iter().map(|x| Float(*x)).collect(),
+                    goal: v.goal.clone(),
+                }),
+                ReachVerdict::Unknown { reason } => ReachVerdict::Unknown {
+                    reason: reason.clone(),
+                },
+                ReachVerdict::NoGoal => ReachVerdict::NoGoal,
+            },
+            instants: rows(instants),
+            periods: rows(periods),
+            boxes: *n_boxes,
+            covered: Float(*covered),
+            order: *order,
+            network_error: *network_error,
+            seconds: Float(*seconds),
+            leaves: leaves
+                .iter()
+                .map(|l| {
+                    let SystemLeaf {
+                        init,
+                        instants,
+                        periods,
+                        failure,
+                        decided: _,
+                        stopped_at,
+                        end_measures,
+                    } = l;
+                    Leaf {
+                        init: boxes(init),
+                        instants: rows(instants),
+                        periods: rows(periods),
+                        failure: failure.clone(),
+                        stopped_at: stopped_at.map(Float),
+                        end_measures: boxes(end_measures),
+                    }
+                })
+                .collect(),
+            measures: measures
+                .iter()
+                .map(|m| {
+                    let MeasureRange {
+                        name,
+                        enclosure,
+                        sampled,
+                        ratio,
+                    } = m;
+                    Measure {
+                        name: name.clone(),
+                        enclosure: enclosure.map(|e| e.map(Float)),
+                        sampled: sampled.map(|e| e.map(Float)),
+                        ratio: ratio.map(Float),
+                    }
+                })
+                .collect(),
+        }
+        .serialize(s)
+    }
+
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<SystemReach, D::Error> {
+        let r = Reach::deserialize(d)?;
+        let verdict: SystemVerdict = match r.verdict {
+            ReachVerdict::Proved => ReachVerdict::Proved,
+            ReachVerdict::Violated(v) => ReachVerdict::Violated(SystemViolation {
+                initial: v.initial.into_iter().map(|x| x.0).collect(),
+                goal: v.goal,
+            }),
+            ReachVerdict::Unknown { reason } => ReachVerdict::Unknown { reason },
+            ReachVerdict::NoGoal => ReachVerdict::NoGoal,
+        };
+        Ok(SystemReach {
+            system: r.system,
+            verdict,
+            instants: unrows(r.instants),
+            periods: unrows(r.periods),
+            boxes: r.boxes,
+            covered: r.covered.0,
+            order: r.order,
+            network_error: r.network_error,
+            seconds: r.seconds.0,
+            leaves: r
+                .leaves
+                .into_iter()
+                .map(|l| SystemLeaf {
+                    init: unboxes(l.init),
+                    instants: unrows(l.instants),
+                    periods: unrows(l.periods),
+                    failure: l.failure,
+                    decided: Vec::new(),
+                    stopped_at: l.stopped_at.map(|x| x.0),
+                    end_measures: unboxes(l.end_measures),
+                })
+                .collect(),
+            measures: r
+                .measures
+                .into_iter()
+                .map(|m| MeasureRange {
+                    name: m.name,
+                    enclosure: m.enclosure.map(|e| e.map(|x| x.0)),
+                    sampled: m.sampled.map(|e| e.map(|x| x.0)),
+                    ratio: m.ratio.map(|x| x.0),
+                })
+                .collect(),
+            flights: Vec::new(),
+        })
+    }
 }
 
 /// The `--json` line of a Taylor-model grid shard.
@@ -385,5 +587,123 @@ impl TaylorShard {
             out.display()
         );
         Ok((line, human))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::shard::{document, read_shards};
+    use samara_reach::system::SystemLeaf;
+
+    /// A cell's result; `lost`: its enclosure was lost after the first instant (an
+    /// infinite hull, as the driver leaves it), with an infinite measure ratio.
+    fn part(lost: bool) -> SystemReach {
+        let (last, verdict) = if lost {
+            (
+                [f64::NEG_INFINITY, f64::INFINITY],
+                SystemVerdict::Unknown {
+                    reason: "the enclosure was lost at t = 0.5".into(),
+                },
+            )
+        } else {
+            ([0.25, 0.75], SystemVerdict::Proved)
+        };
+        let instants = vec![vec![[0.0, 0.5], [1.0, 1.5]], vec![last, [1.0, 2.0]]];
+        SystemReach {
+            system: "toy".into(),
+            verdict,
+            instants: instants.clone(),
+            periods: vec![vec![[0.0, last[1]], [1.0, 2.0]]],
+            boxes: 1,
+            covered: if lost { 0.0 } else { 1.0 },
+            order: 3,
+            network_error: NetworkError::Interval,
+            seconds: 0.125,
+            leaves: vec![SystemLeaf {
+                init: vec![[0.0, 0.5], [1.0, 1.5]],
+                instants,
+                periods: vec![vec![[0.0, last[1]], [1.0, 2.0]]],
+                failure: lost.then(|| "the enclosure was lost at t = 0.5".into()),
+                decided: Vec::new(),
+                stopped_at: lost.then_some(0.5),
+                end_measures: vec![last],
+            }],
+            measures: vec![MeasureRange {
+                name: "x".into(),
+                enclosure: Some(last),
+                sampled: Some([0.3, 0.6]),
+                ratio: Some((last[1] - last[0]) / 0.3),
+            }],
+            flights: Vec::new(),
+        }
+    }
+
+    #[test]
+    fn a_merge_of_shards_with_infinite_bounds_is_the_merge_of_their_results() {
+        let run = TaylorRun {
+            sets: "taylor".into(),
+            system: "0123456789abcdef".into(),
+            params: Vec::new(),
+            init: vec![pair([0.0, 1.0]), pair([1.0, 1.5])],
+            network: "fedcba9876543210".into(),
+            grid: vec![2, 1],
+            cells: 2,
+            order: 3,
+            max_boxes: 8,
+            samples: 10,
+            seed: 1,
+            network_error: None,
+            lift_at: Exact(0.5),
+            lifted_weight: 1,
+            precondition: true,
+            measures: Vec::new(),
+        };
+        let parts = [part(true), part(false)];
+        let dir = std::env::temp_dir().join(format!("samara-taylor-merge-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut files = Vec::new();
+        for (i, p) in parts.iter().enumerate() {
+            let result = TaylorShard {
+                cells: (i, i + 1),
+                system_name: "toy.sys".into(),
+                network_name: "toy.onnx".into(),
+                reach: p.clone(),
+            };
+            let text = document("reach", Shard { i, n: 2 }, &run, &result).unwrap();
+            if i == 0 {
+                assert!(
+                    text.contains("\"-inf\"") && text.contains("\"inf\""),
+                    "{text}"
+                );
+            }
+            let f = dir.join(format!("shard{i}.json"));
+            std::fs::write(&f, text).unwrap();
+            files.push(f);
+        }
+        let shards = read_shards("reach", &files).unwrap();
+        let merged = merge_taylor(
+            &shards.run_as::<TaylorRun>().unwrap(),
+            &shards.results_as::<TaylorShard>().unwrap(),
+        )
+        .unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        // What one process gives: the same parts merged without a file between.
+        let direct = grid::merge_parts(parts.iter().map(|p| (1, p.clone())).collect());
+        assert_eq!(
+            merged.result.instants[1][0],
+            [f64::NEG_INFINITY, f64::INFINITY]
+        );
+        assert_eq!(
+            merged.result.measures[0].enclosure,
+            Some([f64::NEG_INFINITY, f64::INFINITY])
+        );
+        // Debug text shows every f64 exactly (shortest round trip, `inf`, `NaN`).
+        assert_eq!(format!("{:?}", merged.result), format!("{direct:?}"));
+        // And reach.json of the merge is the one-process document, byte for byte.
+        assert_eq!(
+            serde_json::to_string(&merged.result).unwrap(),
+            serde_json::to_string(&direct).unwrap()
+        );
     }
 }

@@ -1,5 +1,7 @@
-//! Closed loops: a built-in plate model (`samara_system::plate`) flown by a declared
-//! network under sample and hold, its initial set and the goal `samara reach` decides.
+//! Closed loops: a variant of the plate (`samara_system::plate`, a system file compiled
+//! from its `.sys` source) flown by a declared network under sample and hold, its
+//! initial set and the goal `samara reach` decides. [`LoopDecl::system`] lowers a loop
+//! to that [`System`] with the loop's period, horizon, initial set and clip.
 //!
 //! ```text
 //! loop published of f: model reduced, period 0.5, horizon 20, clip ex in [0.181, 0.193]
@@ -16,7 +18,8 @@
 use super::suggest::nearest;
 use super::Spec;
 use crate::syntax::{Expr, LoopValue, Pos, SpecError};
-use samara_system::plate::{self, Model};
+use samara_system::plate::{self, Variant};
+use samara_system::System;
 
 /// The band goal `|x + y| <= bound` around the line `y = -x` (the one goal `samara
 /// reach` decides for the built-in plate), at the horizon or over `[from, horizon]`.
@@ -37,8 +40,8 @@ pub struct LoopDecl {
     pub name: String,
     /// The controller network (a declared network; its raw-unit composition flies).
     pub net: String,
-    /// The plant variant.
-    pub model: Model,
+    /// The plate variant (its system file: [`LoopDecl::system`]).
+    pub model: Variant,
     /// Control period (sample and hold).
     pub period: f64,
     /// Horizon, a positive multiple of the period.
@@ -52,6 +55,23 @@ pub struct LoopDecl {
     pub goal: Option<BandGoal>,
     /// Where it was declared.
     pub pos: Pos,
+}
+
+impl LoopDecl {
+    /// The loop as a system: its variant's system file with the loop's period, horizon,
+    /// initial set (once its `start` is read) and clip of the actuation. The file's own
+    /// goals are dropped: the loop's goal is [`LoopDecl::goal`].
+    pub fn system(&self) -> System {
+        let mut s = self.model.system();
+        s.period = self.period;
+        s.horizon = self.horizon;
+        if !self.start.is_empty() {
+            s.init = self.start.clone();
+        }
+        s.clips = vec![self.clip; s.inputs.len()];
+        s.goals.clear();
+        s
+    }
 }
 
 /// Most control periods a loop may have (as `samara_reach::MAX_PERIODS`).
@@ -109,8 +129,8 @@ impl Spec {
             }
             match value {
                 LoopValue::Name(m) => {
-                    let names: Vec<&str> = Model::ALL.iter().map(|m| m.name()).collect();
-                    let Some(found) = Model::from_name(&m) else {
+                    let names: Vec<&str> = Variant::ALL.iter().map(|m| m.name()).collect();
+                    let Some(found) = Variant::from_name(&m) else {
                         return Err(self.error(
                             p,
                             format!("unknown model `{m}`"),
@@ -175,19 +195,15 @@ impl Spec {
             ));
         }
         let d = &self.networks[k];
-        if d.inputs
-            .iter()
-            .map(String::as_str)
-            .ne(plate::controller_inputs().iter().copied())
-            || d.outputs.len() != 1
-        {
+        let reads = plate::controller_inputs();
+        if d.inputs != reads || d.outputs.len() != 1 {
             return Err(self.error(
                 pos,
                 format!(
                     "network `{net}` reads ({}) and gives ({}); a closed loop of the plate feeds it the states ({}) and takes one output, the actuation",
                     d.inputs.join(", "),
                     d.outputs.join(", "),
-                    plate::controller_inputs().join(", ")
+                    reads.join(", ")
                 ),
                 "declare the controller as network f(v_xp, v_yp, omega, theta, x, y) -> (ex)",
             ));
@@ -223,10 +239,10 @@ impl Spec {
         }
         let model = self.loops[k].model;
         let names = plate::states(model);
-        let mut start: Vec<Option<(f64, f64)>> = vec![None; model.dim()];
+        let mut start: Vec<Option<(f64, f64)>> = vec![None; names.len()];
         for (n, a, b, p) in states {
             let Some(j) = names.iter().position(|s| *s == n) else {
-                let hint = nearest(&n, names.iter().copied())
+                let hint = nearest(&n, names.iter().map(String::as_str))
                     .map(|s| format!("did you mean `{s}`?"))
                     .unwrap_or_else(|| {
                         format!("the {} model's states: {}", model.name(), names.join(", "))
@@ -255,14 +271,15 @@ impl Spec {
             }
             start[j] = Some((a, b));
         }
-        if model.has_filter() && start[6].is_none() {
-            start[6] = Some((0.0, 0.0));
+        // The filter state starts at rest unless given.
+        if let Some(e) = names.iter().position(|s| s == "E") {
+            start[e].get_or_insert((0.0, 0.0));
         }
         let absent: Vec<&str> = names
             .iter()
             .zip(&start)
             .filter(|(_, s)| s.is_none())
-            .map(|(n, _)| *n)
+            .map(|(n, _)| n.as_str())
             .collect();
         if !absent.is_empty() {
             return Err(self.error(
