@@ -170,6 +170,11 @@ pub struct ReachArgs {
     /// the starting cells (docs/reach.md, "Adaptive splitting").
     #[arg(long, value_name = "R", allow_hyphen_values = true)]
     pub target_ratio: Option<f64>,
+    /// Discrete-time system files only (`next` updates, docs/system.md): which of an
+    /// input table's listed values the analysis takes: `all` (default: every value, a
+    /// branch each, the sound choice for any pilot), `middle`, `min` or `max`.
+    #[arg(long, value_name = "all|middle|min|max")]
+    pub choice: Option<String>,
 }
 
 /// Refuse 0 and more than [`MAX_THREADS`] worker threads, naming the flag.
