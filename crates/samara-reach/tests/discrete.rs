@@ -28,7 +28,7 @@ fn ctrl(sys: &System) -> Controllers {
     let d = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/archcomp/vcas");
     let nets = (1..=9)
         .map(|i| {
-            samara_nn::load(&d.join(format!("VertCAS_noResp_pra0{i}_v9_20HU_200.nnet"))).unwrap()
+            samara_nn::load(d.join(format!("VertCAS_noResp_pra0{i}_v9_20HU_200.nnet"))).unwrap()
         })
         .collect();
     Controllers::new(sys, nets).unwrap()

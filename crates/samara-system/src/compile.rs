@@ -48,6 +48,12 @@ struct Lower<'a, 'c> {
 
 type R<T> = Result<T, SystemError>;
 
+/// A `mode` line: name, place, values with their places.
+type ModeDecl = (String, Pos, Vec<(String, Pos)>);
+
+/// An input's table: the first `when` line's place and, per mode value, its values.
+type TableRows = (Pos, Vec<Option<Vec<f64>>>);
+
 /// One input's actuation: its graph, clip, and number of network outputs read.
 type Actuation = (Graph, Option<(f64, f64)>, usize);
 
@@ -386,7 +392,7 @@ pub(crate) fn compile(
     let mut inputs: Vec<(String, Pos)> = Vec::new();
     let mut lets: Vec<(String, Pos, Expr)> = Vec::new();
     let mut declared: HashMap<String, Pos> = HashMap::new();
-    let mut mode_decl: Option<(String, Pos, Vec<(String, Pos)>)> = None;
+    let mut mode_decl: Option<ModeDecl> = None;
     let mut declare = |n: &str, p: Pos, what: &str| -> R<()> {
         if let Some(q) = declared.get(n) {
             return Err(err(
@@ -614,7 +620,7 @@ pub(crate) fn compile(
     let mut argmax_pos: Option<Pos> = None;
     let mut networks_by = false;
     // Per input: the first table line's place and, per mode value, the listed values.
-    let mut tables: Vec<Option<(Pos, Vec<Option<Vec<f64>>>)>> = vec![None; inputs.len()];
+    let mut tables: Vec<Option<TableRows>> = vec![None; inputs.len()];
     let mode_values = |n: &str, p: Pos, what: &str| -> R<&Vec<(String, Pos)>> {
         match &mode_decl {
             Some((m, _, v)) if m == n => Ok(v),
