@@ -176,7 +176,7 @@ pub struct ReachArgs {
     /// a file --network may also be a folder (its .nnet/.onnx files in name order, one
     /// per mode value) or a comma-separated list, and --init NAME=A[:B] replaces a
     /// state's initial interval.
-    #[arg(long, value_name = "all|middle|min|max")]
+    #[arg(long, value_name = "all|middle|min|max", requires = "system")]
     pub choice: Option<String>,
 }
 
