@@ -62,7 +62,11 @@ quadrotor_competition|quadrotor_competition.sys|Aircraft/QUAD/quad_controller_3_
 spacecraft_docking|spacecraft_docking.sys|Docking/model.onnx|verified|Docking|constraint
 nav_standard|nav.sys|NAV/networks/nn-nav-point.onnx|unknown|NAV|standard
 nav_robust|nav.sys|NAV/networks/nn-nav-set.onnx|verified|NAV|robust
-cartpole|cartpole.sys|CartPole/model.onnx|unknown|Balancing (CartPole)|reach'
+cartpole|cartpole.sys|CartPole/model.onnx|unknown|Balancing (CartPole)|reach
+vcas_19.5|vcas_competition.sys|VCAS/nnet_networks|verified|VCAS|h0'"'"' = -19.5 (central acceleration)|--init hdot0=-19.5 --choice middle
+vcas_22.5|vcas_competition.sys|VCAS/nnet_networks|verified|VCAS|h0'"'"' = -22.5 (central acceleration)|--init hdot0=-22.5 --choice middle
+vcas_25.5|vcas_competition.sys|VCAS/nnet_networks|falsified|VCAS|h0'"'"' = -25.5 (central acceleration)|--init hdot0=-25.5 --choice middle
+vcas_28.5|vcas_competition.sys|VCAS/nnet_networks|falsified|VCAS|h0'"'"' = -28.5 (central acceleration)|--init hdot0=-28.5 --choice middle'
 
 find_net() {  # $1: ';'-separated relative paths; prints the first that exists
     local IFS=';' rel base txt act_h act_o onnx
@@ -78,7 +82,8 @@ find_net() {  # $1: ';'-separated relative paths; prints the first that exists
                     --hidden "$act_h" --output "$act_o" >/dev/null || continue
                 printf '%s\n' "$onnx"; return 0 ;;
             *)
-                if [ -f "$base/$rel" ]; then printf '%s\n' "$base/$rel"; return 0; fi ;;
+                # a file, or a folder of networks (VCAS: one per mode value)
+                if [ -e "$base/$rel" ]; then printf '%s\n' "$base/$rel"; return 0; fi ;;
             esac
         done
     done
@@ -132,6 +137,10 @@ print("%s|%s|%g" % (best[1], best[2], best[0][0]) if best else "||")
 PY
 }
 
+# VerticalCAS as the competition's tools run it: hdot0 normalised by the 5000 of
+# Specifications.txt instead of the networks' own header range 200 (vcas.sys, `hdot_norm`).
+sed 's/^param hdot_norm = 200$/param hdot_norm = 5000/' "$sysdir/vcas.sys" >"$out/vcas_competition.sys"
+
 echo "| benchmark | samara verdict | samara s | expected | best published (s) | ratio |"
 echo "|---|---|---|---|---|---|"
 notes=""
@@ -155,7 +164,9 @@ while IFS='|' read -r name sys nets expected pbench pinst opts; do
     # shellcheck disable=SC2206  # EXTRA is a word list
     [ -n "${EXTRA:-}" ] && extra+=($EXTRA)
     start=$(date +%s.%N)
-    timeout "$timeout_s" "$samara" reach --system "$sysdir/$sys" --network "$net" \
+    sysfile="$sysdir/$sys"
+    [ -f "$sysfile" ] || sysfile="$out/$sys"
+    timeout "$timeout_s" "$samara" reach --system "$sysfile" --network "$net" \
         --out "$dir" --json "${extra[@]}" </dev/null >"$out/$name.json" 2>"$out/$name.err"
     rc=$?
     wall=$(python3 -c "import sys; print('%.3g' % (float(sys.argv[2]) - float(sys.argv[1])))" "$start" "$(date +%s.%N)")

@@ -7,6 +7,7 @@
 mod merge;
 mod reach;
 mod reach_adaptive;
+mod reach_discrete;
 mod reach_system;
 mod reproduce;
 mod shard;

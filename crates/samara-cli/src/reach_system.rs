@@ -24,6 +24,9 @@ const WRITES: [&str; 1] = ["reach.json"];
 
 /// Run `samara reach --system`.
 pub fn run(a: &ReachArgs, path: &Path) -> Result<ExitCode> {
+    if let Some(code) = crate::reach_discrete::route(a, path)? {
+        return Ok(code);
+    }
     a.check_system_flags()?;
     let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
     let net = samara_nn::load(&a.network)

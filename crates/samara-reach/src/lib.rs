@@ -21,7 +21,9 @@
 //!   and [`verdict`] (what a glider run returns and how the goal is decided on it),
 //!   [`sampling`] (simulated trajectories: falsification first, figures), [`parts`]
 //!   (a glider run cut into shards and merged), [`grid`] and [`adaptive`] (the system
-//!   run over a grid of cells, and adaptively).
+//!   run over a grid of cells, and adaptively);
+//! - [`discrete`]: discrete-time system files (`next` updates, a mode set by `argmax`,
+//!   networks switched by the mode) on boxes, with the sound argmax.
 //!
 //! Verdicts: `Proved` only when every sub-box's enclosure satisfies the goal; `Violated`
 //! only with a concrete simulated trajectory; `Unknown` with the reason otherwise.
@@ -29,6 +31,7 @@
 #![warn(missing_docs)]
 
 pub mod adaptive;
+pub mod discrete;
 pub mod grid;
 pub mod parts;
 pub mod result;

@@ -5,7 +5,7 @@ use crate::error::{closest, Pos, SystemError};
 use crate::graph::{Bin2, Builder, Cond, Graph, Op, Un};
 use crate::lex::err;
 use crate::parse::{function_arity, Bin, Cmp, Expr, GoalAst, Stmt, WhenAst, FUNCTIONS};
-use crate::{Goal, GoalKind, Switch, System, When};
+use crate::{Discrete, Goal, GoalKind, InputTable, ModeVar, Switch, System, When};
 use std::collections::HashMap;
 use std::f64::consts::PI;
 
@@ -47,6 +47,12 @@ struct Lower<'a, 'c> {
 }
 
 type R<T> = Result<T, SystemError>;
+
+/// A `mode` line: name, place, values with their places.
+type ModeDecl = (String, Pos, Vec<(String, Pos)>);
+
+/// An input's table: the first `when` line's place and, per mode value, its values.
+type TableRows = (Pos, Vec<Option<Vec<f64>>>);
 
 /// One input's actuation: its graph, clip, and number of network outputs read.
 type Actuation = (Graph, Option<(f64, f64)>, usize);
@@ -386,6 +392,7 @@ pub(crate) fn compile(
     let mut inputs: Vec<(String, Pos)> = Vec::new();
     let mut lets: Vec<(String, Pos, Expr)> = Vec::new();
     let mut declared: HashMap<String, Pos> = HashMap::new();
+    let mut mode_decl: Option<ModeDecl> = None;
     let mut declare = |n: &str, p: Pos, what: &str| -> R<()> {
         if let Some(q) = declared.get(n) {
             return Err(err(
@@ -420,6 +427,36 @@ pub(crate) fn compile(
             Stmt::Param(n, p, _) => {
                 declare(n, *p, "parameter")?;
                 cx.param_lines.insert(n.clone(), p.line);
+            }
+            Stmt::Mode(n, p, vals) => {
+                declare(n, *p, "mode")?;
+                if let Some((m, q, _)) = &mode_decl {
+                    return Err(err(
+                        file,
+                        src,
+                        *p,
+                        format!(
+                            "a second mode `{n}`: the file already has the mode `{m}` (line {})",
+                            q.line
+                        ),
+                        "a system has at most one `mode`; list all its values in one line",
+                    ));
+                }
+                for (k, (v, vp)) in vals.iter().enumerate() {
+                    if let Some((_, q)) = vals[..k].iter().find(|(w, _)| w == v) {
+                        return Err(err(
+                            file,
+                            src,
+                            *vp,
+                            format!(
+                                "the value `{v}` is listed twice (first at column {})",
+                                q.col
+                            ),
+                            "list each value of the mode once",
+                        ));
+                    }
+                }
+                mode_decl = Some((n.clone(), *p, vals.clone()));
             }
             Stmt::Let(n, p, e) => {
                 declare(n, *p, "definition")?;
@@ -468,35 +505,58 @@ pub(crate) fn compile(
             params.push((n.clone(), v));
         }
     }
-    // Pass 3: right-hand side.
+    // Pass 3: right-hand side (`x' = ...`) or discrete update (`next x = ...`).
+    let discrete = stmts
+        .iter()
+        .any(|s| matches!(s, Stmt::Next(..) | Stmt::NextArgmax(..)));
     let mut rhs_b = Lower::new(&cx, Mode::Rhs, &lets)?;
     let mut eq: Vec<Option<usize>> = vec![None; states.len()];
     let mut eq_pos: Vec<Pos> = vec![Pos::default(); states.len()];
     for s in stmts {
-        if let Stmt::Eq(n, p, e) = s {
-            let Some(&i) = cx.states.get(n) else {
-                let hint = match closest(n, states.iter().map(|s| s.0.as_str())) {
-                    Some(s) => {
-                        format!("did you mean `{s}'`? Otherwise declare it with `state {n}`")
-                    }
-                    None => format!("declare it with `state {n}`"),
-                };
+        let (n, p, e, is_next) = match s {
+            Stmt::Eq(n, p, e) => (n, p, e, false),
+            Stmt::Next(n, p, e) => (n, p, e, true),
+            _ => continue,
+        };
+        if discrete && !is_next {
+            return cx.fail(
+                *p,
+                format!("`{n}'` is a derivative, but the system is discrete-time (it has `next` updates)"),
+                &format!("write the update `next {n} = ...`, or use derivatives only"),
+            );
+        }
+        let Some(&i) = cx.states.get(n) else {
+            if mode_decl.as_ref().is_some_and(|m| &m.0 == n) {
                 return cx.fail(
                     *p,
-                    format!("`{n}'` is the derivative of an undefined state `{n}`"),
-                    &hint,
-                );
-            };
-            if eq[i].is_some() {
-                return cx.fail(
-                    *p,
-                    format!("`{n}` already has an equation at line {}", eq_pos[i].line),
-                    "give each state exactly one equation",
+                    format!("the mode `{n}` changes only by `next {n} = argmax(net)`"),
+                    "a mode's new value is the index of the network's largest output",
                 );
             }
-            eq[i] = Some(rhs_b.expr(e)?);
-            eq_pos[i] = *p;
+            let hint = match closest(n, states.iter().map(|s| s.0.as_str())) {
+                Some(s) if is_next => {
+                    format!("did you mean `next {s}`? Otherwise declare it with `state {n}`")
+                }
+                Some(s) => format!("did you mean `{s}'`? Otherwise declare it with `state {n}`"),
+                None => format!("declare it with `state {n}`"),
+            };
+            let what = if is_next {
+                format!("`next {n}` updates an undefined state `{n}`")
+            } else {
+                format!("`{n}'` is the derivative of an undefined state `{n}`")
+            };
+            return cx.fail(*p, what, &hint);
+        };
+        if eq[i].is_some() {
+            let what = if is_next { "an update" } else { "an equation" };
+            return cx.fail(
+                *p,
+                format!("`{n}` already has {what} at line {}", eq_pos[i].line),
+                &format!("give each state exactly one {}", &what[3..]),
+            );
         }
+        eq[i] = Some(rhs_b.expr(e)?);
+        eq_pos[i] = *p;
     }
     let mut outs = Vec::new();
     for (i, o) in eq.iter().enumerate() {
@@ -504,6 +564,13 @@ pub(crate) fn compile(
             Some(k) => outs.push(*k),
             None => {
                 let (n, p) = &states[i];
+                if discrete {
+                    return cx.fail(
+                        *p,
+                        format!("state `{n}` has no update"),
+                        &format!("add `next {n} = ...` (write `next {n} = {n}` for a constant)"),
+                    );
+                }
                 return cx.fail(
                     *p,
                     format!("state `{n}` has no equation"),
@@ -512,7 +579,16 @@ pub(crate) fn compile(
             }
         }
     }
-    let rhs = rhs_b.b.finish(&outs);
+    let (rhs, next_graph) = if discrete {
+        let mut z = Builder::default();
+        let k = z.push(Op::Const(0.0)).expect("finite");
+        (
+            z.finish(&vec![k; states.len()]),
+            Some(rhs_b.b.finish(&outs)),
+        )
+    } else {
+        (rhs_b.b.finish(&outs), None)
+    };
     // Every `if` of the equations whose condition varies, its condition an output of
     // one graph (for the simulator's diagnosis of a collapsed step: which switch flips
     // at the state); one pass over the instructions however many `if`s there are.
@@ -540,6 +616,44 @@ pub(crate) fn compile(
     let mut resets = Vec::new();
     let mut init: Vec<Option<(f64, f64)>> = vec![None; states.len()];
     let mut goal_asts = Vec::new();
+    let mut mode_init: Option<usize> = None;
+    let mut argmax_pos: Option<Pos> = None;
+    let mut networks_by = false;
+    // Per input: the first table line's place and, per mode value, the listed values.
+    let mut tables: Vec<Option<TableRows>> = vec![None; inputs.len()];
+    let mode_values = |n: &str, p: Pos, what: &str| -> R<&Vec<(String, Pos)>> {
+        match &mode_decl {
+            Some((m, _, v)) if m == n => Ok(v),
+            Some((m, _, _)) => cx.fail(
+                p,
+                format!("`{n}` is not the mode of this system ({what})"),
+                &format!("the mode is `{m}`"),
+            ),
+            None => cx.fail(
+                p,
+                format!("`{n}` is not a mode ({what})"),
+                &format!("declare it with `mode {n} in [A, B, ...]`"),
+            ),
+        }
+    };
+    let value_index = |vals: &Vec<(String, Pos)>, m: &str, v: &str, p: Pos| -> R<usize> {
+        match vals.iter().position(|(w, _)| w == v) {
+            Some(k) => Ok(k),
+            None => {
+                let hint = match closest(v, vals.iter().map(|w| w.0.as_str())) {
+                    Some(w) => format!("did you mean `{w}`?"),
+                    None => format!(
+                        "the values of `{m}` are {}",
+                        vals.iter()
+                            .map(|w| w.0.as_str())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                };
+                cx.fail(p, format!("`{v}` is not a value of the mode `{m}`"), &hint)
+            }
+        }
+    };
     let state_index = |n: &str, p: Pos| -> R<usize> {
         match cx.states.get(n) {
             Some(&i) => Ok(i),
@@ -637,6 +751,80 @@ pub(crate) fn compile(
                 };
                 act[i] = Some((g, c, net_max));
             }
+            Stmt::Reset(_, p, _) if discrete => {
+                return cx.fail(
+                    *p,
+                    "`reset` applies to continuous-time systems".into(),
+                    "in a discrete-time system write the value in the state's `next` update",
+                );
+            }
+            Stmt::Init(n, p, lo, _) if mode_decl.as_ref().is_some_and(|m| &m.0 == n) => {
+                let vals = mode_values(n, *p, "init")?;
+                let Expr::Name(v, vp) = lo else {
+                    return cx.fail(
+                        lo.pos(),
+                        format!("the mode `{n}` starts at one of its values"),
+                        &format!("write `init {n} = {}`", vals[0].0),
+                    );
+                };
+                if mode_init.is_some() {
+                    return cx.fail(
+                        *p,
+                        format!("the mode `{n}` is initialised twice"),
+                        "keep one `init` line per mode",
+                    );
+                }
+                mode_init = Some(value_index(vals, n, v, *vp)?);
+            }
+            Stmt::NextArgmax(n, p) => {
+                mode_values(n, *p, "`argmax` sets a mode")?;
+                if argmax_pos.is_some() {
+                    return cx.fail(
+                        *p,
+                        format!("the mode `{n}` has two updates"),
+                        "keep one `next` line per mode",
+                    );
+                }
+                argmax_pos = Some(*p);
+            }
+            Stmt::NetworksBy(n, p) => {
+                mode_values(n, *p, "networks are chosen by a mode")?;
+                if networks_by {
+                    return cx.fail(*p, "`networks by` is given twice".into(), "keep one line");
+                }
+                networks_by = true;
+            }
+            Stmt::ActuateTable {
+                name: n,
+                pos,
+                values,
+                mode: (m, mp),
+                value: (v, vp),
+            } => {
+                let Some(&i) = cx.inputs.get(n) else {
+                    let hint = match closest(n, inputs.iter().map(|s| s.0.as_str())) {
+                        Some(s) => format!("did you mean `{s}`?"),
+                        None => format!("declare it with `input {n}`"),
+                    };
+                    return cx.fail(*pos, format!("`{n}` is not an input"), &hint);
+                };
+                let vals = mode_values(m, *mp, "`when` names a mode")?;
+                let k = value_index(vals, m, v, *vp)?;
+                let nv = vals.len();
+                let t = tables[i].get_or_insert_with(|| (*pos, vec![None; nv]));
+                if t.1[k].is_some() {
+                    return cx.fail(
+                        *pos,
+                        format!("`{n}` already has values for `{m} = {v}`"),
+                        "give one line per mode value",
+                    );
+                }
+                let mut row = Vec::with_capacity(values.len());
+                for e in values {
+                    row.push(constant(&cx, e)?);
+                }
+                t.1[k] = Some(row);
+            }
             Stmt::Reset(n, p, e) => {
                 let i = state_index(n, *p)?;
                 resets.push((i, constant(&cx, e)?));
@@ -699,6 +887,62 @@ pub(crate) fn compile(
             }
         }
     }
+    let mut mode = None;
+    if let Some((m, mp, vals)) = &mode_decl {
+        if argmax_pos.is_none() {
+            return cx.fail(
+                *mp,
+                format!("the mode `{m}` has no update"),
+                &format!("add `next {m} = argmax(net)`"),
+            );
+        }
+        let Some(init) = mode_init else {
+            return cx.fail(
+                *mp,
+                format!("the mode `{m}` has no initial value"),
+                &format!("add `init {m} = {}`", vals[0].0),
+            );
+        };
+        let mut out_tables = Vec::new();
+        for (i, t) in tables.iter().enumerate() {
+            let Some((tp, rows)) = t else { continue };
+            let n = &inputs[i].0;
+            if act[i].is_some() {
+                return cx.fail(
+                    *tp,
+                    format!("input `{n}` is actuated twice: by `actuate {n} = ...` and by a table"),
+                    "keep either the `actuate` line or the table's `when` lines",
+                );
+            }
+            let mut full = Vec::with_capacity(rows.len());
+            for (k, r) in rows.iter().enumerate() {
+                match r {
+                    Some(r) => full.push(r.clone()),
+                    None => {
+                        return cx.fail(
+                            *tp,
+                            format!("`{n}` has no values for `{m} = {}`", vals[k].0),
+                            &format!("add `actuate {n} = ... when {m} = {}`", vals[k].0),
+                        )
+                    }
+                }
+            }
+            let mut z = Builder::default();
+            let c = z.push(Op::Const(0.0)).expect("finite");
+            act[i] = Some((z.finish(&[c]), None, 0));
+            out_tables.push(InputTable {
+                input: i,
+                values: full,
+            });
+        }
+        mode = Some(ModeVar {
+            name: m.clone(),
+            values: vals.iter().map(|v| v.0.clone()).collect(),
+            init,
+            networks_by,
+            tables: out_tables,
+        });
+    }
     let mut actuate_ops = Vec::new();
     let mut clips = Vec::new();
     let mut n_net = 0;
@@ -740,6 +984,9 @@ pub(crate) fn compile(
         aouts.push(map[g.outputs[0]]);
     }
     let actuate = ab.finish(&aouts);
+    if let Some(m) = &mode {
+        n_net = n_net.max(m.values.len());
+    }
     let observe = match observe {
         Some(g) => g,
         None => {
@@ -858,6 +1105,7 @@ pub(crate) fn compile(
         goals,
         switches,
         switch_conditions,
+        discrete: next_graph.map(|next| Discrete { next, mode }),
         rhs,
         src: src.to_string(),
     })

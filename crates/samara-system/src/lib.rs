@@ -146,6 +146,47 @@ pub struct Switch {
     pub text: String,
 }
 
+/// A finite discrete state (`mode NAME in [V1, V2, ...]`) of a discrete-time system:
+/// its new value at every step is the index of the largest output of the network
+/// (`next NAME = argmax(net)`; ties go to the lowest index), and it may choose the
+/// network (`networks by NAME`) and the inputs' values (`actuate u = ... when NAME =
+/// V`). See docs/system.md, "Discrete-time systems".
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModeVar {
+    /// The mode's name.
+    pub name: String,
+    /// Its values, in order (value `k` is chosen when output `k` is the largest).
+    pub values: Vec<String>,
+    /// The index of its initial value (`init NAME = V`).
+    pub init: usize,
+    /// Whether the network is chosen by the mode's current value (`networks by NAME`):
+    /// one network per value, in the order of `values`.
+    pub networks_by: bool,
+    /// The inputs set by a per-value table, with, per mode value, the values the input
+    /// may take (the first, middle or all of them: a setting of the analysis).
+    pub tables: Vec<InputTable>,
+}
+
+/// The values one input may take under each mode value (`actuate u = a, b, c when
+/// MODE = V`, one line per value).
+#[derive(Clone, Debug, PartialEq)]
+pub struct InputTable {
+    /// Index of the input.
+    pub input: usize,
+    /// Per mode value (in the mode's order), the listed values, in file order.
+    pub values: Vec<Vec<f64>>,
+}
+
+/// The discrete-time part of a system written with `next` updates instead of
+/// derivatives (docs/system.md, "Discrete-time systems").
+#[derive(Clone, Debug, PartialEq)]
+pub struct Discrete {
+    /// `x_{k+1} = next(x_k, u_k)`: one output per state, over the states and inputs.
+    pub next: Graph,
+    /// The finite discrete state, if any.
+    pub mode: Option<ModeVar>,
+}
+
 /// A checked, compiled system file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct System {
@@ -183,6 +224,10 @@ pub struct System {
     /// b` for `if a < b` or `a <= b`, `b - a` for `>` and `>=` (the branch changes where
     /// it changes sign).
     pub switch_conditions: Graph,
+    /// For a discrete-time system (`next x = ...` updates): its update and mode; `None`
+    /// for a continuous one (`x' = ...`), whose `rhs` this is. A discrete system's
+    /// `rhs` is zero: commands that integrate a flow refuse it.
+    pub discrete: Option<Discrete>,
     rhs: Graph,
     src: String,
 }
@@ -350,6 +395,19 @@ impl System {
             .filter(|(_, c)| !(c.lo > 0.0 || c.hi < 0.0))
             .map(|(w, _)| w)
             .collect()
+    }
+
+    /// Whether the system is discrete-time (`next` updates; see [`System::discrete`]).
+    pub fn is_discrete(&self) -> bool {
+        self.discrete.is_some()
+    }
+
+    /// One discrete step `out = next(x, u)`; for a continuous system `out = x`.
+    pub fn next_state<S: Scalar>(&self, x: &[S], u: &[S], out: &mut [S]) {
+        match &self.discrete {
+            Some(d) => d.next.eval(x, u, out),
+            None => out.clone_from_slice(x),
+        }
     }
 
     /// Number of control periods in the horizon.

@@ -100,6 +100,24 @@ pub(crate) enum Stmt {
     Reset(String, Pos, Expr),
     Init(String, Pos, Expr, Expr),
     Goal(GoalAst, WhenAst, Pos),
+    /// `mode NAME in [V1, V2, ...]`: a finite discrete state and its values.
+    Mode(String, Pos, Vec<(String, Pos)>),
+    /// `next x = expr`: the discrete-time update of a state.
+    Next(String, Pos, Expr),
+    /// `next MODE = argmax(net)`: the mode's new value is the index of the largest
+    /// network output.
+    NextArgmax(String, Pos),
+    /// `networks by MODE`: one network per mode value, chosen by its current value.
+    NetworksBy(String, Pos),
+    /// `actuate u = E1, E2, ... when MODE = VALUE`: the values `u` may take when the
+    /// mode's new value is `VALUE`.
+    ActuateTable {
+        name: String,
+        pos: Pos,
+        values: Vec<Expr>,
+        mode: (String, Pos),
+        value: (String, Pos),
+    },
 }
 
 /// The functions of the language with their number of arguments (min, max).
@@ -467,7 +485,7 @@ impl<'a> Parser<'a> {
                 return self.fail(
                     t.pos,
                     format!("expected a statement, found {}", describe(other)),
-                    "statements start with state, input, param, let, NAME' =, period, horizon, observe, actuate, reset, init or goal",
+                    "statements start with state, input, param, let, NAME' =, next, mode, networks, period, horizon, observe, actuate, reset, init or goal",
                 )
             }
         };
@@ -502,6 +520,35 @@ impl<'a> Parser<'a> {
                     Stmt::Let(n, p, e)
                 }
             }
+            "next" => {
+                let hint = "write `next x = x + period * v` or `next MODE = argmax(net)`";
+                let (n, p) = self.name("a state or mode name", hint)?;
+                self.expect_sym("=", hint)?;
+                if self.is_kw("argmax") {
+                    self.bump();
+                    self.expect_sym("(", "write `argmax(net)`")?;
+                    self.expect_kw("net", "write `argmax(net)`: the network's outputs")?;
+                    self.expect_sym(")", "write `argmax(net)`")?;
+                    Stmt::NextArgmax(n, p)
+                } else {
+                    Stmt::Next(n, p, self.expr()?)
+                }
+            }
+            "mode" => {
+                let hint = "write `mode adv in [COC, DNC, DND]`";
+                let (n, p) = self.name("a mode name", hint)?;
+                self.expect_kw("in", hint)?;
+                self.expect_sym("[", hint)?;
+                let v = self.names("a mode value", hint)?;
+                self.expect_sym("]", hint)?;
+                Stmt::Mode(n, p, v)
+            }
+            "networks" => {
+                let hint = "write `networks by adv`: one network per value of the mode";
+                self.expect_kw("by", hint)?;
+                let (n, p) = self.name("a mode name", hint)?;
+                Stmt::NetworksBy(n, p)
+            }
             "period" => Stmt::Period(self.expr()?, t.pos),
             "horizon" => Stmt::Horizon(self.expr()?, t.pos),
             "observe" => {
@@ -517,6 +564,26 @@ impl<'a> Parser<'a> {
                     self.name("an input name", "write `actuate u = net[0] clip [-1, 1]`")?;
                 self.expect_sym("=", "write `actuate u = 2 * net[0] - 1`")?;
                 let e = self.expr()?;
+                if self.is_sym(",") || self.is_kw("when") {
+                    let hint = "write `actuate acc = -1, 0, 1 when adv = COC`";
+                    let mut values = vec![e];
+                    while self.is_sym(",") {
+                        self.bump();
+                        values.push(self.expr()?);
+                    }
+                    self.expect_kw("when", hint)?;
+                    let mode = self.name("a mode name", hint)?;
+                    self.expect_sym("=", hint)?;
+                    let value = self.name("a mode value", hint)?;
+                    self.end_of_statement()?;
+                    return Ok(Some(Stmt::ActuateTable {
+                        name: n,
+                        pos: p,
+                        values,
+                        mode,
+                        value,
+                    }));
+                }
                 let clip = if self.is_kw("clip") {
                     self.bump();
                     Some(self.range()?)
@@ -625,7 +692,7 @@ impl<'a> Parser<'a> {
             other => {
                 let known = [
                     "system", "state", "input", "param", "let", "period", "horizon", "observe",
-                    "actuate", "reset", "init", "goal",
+                    "actuate", "reset", "init", "goal", "next", "mode", "networks",
                 ];
                 let hint = match crate::error::closest(other, known.iter().copied()) {
                     Some(s) => format!("did you mean `{s}`? (a differential equation is written `{other}' = expr`)"),

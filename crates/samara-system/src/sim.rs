@@ -43,6 +43,9 @@ pub enum SimError {
         /// Outputs given.
         found: usize,
     },
+    /// The system is discrete-time (`next` updates): it has no flow to integrate.
+    #[error("the system is discrete-time (`next` updates), with no flow to integrate: analyse it with `samara reach --system` (samara_reach::discrete)")]
+    Discrete,
     /// More states than the integrators' fixed buffers hold.
     #[error("the system has {0} states; the closed-loop integrator handles at most {max} (samara_sim::MAX_DIM)", max = samara_sim::MAX_DIM)]
     TooManyStates(usize),
@@ -112,6 +115,9 @@ pub fn fly_until(
     per_period: usize,
     deadline: Option<std::time::Instant>,
 ) -> Result<SystemFlight, SimError> {
+    if sys.is_discrete() {
+        return Err(SimError::Discrete);
+    }
     let n = sys.dim();
     if x0.len() != n {
         return Err(SimError::StateDim {

@@ -170,6 +170,14 @@ pub struct ReachArgs {
     /// the starting cells (docs/reach.md, "Adaptive splitting").
     #[arg(long, value_name = "R", allow_hyphen_values = true)]
     pub target_ratio: Option<f64>,
+    /// Discrete-time system files only (`next` updates, docs/system.md): which of an
+    /// input table's listed values the analysis takes: `all` (default: every value, a
+    /// branch each, the sound choice for any pilot), `middle`, `min` or `max`. With such
+    /// a file --network may also be a folder (its .nnet/.onnx files in name order, one
+    /// per mode value) or a comma-separated list, and --init NAME=A[:B] replaces a
+    /// state's initial interval.
+    #[arg(long, value_name = "all|middle|min|max", requires = "system")]
+    pub choice: Option<String>,
 }
 
 /// Refuse 0 and more than [`MAX_THREADS`] worker threads, naming the flag.
