@@ -11,6 +11,7 @@
 
 pub mod adaptive;
 pub mod args;
+pub mod discrete;
 pub mod glider;
 pub mod system;
 

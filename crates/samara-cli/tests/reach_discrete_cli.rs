@@ -57,7 +57,7 @@ fn vcas_verdicts_and_exit_codes() {
     );
     assert_eq!(code, 0, "{stdout}{stderr}");
     let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
-    assert_eq!(v["verdict"], "verified");
+    assert_eq!(v["verdict"], "proved");
     assert!(out.join("reach.json").is_file());
     let out = dir.path().join("b");
     let (code, stdout, stderr) = reach(
@@ -67,7 +67,7 @@ fn vcas_verdicts_and_exit_codes() {
     );
     assert_eq!(code, 1, "{stdout}{stderr}");
     let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
-    assert_eq!(v["verdict"], "falsified");
+    assert_eq!(v["verdict"], "violated");
 }
 
 #[test]

@@ -8,7 +8,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_reach::discrete::{
     reach_discrete, simulate, step_f64, Choice, Controllers, DiscreteResult, DiscreteSettings,
-    DiscreteVerdict,
+    DiscreteVerdict, DiscreteViolation,
 };
 use samara_system::System;
 use std::path::Path;
@@ -155,7 +155,7 @@ fn overlapping_scores_branch_into_both_advisories_and_contain_trajectories() {
 fn all_choices_verified_case_contains_3000_random_pilots() {
     let sys = vcas(5000.0, (-133.0, -129.0), -19.5);
     let r = run(&sys, Choice::All);
-    assert_eq!(r.verdict, DiscreteVerdict::Verified);
+    assert_eq!(r.verdict, DiscreteVerdict::Proved);
     assert_contains(&sys, &r, Choice::All, 3000);
 }
 
@@ -165,9 +165,9 @@ fn falsification_is_a_rechecked_trajectory() {
     // start; from -131 that is -92, inside the unsafe band (by hand).
     let sys = vcas(200.0, (-133.0, -129.0), -19.5);
     let r = run(&sys, Choice::Middle);
-    let DiscreteVerdict::Falsified {
+    let DiscreteVerdict::Violated(DiscreteViolation {
         trajectory, step, ..
-    } = &r.verdict
+    }) = &r.verdict
     else {
         panic!("{:?}", r.verdict)
     };
@@ -189,8 +189,8 @@ fn middle_strategy_matches_the_published_verdicts() {
         let sys = vcas(5000.0, (-133.0, -129.0), hd);
         let r = run(&sys, Choice::Middle);
         match (&r.verdict, safe) {
-            (DiscreteVerdict::Verified, true) => assert_contains(&sys, &r, Choice::Middle, 500),
-            (DiscreteVerdict::Falsified { .. }, false) => {}
+            (DiscreteVerdict::Proved, true) => assert_contains(&sys, &r, Choice::Middle, 500),
+            (DiscreteVerdict::Violated(_), false) => {}
             (v, _) => panic!("hdot0 {hd}: {v:?}"),
         }
     }

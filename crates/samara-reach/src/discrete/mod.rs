@@ -15,8 +15,8 @@
 //! update is evaluated on intervals (outward rounded), so each new box contains the
 //! image of its set.
 //!
-//! Verdicts: `Verified` when every set satisfies every goal at every checked instant;
-//! `Falsified` only with a concrete trajectory, simulated in f64 with the real networks
+//! Verdicts: `Proved` when every set satisfies every goal at every checked instant;
+//! `Violated` only with a concrete trajectory, simulated in f64 with the real networks
 //! ([`simulate`]) and re-checked; `Unknown` with the reason otherwise (a set that meets
 //! the unsafe region with no simulated trajectory that does, the set budget, the time
 //! limit).
@@ -28,7 +28,7 @@ use samara_bounds::symbolic::{self, Objective};
 use samara_nn::Network;
 use samara_num::{Interval, Timeout};
 use samara_system::{System, When};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::time::Instant;
 
 /// Which of a table's listed values an input takes (ARCH-COMP's VerticalCAS strategies).
@@ -252,7 +252,7 @@ impl BoxSet {
 }
 
 /// A simulated trajectory: the states, modes and inputs at instants `0..=N`.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Trajectory {
     /// States at each instant.
     pub states: Vec<Vec<f64>>,
@@ -262,27 +262,22 @@ pub struct Trajectory {
     pub inputs: Vec<Vec<f64>>,
 }
 
-/// The verdict of a discrete run.
-#[derive(Clone, Debug, PartialEq, Serialize)]
-#[serde(tag = "verdict", rename_all = "lowercase")]
-pub enum DiscreteVerdict {
-    /// Every set satisfies every goal.
-    Verified,
-    /// A simulated trajectory breaks a goal.
-    Falsified {
-        /// The trajectory.
-        trajectory: Trajectory,
-        /// The goal's text.
-        goal: String,
-        /// The first instant where it fails.
-        step: usize,
-    },
-    /// Neither.
-    Unknown {
-        /// Why.
-        reason: String,
-    },
+/// A simulated trajectory that breaks a goal of a discrete run (re-simulated in f64 with
+/// the real networks).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct DiscreteViolation {
+    /// The trajectory.
+    pub trajectory: Trajectory,
+    /// The goal's text.
+    pub goal: String,
+    /// The first instant where it fails.
+    pub step: usize,
 }
+
+/// The verdict of a discrete run: samara's one reach verdict ([`crate::ReachVerdict`]:
+/// proved when every set satisfies every goal, violated with a trajectory, unknown with
+/// the reason), so discrete, glider and system runs answer in one vocabulary.
+pub type DiscreteVerdict = crate::result::ReachVerdict<DiscreteViolation>;
 
 /// What a discrete run returns.
 #[derive(Clone, Debug, Serialize)]
@@ -627,11 +622,11 @@ pub fn reach_discrete(
     };
     // Falsification first.
     if let Some((trajectory, g, step)) = falsify(sys, ctrl, s, s.samples, &[], &mut rng) {
-        let verdict = DiscreteVerdict::Falsified {
+        let verdict = DiscreteVerdict::Violated(DiscreteViolation {
             trajectory,
             goal: sys.goals[g].text.clone(),
             step,
-        };
+        });
         return finish(verdict, Vec::new(), 0, 0);
     }
     let mode0 = sys
@@ -759,7 +754,7 @@ pub fn reach_discrete(
         sets.push(next);
     }
     let Some((k, goal, b)) = failed else {
-        return finish(DiscreteVerdict::Verified, sets, splits, mode_branches);
+        return finish(DiscreteVerdict::Proved, sets, splits, mode_branches);
     };
     // A set meets the unsafe region: look harder for a trajectory, replaying the
     // choices of every set that fails at that instant.
@@ -770,11 +765,11 @@ pub fn reach_discrete(
         .map(|c| c.choices.clone())
         .collect();
     if let Some((trajectory, g, step)) = falsify(sys, ctrl, s, 10 * s.samples, &replays, &mut rng) {
-        let verdict = DiscreteVerdict::Falsified {
+        let verdict = DiscreteVerdict::Violated(DiscreteViolation {
             trajectory,
             goal: sys.goals[g].text.clone(),
             step,
-        };
+        });
         return finish(verdict, sets, splits, mode_branches);
     }
     let reason = format!(
