@@ -19,6 +19,16 @@
 //! is affine there and the LP is exact (up to its rounding slack), so the leaves of the
 //! search close.
 //!
+//! Objective cut-off: a point whose value is at most the incumbent's adds nothing, so
+//! every node's box is first shrunk to the points that satisfy the rows over `v` alone
+//! (the constraints without outputs) and `objective >= incumbent` when the objective has
+//! no output term (bound propagation with outward rounding); the same rows, projected
+//! onto the inputs, cut the set over which the earliest unstable layer's pre-activation
+//! bounds are computed ([`crate::phases`]' LP tightening). For P1 (`x + y >= ystar`,
+//! maximise `ystar`) this confines the search to the corner of the box where
+//! `x + y` exceeds the incumbent. The search's final bound is `max(bound of the open
+//! and closed nodes, incumbent)`, so the points cut off are covered.
+//!
 //! Incumbents: each node's LP primal point (solved with every row pushed inward by a
 //! rounding-size margin, so a point on a strict constraint's boundary is not proposed),
 //! handed to the caller's `accept`, which re-evaluates the network concretely and says
@@ -28,8 +38,7 @@
 //! Search: best first (largest bound), in batches evaluated in parallel (rayon); the
 //! batch is a fixed number of nodes and incumbents are updated between batches in a
 //! fixed order, so the result does not depend on the number of threads. A node with at
-//! most [`Settings::phase_max_unstable`] unstable ReLUs, or with phases fixed already, is
-//! split on a ReLU: in the earliest layer with unstable neurons (so that every phase row
+//! most [`Settings::phase_max_unstable`] unstable ReLUs is split on a ReLU: in the earliest layer with unstable neurons (so that every phase row
 //! is exact once all are fixed), the neuron whose relaxation is loosest at the node's LP
 //! point (the chord above, CROWN's lower line below; BaBSR-like, Bunel et al., JMLR
 //! 2020). Otherwise every input is tried (strong branching: both halves bounded, the
@@ -49,7 +58,12 @@
 // Measured on the Goedel + Lipschitz 6-64-32-1 network's P1 (normalised spec, 2 cores):
 // input splitting alone never lowers the global bound (45.91, the box's corner, which
 // every piece that keeps it still reaches); ReLU splitting from the root reaches the
-// exact value in 11,400 nodes; the rules above in about 12,000 nodes and 6 s.
+// exact value in 11,400 nodes; the rules above without the cut-off in about 12,000
+// nodes and 3.3 s of CPU, with it (and 4 alpha-CROWN steps, input splitting allowed
+// below ReLU splits, 20 unstable ReLUs for ReLU splitting) in about 3,400 and 0.9 s.
+// On the generated Lipschitz networks (bench/verify/gen_lipschitz.sh, seeds 1 and 3)
+// input splitting below ReLU splits is what closes P1 (seed 1: 23,700 nodes without
+// alpha steps and 5,500 with; ReLU splitting only: no answer in 60 s).
 
 use crate::phases::unstable;
 use crate::symbolic::{self, Linear, Objective};
@@ -135,8 +149,8 @@ impl Default for Settings {
             max_nodes: 0,
             gap: 1e-9,
             floor: f64::NEG_INFINITY,
-            phase_max_unstable: 12,
-            alpha_iters: 0,
+            phase_max_unstable: 20,
+            alpha_iters: 4,
             batch: 8,
             attack_starts: 64,
             attack_steps: 100,
@@ -205,8 +219,11 @@ impl Outcome {
 
 /// How far (relative to each row's magnitude) the LP pushes its primal point inside the
 /// rows: first a rounding-size margin, at a leaf more until a point is accepted (a point
-/// on a strict constraint's boundary is no witness; a deeper one loses objective value).
-const SHRINK: [f64; 5] = [1e-12, 1e-10, 1e-8, 1e-6, 1e-4];
+/// on a strict constraint's boundary is no witness; a deeper one loses objective value:
+/// the row's multiplier times the push, which on a flat network is large: seed 1 of
+/// bench/verify/gen_lipschitz.sh has a multiplier of 1.2e7 on P1's output row, so a
+/// first push of 1e-12 lost 1.2e-5 of ystar, 1e-15 loses 1e-8).
+const SHRINK: [f64; 7] = [1e-15, 1e-13, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4];
 
 /// One fixed phase: map, neuron, active.
 type Fix = (usize, usize, bool);
@@ -267,6 +284,71 @@ fn exact_v(f: &LinearFn, scale: f64) -> Linear {
     }
 }
 
+/// Shrink the box `[lo, hi]` to the points that can satisfy every row `r(v) <= 0`
+/// (each `r` a lower bound, slack subtracted, of a function that is `<= 0` there):
+/// bound propagation, each variable of each row bounded by the row's other terms at
+/// their best over the box, rounded outward (the other terms' sum by [`Linear::min_over`]'s
+/// error bound, the quotient by one step). A few rounds; `false` when the box is empty.
+/// Every point of the old box that satisfies the rows lies in the new one.
+fn propagate(rows: &[&Linear], lo: &mut [f64], hi: &mut [f64]) -> bool {
+    for _ in 0..4 {
+        let mut changed = false;
+        for r in rows {
+            let n = r.coef.len().min(lo.len());
+            // The sum of the terms at their minima, and the magnitude of its terms.
+            let mut sum = r.cst;
+            let mut mag = r.cst.abs();
+            let picks: Vec<f64> = (0..n)
+                .map(|t| {
+                    let (a, b) = (r.coef[t] * lo[t], r.coef[t] * hi[t]);
+                    mag += a.abs().max(b.abs());
+                    a.min(b)
+                })
+                .collect();
+            for p in &picks {
+                sum += p;
+            }
+            if sum.is_nan() || mag.is_nan() || !mag.is_finite() {
+                return true;
+            }
+            // `sum` (and `sum - picks[t]`) are within `err` of their exact values.
+            let err = ((n as f64 + 4.0) * f64::EPSILON * mag + r.slack) * (1.0 + 1e-9);
+            if (sum - err).next_down() > 0.0 {
+                return false;
+            }
+            for t in 0..n {
+                let c = r.coef[t];
+                if c == 0.0 {
+                    continue;
+                }
+                // c v_t <= -(rest), rest >= m.
+                let m = ((sum - picks[t]).next_down() - err).next_down();
+                let q = -m / c;
+                if c > 0.0 {
+                    let u = q.next_up();
+                    if u < hi[t] {
+                        hi[t] = u.max(lo[t]);
+                        changed = true;
+                    }
+                } else {
+                    let l = q.next_down();
+                    if l > lo[t] {
+                        lo[t] = l.min(hi[t]);
+                        changed = true;
+                    }
+                }
+                if (c > 0.0 && q.next_up() < lo[t]) || (c < 0.0 && q.next_down() > hi[t]) {
+                    return false;
+                }
+            }
+        }
+        if !changed {
+            break;
+        }
+    }
+    true
+}
+
 struct Ctx<'a> {
     p: &'a Problem<'a>,
     s: &'a Settings,
@@ -274,10 +356,15 @@ struct Ctx<'a> {
     nv: usize,
     /// Whether any constraint or the objective uses the outputs.
     net: bool,
+    /// The constraints that do not use the outputs, as exact rows `f(v) <= 0` over `v`.
+    vrows: Vec<Linear>,
 }
 
 /// The bound of one node, or `None` when the node is shown empty (or below the floor).
 struct Eval {
+    /// The node's box, shrunk by [`propagate`].
+    lo: Vec<f64>,
+    hi: Vec<f64>,
     upper: f64,
     /// The largest sound lower bound over the node of a constraint that uses the
     /// outputs (how close the relaxation is to cutting the node; `-inf` without one).
@@ -321,9 +408,60 @@ impl Ctx<'_> {
         extend(&g, self.nv).combine(1.0, &ex, 1.0, lo, hi)
     }
 
+    /// The rows every point of a node that can beat `cut` satisfies, exactly over `v`:
+    /// the constraints that do not use the outputs and, when the objective does not,
+    /// `cut - objective(v) <= 0` (a point whose value is at most the incumbent's adds
+    /// nothing to the search).
+    fn cut_row(&self, cut: f64) -> Option<Linear> {
+        if !cut.is_finite() || self.p.objective.uses_outputs() {
+            return None;
+        }
+        let mut r = exact_v(&self.p.objective, -1.0);
+        let d = r.cst;
+        r.cst = d + cut;
+        // The rounding of the constant's sum, subtracted (a lower bound).
+        r.slack = f64::EPSILON * (d.abs() + cut.abs());
+        Some(r)
+    }
+
+    /// The rows over `v` alone (with the cut row) as rows over the inputs `x`: each
+    /// row's terms in the extra variables replaced by their minimum over the box
+    /// `[lo, hi]` (sound: a row `<= 0` at a point stays `<= 0` with a smaller term).
+    /// Rows without an input term are left out.
+    fn xrows(&self, rows: &[&Linear], lo: &[f64], hi: &[f64]) -> Vec<Linear> {
+        let nx = self.nx;
+        rows.iter()
+            .filter(|r| r.coef[..nx].iter().any(|c| *c != 0.0))
+            .map(|r| {
+                let t = Linear {
+                    coef: r.coef[nx..].to_vec(),
+                    cst: r.cst,
+                    slack: r.slack,
+                };
+                // Sound lower bound of the row's constant and extra-variable part.
+                let m = t.min_over(&lo[nx..], &hi[nx..]);
+                Linear {
+                    coef: r.coef[..nx].to_vec(),
+                    cst: m,
+                    slack: 0.0,
+                }
+            })
+            .collect()
+    }
+
+    /// Whether the inputs' part of the box `[lo, hi]` is narrower than that of
+    /// `[in_lo, in_hi]` by more than a thousandth on some side: then bounds computed on
+    /// the new box are worth their cost.
+    fn shrank(&self, lo: &[f64], hi: &[f64], in_lo: &[f64], in_hi: &[f64]) -> bool {
+        (0..self.nx).any(|t| (hi[t] - lo[t]) < 0.999 * (in_hi[t] - in_lo[t]))
+    }
+
     /// Bound a node: its box `lo, hi`, its phases `fixes` (the last one new when
     /// `new_fix`), from its parent's bounds and phase rows; the LP's primal point is
-    /// pushed inside the rows by `shrink` (relative).
+    /// pushed inside the rows by `shrink` (relative). The box is first shrunk to the
+    /// points that satisfy the rows over `v` alone and can beat the incumbent `cut`
+    /// ([`propagate`]; the node's points outside it have values at most `cut`, which the
+    /// search's final bound covers); the shrunk box is the [`Eval`]'s.
     #[allow(clippy::too_many_arguments)]
     fn eval(
         &self,
@@ -334,7 +472,16 @@ impl Ctx<'_> {
         parent_fs: &Arc<Vec<Linear>>,
         new_fix: bool,
         shrink: f64,
+        cut: f64,
     ) -> Option<Eval> {
+        let (in_lo, in_hi) = (lo, hi);
+        let (mut lo, mut hi) = (lo.to_vec(), hi.to_vec());
+        let cr = self.cut_row(cut);
+        let rows: Vec<&Linear> = self.vrows.iter().chain(cr.as_ref()).collect();
+        if !propagate(&rows, &mut lo, &mut hi) {
+            return None;
+        }
+        let (lo, hi) = (&lo[..], &hi[..]);
         let (xl, xh) = (&lo[..self.nx], &hi[..self.nx]);
         let maps = self.p.maps;
         let mut phase_fs = parent_fs.clone();
@@ -352,7 +499,11 @@ impl Ctx<'_> {
                     b.1 = b.1.min(0.0);
                 }
             }
-            let mut nb = symbolic::crown_pre_from(maps, xl, xh, Some(&clamped), j + 1);
+            let mut nb = if self.shrank(lo, hi, in_lo, in_hi) {
+                crate::search::piece_bounds(maps, xl, xh, Some(&clamped), self.s.deadline)
+            } else {
+                symbolic::crown_pre_from(maps, xl, xh, Some(&clamped), j + 1)
+            };
             if nb.iter().flatten().any(|&(l, u)| l > u) {
                 return None;
             }
@@ -365,17 +516,26 @@ impl Ctx<'_> {
             }
             let mut fs = (**parent_fs).clone();
             fs.push(f);
-            crate::phases::tighten(maps, &mut nb, &fs, xl, xh)?;
+            // The earliest unstable layer's bounds over the set the phase rows and
+            // the input rows cut from the box.
+            let mut all = self.xrows(&rows, lo, hi);
+            all.extend(fs.iter().cloned());
+            crate::phases::tighten(maps, &mut nb, &all, xl, xh)?;
             phase_fs = Arc::new(fs);
             Arc::new(nb)
         } else {
-            let b = crate::search::piece_bounds(
+            let mut b = crate::search::piece_bounds(
                 maps,
                 xl,
                 xh,
                 parent_pre.map(|p| &**p),
                 self.s.deadline,
             );
+            let mut all = self.xrows(&rows, lo, hi);
+            if !all.is_empty() {
+                all.extend(parent_fs.iter().cloned());
+                crate::phases::tighten(maps, &mut b, &all, xl, xh)?;
+            }
             Arc::new(b)
         };
         if pre
@@ -467,6 +627,8 @@ impl Ctx<'_> {
             0
         };
         Some(Eval {
+            lo: lo.to_vec(),
+            hi: hi.to_vec(),
             upper,
             row_lb,
             pre: pre.clone(),
@@ -597,7 +759,20 @@ pub fn optimise(
     let nx = p.maps.first().map(|m| m.0.inp).unwrap_or(0);
     let nv = p.lo.len();
     let net = p.constraints.iter().any(|c| c.f.uses_outputs()) || p.objective.uses_outputs();
-    let ctx = Ctx { p, s, nx, nv, net };
+    let vrows = p
+        .constraints
+        .iter()
+        .filter(|c| !c.f.uses_outputs())
+        .map(|c| exact_v(&c.f, 1.0))
+        .collect();
+    let ctx = Ctx {
+        p,
+        s,
+        nx,
+        nv,
+        net,
+        vrows,
+    };
     let mut out = Outcome {
         best: None,
         upper: f64::NEG_INFINITY,
@@ -614,25 +789,27 @@ pub fn optimise(
     {
         return out;
     }
+    let incumbent = |out: &Outcome| {
+        out.best
+            .as_ref()
+            .map(|b| b.value)
+            .unwrap_or(f64::NEG_INFINITY)
+    };
+    // The attack first: its incumbent shrinks the root's box (see [`Ctx::eval`]).
+    for c in attack(&ctx, s.attack_starts, s.attack_steps) {
+        if let Some(a) = accept(&c) {
+            if out.take(a) {
+                return out;
+            }
+        }
+    }
     let none: Arc<Vec<Linear>> = Arc::new(Vec::new());
     out.nodes += 1;
-    let Some(root) = ctx.eval(&p.lo, &p.hi, &[], None, &none, false, SHRINK[0]) else {
+    let inc0 = incumbent(&out);
+    let Some(root) = ctx.eval(&p.lo, &p.hi, &[], None, &none, false, SHRINK[0], inc0) else {
+        // No point of the problem beats the incumbent (if any).
+        out.upper = inc0;
         return out;
-    };
-    let mut next_id = 0u64;
-    let mut mk = |lo: Vec<f64>, hi: Vec<f64>, fixes: Vec<Fix>, e: Eval| {
-        next_id += 1;
-        Node {
-            lo,
-            hi,
-            fixes,
-            pre: e.pre,
-            phase_fs: e.phase_fs,
-            upper: e.upper,
-            unstable: e.unstable,
-            cand: e.cand,
-            id: next_id,
-        }
     };
     let tol = |inc: f64| s.gap.max(1e-9 * inc.abs());
     let mut closed = f64::NEG_INFINITY;
@@ -643,9 +820,19 @@ pub fn optimise(
     let mut next_trace = 0;
     let mut heap = BinaryHeap::new();
     let mut cands: Vec<Vec<f64>> = Vec::new();
-    let root = mk(p.lo.clone(), p.hi.clone(), Vec::new(), root);
+    let root = Node {
+        lo: root.lo,
+        hi: root.hi,
+        fixes: Vec::new(),
+        pre: root.pre,
+        phase_fs: root.phase_fs,
+        upper: root.upper,
+        unstable: root.unstable,
+        cand: root.cand,
+        id: 0,
+    };
+    let mut next_id = 0u64;
     cands.extend(root.cand.clone());
-    cands.extend(attack(&ctx, s.attack_starts, s.attack_steps));
     heap.push(root);
     loop {
         // Candidates in a fixed order.
@@ -656,11 +843,7 @@ pub fn optimise(
                 }
             }
         }
-        let inc = out
-            .best
-            .as_ref()
-            .map(|b| b.value)
-            .unwrap_or(f64::NEG_INFINITY);
+        let inc = incumbent(&out);
         let Some(top) = heap.peek() else { break };
         if top.upper <= inc + tol(inc) {
             for n in heap.drain() {
@@ -715,18 +898,10 @@ pub fn optimise(
             match r {
                 Processed::Split(children, cs) => {
                     cands.extend(cs);
-                    for (lo, hi, fixes, e) in children.into_iter().map(|c| {
-                        let e = Eval {
-                            upper: c.upper,
-                            row_lb: 0.0,
-                            pre: c.pre,
-                            phase_fs: c.phase_fs,
-                            unstable: c.unstable,
-                            cand: c.cand,
-                        };
-                        (c.lo, c.hi, c.fixes, e)
-                    }) {
-                        heap.push(mk(lo, hi, fixes, e));
+                    for mut c in children {
+                        next_id += 1;
+                        c.id = next_id;
+                        heap.push(c);
                     }
                 }
                 Processed::Leaf(u, got) => {
@@ -782,7 +957,16 @@ fn process(
                 break;
             }
             let e = if n.fixes.is_empty() {
-                ctx.eval(&n.lo, &n.hi, &[], Some(&n.pre), &n.phase_fs, false, sh)
+                ctx.eval(
+                    &n.lo,
+                    &n.hi,
+                    &[],
+                    Some(&n.pre),
+                    &n.phase_fs,
+                    false,
+                    sh,
+                    incumbent,
+                )
             } else {
                 // The bounds and phase rows of the node, re-used as they are.
                 ctx.eval_with(&n.lo, &n.hi, &n.pre, &n.phase_fs, sh)
@@ -801,8 +985,7 @@ fn process(
             mid > xl[t] && mid < xh[t]
         })
         .collect();
-    let relu_only =
-        n.unstable <= ctx.s.phase_max_unstable || splittable.is_empty() || !n.fixes.is_empty();
+    let relu_only = n.unstable <= ctx.s.phase_max_unstable || splittable.is_empty();
     let mut children = Vec::new();
     let mut cands = Vec::new();
     let mut evals = 0;
@@ -853,11 +1036,12 @@ fn process(
                 &n.phase_fs,
                 true,
                 SHRINK[0],
+                incumbent,
             ) {
                 cands.extend(e.cand.clone());
                 rkids.push(Node {
-                    lo: n.lo.clone(),
-                    hi: n.hi.clone(),
+                    lo: e.lo,
+                    hi: e.hi,
                     fixes,
                     pre: e.pre,
                     phase_fs: e.phase_fs,
@@ -907,15 +1091,24 @@ fn process(
                 lo[t] = mid;
             }
             evals += 1;
-            if let Some(e) = ctx.eval(&lo, &hi, &[], Some(&n.pre), &n.phase_fs, false, SHRINK[0]) {
+            if let Some(e) = ctx.eval(
+                &lo,
+                &hi,
+                &[],
+                Some(&n.pre),
+                &n.phase_fs,
+                false,
+                SHRINK[0],
+                incumbent,
+            ) {
                 // (The parent's bound holds on the half too.)
                 score = score.max(e.upper.min(n.upper));
                 gains.push((n.upper - e.upper).clamp(0.0, full));
                 rows += e.row_lb.max(-1e300);
                 kc.extend(e.cand.clone());
                 kids.push(Node {
-                    lo,
-                    hi,
+                    lo: e.lo,
+                    hi: e.hi,
                     fixes: Vec::new(),
                     pre: e.pre,
                     phase_fs: e.phase_fs,
@@ -981,4 +1174,75 @@ fn process(
         cands.extend(t.2);
     }
     (Processed::Split(children, cands), evals)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Bound propagation keeps every point of the box that satisfies the rows, and
+    /// reports a box empty only when no sampled point satisfies them: checked on 300
+    /// random problems (3 variables, 1-3 rows with slack) against 2,000 sampled points
+    /// each, the rows evaluated at the points directly.
+    #[test]
+    fn propagation_keeps_every_feasible_point() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(42);
+        let mut emptied = 0;
+        let mut shrunk = 0;
+        for _ in 0..300 {
+            let n = 3;
+            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-50.0..0.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.1..60.0)).collect();
+            let rows: Vec<Linear> = (0..rng.gen_range(1..=3))
+                .map(|_| Linear {
+                    coef: (0..n)
+                        .map(|_| {
+                            if rng.gen_bool(0.2) {
+                                0.0
+                            } else {
+                                rng.gen_range(-3.0..3.0)
+                            }
+                        })
+                        .collect(),
+                    cst: rng.gen_range(-40.0..40.0),
+                    slack: if rng.gen_bool(0.5) { 0.0 } else { 0.01 },
+                })
+                .collect();
+            let refs: Vec<&Linear> = rows.iter().collect();
+            let (mut nl, mut nh) = (lo.clone(), hi.clone());
+            let ok = propagate(&refs, &mut nl, &mut nh);
+            if !ok {
+                emptied += 1;
+            } else if nl
+                .iter()
+                .zip(&nh)
+                .zip(lo.iter().zip(&hi))
+                .any(|((a, b), (c, d))| b - a < d - c)
+            {
+                shrunk += 1;
+            }
+            for _ in 0..2000 {
+                let v: Vec<f64> = (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
+                // A point where every row's function (the row plus its slack, which the
+                // row bounds from below) is <= 0.
+                let feasible = rows.iter().all(|r| {
+                    r.cst + r.coef.iter().zip(&v).map(|(c, x)| c * x).sum::<f64>() - r.slack <= 0.0
+                });
+                if feasible {
+                    assert!(ok, "a feasible point {v:?} in a box called empty");
+                    for t in 0..n {
+                        assert!(
+                            nl[t] <= v[t] && v[t] <= nh[t],
+                            "{v:?} cut from [{nl:?}, {nh:?}]"
+                        );
+                    }
+                }
+            }
+        }
+        // The check is not vacuous: boxes were shrunk and shown empty.
+        assert!(
+            emptied > 10 && shrunk > 50,
+            "emptied {emptied}, shrunk {shrunk}"
+        );
+    }
 }
