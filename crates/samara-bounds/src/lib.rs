@@ -42,5 +42,6 @@ pub mod optimise;
 pub mod phases;
 pub mod pwl;
 mod query;
+mod relusplit;
 pub mod search;
 pub mod symbolic;
