@@ -204,12 +204,11 @@ fn optimise(
     let mut best_ab = (alpha.clone(), beta.clone());
     // Step sizes: slopes live in [0, 1]; a multiplier's scale is that of the pull-back's
     // coefficients of its layer.
-    let lr_a: Vec<f64> = vec![envf("SAMARA_RELU_LRA", 0.1); alpha.len()];
+    let lr_a: Vec<f64> = vec![0.1; alpha.len()];
     let lr_b: Vec<f64> = (0..beta.len())
         .map(|j| {
             let nu = &best.nu[j + 1];
-            envf("SAMARA_RELU_LRB", 0.05) * nu.iter().map(|v| v.abs()).sum::<f64>()
-                / nu.len().max(1) as f64
+            0.05 * nu.iter().map(|v| v.abs()).sum::<f64>() / nu.len().max(1) as f64
         })
         .collect();
     let mut adam_a = Adam::new(&alpha);
@@ -294,7 +293,7 @@ pub(crate) fn examine(tree: &Tree, node: Node, deadline: Option<Instant>) -> Nod
     let iters = if node.splits.is_empty() {
         tree.root_iters
     } else {
-        envf("SAMARA_RELU_ITERS", tree.iters as f64) as usize
+        tree.iters
     };
     let mut still = Vec::new();
     let mut warm = Vec::new();
@@ -323,16 +322,6 @@ pub(crate) fn examine(tree: &Tree, node: Node, deadline: Option<Instant>) -> Nod
                 deadline,
             );
             let lb = f.min_over(lo, hi);
-            if std::env::var_os("SAMARA_RELU_DEBUG").is_some() {
-                let last = node
-                    .splits
-                    .last()
-                    .map(|s| (s.0, s.1, s.2, tree.pre[s.0][s.1]));
-                eprintln!(
-                    "node depth {} case {ci} bound {lb:.4} last split {last:?}",
-                    node.depth
-                );
-            }
             if if con.strict { lb >= 0.0 } else { lb > 0.0 } {
                 closed = true;
                 break;
@@ -423,11 +412,4 @@ pub(crate) fn examine_batch(
         .into_par_iter()
         .map(|n| examine(tree, n, deadline))
         .collect()
-}
-
-fn envf(k: &str, d: f64) -> f64 {
-    std::env::var(k)
-        .ok()
-        .and_then(|v| v.parse().ok())
-        .unwrap_or(d)
 }
