@@ -24,6 +24,11 @@
 //! short local attack) is reported only when its f64 evaluation satisfies every
 //! constraint with a margin above the evaluation's own rounding error. Anything cut short
 //! (time, piece budget) is [`Outcome::Unknown`] with its reason.
+//!
+//! On 64 or more inputs (images) halving one input hardly moves a bound: a box left open
+//! by those same checks is decided by ReLU splitting with beta-CROWN bounds instead
+//! (`crate::relusplit`), one tree per open case, after the intermediate bounds are
+//! tightened once by alpha-CROWN ([`symbolic::alpha_pre_until`]).
 
 use crate::query::{combination_certifies, forward};
 pub use crate::query::{satisfies, Case, OutputConstraint};
