@@ -858,6 +858,10 @@ pub(crate) fn value_grad(
         value += c * x;
         g.push(x);
     }
+    // The vectorised dot product on image-sized inputs only: on few inputs (ACAS Xu)
+    // the sequential sum keeps the slopes, and so the search, bit for bit what they were
+    // measured with.
+    let fast = lo.len() >= 64;
     let mut grad: Vec<Vec<f64>> = alpha.iter().map(|a| vec![0.0; a.len()]).collect();
     let mut gbeta: Vec<Vec<f64>> = alpha.iter().map(|a| vec![0.0; a.len()]).collect();
     // g = dB/d(nu_j) over the inputs of map j; go up the chain.
@@ -869,7 +873,12 @@ pub(crate) fn value_grad(
         let mut gm = vec![0.0; m.out];
         for (i, gi) in gm.iter_mut().enumerate() {
             let row = &m.w[i * m.inp..(i + 1) * m.inp];
-            *gi = m.b[i] + dot(row, &g);
+            *gi = m.b[i]
+                + if fast {
+                    dot(row, &g)
+                } else {
+                    row.iter().zip(&g).map(|(w, x)| w * x).sum::<f64>()
+                };
         }
         if !maps[j].1 {
             g = gm;
