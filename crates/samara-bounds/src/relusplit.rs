@@ -284,7 +284,7 @@ pub(crate) fn examine(tree: &Tree, node: Node, deadline: Option<Instant>) -> Nod
     // (sound on the node's set), intersected with the inherited ones.
     if let Some(&(j, _, _)) = node.splits.last() {
         if j + 1 < pre.len() {
-            pre = symbolic::crown_pre_from(maps, lo, hi, Some(&pre), j + 1);
+            pre = symbolic::crown_pre_from_until(maps, lo, hi, &pre, j + 1, deadline);
             if pre.iter().flatten().any(|&(l, u)| l > u) {
                 return NodeOut::Closed;
             }

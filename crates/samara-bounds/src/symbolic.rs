@@ -1011,6 +1011,9 @@ pub fn alpha_pre_until(
         let new: Vec<(usize, f64, f64)> = unstable
             .par_iter()
             .map(|&i| {
+                if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                    return (i, f64::NEG_INFINITY, f64::INFINITY);
+                }
                 let mut c = vec![0.0; out];
                 c[i] = 1.0;
                 let l = alpha_lower_until(
@@ -1133,6 +1136,20 @@ pub fn crown_pre_from(
     from: usize,
 ) -> Vec<Vec<(f64, f64)>> {
     crown_pre_core(maps, lo, hi, fwd, from, None, None)
+}
+
+/// [`crown_pre_from`] that keeps the given bounds `fwd` for the neurons not yet
+/// re-bounded at `deadline` (they are sound): one re-bound of a wide layer can take
+/// seconds, and a time limit must hold.
+pub(crate) fn crown_pre_from_until(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: &[Vec<(f64, f64)>],
+    from: usize,
+    deadline: Option<std::time::Instant>,
+) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_core(maps, lo, hi, Some(fwd), from, deadline, None)
 }
 
 fn crown_pre_core(
