@@ -21,6 +21,9 @@
 //!   then splitting the box (look-ahead, or the largest smear as in ReluVal, Wang et al.,
 //!   USENIX Security 2018) until every piece is proved empty or a point is found. Points
 //!   are re-evaluated concretely before they are reported.
+//!   Boxes with 64 or more inputs (images) are decided by ReLU splitting instead
+//!   (`relusplit`): beta-CROWN bounds (Wang et al., NeurIPS 2021) per phase set, after
+//!   the same checks of the whole box.
 //! - [`constant`]: interval bounds rounded only where an operation was inexact, which
 //!   decide degenerate constraints (an output exactly 0 on the box, two outputs of the
 //!   same expression compared) that the widened bounds of the search never close.
@@ -42,5 +45,6 @@ pub mod optimise;
 pub mod phases;
 pub mod pwl;
 mod query;
+mod relusplit;
 pub mod search;
 pub mod symbolic;

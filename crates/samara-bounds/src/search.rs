@@ -24,6 +24,11 @@
 //! short local attack) is reported only when its f64 evaluation satisfies every
 //! constraint with a margin above the evaluation's own rounding error. Anything cut short
 //! (time, piece budget) is [`Outcome::Unknown`] with its reason.
+//!
+//! On 64 or more inputs (images) halving one input hardly moves a bound: a box left open
+//! by those same checks is decided by ReLU splitting with beta-CROWN bounds instead
+//! (`crate::relusplit`), one tree per open case, after the intermediate bounds are
+//! tightened once by alpha-CROWN ([`symbolic::alpha_pre_until`]).
 
 use crate::query::{combination_certifies, forward};
 pub use crate::query::{satisfies, Case, OutputConstraint};
@@ -706,17 +711,31 @@ fn open_bounds(
         .collect()
 }
 
-fn examine(
+/// What [`settle`] left of a piece: its bounds and the cases still open with theirs.
+struct Settled {
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    depth: u32,
+    pre: Arc<Bounds>,
+    lins: Arc<symbolic::PreLinear>,
+    left: Vec<(usize, ConjBound)>,
+}
+
+/// The checks every piece gets before it is split: its intermediate bounds, each open
+/// case's constraint bounds (alpha-CROWN and the combination LP), the constant fates,
+/// the candidate points (centre, LP minimiser, minimising corners) and a short local
+/// attack. `Err` with what decided the piece (closed, a point, late), else what is left.
+fn settle(
     maps: &[(Affine, bool)],
     cases: &[Case],
     w: Work,
     s: &Settings,
     deadline: Option<Instant>,
-) -> Piece {
+) -> Result<Settled, Piece> {
     let alpha_iters = s.alpha_iters;
     let late = || deadline.is_some_and(|d| Instant::now() >= d);
     if late() {
-        return Piece::Late;
+        return Err(Piece::Late);
     }
     let Work {
         lo,
@@ -765,12 +784,12 @@ fn examine(
             // Every point of the piece satisfies the case: its centre is one (the caller
             // re-checks it exactly).
             FOUND_BY.store(6, AtOrd::Relaxed);
-            return Piece::Found(ci, centre);
+            return Err(Piece::Found(ci, centre));
         }
     }
     if left.is_empty() {
         PROF[P_CLOSED].fetch_add(1, AtOrd::Relaxed);
-        return Piece::Closed;
+        return Err(Piece::Closed);
     }
     let tp = Instant::now();
     let centre: Vec<f64> = lo.iter().zip(&hi).map(|(a, b)| 0.5 * (a + b)).collect();
@@ -788,7 +807,7 @@ fn examine(
             .find(|(ci, _)| satisfies(&cases[*ci].constraints, &y))
         {
             FOUND_BY.store(3, AtOrd::Relaxed);
-            return Piece::Found(*ci, x.clone());
+            return Err(Piece::Found(*ci, x.clone()));
         }
     }
     // The most promising case: the lowest bound (closest to holding a point).
@@ -798,7 +817,7 @@ fn examine(
         .expect("some case is open");
     let Some(pf) = &pb.f else {
         // An empty conjunction holds at the centre: found above.
-        return Piece::Stuck;
+        return Err(Piece::Stuck);
     };
     // A short local attack from where the most promising bounds point.
     let start = pb.x.clone().unwrap_or_else(|| pf.argmin_corner(&lo, &hi));
@@ -812,12 +831,48 @@ fn examine(
         deadline,
     ) {
         FOUND_BY.store(4, AtOrd::Relaxed);
-        return Piece::Found(*pci, x);
+        return Err(Piece::Found(*pci, x));
     }
     prof_add(P_PGD, tp);
     if late() {
-        return Piece::Late;
+        return Err(Piece::Late);
     }
+    Ok(Settled {
+        lo,
+        hi,
+        depth,
+        pre,
+        lins,
+        left,
+    })
+}
+
+fn examine(
+    maps: &[(Affine, bool)],
+    cases: &[Case],
+    w: Work,
+    s: &Settings,
+    deadline: Option<Instant>,
+) -> Piece {
+    let late = || deadline.is_some_and(|d| Instant::now() >= d);
+    let Settled {
+        lo,
+        hi,
+        depth,
+        pre,
+        lins,
+        left,
+    } = match settle(maps, cases, w, s, deadline) {
+        Ok(st) => st,
+        Err(p) => return p,
+    };
+    let (pci, pb) = left
+        .iter()
+        .min_by(|a, b| a.1.lb.total_cmp(&b.1.lb))
+        .expect("some case is open");
+    let Some(pf) = &pb.f else {
+        return Piece::Stuck;
+    };
     let open: Vec<usize> = left.iter().map(|l| l.0).collect();
     let nu = crate::phases::unstable(maps, &pre).len();
     if nu <= s.phase_max_unstable {
@@ -1011,6 +1066,197 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
     (o, st)
 }
 
+/// The attack bursts during a search (see [`Settings::attack_seconds`]).
+struct Bursts {
+    last: Instant,
+    count: u64,
+}
+
+impl Bursts {
+    fn new() -> Self {
+        Bursts {
+            last: Instant::now(),
+            count: 0,
+        }
+    }
+
+    /// A fresh attack burst when one is due, shared by all cases so bursts stay a small
+    /// share of the search however many cases there are; the violation when it finds a
+    /// point. `closed` counts the pieces closed so far.
+    #[allow(clippy::too_many_arguments)]
+    fn run(
+        &mut self,
+        maps: &[(Affine, bool)],
+        cases: &[Case],
+        s: &Settings,
+        t0: Instant,
+        round: u64,
+        closed: u64,
+        stats: &mut Stats,
+        deadline: Option<Instant>,
+    ) -> Option<Outcome> {
+        let interval = (0.25 * t0.elapsed().as_secs_f64()).max(0.5);
+        if self.last.elapsed().as_secs_f64() < interval {
+            return None;
+        }
+        let share = rayon::current_num_threads().max(1) as f64 / cases.len().max(1) as f64;
+        let mut per_case = (0.15 * interval).min(4.0 * s.attack_seconds) * share.min(1.0);
+        // The first burst is long when hardly any piece has closed yet (fewer than 1 in
+        // 10, halves closed by the look-ahead included): the search is then making no
+        // headway, which is typical of a query with points (ACAS Xu properties 7 and 8),
+        // where the attack is the faster way to one.
+        if self.count == 0 && closed * 10 < stats.pieces {
+            per_case = 10.0 * s.attack_seconds;
+        }
+        self.count += 1;
+        let found = attack_all(maps, cases, s, round, per_case, stats, deadline);
+        self.last = Instant::now();
+        found.map(|(ci, x)| {
+            let y = forward(maps, &x, None);
+            FOUND_BY.store(2, AtOrd::Relaxed);
+            Outcome::Violated(CasePoint { case: ci, x, y })
+        })
+    }
+}
+
+/// From this many inputs on (images), a box left open by its own bounds is decided by
+/// ReLU splitting ([`crate::relusplit`]) instead of input splitting: halving one input
+/// of hundreds hardly tightens a bound, and the look-ahead's trial of every input costs
+/// more than the whole bound.
+const RELU_SPLIT_INPUTS: usize = SIGN_STEP_INPUTS;
+
+/// The search of [`solve_inner`] for boxes with many inputs: per box, the checks of
+/// [`settle`] on the whole box, then ReLU splitting of the cases left open, in parallel
+/// batches, with the same attack bursts.
+fn solve_relu(
+    maps: &[(Affine, bool)],
+    cases: &[Case],
+    s: &Settings,
+    t0: Instant,
+    mut stats: Stats,
+) -> (Outcome, Stats) {
+    use crate::relusplit::{self, NodeOut};
+    let deadline = s.timeout.deadline_from(t0);
+    let out_of_time = || s.timeout.expired(t0, Instant::now());
+    let mut bursts = Bursts::new();
+    let mut stuck = false;
+    let mut batches = 0u64;
+    let mut closed = 0u64;
+    let violated = |ci: usize, x: Vec<f64>| {
+        let y = forward(maps, &x, None);
+        Outcome::Violated(CasePoint { case: ci, x, y })
+    };
+    for group in box_groups(cases) {
+        let c0 = &cases[group[0]];
+        let w = Work {
+            lo: c0.lo.clone(),
+            hi: c0.hi.clone(),
+            bounds: None,
+            fin: false,
+            lins: None,
+            key: f64::NEG_INFINITY,
+            depth: 0,
+            open: group,
+        };
+        stats.pieces += 1;
+        let st = match settle(maps, cases, w, s, deadline) {
+            Ok(st) => st,
+            Err(Piece::Closed) => {
+                closed += 1;
+                continue;
+            }
+            Err(Piece::Found(ci, x)) => return (violated(ci, x), stats),
+            Err(Piece::Late) => return (Outcome::Unknown(StopReason::Timeout), stats),
+            Err(_) => {
+                stuck = true;
+                continue;
+            }
+        };
+        // The intermediate bounds are shared by every node below: optimise them once
+        // (alpha-CROWN per neuron), within a quarter of the time left.
+        let mut pre = st.pre.to_vec();
+        let left_s = deadline.map(|d| d.saturating_duration_since(Instant::now()));
+        let pre_deadline = left_s.map(|l| Instant::now() + l / 4);
+        symbolic::alpha_pre_until(maps, &mut pre, &st.lo, &st.hi, RELU_PRE_ITERS, pre_deadline);
+        let tree = relusplit::Tree {
+            maps,
+            cases,
+            pre: &pre,
+            lo: &st.lo,
+            hi: &st.hi,
+            root_iters: RELU_ROOT_ITERS,
+            iters: RELU_NODE_ITERS,
+        };
+        let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
+        if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+            let un = crate::phases::unstable(maps, &st.pre).len();
+            let un2 = crate::phases::unstable(maps, &pre).len();
+            let lbs: Vec<String> = st
+                .left
+                .iter()
+                .map(|l| format!("{}:{:.3}", l.0, l.1.lb))
+                .collect();
+            eprintln!(
+                "relu split: {un} unstable, {un2} after alpha, open {lbs:?} after {:.2} s",
+                t0.elapsed().as_secs_f64()
+            );
+        }
+        // A tree per case: its splits are chosen for its own bound (a joint tree
+        // branches for the worst case and bounds every case at every node).
+        let mut heap: std::collections::BinaryHeap<_> =
+            open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
+        let batch = (2 * rayon::current_num_threads()).max(2);
+        while !heap.is_empty() {
+            if out_of_time() {
+                PROF[P_CLOSED].fetch_add(closed, AtOrd::Relaxed);
+                return (Outcome::Unknown(StopReason::Timeout), stats);
+            }
+            if s.max_pieces > 0 && stats.pieces >= s.max_pieces {
+                return (Outcome::Unknown(StopReason::PieceLimit), stats);
+            }
+            batches += 1;
+            if let Some(found) =
+                bursts.run(maps, cases, s, t0, batches, closed, &mut stats, deadline)
+            {
+                return (found, stats);
+            }
+            let take = batch.min(heap.len());
+            let nodes: Vec<_> = (0..take).filter_map(|_| heap.pop()).collect();
+            stats.pieces += nodes.len() as u64;
+            for r in relusplit::examine_batch(&tree, nodes, deadline) {
+                match r {
+                    NodeOut::Closed => closed += 1,
+                    NodeOut::Found(ci, x) => {
+                        FOUND_BY.store(7, AtOrd::Relaxed);
+                        return (violated(ci, x), stats);
+                    }
+                    NodeOut::Split(ch) => {
+                        PROF[P_MAXDEPTH].fetch_max(ch[0].depth() as u64, AtOrd::Relaxed);
+                        heap.extend(ch)
+                    }
+                    NodeOut::Stuck => stuck = true,
+                    NodeOut::Late => return (Outcome::Unknown(StopReason::Timeout), stats),
+                }
+            }
+        }
+    }
+    PROF[P_CLOSED].fetch_add(closed, AtOrd::Relaxed);
+    if stuck {
+        (Outcome::Unknown(StopReason::Unsplittable), stats)
+    } else {
+        (Outcome::Proved, stats)
+    }
+}
+
+/// Slope and multiplier optimisation steps of ReLU splitting's root node (from CROWN's
+/// slopes) and of every later node (warm-started from its parent's).
+const RELU_ROOT_ITERS: usize = 30;
+const RELU_NODE_ITERS: usize = 10;
+/// alpha-CROWN steps of each intermediate bound at the root of ReLU splitting (on
+/// mnistfc 256x4 prop_0_0.03, 15 steps left 198 of 309 ReLUs unstable in 4 s, 30 steps
+/// 184).
+const RELU_PRE_ITERS: usize = 15;
+
 fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome, Stats) {
     let t0 = Instant::now();
     let mut stats = Stats::default();
@@ -1024,6 +1270,12 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     }
     if out_of_time(&t0) {
         return (Outcome::Unknown(StopReason::Timeout), stats);
+    }
+    if cases
+        .first()
+        .is_some_and(|c| c.lo.len() >= RELU_SPLIT_INPUTS)
+    {
+        return solve_relu(maps, cases, s, t0, stats);
     }
     // Cases with the same box share its pieces.
     let groups: Vec<(usize, Vec<usize>)> =
@@ -1046,8 +1298,7 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
         .collect();
     let deadline = s.timeout.deadline_from(t0);
     let mut batches = 0u64;
-    let mut last_burst = Instant::now();
-    let mut batches_burst = 0u64;
+    let mut bursts = Bursts::new();
     let mut closed = 0u64;
     while !heap.is_empty() {
         if out_of_time(&t0) {
@@ -1057,28 +1308,8 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
             return (Outcome::Unknown(StopReason::PieceLimit), stats);
         }
         batches += 1;
-        // A fresh attack burst (see `Settings::attack_seconds`), shared by all cases so
-        // bursts stay a small share of the search however many cases there are.
-        let interval = (0.25 * t0.elapsed().as_secs_f64()).max(0.5);
-        if last_burst.elapsed().as_secs_f64() >= interval {
-            let share = rayon::current_num_threads().max(1) as f64 / cases.len().max(1) as f64;
-            let mut per_case = (0.15 * interval).min(4.0 * s.attack_seconds) * share.min(1.0);
-            // The first burst is long when hardly any piece has closed yet (fewer than
-            // 1 in 10, halves closed by the look-ahead included): the search is then making no headway, which is typical of a
-            // query with points (ACAS Xu properties 7 and 8), where the attack is the
-            // faster way to one.
-            if batches_burst == 0 && closed * 10 < stats.pieces {
-                per_case = 10.0 * s.attack_seconds;
-            }
-            batches_burst += 1;
-            if let Some((ci, x)) =
-                attack_all(maps, cases, s, batches, per_case, &mut stats, deadline)
-            {
-                let y = forward(maps, &x, None);
-                FOUND_BY.store(2, AtOrd::Relaxed);
-                return (Outcome::Violated(CasePoint { case: ci, x, y }), stats);
-            }
-            last_burst = Instant::now();
+        if let Some(found) = bursts.run(maps, cases, s, t0, batches, closed, &mut stats, deadline) {
+            return (found, stats);
         }
         let take = s.batch.max(1).min(heap.len());
         let batch: Vec<Work> = (0..take).filter_map(|_| heap.pop()).collect();

@@ -397,29 +397,44 @@ pub fn hidden_pre_until(
     let xmax = magnitudes(lo, hi);
     let (last, body) = maps.split_last().expect("a network has at least one map");
     assert!(!last.1, "the last map of a chain carries no ReLU");
-    // The identity.
-    let mut al = Flat::zeros(n, n);
-    for i in 0..n {
-        al.coef[i * n + i] = 1.0;
-    }
-    let mut au = Flat {
-        coef: al.coef.clone(),
-        cst: al.cst.clone(),
-        slack: al.slack.clone(),
-    };
+    // The identity, never formed: the first map's rows are its functions (below).
+    let mut al = Flat::zeros(0, n);
+    let mut au = Flat::zeros(0, n);
     let mut pre = Vec::with_capacity(body.len());
     for (m, r) in body {
         let k = m.inp + 1;
         let mut zl = Flat::zeros(m.out, n);
         let mut zu = Flat::zeros(m.out, n);
+        if pre.is_empty() {
+            // The first map over the identity: its rows, with the rounding bound of the
+            // general step below for identity sources (coefficient magnitude `xmax_i`,
+            // constant 0, slack 0). An `n x n` identity times the map would cost
+            // `out * n * n` (a quarter of a second per pass at 784 inputs).
+            for o in 0..m.out {
+                let w = &m.w[o * m.inp..(o + 1) * m.inp];
+                let wmag: f64 = w.iter().zip(&xmax).map(|(wi, x)| wi.abs() * x).sum();
+                let err = gamma(k) * m.b[o].abs() + gamma(k) * wmag;
+                for z in [&mut zl, &mut zu] {
+                    z.coef[o * n..(o + 1) * n].copy_from_slice(w);
+                    z.cst[o] = m.b[o];
+                    z.slack[o] = inflate(err);
+                }
+            }
+        }
         // Each source row's `coef_magnitude`, once per layer (see there).
         let cm = |f: &Flat| -> Vec<f64> {
             (0..m.inp)
                 .map(|i| coef_magnitude(&f.coef[i * n..(i + 1) * n], &xmax))
                 .collect()
         };
-        let (cml, cmu) = (cm(&al), cm(&au));
+        let (cml, cmu) = match pre.is_empty() {
+            true => (Vec::new(), Vec::new()),
+            false => (cm(&al), cm(&au)),
+        };
         for (upper, z) in [(false, &mut zl), (true, &mut zu)] {
+            if pre.is_empty() {
+                break;
+            }
             for o in 0..m.out {
                 if o % 16 == 0 && late() {
                     return give_up();
@@ -539,8 +554,35 @@ pub fn backward_lower_alpha(
     hi: &[f64],
     alpha: Option<&[Vec<f64>]>,
 ) -> Linear {
+    backward_lower_beta(maps, pre, obj, lo, hi, alpha, None)
+}
+
+/// [`backward_lower_alpha`] with beta-CROWN's split multipliers (Wang et al., NeurIPS
+/// 2021): `beta[j][t]` is added to the pull-back's coefficient of the pre-activation
+/// `z_t` of map `j`, i.e. the term `beta[j][t] * z_t(x)` joins the objective. That is a
+/// lower bound of the objective on every input where `beta[j][t] * z_t(x) <= 0`, so a
+/// term is used only where the bounds `pre` (valid on the set bounded) show it: a
+/// non-negative multiplier on a neuron with `u <= 0` (inactive, split or not), a
+/// non-positive one on a neuron with `l >= 0`; other entries are ignored. With a
+/// neuron's phase fixed by clamping its bounds, the multiplier is its split
+/// constraint's Lagrange multiplier.
+pub fn backward_lower_beta(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    lo: &[f64],
+    hi: &[f64],
+    alpha: Option<&[Vec<f64>]>,
+    beta: Option<&[Vec<f64>]>,
+) -> Linear {
     let inmax = input_magnitudes(maps, pre, lo, hi, maps.len());
-    backward_core(maps, pre, &obj.c, obj.d, alpha, Mags::Inputs(&inmax))
+    backward_core(maps, pre, &obj.c, obj.d, alpha, beta, Mags::Inputs(&inmax))
+}
+
+/// Whether the split multiplier `c` on a neuron with bounds `(l, u)` adds a term
+/// `c * z <= 0` (see [`backward_lower_beta`]).
+fn beta_applies(c: f64, (l, u): (f64, f64)) -> bool {
+    (c > 0.0 && u <= 0.0) || (c < 0.0 && l >= 0.0)
 }
 
 /// The magnitudes a pull-back's rounding bound needs: the [`row_magnitudes`], when many
@@ -597,13 +639,15 @@ pub(crate) fn input_magnitudes(
 }
 
 /// The pull-back of [`backward_lower_alpha`] with the magnitudes for its rounding bound
-/// given ([`Mags`]); the objective is `c . y + d`.
+/// given ([`Mags`]); the objective is `c . y + d`, with the split multipliers `beta` of
+/// [`backward_lower_beta`].
 fn backward_core(
     maps: &[(Affine, bool)],
     pre: &[Vec<(f64, f64)>],
     c: &[f64],
     d: f64,
     alpha: Option<&[Vec<f64>]>,
+    beta: Option<&[Vec<f64>]>,
     mags: Mags,
 ) -> Linear {
     let mut mu = c.to_vec();
@@ -674,6 +718,16 @@ fn backward_core(
                 z[t] = v;
             }
         }
+        if let Some(b) = beta {
+            for (t, &c) in b[j - 1].iter().enumerate() {
+                let (l, u) = pre[j - 1][t];
+                if beta_applies(c, (l, u)) {
+                    // The sum's rounding times a bound on |z_t|.
+                    z[t] += c;
+                    err += 2.0 * f64::EPSILON * z[t].abs() * l.abs().max(u.abs());
+                }
+            }
+        }
     }
     Linear {
         coef: mu,
@@ -704,6 +758,48 @@ fn alpha_value_grad(
     hi: &[f64],
     alpha: &[Vec<f64>],
 ) -> (f64, Vec<Vec<f64>>) {
+    let g = value_grad(maps, pre, obj, lo, hi, alpha, None);
+    (g.value, g.alpha)
+}
+
+/// What [`value_grad`] gives: the f64 value of a backward bound, its gradients in the
+/// slopes and the split multipliers, and the pull-back's coefficients of every ReLU
+/// output (`nu[j]` over the input of map `j`), which the ReLU branching scores.
+pub(crate) struct ValueGrad {
+    pub(crate) value: f64,
+    pub(crate) alpha: Vec<Vec<f64>>,
+    pub(crate) beta: Vec<Vec<f64>>,
+    pub(crate) nu: Vec<Vec<f64>>,
+}
+
+/// `a . b` in f64 with eight partial sums (vectorised; a different rounding from the
+/// sequential sum), for the f64 values that only steer an optimisation, never a bound.
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    let (ca, cb) = (a.chunks_exact(8), b.chunks_exact(8));
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    for (x, y) in ca.zip(cb) {
+        for k in 0..8 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    let tail: f64 = ra.iter().zip(rb).map(|(x, y)| x * y).sum();
+    acc.iter().sum::<f64>() + tail
+}
+
+/// The f64 value of the backward bound with slopes `alpha` and split multipliers `beta`
+/// ([`backward_lower_beta`]) and its gradients (reverse mode through the pull-back: the
+/// derivative in the coefficient of `z_t` is the value of `z_t` under the relaxation at
+/// the minimising corner). Only to choose slopes and multipliers, never as a bound.
+pub(crate) fn value_grad(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    lo: &[f64],
+    hi: &[f64],
+    alpha: &[Vec<f64>],
+    beta: Option<&[Vec<f64>]>,
+) -> ValueGrad {
     let nmaps = maps.len();
     let mut nus: Vec<Vec<f64>> = vec![Vec::new(); nmaps];
     let mut mu = obj.c.clone();
@@ -714,8 +810,8 @@ fn alpha_value_grad(
         for (i, &mi) in mu.iter().enumerate() {
             if mi != 0.0 {
                 cst += mi * m.b[i];
-                for (t, w) in m.w[i * m.inp..(i + 1) * m.inp].iter().enumerate() {
-                    nu[t] += mi * w;
+                for (n, w) in nu.iter_mut().zip(&m.w[i * m.inp..(i + 1) * m.inp]) {
+                    *n += mi * w;
                 }
             }
         }
@@ -737,6 +833,13 @@ fn alpha_value_grad(
                 *v *= alpha[j - 1][t];
             }
         }
+        if let Some(b) = beta {
+            for (t, &c) in b[j - 1].iter().enumerate() {
+                if beta_applies(c, pre[j - 1][t]) {
+                    nu[t] += c;
+                }
+            }
+        }
         mu = nu;
     }
     let mut value = cst;
@@ -746,7 +849,12 @@ fn alpha_value_grad(
         value += c * x;
         g.push(x);
     }
+    // The vectorised dot product on image-sized inputs only: on few inputs (ACAS Xu)
+    // the sequential sum keeps the slopes, and so the search, bit for bit what they were
+    // measured with.
+    let fast = lo.len() >= 64;
     let mut grad: Vec<Vec<f64>> = alpha.iter().map(|a| vec![0.0; a.len()]).collect();
+    let mut gbeta: Vec<Vec<f64>> = alpha.iter().map(|a| vec![0.0; a.len()]).collect();
     // g = dB/d(nu_j) over the inputs of map j; go up the chain.
     for j in 0..nmaps {
         let m = &maps[j].0;
@@ -756,11 +864,19 @@ fn alpha_value_grad(
         let mut gm = vec![0.0; m.out];
         for (i, gi) in gm.iter_mut().enumerate() {
             let row = &m.w[i * m.inp..(i + 1) * m.inp];
-            *gi = m.b[i] + row.iter().zip(&g).map(|(w, x)| w * x).sum::<f64>();
+            *gi = m.b[i]
+                + if fast {
+                    dot(row, &g)
+                } else {
+                    row.iter().zip(&g).map(|(w, x)| w * x).sum::<f64>()
+                };
         }
         if !maps[j].1 {
             g = gm;
             continue;
+        }
+        if let Some(gb) = gbeta.get_mut(j) {
+            gb.copy_from_slice(&gm);
         }
         let nu = &nus[j + 1];
         for (t, gt) in gm.iter_mut().enumerate() {
@@ -779,7 +895,12 @@ fn alpha_value_grad(
         }
         g = gm;
     }
-    (value, grad)
+    ValueGrad {
+        value,
+        alpha: grad,
+        beta: gbeta,
+        nu: nus,
+    }
 }
 
 /// alpha-CROWN (Xu et al., ICLR 2021) for one objective: projected gradient ascent on the
@@ -846,6 +967,78 @@ pub fn alpha_lower_until(
         opt
     } else {
         base
+    }
+}
+
+/// Tighten the pre-activation bounds `pre` (sound on the box) of every ReLU map after the
+/// first by alpha-CROWN, each unstable neuron's lower and upper bound its own objective
+/// with its own slopes ([`alpha_lower_until`] on the chain up to its map, `iters` steps),
+/// layer by layer so that each layer's relaxations use the tightened bounds before it
+/// (the intermediate-bound optimisation of alpha-CROWN, Xu et al., ICLR 2021). Every
+/// bound is rigorous and only replaces a looser one; past `deadline` the rest stay.
+/// Neurons of a layer are bounded in parallel.
+pub fn alpha_pre_until(
+    maps: &[(Affine, bool)],
+    pre: &mut [Vec<(f64, f64)>],
+    lo: &[f64],
+    hi: &[f64],
+    iters: usize,
+    deadline: Option<std::time::Instant>,
+) {
+    use rayon::prelude::*;
+    for k in 1..pre.len() {
+        if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+            return;
+        }
+        if !maps[k].1 {
+            continue;
+        }
+        let sub = &maps[..=k];
+        let before = &pre[..k];
+        let out = maps[k].0.out;
+        let unstable: Vec<usize> = (0..out)
+            .filter(|&i| pre[k][i].0 < 0.0 && pre[k][i].1 > 0.0)
+            .collect();
+        let new: Vec<(usize, f64, f64)> = unstable
+            .par_iter()
+            .map(|&i| {
+                if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                    return (i, f64::NEG_INFINITY, f64::INFINITY);
+                }
+                let mut c = vec![0.0; out];
+                c[i] = 1.0;
+                let l = alpha_lower_until(
+                    sub,
+                    before,
+                    &Objective {
+                        c: c.clone(),
+                        d: 0.0,
+                    },
+                    lo,
+                    hi,
+                    iters,
+                    deadline,
+                )
+                .min_over(lo, hi);
+                c[i] = -1.0;
+                let u = -alpha_lower_until(
+                    sub,
+                    before,
+                    &Objective { c, d: 0.0 },
+                    lo,
+                    hi,
+                    iters,
+                    deadline,
+                )
+                .min_over(lo, hi);
+                (i, l, u)
+            })
+            .collect();
+        for (i, l, u) in new {
+            let b = &mut pre[k][i];
+            b.0 = b.0.max(l);
+            b.1 = b.1.min(u);
+        }
     }
 }
 
@@ -936,6 +1129,20 @@ pub fn crown_pre_from(
     crown_pre_core(maps, lo, hi, fwd, from, None, None)
 }
 
+/// [`crown_pre_from`] that keeps the given bounds `fwd` for the neurons not yet
+/// re-bounded at `deadline` (they are sound): one re-bound of a wide layer can take
+/// seconds, and a time limit must hold.
+pub(crate) fn crown_pre_from_until(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: &[Vec<(f64, f64)>],
+    from: usize,
+    deadline: Option<std::time::Instant>,
+) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_core(maps, lo, hi, Some(fwd), from, deadline, None)
+}
+
 fn crown_pre_core(
     maps: &[(Affine, bool)],
     lo: &[f64],
@@ -988,10 +1195,10 @@ fn crown_pre_core(
             c.clear();
             c.resize(m.out, 0.0);
             c[i] = 1.0;
-            let lf = backward_core(sub, &pre, &c, 0.0, None, Mags::Rows(&rowmag));
+            let lf = backward_core(sub, &pre, &c, 0.0, None, None, Mags::Rows(&rowmag));
             let l = lf.min_over(lo, hi);
             c[i] = -1.0;
-            let uf = backward_core(sub, &pre, &c, 0.0, None, Mags::Rows(&rowmag));
+            let uf = backward_core(sub, &pre, &c, 0.0, None, None, Mags::Rows(&rowmag));
             let u = -uf.min_over(lo, hi);
             bounds.push((l.max(fl), u.min(fu)));
             if lins.is_some() {

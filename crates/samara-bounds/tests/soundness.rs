@@ -564,3 +564,126 @@ fn reconcretised_crown_functions_bound_every_sub_box() {
     // The sub-boxes' bounds are not just the parent's.
     assert!(tighter > 100, "only {tighter} bounds tightened");
 }
+
+/// The gradient of `y_0 - y_1` at `x` through the chain (its active linear piece), for
+/// the test's own attack: an independent code path from the search's.
+fn margin_gradient(maps: &[(Affine, bool)], x: &[f64]) -> Vec<f64> {
+    let mut acts = vec![x.to_vec()];
+    let mut masks = Vec::new();
+    for (m, r) in maps {
+        let z = m.apply(acts.last().unwrap());
+        masks.push(z.iter().map(|v| !*r || *v > 0.0).collect::<Vec<bool>>());
+        acts.push(z.iter().map(|v| if *r { v.max(0.0) } else { *v }).collect());
+    }
+    let no = maps.last().unwrap().0.out;
+    let mut g = vec![0.0; no];
+    g[0] = 1.0;
+    g[1] = -1.0;
+    for (k, (m, _)) in maps.iter().enumerate().rev() {
+        let gz: Vec<f64> = g
+            .iter()
+            .zip(&masks[k])
+            .map(|(v, on)| if *on { *v } else { 0.0 })
+            .collect();
+        let mut next = vec![0.0; m.inp];
+        for (i, gi) in gz.iter().enumerate() {
+            for (j, nx) in next.iter_mut().enumerate() {
+                *nx += gi * m.w[i * m.inp + j];
+            }
+        }
+        g = next;
+    }
+    g
+}
+
+#[test]
+fn relu_splitting_proofs_on_many_inputs_survive_sampling_and_pgd() {
+    // 80 inputs: the search splits ReLUs (beta-CROWN bounds), not inputs. The threshold
+    // sits just below the sampled minimum of y_0 - y_1, where the root bounds do not
+    // decide and both answers occur.
+    let mut rng = ChaCha8Rng::seed_from_u64(4242);
+    let (mut proved, mut split_proofs, mut found) = (0, 0, 0);
+    for trial in 0..16 {
+        let net = Network::random_mlp(&[80, 16, 16, 3], Activation::Relu, 1.0, 0.5, &mut rng);
+        let maps = chain(&net);
+        let x0: Vec<f64> = (0..80).map(|_| rng.gen_range(0.0..1.0)).collect();
+        let eps = 0.05;
+        let lo: Vec<f64> = x0.iter().map(|v| v - eps).collect();
+        let hi: Vec<f64> = x0.iter().map(|v| v + eps).collect();
+        let margin = |x: &[f64]| {
+            let y = net.eval_f64(x);
+            y[0] - y[1]
+        };
+        let ms: Vec<f64> = (0..2000)
+            .map(|k| margin(&sample(&mut rng, &lo, &hi, k)))
+            .collect();
+        let min = ms.iter().cloned().fold(f64::INFINITY, f64::min);
+        let max = ms.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        // The lowest margin the test's own attack finds (sampling in 80 dimensions stays
+        // far from the extremes).
+        let descend = |mut x: Vec<f64>| {
+            for s in 0..100 {
+                let g = margin_gradient(&maps, &x);
+                let step = 0.5 * eps * (1.0 - s as f64 / 100.0);
+                for (t, xi) in x.iter_mut().enumerate() {
+                    *xi = (*xi - step * g[t].signum()).clamp(lo[t], hi[t]);
+                }
+            }
+            margin(&x)
+        };
+        let low = (0..10)
+            .map(|k| descend(sample(&mut rng, &lo, &hi, k)))
+            .fold(min, f64::min);
+        let t = low - (max - low) * 0.04 * ((trial % 8) as f64 - 1.5);
+        let case = Case {
+            lo: lo.clone(),
+            hi: hi.clone(),
+            constraints: vec![OutputConstraint {
+                obj: Objective {
+                    c: vec![1.0, -1.0, 0.0],
+                    d: -t,
+                },
+                strict: false,
+            }],
+        };
+        let (o, st) = solve(
+            &maps,
+            std::slice::from_ref(&case),
+            &Settings {
+                timeout: samara_num::Timeout::from_duration(std::time::Duration::from_secs(20)),
+                ..Default::default()
+            },
+        );
+        match o {
+            Outcome::Proved => {
+                proved += 1;
+                split_proofs += (st.pieces > 1) as usize;
+                for k in 0..10_000 {
+                    let v = margin(&sample(&mut rng, &lo, &hi, k));
+                    assert!(
+                        v > t - 1e-9,
+                        "trial {trial}: proof contradicted: {v} <= {t}"
+                    );
+                }
+                // Sign-gradient descent on y_0 - y_1 from random starts.
+                for k in 0..20 {
+                    let v = descend(sample(&mut rng, &lo, &hi, k));
+                    assert!(v > t - 1e-9, "trial {trial}: PGD contradicts: {v} <= {t}");
+                }
+            }
+            Outcome::Violated(CasePoint { x, .. }) => {
+                found += 1;
+                assert!(x
+                    .iter()
+                    .zip(lo.iter().zip(&hi))
+                    .all(|(v, (a, b))| a <= v && v <= b));
+                assert!(margin(&x) <= t, "trial {trial}: point does not satisfy");
+            }
+            Outcome::Unknown(_) => {}
+        }
+    }
+    assert!(
+        split_proofs >= 3 && found >= 2,
+        "both verdicts exercised: {proved} proved ({split_proofs} by splitting), {found} found"
+    );
+}

@@ -1,0 +1,415 @@
+//! ReLU splitting with beta-CROWN bounds, the search's branch and bound for boxes with
+//! many inputs (images), where halving one of hundreds of inputs hardly changes a bound.
+//!
+//! A node is the search's box with a phase fixed for some unstable ReLUs (`z_t <= 0`,
+//! inactive, or `z_t >= 0`, active); it stands for the set `S` of inputs of the box where
+//! every fixed phase holds. Its pre-activation bounds are the root's (valid on the box,
+//! so on `S`) with the fixed neurons clamped (`[l, min(u, 0)]` or `[max(l, 0), u]`), so a
+//! fixed neuron is passed exactly. Each constraint `g(y) <= 0` of an open case is bounded
+//! below on `S` by beta-CROWN (Wang et al., NeurIPS 2021): the backward bound with
+//! optimised lower-relaxation slopes (alpha-CROWN, Xu et al., ICLR 2021) and a Lagrange
+//! multiplier per fixed phase, the term `beta_t * z_t(x)` with the sign that makes it
+//! `<= 0` on `S` ([`symbolic::backward_lower_beta`] checks the sign against the clamped
+//! bounds, so a wrong multiplier can only be ignored, never unsound). Slopes and
+//! multipliers are chosen by projected Adam steps on the bound's f64 value, warm-started
+//! from the parent; the bound itself is always the rigorous pull-back with outward
+//! rounding. A case is closed on a node when one of its constraints' bounds is positive
+//! (non-negative for a strict one); the minimising box corner of each bound is evaluated
+//! concretely, and a point is reported only when it satisfies every constraint of its
+//! case with a margin ([`crate::search::satisfies`]).
+//!
+//! The branching neuron is the unstable one with the largest relaxation gap weighted by
+//! the bound's sensitivity, `|nu_t| * u (-l) / (u - l)` (BaBSR's intercept score, Bunel et
+//! al., JMLR 2020), for the case closest to holding. Nodes go depth first (the frontier
+//! stays small), in parallel batches. A node with every unstable neuron fixed that is
+//! still open cannot be split: the search reports that as unknown, not as a proof.
+
+use crate::query::{forward, satisfies, Case};
+use crate::symbolic::{self, Linear, Objective};
+use rayon::prelude::*;
+use samara_nn::Affine;
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Concrete pre-activation bounds of every map but the last.
+type Bounds = Vec<Vec<(f64, f64)>>;
+
+/// Slopes and split multipliers of one constraint's bound, the warm start of a child.
+#[derive(Clone, Debug)]
+pub(crate) struct Warm {
+    alpha: Vec<Vec<f64>>,
+    beta: Vec<Vec<f64>>,
+}
+
+/// One node: the phases fixed, the cases still open, warm starts per (case, constraint).
+pub(crate) struct Node {
+    splits: Vec<(usize, usize, bool)>,
+    open: Vec<usize>,
+    warm: Vec<(usize, usize, Arc<Warm>)>,
+    /// Pre-activation bounds valid on the parent's set (so on this one).
+    pre: Option<Arc<Bounds>>,
+    /// The lowest constraint bound of the parent (lower goes first among equal depths).
+    key: f64,
+    depth: u32,
+}
+
+impl Node {
+    /// Phases fixed.
+    pub(crate) fn depth(&self) -> u32 {
+        self.depth
+    }
+}
+
+impl PartialEq for Node {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o).is_eq()
+    }
+}
+impl Eq for Node {}
+impl PartialOrd for Node {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Node {
+    /// The max-heap pops the deepest node, and of those the lowest key.
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.depth.cmp(&o.depth).then(o.key.total_cmp(&self.key))
+    }
+}
+
+/// What one node came to.
+pub(crate) enum NodeOut {
+    /// Every open case is closed on the node (or its set is empty).
+    Closed,
+    /// A point of the given case.
+    Found(usize, Vec<f64>),
+    /// The two children left to examine.
+    Split(Vec<Node>),
+    /// Open with every unstable neuron fixed.
+    Stuck,
+    /// Past the deadline.
+    Late,
+}
+
+/// The fixed data of one box's ReLU splitting.
+pub(crate) struct Tree<'a> {
+    pub(crate) maps: &'a [(Affine, bool)],
+    pub(crate) cases: &'a [Case],
+    /// Pre-activation bounds of every map but the last, valid on the whole box.
+    pub(crate) pre: &'a [Vec<(f64, f64)>],
+    pub(crate) lo: &'a [f64],
+    pub(crate) hi: &'a [f64],
+    /// Optimisation steps of the root node's bounds and of every later node's.
+    pub(crate) root_iters: usize,
+    pub(crate) iters: usize,
+}
+
+/// The root node of the cases `open` (all over the tree's box).
+pub(crate) fn root(open: Vec<usize>) -> Node {
+    Node {
+        splits: Vec::new(),
+        open,
+        warm: Vec::new(),
+        pre: None,
+        key: f64::NEG_INFINITY,
+        depth: 0,
+    }
+}
+
+/// Adam's moment estimates for one set of parameters.
+struct Adam {
+    m: Vec<Vec<f64>>,
+    v: Vec<Vec<f64>>,
+}
+
+impl Adam {
+    fn new(like: &[Vec<f64>]) -> Self {
+        let z: Vec<Vec<f64>> = like.iter().map(|a| vec![0.0; a.len()]).collect();
+        Adam { m: z.clone(), v: z }
+    }
+
+    /// One ascent step of size `lr[j]` on entry `(j, t)` where `keep(j, t)`, then `proj`.
+    fn step(
+        &mut self,
+        x: &mut [Vec<f64>],
+        g: &[Vec<f64>],
+        it: usize,
+        lr: &[f64],
+        keep: impl Fn(usize, usize) -> bool,
+        proj: impl Fn(usize, usize, f64) -> f64,
+    ) {
+        let (b1, b2) = (0.9f64, 0.999f64);
+        let c1 = 1.0 - b1.powi(it as i32 + 1);
+        let c2 = 1.0 - b2.powi(it as i32 + 1);
+        for j in 0..x.len() {
+            for t in 0..x[j].len() {
+                if !keep(j, t) {
+                    continue;
+                }
+                let gi = g[j][t];
+                let m = &mut self.m[j][t];
+                let v = &mut self.v[j][t];
+                *m = b1 * *m + (1.0 - b1) * gi;
+                *v = b2 * *v + (1.0 - b2) * gi * gi;
+                let d = lr[j] * (*m / c1) / ((*v / c2).sqrt() + 1e-12);
+                x[j][t] = proj(j, t, x[j][t] + d);
+            }
+        }
+    }
+}
+
+/// beta-CROWN's bound of one objective on a node with bounds `pre` (clamped by its
+/// phases `splits`): slopes and multipliers from `iters` Adam steps on the f64 value
+/// (from `warm` when given), the rigorous bound at the best ones found, and the
+/// pull-back's ReLU-output coefficients there (for branching).
+#[allow(clippy::too_many_arguments)]
+fn optimise(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    lo: &[f64],
+    hi: &[f64],
+    splits: &[(usize, usize, bool)],
+    warm: Option<&Warm>,
+    iters: usize,
+    deadline: Option<Instant>,
+) -> (Linear, Warm, Vec<Vec<f64>>) {
+    let mut alpha = match warm {
+        Some(w) => w.alpha.clone(),
+        None => symbolic::default_alpha(maps, pre),
+    };
+    let mut beta: Vec<Vec<f64>> = match warm {
+        Some(w) => w.beta.clone(),
+        None => alpha.iter().map(|a| vec![0.0; a.len()]).collect(),
+    };
+    // Only the fixed phases carry multipliers, each of the sign its phase allows
+    // (non-negative for an inactive neuron, non-positive for an active one).
+    let mut sign: Vec<Vec<f64>> = alpha.iter().map(|a| vec![0.0; a.len()]).collect();
+    for &(j, t, on) in splits {
+        sign[j][t] = if on { -1.0 } else { 1.0 };
+    }
+    for (b, s) in beta.iter_mut().zip(&sign) {
+        for (bi, si) in b.iter_mut().zip(s) {
+            if *si == 0.0 || *bi * si < 0.0 {
+                *bi = 0.0;
+            }
+        }
+    }
+    let unstable = |j: usize, t: usize| {
+        let (l, u) = pre[j][t];
+        l < 0.0 && u > 0.0
+    };
+    let mut best = symbolic::value_grad(maps, pre, obj, lo, hi, &alpha, Some(&beta));
+    let mut best_ab = (alpha.clone(), beta.clone());
+    // Step sizes: slopes live in [0, 1]; a multiplier's scale is that of the pull-back's
+    // coefficients of its layer.
+    let lr_a: Vec<f64> = vec![0.1; alpha.len()];
+    let lr_b: Vec<f64> = (0..beta.len())
+        .map(|j| {
+            let nu = &best.nu[j + 1];
+            0.05 * nu.iter().map(|v| v.abs()).sum::<f64>() / nu.len().max(1) as f64
+        })
+        .collect();
+    let mut adam_a = Adam::new(&alpha);
+    let mut adam_b = Adam::new(&beta);
+    let mut cur = best.alpha.clone();
+    let mut cur_b = best.beta.clone();
+    for it in 0..iters {
+        if deadline.is_some_and(|d| Instant::now() >= d) {
+            break;
+        }
+        adam_a.step(&mut alpha, &cur, it, &lr_a, unstable, |_, _, v| {
+            v.clamp(0.0, 1.0)
+        });
+        if !splits.is_empty() {
+            adam_b.step(
+                &mut beta,
+                &cur_b,
+                it,
+                &lr_b,
+                |j, t| sign[j][t] != 0.0,
+                |j, t, v| {
+                    if v * sign[j][t] > 0.0 {
+                        v
+                    } else {
+                        0.0
+                    }
+                },
+            );
+        }
+        let vg = symbolic::value_grad(maps, pre, obj, lo, hi, &alpha, Some(&beta));
+        cur = vg.alpha.clone();
+        cur_b = vg.beta.clone();
+        if vg.value > best.value {
+            best = vg;
+            best_ab = (alpha.clone(), beta.clone());
+        }
+    }
+    let (alpha, beta) = best_ab;
+    let f = symbolic::backward_lower_beta(maps, pre, obj, lo, hi, Some(&alpha), Some(&beta));
+    (f, Warm { alpha, beta }, best.nu)
+}
+
+/// Bound one node: close its cases, look for a point at each bound's minimising corner,
+/// or split the best-scored unstable neuron.
+pub(crate) fn examine(tree: &Tree, node: Node, deadline: Option<Instant>) -> NodeOut {
+    let Tree {
+        maps,
+        cases,
+        lo,
+        hi,
+        ..
+    } = *tree;
+    if deadline.is_some_and(|d| Instant::now() >= d) {
+        return NodeOut::Late;
+    }
+    let mut pre = match &node.pre {
+        Some(p) => p.to_vec(),
+        None => tree.pre.to_vec(),
+    };
+    for &(j, t, on) in &node.splits {
+        let b = &mut pre[j][t];
+        if on {
+            b.0 = b.0.max(0.0);
+        } else {
+            b.1 = b.1.min(0.0);
+        }
+        if b.0 > b.1 {
+            // The phase contradicts a bound valid on the box: the set is empty.
+            return NodeOut::Closed;
+        }
+    }
+    // The newest phase tightens the later layers' bounds: CROWN over the clamped bounds
+    // (sound on the node's set), intersected with the inherited ones.
+    if let Some(&(j, _, _)) = node.splits.last() {
+        if j + 1 < pre.len() {
+            pre = symbolic::crown_pre_from_until(maps, lo, hi, &pre, j + 1, deadline);
+            if pre.iter().flatten().any(|&(l, u)| l > u) {
+                return NodeOut::Closed;
+            }
+        }
+    }
+    let iters = if node.splits.is_empty() {
+        tree.root_iters
+    } else {
+        tree.iters
+    };
+    let mut still = Vec::new();
+    let mut warm = Vec::new();
+    // The case closest to holding, with its bound's coefficients.
+    let mut driver: Option<(f64, Vec<Vec<f64>>)> = None;
+    for &ci in &node.open {
+        let case = &cases[ci];
+        let mut closed = false;
+        let mut case_lb = f64::NEG_INFINITY;
+        let mut case_nu = None;
+        for (k, con) in case.constraints.iter().enumerate() {
+            let w = node
+                .warm
+                .iter()
+                .find(|w| w.0 == ci && w.1 == k)
+                .map(|w| &*w.2);
+            let (f, wk, nu) = optimise(
+                maps,
+                &pre,
+                &con.obj,
+                lo,
+                hi,
+                &node.splits,
+                w,
+                iters,
+                deadline,
+            );
+            let lb = f.min_over(lo, hi);
+            if if con.strict { lb >= 0.0 } else { lb > 0.0 } {
+                closed = true;
+                break;
+            }
+            let x = f.argmin_corner(lo, hi);
+            if satisfies(&case.constraints, &forward(maps, &x, None)) {
+                return NodeOut::Found(ci, x);
+            }
+            warm.push((ci, k, Arc::new(wk)));
+            if lb > case_lb || case_nu.is_none() {
+                case_lb = lb;
+                case_nu = Some(nu);
+            }
+        }
+        if closed {
+            continue;
+        }
+        if case.constraints.is_empty() {
+            let x: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * (a + b)).collect();
+            return NodeOut::Found(ci, x);
+        }
+        still.push(ci);
+        if driver.as_ref().is_none_or(|d| case_lb < d.0) {
+            driver = case_nu.map(|nu| (case_lb, nu));
+        }
+    }
+    let Some((key, nu)) = driver else {
+        return NodeOut::Closed;
+    };
+    if deadline.is_some_and(|d| Instant::now() >= d) {
+        return NodeOut::Late;
+    }
+    // BaBSR's intercept score over the unstable neurons; the widest one when the
+    // pull-back does not see any (every coefficient 0).
+    let mut pick: Option<(f64, usize, usize)> = None;
+    let mut widest: Option<(f64, usize, usize)> = None;
+    for (j, layer) in pre.iter().enumerate() {
+        if !maps[j].1 {
+            continue;
+        }
+        for (t, &(l, u)) in layer.iter().enumerate() {
+            if !(l < 0.0 && u > 0.0) {
+                continue;
+            }
+            let gap = u * (-l) / (u - l);
+            let sc = nu[j + 1][t].abs() * gap;
+            if pick.is_none_or(|p| sc > p.0) {
+                pick = Some((sc, j, t));
+            }
+            if widest.is_none_or(|p| gap > p.0) {
+                widest = Some((gap, j, t));
+            }
+        }
+    }
+    let choice = match pick {
+        Some(p) if p.0 > 0.0 => Some(p),
+        _ => widest,
+    };
+    let Some((_, j, t)) = choice else {
+        return NodeOut::Stuck;
+    };
+    let pre = Arc::new(pre);
+    let children = [false, true]
+        .into_iter()
+        .map(|on| {
+            let mut splits = node.splits.clone();
+            splits.push((j, t, on));
+            Node {
+                splits,
+                open: still.clone(),
+                warm: warm.clone(),
+                pre: Some(pre.clone()),
+                key,
+                depth: node.depth + 1,
+            }
+        })
+        .collect();
+    NodeOut::Split(children)
+}
+
+/// Examine a batch of nodes in parallel.
+pub(crate) fn examine_batch(
+    tree: &Tree,
+    batch: Vec<Node>,
+    deadline: Option<Instant>,
+) -> Vec<NodeOut> {
+    batch
+        .into_par_iter()
+        .map(|n| examine(tree, n, deadline))
+        .collect()
+}
