@@ -509,19 +509,19 @@ impl RobustnessArgs {
     /// and `--form`, checked.
     pub fn validate(&self) -> Result<RobustnessChecked, AppError> {
         let mut notes = Vec::new();
-        use crate::robustness::{bound_ok, parse_form, parse_reference, radius_ok};
+        use crate::robustness_form::{bound_ok, parse_form, parse_reference, radius_ok};
         let eps = list(
             &self.eps,
             "eps",
             radius_ok,
-            crate::robustness::RADIUS_ALLOWED,
+            crate::robustness_form::RADIUS_ALLOWED,
             &mut notes,
         )?;
         let lipschitz = list(
             &self.lipschitz,
             "lipschitz",
             bound_ok,
-            crate::robustness::BOUND_ALLOWED,
+            crate::robustness_form::BOUND_ALLOWED,
             &mut notes,
         )?;
         let reference = parse_reference(crate::Front::Cli, &self.reference)?;

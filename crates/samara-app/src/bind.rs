@@ -11,6 +11,10 @@ use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
+/// Largest magnitude of an initial state value of `simulate` and `reach`: the model is
+/// nondimensional and the published states are O(1) (heights 1.43 to 4.29).
+pub const MAX_STATE: f64 = 1000.0;
+
 /// Where the published training points live (relative to a samara checkout).
 pub const PUBLISHED_DATA: &str = "../shared/reference/Training_Data_Normalised.csv";
 

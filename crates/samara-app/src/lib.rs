@@ -32,6 +32,7 @@ mod human;
 pub mod python_front;
 pub mod reach;
 pub mod robustness;
+pub mod robustness_form;
 pub mod shard;
 pub mod simulate;
 pub mod train;

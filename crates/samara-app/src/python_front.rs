@@ -15,12 +15,10 @@
 //! Messages name arguments through [`Front`], so the same checks read `--goal-ystar` on
 //! the command line and `goal_ystar` in Python.
 
-use crate::bind::{check_horizon_period, check_period_count, num, Front};
+use crate::bind::Front;
 use crate::robustness::Table;
 use crate::{input, AppError};
-use samara_plant::{Model, STATE_NAMES};
 use samara_reach::system::SystemReach;
-use samara_reach::{Goal, ReachSettings};
 use samara_train::{Method, MinMax};
 use samara_verify::robustness::{sweep_with, PointBall, Reference};
 use serde::{Deserialize, Serialize};
@@ -29,165 +27,13 @@ use std::time::Instant;
 
 type Result<T> = std::result::Result<T, AppError>;
 
-/// Longest control period `samara.reach` takes (the validated integrator takes at
-/// most 400 steps of at most 0.0625 per period).
-pub const REACH_MAX_PERIOD: f64 = crate::reach::args::MAX_PERIOD;
-/// Most control periods of a `samara.reach` run.
-pub const REACH_MAX_PERIODS: f64 = crate::reach::args::MAX_PERIODS;
-/// Most sub-boxes, and most sampled flights, of a reach run.
-pub const REACH_MAX_COUNT: usize = crate::reach::args::MAX_LEAVES;
-
-/// The arguments of a zonotope reach run of the glider (`samara.reach`).
-#[derive(Clone, Debug, Default)]
-pub struct ReachRequest {
-    /// `reduced`, `plate6` or `full`.
-    pub model: String,
-    /// Initial intervals by state name (the others: the published initial set).
-    pub init: BTreeMap<String, (f64, f64)>,
-    /// Horizon.
-    pub horizon: f64,
-    /// Control period.
-    pub period: f64,
-    /// The goal band's half-width, if there is a goal.
-    pub goal_ystar: Option<f64>,
-    /// Start of the goal's window (needs `goal_ystar`).
-    pub goal_from: Option<f64>,
-    /// Whether the controller's output is clipped to the actuator's range.
-    pub clip: bool,
-    /// Sub-box budget (default 64).
-    pub max_leaves: Option<usize>,
-    /// Sampled flights (default 200).
-    pub samples: Option<usize>,
-    /// Sampling seed.
-    pub seed: Option<u64>,
-}
-
-impl ReachRequest {
-    /// The run's settings, every argument checked; the messages name the arguments in
-    /// `front`'s words.
-    pub fn settings(&self, front: Front) -> Result<ReachSettings> {
-        let Some(m) = Model::from_name(&self.model) else {
-            return input(format!(
-                "{} {:?}: unknown model; choose one of reduced, plate6, full",
-                front.arg("model"),
-                self.model
-            ));
-        };
-        let mut s = ReachSettings::published(m);
-        s.init[5] = crate::reach::args::Y0_DEFAULT;
-        let names = &STATE_NAMES[..m.dim()];
-        for (k, &(lo, hi)) in &self.init {
-            let Some(i) = names.iter().position(|n| n == k) else {
-                return input(format!(
-                    "{}[{k:?}]: unknown state; choose one of {}",
-                    front.arg("init"),
-                    names.join(", ")
-                ));
-            };
-            if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= -1000.0 && hi <= 1000.0) {
-                return input(format!(
-                    "{}[{k:?}] = ({lo}, {hi}): give finite ends lo <= hi in [-1000, 1000]",
-                    front.arg("init")
-                ));
-            }
-            s.init[i] = (lo, hi);
-        }
-        let (h, p) = (self.horizon, self.period);
-        let (hf, pf) = (front.arg("horizon"), front.arg("period"));
-        check_horizon_period(front, h, p)?;
-        if p > REACH_MAX_PERIOD {
-            return input(format!("{pf} {p}: reach takes periods up to {REACH_MAX_PERIOD} (the validated integrator takes at most 400 steps of at most 0.0625 per period, so a longer hold cannot be enclosed); e.g. {}", front.eg("period", "0.5")));
-        }
-        check_period_count(front, h, p, REACH_MAX_PERIODS)?;
-        let k = h / p;
-        if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
-            let n = k.floor().max(1.0);
-            return input(format!(
-                "{hf} {h} is not a positive multiple of {pf} {p}: choose e.g. {} (or another period)",
-                front.eg("horizon", &(n * p).to_string())
-            ));
-        }
-        s.horizon = h;
-        s.period = p;
-        if !self.clip {
-            s.clip = None;
-        }
-        let (yf, ff) = (front.arg("goal_ystar"), front.arg("goal_from"));
-        match (self.goal_ystar, self.goal_from) {
-            (None, Some(f)) => {
-                return input(format!(
-                    "{ff} {}: needs a goal; add {} (e.g. {})",
-                    num(f),
-                    front.eg("goal_ystar", "Y"),
-                    front.eg("goal_ystar", "2")
-                ))
-            }
-            (Some(y), from) => {
-                if !(y.is_finite() && y >= 0.0) {
-                    return input(format!(
-                        "{yf} {}: the band half-width must be a finite number >= 0 (e.g. {})",
-                        num(y),
-                        front.eg("goal_ystar", "2")
-                    ));
-                }
-                if let Some(f) = from {
-                    if !(f.is_finite() && f >= 0.0 && f <= h) {
-                        return input(format!(
-                            "{ff} {}: the window start must lie in [0, horizon = {h}]",
-                            num(f)
-                        ));
-                    }
-                }
-                s.goal = Some(Goal { ystar: y, from });
-            }
-            (None, None) => {}
-        }
-        check_budget(front, self.max_leaves, self.samples, s.max_leaves)?;
-        if let Some(n) = self.max_leaves {
-            s.max_leaves = n;
-        }
-        if let Some(n) = self.samples {
-            s.samples = n;
-        }
-        if let Some(v) = self.seed {
-            s.seed = v;
-        }
-        Ok(s)
-    }
-}
-
-/// The sub-box budget and the sampled flights of a reach run: at least 1 and at most
-/// [`REACH_MAX_COUNT`] each (`default_leaves`, the run's default budget, is named in the
-/// messages).
-pub fn check_budget(
-    front: Front,
-    max_leaves: Option<usize>,
-    samples: Option<usize>,
-    default_leaves: usize,
-) -> Result<()> {
-    let (lf, sf) = (front.arg("max_leaves"), front.arg("samples"));
-    if let Some(n) = max_leaves {
-        if n == 0 {
-            return input(format!(
-                "{lf} 0: give at least 1 (default {default_leaves})"
-            ));
-        }
-        if n > REACH_MAX_COUNT {
-            return input(format!("{lf} {n}: at most {REACH_MAX_COUNT} sub-boxes are allowed (each is a full reachability run; the default is {default_leaves})"));
-        }
-    }
-    if let Some(n) = samples {
-        if n == 0 {
-            return input(format!(
-                "{sf} 0: give at least 1 (default 200); falsification needs trajectories"
-            ));
-        }
-        if n > REACH_MAX_COUNT {
-            return input(format!("{sf} {n}: at most {REACH_MAX_COUNT} trajectories are allowed (each is kept in memory; the default is 200)"));
-        }
-    }
-    Ok(())
-}
+pub use crate::reach::args::{
+    check_budget, ReachRequest, REACH_MAX_COUNT, REACH_MAX_PERIOD, REACH_MAX_PERIODS,
+};
+pub use crate::simulate::{
+    check_glider_network as glider_controller, ControllerRequest, SimulatePlan,
+};
+pub use crate::train::{default_min_r2, TrainReport};
 
 /// The verifier's settings of a `verify`, `critical` or `robustness` call: `timeout`
 /// seconds per query (infinite: none; NaN or negative refused), `max_nodes` and the LP
@@ -261,110 +107,6 @@ pub fn train_method(
         ..Default::default()
     };
     crate::train::method(front, &r, data, mm, arch)
-}
-
-/// The least held-out R^2 a training run of method `m` must reach unless told
-/// otherwise (`samara train --min-r2`'s default): 0.9 for data fitting (plain,
-/// adversarial), 0 for the methods that trade accuracy for a property.
-pub fn default_min_r2(m: &Method) -> f64 {
-    match m {
-        Method::Plain | Method::Adversarial(_) => crate::train::DEFAULT_MIN_R2,
-        _ => 0.0,
-    }
-}
-
-/// The report of a data-fitting training run: the fields of `samara train --json`
-/// (without the file paths), the R^2 on the training rows, and the log as (epoch,
-/// loss, test RMSE) rows.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-pub struct TrainReport {
-    /// The method.
-    pub method: String,
-    /// Held-out rows.
-    pub test_rows: usize,
-    /// Held-out R^2.
-    pub r2: f64,
-    /// R^2 on the training rows.
-    pub r2_train: f64,
-    /// Held-out RMSE.
-    pub rmse: f64,
-    /// Held-out MAE.
-    pub mae: f64,
-    /// Attack radius.
-    pub eps: f64,
-    /// Worst output deviation under the attack.
-    pub attack_worst_deviation: f64,
-    /// Mean output deviation under the attack.
-    pub attack_mean_deviation: f64,
-    /// The seed asked for.
-    pub seed: u64,
-    /// The seed the kept network was initialised from.
-    pub init_seed: u64,
-    /// Number of restarts.
-    pub restarts: usize,
-    /// The restarts.
-    pub restart_log: Vec<crate::train::RestartEntry>,
-    /// (epoch, loss, test RMSE) per logged epoch.
-    pub log: Vec<(usize, f64, f64)>,
-}
-
-impl TrainReport {
-    /// The report of `outcome`, trained by `method` with options `o`.
-    pub fn of(
-        method: &str,
-        o: &samara_train::TrainOptions,
-        outcome: &samara_train::TrainOutcome,
-    ) -> Self {
-        let m = &outcome.metrics;
-        TrainReport {
-            method: method.to_string(),
-            test_rows: m.n_test,
-            r2: m.r2,
-            r2_train: m.r2_train,
-            rmse: m.rmse,
-            mae: m.mae,
-            eps: o.eps,
-            attack_worst_deviation: m.attack_worst,
-            attack_mean_deviation: m.attack_mean,
-            seed: o.seed,
-            init_seed: outcome.init_seed,
-            restarts: outcome.restarts.len(),
-            restart_log: outcome
-                .restarts
-                .iter()
-                .map(crate::train::RestartEntry::from)
-                .collect(),
-            log: outcome
-                .log
-                .iter()
-                .map(|r| (r.epoch, r.loss, r.test_rmse))
-                .collect(),
-        }
-    }
-}
-
-impl TrainReport {
-    /// The `samara train --json` summary of this run, whose network and log were
-    /// written to `out` and `log`: the same numbers, so the CLI can print it from the
-    /// report instead of filling the fields again.
-    pub fn summary(&self, out: String, log: String) -> crate::train::TrainSummary {
-        crate::train::TrainSummary {
-            method: self.method.clone(),
-            out,
-            log,
-            test_rows: self.test_rows,
-            r2: self.r2,
-            rmse: self.rmse,
-            mae: self.mae,
-            eps: self.eps,
-            attack_worst_deviation: self.attack_worst_deviation,
-            attack_mean_deviation: self.attack_mean_deviation,
-            seed: self.seed,
-            init_seed: self.init_seed,
-            restarts: self.restarts,
-            restart_log: self.restart_log.clone(),
-        }
-    }
 }
 
 /// One data point at one radius: a row of `samara robustness --out`'s CSV.
@@ -718,37 +460,6 @@ impl SystemPlan {
     }
 }
 
-/// A glider controller: a network of 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and
-/// 1 output (ex), named so; `label` names it in the message.
-pub fn glider_controller(label: &str, n: &samara_nn::Network) -> Result<samara_nn::Network> {
-    if n.n_inputs() != 6 || n.n_outputs() != 1 {
-        return input(format!(
-            "{label}: the network has {} inputs and {} outputs; a controller needs 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and 1 output (ex)",
-            n.n_inputs(),
-            n.n_outputs()
-        ));
-    }
-    n.clone()
-        .with_names(&samara_nn::STATE_INPUTS, &["ex"])
-        .map_err(|e| AppError::Input(e.to_string()))
-}
-
-/// The controller of a simulation (`samara.simulate`).
-#[derive(Clone, Debug)]
-pub enum ControllerRequest {
-    /// The published PID controller (needs the filter state E).
-    Pid,
-    /// A constant control `ex`.
-    Constant(f64),
-    /// A network in raw units, clipped to the actuator's range if `clip`.
-    Network {
-        /// The network.
-        net: samara_nn::Network,
-        /// Whether its output is clipped.
-        clip: bool,
-    },
-}
-
 /// The arguments of closed-loop flights of the glider (`samara.simulate`).
 #[derive(Clone, Debug)]
 pub struct SimulateRequest {
@@ -764,19 +475,6 @@ pub struct SimulateRequest {
     pub horizon: f64,
     /// Control period.
     pub period: f64,
-}
-
-/// A checked [`SimulateRequest`]: the plant, the controller, the loop's settings and
-/// the starts.
-pub struct SimulatePlan {
-    /// The plant.
-    pub plant: samara_plant::Plant,
-    /// The controller.
-    pub controller: Box<dyn samara_sim::Controller + Send>,
-    /// The sample-and-hold loop's settings.
-    pub settings: samara_sim::LoopSettings,
-    /// The initial heights.
-    pub starts: Vec<f64>,
 }
 
 impl SimulateRequest {
@@ -827,20 +525,6 @@ impl SimulateRequest {
             settings,
             starts,
         })
-    }
-}
-
-impl SimulatePlan {
-    /// Fly every start; the error is the integrator's message.
-    pub fn fly(mut self) -> std::result::Result<Vec<samara_sim::Flight>, String> {
-        let mut out = Vec::with_capacity(self.starts.len());
-        for &y in &self.starts {
-            let init = samara_sim::initial_state(&self.plant, y);
-            let f = samara_sim::fly(&self.plant, self.controller.as_mut(), &init, &self.settings)
-                .map_err(|e| e.to_string())?;
-            out.push(f);
-        }
-        Ok(out)
     }
 }
 
@@ -979,7 +663,7 @@ mod tests {
         }
         .settings(Front::Python)
         .unwrap();
-        let published = ReachSettings::published(Model::Reduced);
+        let published = samara_reach::ReachSettings::published(samara_plant::Model::Reduced);
         assert_eq!(s.init[3], (-0.01, 0.01));
         assert_eq!(s.init[5], (0.1 / 0.07, 0.3 / 0.07));
         assert_eq!((s.horizon, s.period, s.samples), (2.0, 0.5, 7));

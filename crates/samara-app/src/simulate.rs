@@ -10,9 +10,7 @@ use samara_sim::{published_starts, Integrator, LoopSettings};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// Largest magnitude of an initial state value of `simulate` and `reach`: the model is
-/// nondimensional and the published states are O(1) (heights 1.43 to 4.29).
-pub const MAX_STATE: f64 = 1000.0;
+pub use crate::bind::MAX_STATE;
 
 /// One flight of the glider: its start height and where it ends.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -215,19 +213,19 @@ pub fn glider_loop(
 
 /// The controller of a glider simulation for model `model`, checked: the PID needs the
 /// filter state, a constant must lie in the actuator's range, a network must have the
-/// glider's 6 raw inputs and 1 output ([`crate::python_front::glider_controller`]).
+/// glider's 6 raw inputs and 1 output ([`check_glider_network`]).
 /// `label` names the controller in messages (`--controller "constant:0.5":`, a file, or
 /// `controller`), `name` the network in figures.
 pub fn glider_controller(
     front: Front,
-    c: crate::python_front::ControllerRequest,
+    c: ControllerRequest,
     model: Model,
     label: &str,
     name: &str,
 ) -> Result<Box<dyn samara_sim::Controller + Send>, AppError> {
-    use crate::python_front::ControllerRequest as C;
     use samara_plant::EX_RANGE;
     use samara_sim::{ConstantController, NetworkController, PidController};
+    use ControllerRequest as C;
     let q = |s: &str| match front {
         Front::Cli => s.to_string(),
         Front::Python => format!("'{s}'"),
@@ -254,7 +252,7 @@ pub fn glider_controller(
             Box::new(ConstantController(ex))
         }
         C::Network { net, clip } => {
-            let net = crate::python_front::glider_controller(label, &net)?;
+            let net = check_glider_network(label, &net)?;
             let c = if clip { Some(EX_RANGE) } else { None };
             Box::new(NetworkController::new(net, c, name))
         }
@@ -355,10 +353,10 @@ impl SimulateArgs {
     /// `constant:EX` or a network file, never under a name the run writes into
     /// `--out`), with the warnings on a network in the wrong units
     /// (`samara_reach::settings::units_warning`, the check `samara reach` makes).
-    pub fn prepare(&self) -> anyhow::Result<(crate::python_front::SimulatePlan, Vec<String>)> {
-        use crate::python_front::ControllerRequest as C;
+    pub fn prepare(&self) -> anyhow::Result<(SimulatePlan, Vec<String>)> {
         use anyhow::{bail, Context};
         use samara_plant::EX_RANGE;
+        use ControllerRequest as C;
         let a = self;
         let p = a.plan()?;
         let spec = a.controller.as_str();
@@ -422,7 +420,7 @@ impl SimulateArgs {
             }
         };
         let controller = glider_controller(Front::Cli, request, p.model, &label, &name)?;
-        let plan = crate::python_front::SimulatePlan {
+        let plan = SimulatePlan {
             plant: samara_plant::Plant::new(p.model),
             controller,
             settings: p.settings,
@@ -602,7 +600,7 @@ pub fn run_system(a: &SimulateArgs, path: &std::path::Path) -> anyhow::Result<Sy
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::python_front::ControllerRequest as C;
+    use ControllerRequest as C;
 
     fn message(front: Front, c: C, model: Model, label: &str) -> String {
         match glider_controller(front, c, model, label, "n") {
@@ -666,5 +664,66 @@ mod tests {
             (Model::Reduced, 0.25, 2.0, Some(0.01))
         );
         assert_eq!(s.steps().unwrap(), 8);
+    }
+}
+
+/// A glider controller: a network of 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and
+/// 1 output (ex), named so; `label` names it in the message.
+pub fn check_glider_network(
+    label: &str,
+    n: &samara_nn::Network,
+) -> Result<samara_nn::Network, AppError> {
+    if n.n_inputs() != 6 || n.n_outputs() != 1 {
+        return input(format!(
+            "{label}: the network has {} inputs and {} outputs; a controller needs 6 raw inputs (v_xp, v_yp, omega, theta, x, y) and 1 output (ex)",
+            n.n_inputs(),
+            n.n_outputs()
+        ));
+    }
+    n.clone()
+        .with_names(&samara_nn::STATE_INPUTS, &["ex"])
+        .map_err(|e| AppError::Input(e.to_string()))
+}
+
+/// The controller of a simulation (`samara.simulate`).
+#[derive(Clone, Debug)]
+pub enum ControllerRequest {
+    /// The published PID controller (needs the filter state E).
+    Pid,
+    /// A constant control `ex`.
+    Constant(f64),
+    /// A network in raw units, clipped to the actuator's range if `clip`.
+    Network {
+        /// The network.
+        net: samara_nn::Network,
+        /// Whether its output is clipped.
+        clip: bool,
+    },
+}
+
+/// A checked [`crate::python_front::SimulateRequest`]: the plant, the controller, the loop's settings and
+/// the starts.
+pub struct SimulatePlan {
+    /// The plant.
+    pub plant: samara_plant::Plant,
+    /// The controller.
+    pub controller: Box<dyn samara_sim::Controller + Send>,
+    /// The sample-and-hold loop's settings.
+    pub settings: samara_sim::LoopSettings,
+    /// The initial heights.
+    pub starts: Vec<f64>,
+}
+
+impl SimulatePlan {
+    /// Fly every start; the error is the integrator's message.
+    pub fn fly(mut self) -> std::result::Result<Vec<samara_sim::Flight>, String> {
+        let mut out = Vec::with_capacity(self.starts.len());
+        for &y in &self.starts {
+            let init = samara_sim::initial_state(&self.plant, y);
+            let f = samara_sim::fly(&self.plant, self.controller.as_mut(), &init, &self.settings)
+                .map_err(|e| e.to_string())?;
+            out.push(f);
+        }
+        Ok(out)
     }
 }

@@ -477,9 +477,7 @@ pub fn run(a: &TrainArgs, terminal: bool) -> anyhow::Result<TrainRun> {
         lr: a.lr,
         seed: a.seed,
         eps: a.eps,
-        min_r2: a
-            .min_r2
-            .unwrap_or_else(|| crate::python_front::default_min_r2(&method)),
+        min_r2: a.min_r2.unwrap_or_else(|| default_min_r2(&method)),
         method,
         progress: terminal && !a.json,
         max_restarts: a.max_restarts,
@@ -505,7 +503,7 @@ pub fn run(a: &TrainArgs, terminal: bool) -> anyhow::Result<TrainRun> {
         Err(e) => return Err(e.into()),
     };
     // The numbers of `--json`, taken before the network is moved out of the outcome.
-    let report = crate::python_front::TrainReport::of(&a.method, &o, &outcome);
+    let report = TrainReport::of(&a.method, &o, &outcome);
     let mut net = outcome.network;
     if net.n_inputs() == 6 && net.n_outputs() == 1 {
         net = net.with_names(&samara_nn::STATE_INPUTS, &["ex"])?;
@@ -863,5 +861,105 @@ mod tests {
         );
         // P1-P4 of the case study, lowered for a 6-input network.
         assert_eq!(err(Front::Python, "dl2", "fgsm", 7, &[6, 4, 1]), "");
+    }
+}
+
+/// The least held-out R^2 a training run of method `m` must reach unless told
+/// otherwise (`samara train --min-r2`'s default): 0.9 for data fitting (plain,
+/// adversarial), 0 for the methods that trade accuracy for a property.
+pub fn default_min_r2(m: &Method) -> f64 {
+    match m {
+        Method::Plain | Method::Adversarial(_) => DEFAULT_MIN_R2,
+        _ => 0.0,
+    }
+}
+
+/// The report of a data-fitting training run: the fields of `samara train --json`
+/// (without the file paths), the R^2 on the training rows, and the log as (epoch,
+/// loss, test RMSE) rows.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrainReport {
+    /// The method.
+    pub method: String,
+    /// Held-out rows.
+    pub test_rows: usize,
+    /// Held-out R^2.
+    pub r2: f64,
+    /// R^2 on the training rows.
+    pub r2_train: f64,
+    /// Held-out RMSE.
+    pub rmse: f64,
+    /// Held-out MAE.
+    pub mae: f64,
+    /// Attack radius.
+    pub eps: f64,
+    /// Worst output deviation under the attack.
+    pub attack_worst_deviation: f64,
+    /// Mean output deviation under the attack.
+    pub attack_mean_deviation: f64,
+    /// The seed asked for.
+    pub seed: u64,
+    /// The seed the kept network was initialised from.
+    pub init_seed: u64,
+    /// Number of restarts.
+    pub restarts: usize,
+    /// The restarts.
+    pub restart_log: Vec<RestartEntry>,
+    /// (epoch, loss, test RMSE) per logged epoch.
+    pub log: Vec<(usize, f64, f64)>,
+}
+
+impl TrainReport {
+    /// The report of `outcome`, trained by `method` with options `o`.
+    pub fn of(
+        method: &str,
+        o: &samara_train::TrainOptions,
+        outcome: &samara_train::TrainOutcome,
+    ) -> Self {
+        let m = &outcome.metrics;
+        TrainReport {
+            method: method.to_string(),
+            test_rows: m.n_test,
+            r2: m.r2,
+            r2_train: m.r2_train,
+            rmse: m.rmse,
+            mae: m.mae,
+            eps: o.eps,
+            attack_worst_deviation: m.attack_worst,
+            attack_mean_deviation: m.attack_mean,
+            seed: o.seed,
+            init_seed: outcome.init_seed,
+            restarts: outcome.restarts.len(),
+            restart_log: outcome.restarts.iter().map(RestartEntry::from).collect(),
+            log: outcome
+                .log
+                .iter()
+                .map(|r| (r.epoch, r.loss, r.test_rmse))
+                .collect(),
+        }
+    }
+}
+
+impl TrainReport {
+    /// The `samara train --json` summary of this run, whose network and log were
+    /// written to `out` and `log`: the same numbers, so the CLI can print it from the
+    /// report instead of filling the fields again.
+    pub fn summary(&self, out: String, log: String) -> TrainSummary {
+        TrainSummary {
+            method: self.method.clone(),
+            out,
+            log,
+            test_rows: self.test_rows,
+            r2: self.r2,
+            rmse: self.rmse,
+            mae: self.mae,
+            eps: self.eps,
+            attack_worst_deviation: self.attack_worst_deviation,
+            attack_mean_deviation: self.attack_mean_deviation,
+            seed: self.seed,
+            init_seed: self.init_seed,
+            restarts: self.restarts,
+            restart_log: self.restart_log.clone(),
+        }
     }
 }

@@ -6,15 +6,15 @@
 //! and the built-in setting as a system file. The CLI parses, calls these, runs the
 //! engine and prints; the limits live here.
 
-use crate::bind::check_period_count;
+use crate::bind::{check_horizon_period, check_period_count, num, MAX_STATE};
 use crate::shard::{parse_shard, Shard};
-use crate::simulate::MAX_STATE;
 use crate::{input, AppError, Front};
 use samara_plant::{Model, STATE_NAMES};
 use samara_reach::system::{NetworkError, SystemReachSettings};
-use samara_reach::ReachSettings;
+use samara_reach::{Goal, ReachSettings};
 use samara_spec::lower::NetDecl;
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 type Result<T> = std::result::Result<T, AppError>;
@@ -357,7 +357,7 @@ impl ReachArgs {
                 parse_interval(iv, &format!("--init {spec:?}"))?,
             );
         }
-        let s = crate::python_front::ReachRequest {
+        let s = ReachRequest {
             model: a.model.clone(),
             init,
             horizon: a.horizon,
@@ -391,16 +391,11 @@ impl ReachArgs {
     }
 
     /// `--max-leaves`, `--samples` and `--threads`, checked the same way for both paths
-    /// (the built-in glider and system files; `crate::python_front::check_budget`, as
+    /// (the built-in glider and system files; `check_budget`, as
     /// Python's calls); `default_leaves` is the path's sub-box budget, named in the
     /// messages.
     pub fn check_budget(&self, default_leaves: usize) -> Result<()> {
-        crate::python_front::check_budget(
-            Front::Cli,
-            self.max_leaves,
-            self.samples,
-            default_leaves,
-        )?;
+        check_budget(Front::Cli, self.max_leaves, self.samples, default_leaves)?;
         check_threads(self.threads)
     }
 
@@ -771,4 +766,164 @@ mod tests {
             (Some(3), None, Some(0.05))
         );
     }
+}
+
+/// Longest control period `samara.reach` takes (the validated integrator takes at
+/// most 400 steps of at most 0.0625 per period).
+pub const REACH_MAX_PERIOD: f64 = MAX_PERIOD;
+/// Most control periods of a `samara.reach` run.
+pub const REACH_MAX_PERIODS: f64 = MAX_PERIODS;
+/// Most sub-boxes, and most sampled flights, of a reach run.
+pub const REACH_MAX_COUNT: usize = MAX_LEAVES;
+
+/// The arguments of a zonotope reach run of the glider (`samara.reach`).
+#[derive(Clone, Debug, Default)]
+pub struct ReachRequest {
+    /// `reduced`, `plate6` or `full`.
+    pub model: String,
+    /// Initial intervals by state name (the others: the published initial set).
+    pub init: BTreeMap<String, (f64, f64)>,
+    /// Horizon.
+    pub horizon: f64,
+    /// Control period.
+    pub period: f64,
+    /// The goal band's half-width, if there is a goal.
+    pub goal_ystar: Option<f64>,
+    /// Start of the goal's window (needs `goal_ystar`).
+    pub goal_from: Option<f64>,
+    /// Whether the controller's output is clipped to the actuator's range.
+    pub clip: bool,
+    /// Sub-box budget (default 64).
+    pub max_leaves: Option<usize>,
+    /// Sampled flights (default 200).
+    pub samples: Option<usize>,
+    /// Sampling seed.
+    pub seed: Option<u64>,
+}
+
+impl ReachRequest {
+    /// The run's settings, every argument checked; the messages name the arguments in
+    /// `front`'s words.
+    pub fn settings(&self, front: Front) -> Result<ReachSettings> {
+        let Some(m) = Model::from_name(&self.model) else {
+            return input(format!(
+                "{} {:?}: unknown model; choose one of reduced, plate6, full",
+                front.arg("model"),
+                self.model
+            ));
+        };
+        let mut s = ReachSettings::published(m);
+        s.init[5] = Y0_DEFAULT;
+        let names = &STATE_NAMES[..m.dim()];
+        for (k, &(lo, hi)) in &self.init {
+            let Some(i) = names.iter().position(|n| n == k) else {
+                return input(format!(
+                    "{}[{k:?}]: unknown state; choose one of {}",
+                    front.arg("init"),
+                    names.join(", ")
+                ));
+            };
+            if !(lo.is_finite() && hi.is_finite() && lo <= hi && lo >= -1000.0 && hi <= 1000.0) {
+                return input(format!(
+                    "{}[{k:?}] = ({lo}, {hi}): give finite ends lo <= hi in [-1000, 1000]",
+                    front.arg("init")
+                ));
+            }
+            s.init[i] = (lo, hi);
+        }
+        let (h, p) = (self.horizon, self.period);
+        let (hf, pf) = (front.arg("horizon"), front.arg("period"));
+        check_horizon_period(front, h, p)?;
+        if p > REACH_MAX_PERIOD {
+            return input(format!("{pf} {p}: reach takes periods up to {REACH_MAX_PERIOD} (the validated integrator takes at most 400 steps of at most 0.0625 per period, so a longer hold cannot be enclosed); e.g. {}", front.eg("period", "0.5")));
+        }
+        check_period_count(front, h, p, REACH_MAX_PERIODS)?;
+        let k = h / p;
+        if (k - k.round()).abs() > 1e-9 * k.max(1.0) || k.round() < 1.0 {
+            let n = k.floor().max(1.0);
+            return input(format!(
+                "{hf} {h} is not a positive multiple of {pf} {p}: choose e.g. {} (or another period)",
+                front.eg("horizon", &(n * p).to_string())
+            ));
+        }
+        s.horizon = h;
+        s.period = p;
+        if !self.clip {
+            s.clip = None;
+        }
+        let (yf, ff) = (front.arg("goal_ystar"), front.arg("goal_from"));
+        match (self.goal_ystar, self.goal_from) {
+            (None, Some(f)) => {
+                return input(format!(
+                    "{ff} {}: needs a goal; add {} (e.g. {})",
+                    num(f),
+                    front.eg("goal_ystar", "Y"),
+                    front.eg("goal_ystar", "2")
+                ))
+            }
+            (Some(y), from) => {
+                if !(y.is_finite() && y >= 0.0) {
+                    return input(format!(
+                        "{yf} {}: the band half-width must be a finite number >= 0 (e.g. {})",
+                        num(y),
+                        front.eg("goal_ystar", "2")
+                    ));
+                }
+                if let Some(f) = from {
+                    if !(f.is_finite() && f >= 0.0 && f <= h) {
+                        return input(format!(
+                            "{ff} {}: the window start must lie in [0, horizon = {h}]",
+                            num(f)
+                        ));
+                    }
+                }
+                s.goal = Some(Goal { ystar: y, from });
+            }
+            (None, None) => {}
+        }
+        check_budget(front, self.max_leaves, self.samples, s.max_leaves)?;
+        if let Some(n) = self.max_leaves {
+            s.max_leaves = n;
+        }
+        if let Some(n) = self.samples {
+            s.samples = n;
+        }
+        if let Some(v) = self.seed {
+            s.seed = v;
+        }
+        Ok(s)
+    }
+}
+
+/// The sub-box budget and the sampled flights of a reach run: at least 1 and at most
+/// [`REACH_MAX_COUNT`] each (`default_leaves`, the run's default budget, is named in the
+/// messages).
+pub fn check_budget(
+    front: Front,
+    max_leaves: Option<usize>,
+    samples: Option<usize>,
+    default_leaves: usize,
+) -> Result<()> {
+    let (lf, sf) = (front.arg("max_leaves"), front.arg("samples"));
+    if let Some(n) = max_leaves {
+        if n == 0 {
+            return input(format!(
+                "{lf} 0: give at least 1 (default {default_leaves})"
+            ));
+        }
+        if n > REACH_MAX_COUNT {
+            return input(format!("{lf} {n}: at most {REACH_MAX_COUNT} sub-boxes are allowed (each is a full reachability run; the default is {default_leaves})"));
+        }
+    }
+    if let Some(n) = samples {
+        if n == 0 {
+            return input(format!(
+                "{sf} 0: give at least 1 (default 200); falsification needs trajectories"
+            ));
+        }
+        if n > REACH_MAX_COUNT {
+            return input(format!("{sf} {n}: at most {REACH_MAX_COUNT} trajectories are allowed (each is kept in memory; the default is 200)"));
+        }
+    }
+    Ok(())
 }
