@@ -340,40 +340,21 @@ impl SystemRequest {
         let a = |n: &str| front.arg(n);
         crate::reach::args::check_fits(&a("network"), net, sys, file)?;
         let order = self.order;
-        if !(1..=8).contains(&order) {
-            return input(format!(
-                "{} {order}: give 1 to 8 (3-5 is usual)",
-                a("order")
-            ));
-        }
+        crate::reach::args::check_order(front, order)?;
         let lw = self.lifted_weight;
-        if !(1..=order as u32).contains(&lw) {
-            return input(format!(
-                "{} {lw}: give 1 to the order ({order})",
-                a("lifted_weight")
-            ));
-        }
+        crate::reach::args::check_lifted_weight(front, lw as i64, order)?;
         let lift_at = self.lift_at;
-        if !(lift_at.is_finite() && lift_at > 0.0 && lift_at <= 1.0) {
-            return input(format!(
-                "{} {lift_at}: give a share of the width in (0, 1]",
-                a("lift_at")
-            ));
-        }
+        crate::reach::args::check_lift_at(front, lift_at)?;
         check_budget(
             front,
             Some(self.max_leaves),
             Some(self.samples),
             SystemReachSettings::default().max_boxes,
         )?;
-        if let Some(t) = self.timeout {
-            if !(t.is_finite() && t > 0.0) {
-                return input(format!(
-                    "{} {t}: give a positive number of seconds",
-                    a("timeout")
-                ));
-            }
-        }
+        let timeout = match self.timeout {
+            Some(t) => crate::reach::args::check_reach_timeout(front, t)?,
+            None => samara_num::Timeout::default(),
+        };
         let network_error = NetworkError::parse(&self.network_error).map_err(|e| {
             AppError::Input(format!(
                 "{} {:?}: {e}",
@@ -386,11 +367,7 @@ impl SystemRequest {
             max_boxes: self.max_leaves,
             samples: self.samples,
             seed: self.seed,
-            // Checked above: finite and positive, so it is a limit; none without one.
-            timeout: self
-                .timeout
-                .map(|t| samara_num::Timeout::from_secs_f64(t).unwrap_or_default())
-                .unwrap_or_default(),
+            timeout,
             network_error,
             measures: end_band_measures(sys),
             ..SystemReachSettings::default()

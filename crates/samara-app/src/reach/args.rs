@@ -479,28 +479,15 @@ impl ReachArgs {
         let a = self;
         let mut s = SystemReachSettings::default();
         if let Some(k) = a.order {
-            if !(1..=8).contains(&k) {
-                return input(format!(
-                    "--order {k}: give 1 to 8 (3-5 is usual; higher orders cost more per step)"
-                ));
-            }
+            check_order(Front::Cli, k)?;
             s.order = k;
         }
         if let Some(t) = a.timeout {
-            if !(t.is_finite() && t > 0.0 && t <= 1e7) {
-                return input(format!(
-                    "--timeout {t}: give a number of seconds, positive and at most 1e7"
-                ));
-            }
-            // Checked above: finite and positive, so it is a limit.
-            s.timeout = samara_num::Timeout::from_secs_f64(t).unwrap_or_default();
+            // Checked: finite and positive, so it is a limit.
+            s.timeout = check_reach_timeout(Front::Cli, t)?;
         }
         if let Some(v) = a.lift_at {
-            if !(v.is_finite() && v > 0.0 && v <= 1.0) {
-                return input(format!(
-                    "--lift-at {v}: give a share of the width in (0, 1], such as 0.05 or 0.001"
-                ));
-            }
+            check_lift_at(Front::Cli, v)?;
             s.flow.lift_at = v;
         }
         if let Some(v) = &a.network_error {
@@ -513,12 +500,7 @@ impl ReachArgs {
             }
         }
         if let Some(v) = a.lifted_weight {
-            if !(1..=s.order as i64).contains(&v) {
-                return input(format!(
-                    "--lifted-weight {v}: give 1 to the order ({}): 1 weighs lifted parameters as initial ones, the order makes them linear",
-                    s.order
-                ));
-            }
+            check_lifted_weight(Front::Cli, v, s.order)?;
             s.flow.lifted_weight = v as u32;
         }
         Ok(s)
@@ -926,4 +908,51 @@ pub fn check_budget(
         }
     }
     Ok(())
+}
+
+/// A Taylor-model order (`--order`, `order=`): 1 to 8.
+pub fn check_order(front: Front, k: usize) -> Result<()> {
+    if !(1..=8).contains(&k) {
+        return input(format!(
+            "{} {k}: give 1 to 8 (3-5 is usual; higher orders cost more per step)",
+            front.arg("order")
+        ));
+    }
+    Ok(())
+}
+
+/// The share of a state's width at which the flow's remainders become parameters
+/// (`--lift-at`, `lift_at=`): in (0, 1].
+pub fn check_lift_at(front: Front, v: f64) -> Result<()> {
+    if !(v.is_finite() && v > 0.0 && v <= 1.0) {
+        return input(format!(
+            "{} {v}: give a share of the width in (0, 1], such as 0.05 or 0.001",
+            front.arg("lift_at")
+        ));
+    }
+    Ok(())
+}
+
+/// The weight of a lifted parameter toward the order (`--lifted-weight`,
+/// `lifted_weight=`): 1 to the order.
+pub fn check_lifted_weight(front: Front, v: i64, order: usize) -> Result<()> {
+    if !(1..=order as i64).contains(&v) {
+        return input(format!(
+            "{} {v}: give 1 to the order ({order}): 1 weighs lifted parameters as initial ones, the order makes them linear",
+            front.arg("lifted_weight")
+        ));
+    }
+    Ok(())
+}
+
+/// A Taylor-model run's time limit (`--timeout`, `timeout=`): positive seconds, at most
+/// 1e7.
+pub fn check_reach_timeout(front: Front, t: f64) -> Result<samara_num::Timeout> {
+    if !(t.is_finite() && t > 0.0 && t <= 1e7) {
+        return input(format!(
+            "{} {t}: give a number of seconds, positive and at most 1e7",
+            front.arg("timeout")
+        ));
+    }
+    samara_num::Timeout::from_secs_f64(t).map_err(|e| AppError::Input(e.to_string()))
 }
