@@ -8,12 +8,8 @@ use samara_app::reach::discrete;
 use std::path::Path;
 use std::process::ExitCode;
 
-/// If `path` is a discrete-time system, run it and return the exit code; `None` for a
-/// continuous system (the caller goes on with Taylor-model sets).
-pub fn route(a: &ReachArgs, path: &Path) -> Result<Option<ExitCode>> {
-    let Some(sys) = discrete::discrete_system(a, path)? else {
-        return Ok(None);
-    };
+/// Run the discrete-time system `sys`, read from `path`, and return the exit code.
+pub fn run(a: &ReachArgs, sys: samara_system::System, path: &Path) -> Result<ExitCode> {
     let done = discrete::run(a, sys, path)?;
     if a.json {
         println!("{}", json_text(&done.summary, true)?);
@@ -21,9 +17,9 @@ pub fn route(a: &ReachArgs, path: &Path) -> Result<Option<ExitCode>> {
         println!("{}", done.human);
         eprintln!("wrote {}", a.out.display());
     }
-    Ok(Some(if done.proved {
+    Ok(if done.proved {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(1)
-    }))
+    })
 }

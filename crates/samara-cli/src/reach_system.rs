@@ -24,11 +24,13 @@ const WRITES: [&str; 1] = ["reach.json"];
 
 /// Run `samara reach --system`.
 pub fn run(a: &ReachArgs, path: &Path) -> Result<ExitCode> {
-    if let Some(code) = crate::reach_discrete::route(a, path)? {
-        return Ok(code);
-    }
-    a.check_system_flags()?;
+    // Parsed once: the file says whether it is a discrete-time system.
     let sys = samara_system::System::from_file(path).map_err(|e| anyhow!("{e}"))?;
+    if sys.is_discrete() {
+        return crate::reach_discrete::run(a, sys, path);
+    }
+    samara_app::reach::discrete::refuse_choice(a, path)?;
+    a.check_system_flags()?;
     let net = samara_nn::load(&a.network)
         .with_context(|| format!("--network {}", a.network.display()))?;
     let measures = samara_reach::system::end_band_measures(&sys);

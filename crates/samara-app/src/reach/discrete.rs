@@ -65,20 +65,15 @@ pub struct DiscreteDone {
     pub proved: bool,
 }
 
-/// Whether `path` names a discrete-time system file (`None`: a continuous one, which
-/// goes on to Taylor-model sets; `--choice` is refused there).
-pub fn discrete_system(a: &ReachArgs, path: &Path) -> Result<Option<System>> {
-    let sys = System::from_file(path).map_err(|e| anyhow!("{e}"))?;
-    if sys.is_discrete() {
-        return Ok(Some(sys));
-    }
+/// `--choice` beside a continuous-time system file (`path`): refused, naming the file.
+pub fn refuse_choice(a: &ReachArgs, path: &Path) -> Result<()> {
     if a.choice.is_some() {
         bail!(
             "--choice applies to discrete-time system files (`next` updates); {} is continuous-time",
             path.display()
         );
     }
-    Ok(None)
+    Ok(())
 }
 
 /// The network files `--network` names: a directory's `.nnet`/`.onnx` files in name
