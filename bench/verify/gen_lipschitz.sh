@@ -8,20 +8,28 @@
 # (docs/training.md: --method dl2|goedel, --lipschitz-weight, --linear-output).
 # The networks are raw-unit ONNX files (normalisation layers inside); bench/verify/wide.sh
 # runs P1-P4 critical values on them beside the HiGHS MILP.
-# Usage: bench/verify/gen_lipschitz.sh OUTDIR [SEED ...]   (default seeds 1 2 3)
-# Environment: EPOCHS (default 300), LIPSCHITZ (0.5), LWEIGHT (10), LR (0.005).
+# Usage: bench/verify/gen_lipschitz.sh OUTDIR [SEED ...]   (default seeds 1 2 3 4 5 6)
+# Environment: EPOCHS (default 300), LIPSCHITZ (0.5), LWEIGHT (10), LR (0.005),
+# LOGICS (default "dl2").
+# Why one logic by default: on P1-P4 the two logics give the same loss and gradient, so
+# the same seed trains the same network byte for byte (an earlier run wrote identical
+# dl2 and goedel files). Each of P1, P2, P4 is one atom v <= 0 on the output, and
+# DL2's max(v, 0) equals Goedel's 1 - min(1, max(0, 1 - v)) while v < 1 (violations are
+# a fraction of one normalised unit); P3's two atoms (ex >= 0.184, ex <= 0.19) cannot be
+# violated together, so DL2's sum and Goedel's min agree too. Distinct networks come from
+# distinct seeds; LOGICS="dl2 goedel" trains both anyway.
 set -euo pipefail
 repo="$(cd "$(dirname "$0")/../.." && pwd)"
 out="${1:?usage: gen_lipschitz.sh OUTDIR [SEED ...]}"
 shift
 seeds=("$@")
-[ "${#seeds[@]}" -eq 0 ] && seeds=(1 2 3)
+[ "${#seeds[@]}" -eq 0 ] && seeds=(1 2 3 4 5 6)
 ref="$repo/../shared/reference"
 cd "$repo"
 cargo build --release -q -p samara-cli
 mkdir -p "$out"
 for s in "${seeds[@]}"; do
-  for logic in dl2 goedel; do
+  for logic in ${LOGICS:-dl2}; do
     f="$out/${logic}_lipschitz_s$s.onnx"
     target/release/samara train --data "$ref/Training_Data.csv" \
       --normalisation "$ref/Normalisation_Constants.csv" \
