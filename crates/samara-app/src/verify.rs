@@ -5,7 +5,7 @@ use crate::bind::Loaded;
 use crate::{input, AppError, Reason};
 use samara_spec::normal::{Goal, Query, Sense};
 use samara_spec::Instance;
-use samara_verify::engine::Point;
+use samara_verify::point::Point;
 use samara_verify::{
     left_after, optimise, prove, vacuity, Prepared, Settings, Timeout, UnknownReason, Verdict,
 };

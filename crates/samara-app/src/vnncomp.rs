@@ -8,7 +8,7 @@ use crate::{input, AppError, Reason};
 use samara_nn::Network;
 use samara_spec::normal::{Query, Var};
 use samara_spec::vnnlib;
-use samara_verify::engine::Point;
+use samara_verify::point::Point;
 use samara_verify::route::{prove_routed, Engine};
 use samara_verify::{Prepared, Settings, Timeout, UnknownReason, Verdict};
 use serde::{Deserialize, Serialize};

@@ -48,8 +48,13 @@
 //! the box's, and the node is split on a ReLU instead; an input 64 times narrower than
 //! the widest (relative to the problem's box) gives way to the widest. Nodes whose bound
 //! is within the gap of the incumbent are closed; the search stops when the global bound
-//! meets the incumbent, at the deadline or at the node limit. An initial attack
-//! (projected steps from seeded starts) gives the first incumbent.
+//! meets the incumbent, at the deadline or at the node limit. An attack (projected
+//! steps from seeded starts) gives incumbents once the search has bounded
+//! [`Settings::attack_after`] nodes without closing (a few starts; the rest after four
+//! times as many nodes), or before the root when that is 0:
+//! most small questions (the slack form of a relational property on a small network,
+//! asked thousands of times by a P5 table) close in a few nodes, and for them the
+//! attack would be most of the work.
 //!
 //! With the environment variable `SAMARA_OPT_TRACE` set, the search prints its bounds
 //! and node count to stderr every 2,000 nodes (as `SAMARA_SEARCH_PROFILE` does for
@@ -140,6 +145,10 @@ pub struct Settings {
     pub attack_starts: usize,
     /// Steps per start of the initial attack.
     pub attack_steps: usize,
+    /// Nodes bounded before the attack runs (0: before the root, whose box its
+    /// incumbent then cuts). Most small questions close within a few nodes, and for
+    /// them the attack would be most of the work.
+    pub attack_after: usize,
 }
 
 impl Default for Settings {
@@ -154,6 +163,7 @@ impl Default for Settings {
             batch: 8,
             attack_starts: 64,
             attack_steps: 100,
+            attack_after: 100,
         }
     }
 }
@@ -224,6 +234,10 @@ impl Outcome {
 /// bench/verify/gen_lipschitz.sh has a multiplier of 1.2e7 on P1's output row, so a
 /// first push of 1e-12 lost 1.2e-5 of ystar, 1e-15 loses 1e-8).
 const SHRINK: [f64; 7] = [1e-15, 1e-13, 1e-12, 1e-10, 1e-8, 1e-6, 1e-4];
+
+/// Starts of the attack's first round (see [`optimise`]); the rest run only when its
+/// points leave the search open.
+const ATTACK_FIRST_ROUND: usize = 8;
 
 /// One fixed phase: map, neuron, active.
 type Fix = (usize, usize, bool);
@@ -661,11 +675,11 @@ fn grad_at(ctx: &Ctx, f: &LinearFn, v: &[f64]) -> Vec<f64> {
 /// that climb the objective while every constraint holds and descend the summed
 /// violation while one does not, with a shrinking step; the best feasible point of each
 /// start (checked in f64 here, then by the caller's `accept`).
-fn attack(ctx: &Ctx, starts: usize, steps: usize) -> Vec<Vec<f64>> {
+fn attack(ctx: &Ctx, starts: std::ops::Range<usize>, steps: usize) -> Vec<Vec<f64>> {
     let p = ctx.p;
     let (lo, hi) = (&p.lo, &p.hi);
     let nv = ctx.nv;
-    let res: Vec<Option<Vec<f64>>> = (0..starts)
+    let res: Vec<Option<Vec<f64>>> = starts
         .into_par_iter()
         .map(|r| {
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x5eed ^ r as u64);
@@ -738,6 +752,37 @@ fn attack(ctx: &Ctx, starts: usize, steps: usize) -> Vec<Vec<f64>> {
     res.into_iter().flatten().collect()
 }
 
+/// The attack's `rounds` of starts (each skipped once the incumbent is within the gap
+/// of `upper`, the search's bound), each point handed to `accept` in a fixed order.
+/// `true` when `accept` asked to stop.
+fn attack_rounds(
+    ctx: &Ctx,
+    out: &mut Outcome,
+    upper: f64,
+    rounds: &[std::ops::Range<usize>],
+    accept: &(dyn Fn(&[f64]) -> Option<Accepted> + Sync),
+) -> bool {
+    let s = ctx.s;
+    for starts in rounds.iter().cloned() {
+        let inc = out
+            .best
+            .as_ref()
+            .map(|b| b.value)
+            .unwrap_or(f64::NEG_INFINITY);
+        if starts.is_empty() || upper <= inc + s.gap.max(1e-9 * inc.abs()) {
+            continue;
+        }
+        for c in attack(ctx, starts, s.attack_steps) {
+            if let Some(a) = accept(&c) {
+                if out.take(a) {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
 /// What processing one node gave.
 enum Processed {
     /// Children (bounded).
@@ -795,15 +840,19 @@ pub fn optimise(
             .map(|b| b.value)
             .unwrap_or(f64::NEG_INFINITY)
     };
-    // The attack first: its incumbent shrinks the root's box (see [`Ctx::eval`]).
-    for c in attack(&ctx, s.attack_starts, s.attack_steps) {
-        if let Some(a) = accept(&c) {
-            if out.take(a) {
-                return out;
-            }
+    let tol = |inc: f64| s.gap.max(1e-9 * inc.abs());
+    let none: Arc<Vec<Linear>> = Arc::new(Vec::new());
+    // The attack before the root when asked (its incumbent then cuts the root's box),
+    // else once the search has bounded `attack_after` nodes (below).
+    let mut attacked = 0;
+    if s.attack_after == 0 {
+        attacked = 2;
+        let first = ATTACK_FIRST_ROUND.min(s.attack_starts);
+        let rounds = [0..first, first..s.attack_starts];
+        if attack_rounds(&ctx, &mut out, f64::INFINITY, &rounds, accept) {
+            return out;
         }
     }
-    let none: Arc<Vec<Linear>> = Arc::new(Vec::new());
     out.nodes += 1;
     let inc0 = incumbent(&out);
     let Some(root) = ctx.eval(&p.lo, &p.hi, &[], None, &none, false, SHRINK[0], inc0) else {
@@ -811,7 +860,6 @@ pub fn optimise(
         out.upper = inc0;
         return out;
     };
-    let tol = |inc: f64| s.gap.max(1e-9 * inc.abs());
     let mut closed = f64::NEG_INFINITY;
     // Leaves not settled by an accepted point: their bounds (thin unless the incumbent
     // catches up).
@@ -850,6 +898,18 @@ pub fn optimise(
                 closed = closed.max(n.upper);
             }
             break;
+        }
+        // The attack's rounds, once the search has bounded `attack_after` nodes (the
+        // first, a few starts) and four times as many (the rest) without closing. Its
+        // incumbent cuts the boxes of the nodes bounded after it (see [`Ctx::eval`]).
+        if attacked < 2 && out.nodes >= s.attack_after * [1, 4][attacked] {
+            let first = ATTACK_FIRST_ROUND.min(s.attack_starts);
+            let starts = [0..first, first..s.attack_starts][attacked].clone();
+            attacked += 1;
+            if attack_rounds(&ctx, &mut out, top.upper, &[starts], accept) {
+                return out;
+            }
+            continue;
         }
         if trace && out.nodes >= next_trace {
             next_trace = out.nodes + 2000;

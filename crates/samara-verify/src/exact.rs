@@ -3,8 +3,8 @@
 //! big rationals, and the constraints are checked exactly (strict ones strictly). Used
 //! for counterexamples within 1e-6 of a threshold, where f64 rounding could decide.
 
-use crate::engine::Point;
 use crate::net::PwlNet;
+use crate::point::Point;
 use num_rational::BigRational;
 use num_traits::{Signed, Zero};
 use samara_spec::normal::{Cmp, Constraint, Var};

@@ -6,11 +6,13 @@
 //! region empty?) or `Optimise` (its supremum/infimum of an objective: the critical
 //! value of a parameter).
 //!
-//! One-network queries go to the branch-and-bound optimiser of `samara-bounds` through
-//! [`single`] (input and ReLU splitting, CROWN bounds, small LPs certified by weak
-//! duality); the rest (several network applications, infinite free bounds) to the older
-//! engine ([`engine`]): branch and bound over ReLU phases with LP relaxations solved by
-//! Clarabel, bounds made sound from the dual ([`lp`]).
+//! Every exact question (a critical value, the slack form of a `Prove` query, one
+//! network application or several) is solved by one engine, the branch-and-bound
+//! optimiser of `samara-bounds` (attacks, input and ReLU splitting, CROWN and
+//! alpha-CROWN bounds, small LPs certified by weak duality), through [`single`]: a query
+//! with several applications is lowered to one network, the block-diagonal product of
+//! its applications' networks ([`single::product`]). A counterexample point is a
+//! [`point::Point`].
 //!
 //! Tolerance policy (stated and tested):
 //! - A result is reported only from a completed argument: a search cut short by the time
@@ -21,7 +23,7 @@
 //!   outputs are recomputed by the plain f64 evaluator (`Network::eval_f64`), strict
 //!   inequalities strictly, and beyond rounding: every inequality that involves a
 //!   variable holds with a margin larger than `1e-9 (|constant| + sum |a_i v_i|)`
-//!   ([`engine::Point::robustly_satisfies`]; the lowering folds constants in f64, so a
+//!   ([`point::Point::robustly_satisfies`]; the lowering folds constants in f64, so a
 //!   `0 < 0` can arrive as `-6e-19 < 0`). A point inside only within that tolerance
 //!   gives `Unknown` (`rounding`). Its margin (the worst inequality with a variable;
 //!   equalities and constant rows left out) is reported. When the margin is within 1e-6
@@ -45,7 +47,6 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod boxq;
-pub mod engine;
 pub mod exact;
 mod local;
 pub mod lp;
@@ -54,14 +55,17 @@ pub mod milp;
 /// The piecewise-linear encoding and its interval/DeepPoly bounds, shared with reachability
 /// (they live in `samara-bounds`).
 pub use samara_bounds::pwl as net;
+pub mod point;
+/// The old name of [`point`] (kept for the modules and callers that import from it).
+pub use point as engine;
 pub mod robustness;
 pub mod route;
 pub mod single;
 pub mod smooth;
 pub mod tighten;
 
-use engine::{Limits, Point, Problem};
 use net::PwlNet;
+use point::{Limits, Point, Problem};
 use rayon::prelude::*;
 use samara_nn::Network;
 pub use samara_num::Timeout;
@@ -81,9 +85,10 @@ pub struct Settings {
     /// Absolute optimality gap at which a critical value counts as exact.
     pub gap: f64,
     /// LP-based tightening of each unstable neuron's pre-activation bounds
-    /// ([`tighten`]). Default `Off`: measured on the case study's networks, the LPs
-    /// save about as much branch-and-bound work as they cost (`Root` halves one
-    /// published network's table and slows the 6-64-32-1 one's by up to 20 %).
+    /// ([`tighten`]), a setting of the ReLU-phase search that was removed: the exact
+    /// engine ([`single`]) tightens the earliest unstable layer by LP at every node
+    /// itself and does not read this field (kept so that callers setting it still
+    /// build; `samara --lp-tighten` has no effect).
     pub lp_tighten: LpTighten,
 }
 
@@ -529,7 +534,6 @@ fn limits(s: &Settings, t0: Instant) -> Limits {
         timeout: s.timeout.left(t0),
         nodes: s.max_nodes,
         gap: s.gap,
-        tighten: s.lp_tighten,
     }
 }
 
@@ -605,7 +609,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
                     .collect();
                 let boxes: Vec<Vec<(f64, f64)>> =
                     q.applications.iter().map(|a| a.input_box.clone()).collect();
-                let boxes = engine::tighten(&boxes, &q.region[d]);
+                let boxes = point::tighten(&boxes, &q.region[d]);
                 let left = s.timeout.left(t0);
                 match smooth::search(&nets, &boxes, &q.region[d], left, 2_000_000) {
                     smooth::SmoothResult::Proved => continue,
@@ -631,7 +635,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
         };
         let original = q.region[d].clone();
         // Only s >= 0 matters, where every inequality holds: tighten the boxes with them.
-        p.boxes = engine::tighten(&p.boxes, &original);
+        p.boxes = point::tighten(&p.boxes, &original);
         let k = p.free.len();
         p.free.push((-1e3, 1e3));
         for c in p.constraints.iter_mut() {
@@ -646,7 +650,7 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
         });
         p.floor = 0.0;
         p.stop_when = Some(original.clone());
-        let r = single::solve_prove(p, limits(s, t0));
+        let r = single::solve(&p, limits(s, t0));
         if let Some((mut pt, _)) = r.best.clone() {
             pt.free.truncate(k);
             if pt.satisfies(&original) {
@@ -749,7 +753,7 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
             Ok(p) => p,
             Err(e) => return Err(VerifyError::Goal(q.name.clone(), e)),
         };
-        let r = single::solve(p, limits(s, t0));
+        let r = single::solve(&p, limits(s, t0));
         nodes += r.nodes;
         if !r.complete {
             unknown.get_or_insert(r.stop.clone().unwrap_or(UnknownReason::Timeout { nodes }));
@@ -772,7 +776,7 @@ pub fn optimise(q: &Query, prep: &Prepared, s: &Settings) -> Result<Critical, Ve
                 .iter()
                 .any(|(v, _)| matches!(v, Var::Output { .. }))
         });
-        let rd = single::solve(pd, limits(s, t0));
+        let rd = single::solve(&pd, limits(s, t0));
         if !rd.complete {
             // Without the domain's extreme, vacuity is not decided.
             unknown.get_or_insert(rd.stop.clone().unwrap_or(UnknownReason::Timeout { nodes }));

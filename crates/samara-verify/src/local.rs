@@ -32,9 +32,9 @@
 //! exact arithmetic); anything else, and a point on a kink of the network (no stable
 //! box), goes to the ordinary engine unchanged.
 
-use crate::engine::Point;
 use crate::exact::{exact_satisfies, q};
 use crate::net::PwlNet;
+use crate::point::Point;
 use crate::{prove, Counterexample, Prepared, Settings, UnknownReason, Verdict, VerifyError};
 use num_rational::BigRational;
 use num_traits::{Signed, Zero};

@@ -4,8 +4,8 @@
 //! Strict constraints are taken non-strictly (the closure), so the optimum is the
 //! supremum. HiGHS works in floating point: this engine is for cross-checks, not proofs.
 
-use crate::engine::tighten;
 use crate::net::{affine_bounds, PwlNet};
+use crate::point::tighten;
 use highs::{HighsModelStatus, RowProblem, Sense as HSense};
 use samara_spec::normal::{Cmp, Goal, Query, Sense, Var};
 use std::collections::HashMap;

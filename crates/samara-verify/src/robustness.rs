@@ -14,7 +14,6 @@
 //!   A cell is proved when the certificate is <= L, violated when the lower bound is > L,
 //!   unknown in between (the secant from x need not reach the steepest region's slope).
 
-use crate::engine::Limits;
 use crate::net::{affine_bounds, PwlNet};
 use crate::{optimise, Prepared, Settings};
 use rayon::prelude::*;
@@ -389,7 +388,6 @@ pub fn sweep_until(
             })
         })
         .collect();
-    let _ = Limits::default();
     out.into_iter().collect()
 }
 

@@ -1,12 +1,15 @@
 //! Engine routing for single-network queries (the VNN-COMP shape): a box-shaped query
 //! ([`crate::boxq`]) goes to the input-split branch and bound with CROWN bounds; anything
 //! else, and a box-shaped query that engine leaves undecided while time remains (a piece
-//! too thin to split in f64, or a point exact arithmetic did not confirm), goes to the
-//! ReLU-phase branch and bound of [`crate::prove`].
+//! too thin to split in f64, or a point exact arithmetic did not confirm), goes to
+//! [`crate::prove`], the exact optimiser with the query's constraints as rows
+//! ([`crate::single`]; input and ReLU splitting). The tags `phase` and
+//! `input_split+phase` name that route (they are kept as they were when it was a ReLU-phase
+//! search, so that result files written before still read).
 //!
 //! The contract is [`crate::prove`]'s: `Proved` only from a completed sound argument,
 //! `Violated` only with a point re-checked in exact rational arithmetic (input-split
-//! route) or beyond rounding (phase route), `Unknown` with a typed reason otherwise.
+//! route) or beyond rounding (optimiser route), `Unknown` with a typed reason otherwise.
 
 use crate::boxq::{prove_boxes, BoxAnswer, BoxUnknown};
 use crate::{out_of_range, prove, Prepared, Settings, UnknownReason, Verdict, VerifyError};
@@ -19,9 +22,9 @@ use std::time::Instant;
 pub enum Engine {
     /// The input-split branch and bound ([`crate::boxq`]).
     InputSplit,
-    /// The ReLU-phase branch and bound ([`crate::prove`]), the query not being box-shaped.
+    /// The exact optimiser ([`crate::prove`]), the query not being box-shaped.
     Phase,
-    /// The input-split engine gave no verdict with time left; the phase engine ran after.
+    /// The input-split engine gave no verdict with time left; the optimiser ran after.
     InputSplitThenPhase,
 }
 
@@ -54,7 +57,7 @@ pub fn box_reason(u: BoxUnknown) -> UnknownReason {
 }
 
 /// Decide a `Prove` query, routing it as the module doc says. `s.timeout` bounds the
-/// whole call (both engines); `s.max_nodes` applies to the phase engine.
+/// whole call (both engines); `s.max_nodes` applies to the optimiser.
 pub fn prove_routed(
     q: &Query,
     prep: &Prepared,
@@ -66,7 +69,7 @@ pub fn prove_routed(
         [a] => prep.pwl.get(&a.network).and_then(|p| p.as_ref().ok()),
         _ => None,
     };
-    // Values the phase engine's encoding cannot take are reported by it (out_of_range).
+    // Values the encoding cannot take are reported by `prove` (out_of_range).
     let Some(pwl) = pwl.filter(|_| out_of_range(q).is_none()) else {
         return Ok((prove(q, prep, s)?, Engine::Phase));
     };

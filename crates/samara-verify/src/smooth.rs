@@ -7,8 +7,8 @@
 //! a box's centre, evaluated concretely, is a counterexample (Violated), every box is
 //! pruned (Proved), or the budget runs out (Unknown, never Proved).
 
-use crate::engine::Point;
 use crate::net::{affine_bounds, down, up};
+use crate::point::Point;
 use samara_nn::{Activation, Layer, Network};
 use samara_num::Timeout;
 use samara_spec::normal::{Cmp, Constraint, Var};

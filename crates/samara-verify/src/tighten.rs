@@ -13,10 +13,11 @@
 //! The per-neuron LPs of one layer are independent and solved in parallel with rayon.
 //! Cost: two LPs per unstable neuron, each the size of a node LP up to that layer.
 //!
-//! The engine applies it lazily (see [`LpTighten`]): `Root` tightens the root problem
-//! only once the search has already solved as many node LPs as the tightening costs,
-//! `Depth(d)` tightens every node of depth `<= d` that its LP leaves to be branched.
-//! Tightened bounds are intersected into every node below (they hold there).
+//! The ReLU-phase branch and bound that applied it (lazily, see [`LpTighten`]) was
+//! removed when every exact question moved to the optimiser of `samara-bounds`, which
+//! tightens the earliest unstable layer by LP at each node itself; [`lp_tighten`]
+//! stays as a tested bound routine (and [`LpTighten`] as a setting no search reads).
+//! The notes below are from when the phase search used it.
 //!
 //! Measured (2-core machine shared with other jobs; `critical_table` and
 //! `lp_tighten_bench` examples, and `samara critical --lp-tighten`): over the case
@@ -33,10 +34,8 @@ use crate::lp::{Lp, LpResult, Row};
 use crate::net::{affine_bounds, clamp_to_phases, deeppoly, down, up, PwlNet};
 use rayon::prelude::*;
 
-/// When the engine tightens pre-activation bounds with LPs (a [`crate::Settings`]
-/// field). Default: `Off` (measured: on the case study's networks the LPs save about
-/// what they cost; see the module notes). Critical values and verdicts are the same
-/// in every mode (tested).
+/// When the removed ReLU-phase search tightened pre-activation bounds with LPs (a
+/// [`crate::Settings`] field that no search reads any more; see the module notes).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum LpTighten {
     /// Interval and DeepPoly bounds only.
