@@ -43,7 +43,8 @@ use std::time::{Duration, Instant};
 
 /// Profile counters (nanoseconds / counts), printed to stderr at the end of [`solve`]
 /// when the environment variable `SAMARA_SEARCH_PROFILE` is set.
-static PROF: [AtomicU64; 10] = [
+static PROF: [AtomicU64; 11] = [
+    AtomicU64::new(0),
     AtomicU64::new(0),
     AtomicU64::new(0),
     AtomicU64::new(0),
@@ -65,6 +66,7 @@ const P_COMB: usize = 6;
 const P_CLOSED: usize = 7;
 const P_PHASE: usize = 8;
 const P_PHASE_CLOSED: usize = 9;
+const P_PHASE_NODES: usize = 10;
 /// Which route found the point (1 first attack, 2 a burst, 3 a piece's candidates, 4 a
 /// piece's local attack, 5 phase splitting, 6 constant fates).
 static FOUND_BY: AtomicU64 = AtomicU64::new(0);
@@ -711,6 +713,50 @@ fn open_bounds(
         .collect()
 }
 
+/// Whether the constant fates ([`crate::constant`]) could decide one of the open cases
+/// `left` on the piece `[lo, hi]`: some case's best constraint bound is within rounding
+/// of 0 (`1e-6` of the magnitudes summed in it: a constraint exactly at 0 there, which
+/// the widened bounds never close), or some case nearly holds at the piece's centre
+/// (within `1e-9` relative: a case that holds at every point of the piece, perhaps with
+/// margin 0, which the margin of [`satisfies`] rejects). A `false` only skips a shortcut.
+fn constant_fates_may_decide(
+    maps: &[(Affine, bool)],
+    cases: &[Case],
+    left: &[(usize, ConjBound)],
+    lo: &[f64],
+    hi: &[f64],
+) -> bool {
+    let near_zero = left.iter().any(|(_, b)| match &b.f {
+        Some(f) => {
+            let scale = f.cst.abs()
+                + f.slack
+                + f.coef
+                    .iter()
+                    .zip(lo.iter().zip(hi))
+                    .map(|(c, (a, h))| c.abs() * a.abs().max(h.abs()))
+                    .sum::<f64>();
+            b.lb >= -1e-6 * (1.0 + scale)
+        }
+        None => true,
+    });
+    if near_zero {
+        return true;
+    }
+    let centre: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * (a + b)).collect();
+    let y = forward(maps, &centre, None);
+    left.iter().any(|(ci, _)| {
+        cases[*ci].constraints.iter().all(|k| {
+            let mut v = k.obj.d;
+            let mut mag = k.obj.d.abs();
+            for (c, yo) in k.obj.c.iter().zip(&y) {
+                v += c * yo;
+                mag += (c * yo).abs();
+            }
+            v <= 1e-9 * (1.0 + mag)
+        })
+    })
+}
+
 /// What [`settle`] left of a piece: its bounds and the cases still open with theirs.
 struct Settled {
     lo: Vec<f64>,
@@ -766,7 +812,12 @@ fn settle(
     // where inexact ([`crate::constant`]) decide them.
     // One interval pass for all the piece's cases, given up past the deadline (then the
     // cases stay open; the caller sees the time limit).
-    let settled = match left.is_empty() {
+    // The pass costs about as much as the piece's CROWN bounds, and decides something
+    // only in two situations, which are checked first: a constraint whose bound is within
+    // rounding of 0 (`Never` possible), or a case that every point of the piece
+    // satisfies (`Always`), which then nearly holds at the centre.
+    let settled = match left.is_empty() || !constant_fates_may_decide(maps, cases, &left, &lo, &hi)
+    {
         true => None,
         false => crate::constant::layer_intervals_until(maps, &lo, &hi, deadline),
     };
@@ -890,6 +941,7 @@ fn examine(
             &mut nodes,
         );
         prof_add(P_PHASE, tp);
+        PROF[P_PHASE_NODES].fetch_add(nodes, AtOrd::Relaxed);
         match r {
             crate::phases::PhaseResult::Closed => {
                 PROF[P_PHASE_CLOSED].fetch_add(1, AtOrd::Relaxed);
@@ -1042,7 +1094,7 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
         eprintln!(
             "profile: {:.0} ms wall, {} cases, {} pieces, {} closed, max depth {}; \
              cpu ms: attack {:.0}, own bounds {:.0}, alpha+comb {:.0} (comb {:.0}), \
-             pgd {:.0}, look-ahead {:.0}, phases {:.0} ({} closed); outcome {:?} (found by {})",
+             pgd {:.0}, look-ahead {:.0}, phases {:.0} ({} closed, {} nodes); outcome {:?} (found by {})",
             t0.elapsed().as_secs_f64() * 1e3,
             cases.len(),
             st.pieces,
@@ -1056,6 +1108,7 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
             ms(P_LOOK),
             ms(P_PHASE),
             PROF[P_PHASE_CLOSED].load(AtOrd::Relaxed),
+            PROF[P_PHASE_NODES].load(AtOrd::Relaxed),
             match &o {
                 Outcome::Violated(CasePoint { .. }) => "point".to_string(),
                 o => format!("{o:?}"),

@@ -94,6 +94,18 @@ impl Linear {
         }
     }
 
+    /// `-f`: the coefficients and constant negated (exact in floating point), the slack
+    /// kept. A lower bound of `h` negated is an upper bound of `-h`, not a lower one:
+    /// this is only a lower bound of `-h` where `f` is exact up to its slack, as for a
+    /// pull-back that relaxes no neuron (every earlier neuron stable or fixed).
+    pub(crate) fn negated(&self) -> Linear {
+        Linear {
+            coef: self.coef.iter().map(|c| -c).collect(),
+            cst: -self.cst,
+            slack: self.slack,
+        }
+    }
+
     /// The box corner that minimises `coef . x` (ties to the lower end).
     pub fn argmin_corner(&self, lo: &[f64], hi: &[f64]) -> Vec<f64> {
         self.coef
@@ -577,6 +589,36 @@ pub fn backward_lower_beta(
 ) -> Linear {
     let inmax = input_magnitudes(maps, pre, lo, hi, maps.len());
     backward_core(maps, pre, &obj.c, obj.d, alpha, beta, Mags::Inputs(&inmax))
+}
+
+/// The row magnitudes ([`row_magnitude`]) of every map of the chain for the bounds
+/// `pre` (valid on the box or on a set containing the one later bounded): computed once
+/// for many pull-backs through the same bounds with [`backward_lower_rows`]. Magnitudes
+/// from looser bounds (a parent node's) stay sound for tighter ones: they only bound
+/// `|input|` from above.
+pub(crate) fn row_magnitudes(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    lo: &[f64],
+    hi: &[f64],
+) -> Vec<Vec<f64>> {
+    input_magnitudes(maps, pre, lo, hi, maps.len())
+        .iter()
+        .enumerate()
+        .map(|(j, im)| row_magnitude(&maps[j].0, im))
+        .collect()
+}
+
+/// [`backward_lower`] with the row magnitudes given ([`row_magnitudes`] of `maps` or of
+/// a longer chain starting with them, for bounds containing `pre`), instead of a second,
+/// absolute-value pass over the weights at every call.
+pub(crate) fn backward_lower_rows(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    rows: &[Vec<f64>],
+) -> Linear {
+    backward_core(maps, pre, &obj.c, obj.d, None, None, Mags::Rows(rows))
 }
 
 /// Whether the split multiplier `c` on a neuron with bounds `(l, u)` adds a term
