@@ -25,7 +25,7 @@
 //! still open cannot be split: the search reports that as unknown, not as a proof.
 
 use crate::query::{forward, satisfies, Case};
-use crate::symbolic::{self, Linear, Objective};
+use crate::symbolic::{self, Linear, Objective, Sparse};
 use rayon::prelude::*;
 use samara_nn::Affine;
 use std::sync::Arc;
@@ -174,6 +174,7 @@ fn optimise(
     warm: Option<&Warm>,
     iters: usize,
     deadline: Option<Instant>,
+    sp: Option<&Sparse>,
 ) -> (Linear, Warm, Vec<Vec<f64>>) {
     let mut alpha = match warm {
         Some(w) => w.alpha.clone(),
@@ -200,7 +201,7 @@ fn optimise(
         let (l, u) = pre[j][t];
         l < 0.0 && u > 0.0
     };
-    let mut best = symbolic::value_grad(maps, pre, obj, lo, hi, &alpha, Some(&beta));
+    let mut best = symbolic::value_grad(maps, pre, obj, lo, hi, &alpha, Some(&beta), sp);
     let mut best_ab = (alpha.clone(), beta.clone());
     // Step sizes: slopes live in [0, 1]; a multiplier's scale is that of the pull-back's
     // coefficients of its layer.
@@ -238,7 +239,7 @@ fn optimise(
                 },
             );
         }
-        let vg = symbolic::value_grad(maps, pre, obj, lo, hi, &alpha, Some(&beta));
+        let vg = symbolic::value_grad(maps, pre, obj, lo, hi, &alpha, Some(&beta), sp);
         cur = vg.alpha.clone();
         cur_b = vg.beta.clone();
         if vg.value > best.value {
@@ -247,13 +248,18 @@ fn optimise(
         }
     }
     let (alpha, beta) = best_ab;
-    let f = symbolic::backward_lower_beta(maps, pre, obj, lo, hi, Some(&alpha), Some(&beta));
+    let f = symbolic::backward_lower_sp(maps, pre, obj, lo, hi, Some(&alpha), Some(&beta), sp);
     (f, Warm { alpha, beta }, best.nu)
 }
 
 /// Bound one node: close its cases, look for a point at each bound's minimising corner,
 /// or split the best-scored unstable neuron.
-pub(crate) fn examine(tree: &Tree, node: Node, deadline: Option<Instant>) -> NodeOut {
+pub(crate) fn examine(
+    tree: &Tree,
+    node: Node,
+    deadline: Option<Instant>,
+    sp: Option<&Sparse>,
+) -> NodeOut {
     let Tree {
         maps,
         cases,
@@ -284,7 +290,7 @@ pub(crate) fn examine(tree: &Tree, node: Node, deadline: Option<Instant>) -> Nod
     // (sound on the node's set), intersected with the inherited ones.
     if let Some(&(j, _, _)) = node.splits.last() {
         if j + 1 < pre.len() {
-            pre = symbolic::crown_pre_from_until(maps, lo, hi, &pre, j + 1, deadline);
+            pre = symbolic::crown_pre_from_sp(maps, lo, hi, &pre, j + 1, deadline, sp);
             if pre.iter().flatten().any(|&(l, u)| l > u) {
                 return NodeOut::Closed;
             }
@@ -320,6 +326,7 @@ pub(crate) fn examine(tree: &Tree, node: Node, deadline: Option<Instant>) -> Nod
                 w,
                 iters,
                 deadline,
+                sp,
             );
             let lb = f.min_over(lo, hi);
             if if con.strict { lb >= 0.0 } else { lb > 0.0 } {
@@ -408,8 +415,27 @@ pub(crate) fn examine_batch(
     batch: Vec<Node>,
     deadline: Option<Instant>,
 ) -> Vec<NodeOut> {
-    batch
+    let t0 = Instant::now();
+    let sp = Sparse::of(tree.maps, tree.lo.len());
+    let n = batch.len();
+    let out: Vec<NodeOut> = batch
         .into_par_iter()
-        .map(|n| examine(tree, n, deadline))
-        .collect()
+        .map(|n| examine(tree, n, deadline, sp.as_ref()))
+        .collect();
+    if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+        let kind = |o: &NodeOut| match o {
+            NodeOut::Closed => "closed".to_string(),
+            NodeOut::Found(..) => "found".to_string(),
+            NodeOut::Split(ch) => format!("d{}:{:.4}", ch[0].depth, ch[0].key),
+            NodeOut::Stuck => "stuck".to_string(),
+            NodeOut::Late => "late".to_string(),
+        };
+        let ks: Vec<String> = out.iter().map(kind).collect();
+        let ks = ks.join(" ");
+        eprintln!(
+            "relu split batch: {n} nodes in {:.3} s: {ks}",
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    out
 }
