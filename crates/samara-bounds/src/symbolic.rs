@@ -995,45 +995,7 @@ pub(crate) fn value_grad(
     sp: Option<&Sparse>,
 ) -> ValueGrad {
     let nmaps = maps.len();
-    let mut nus: Vec<Vec<f64>> = vec![Vec::new(); nmaps];
-    let mut mu = obj.c.clone();
-    let mut cst = obj.d;
-    for j in (0..nmaps).rev() {
-        let m = &maps[j].0;
-        let mut nu = vec![0.0; m.inp];
-        for (i, &mi) in mu.iter().enumerate() {
-            if mi != 0.0 {
-                cst += mi * m.b[i];
-                axpy_row(m, Sparse::map(sp, j), i, mi, &mut nu);
-            }
-        }
-        nus[j] = nu.clone();
-        if j == 0 || !maps[j - 1].1 {
-            mu = nu;
-            continue;
-        }
-        for (t, v) in nu.iter_mut().enumerate() {
-            let (l, u) = pre[j - 1][t];
-            if *v == 0.0 || u <= 0.0 {
-                *v = 0.0;
-            } else if l >= 0.0 {
-            } else if *v < 0.0 {
-                let s = u / (u - l);
-                cst -= *v * s * l;
-                *v *= s;
-            } else {
-                *v *= alpha[j - 1][t];
-            }
-        }
-        if let Some(b) = beta {
-            for (t, &c) in b[j - 1].iter().enumerate() {
-                if beta_applies(c, pre[j - 1][t]) {
-                    nu[t] += c;
-                }
-            }
-        }
-        mu = nu;
-    }
+    let (mu, cst, nus) = pull_f64(maps, pre, obj, alpha, beta, sp, true);
     let mut value = cst;
     let mut g: Vec<f64> = Vec::with_capacity(lo.len());
     for (t, c) in mu.iter().enumerate() {
@@ -1102,6 +1064,84 @@ pub(crate) fn value_grad(
         beta: gbeta,
         nu: nus,
     }
+}
+
+/// The f64 pull-back of [`value_grad`]: the coefficients over the inputs, the constant,
+/// and (when `keep`) the pull-back's coefficients of every ReLU output.
+fn pull_f64(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    alpha: &[Vec<f64>],
+    beta: Option<&[Vec<f64>]>,
+    sp: Option<&Sparse>,
+    keep: bool,
+) -> (Vec<f64>, f64, Vec<Vec<f64>>) {
+    let nmaps = maps.len();
+    let mut nus: Vec<Vec<f64>> = vec![Vec::new(); if keep { nmaps } else { 0 }];
+    let mut mu = obj.c.clone();
+    let mut cst = obj.d;
+    for j in (0..nmaps).rev() {
+        let m = &maps[j].0;
+        let mut nu = vec![0.0; m.inp];
+        for (i, &mi) in mu.iter().enumerate() {
+            if mi != 0.0 {
+                cst += mi * m.b[i];
+                axpy_row(m, Sparse::map(sp, j), i, mi, &mut nu);
+            }
+        }
+        if keep {
+            nus[j] = nu.clone();
+        }
+        if j == 0 || !maps[j - 1].1 {
+            mu = nu;
+            continue;
+        }
+        for (t, v) in nu.iter_mut().enumerate() {
+            let (l, u) = pre[j - 1][t];
+            if *v == 0.0 || u <= 0.0 {
+                *v = 0.0;
+            } else if l >= 0.0 {
+            } else if *v < 0.0 {
+                let s = u / (u - l);
+                cst -= *v * s * l;
+                *v *= s;
+            } else {
+                *v *= alpha[j - 1][t];
+            }
+        }
+        if let Some(b) = beta {
+            for (t, &c) in b[j - 1].iter().enumerate() {
+                if beta_applies(c, pre[j - 1][t]) {
+                    nu[t] += c;
+                }
+            }
+        }
+        mu = nu;
+    }
+    (mu, cst, nus)
+}
+
+/// The f64 value of the backward bound with slopes `alpha` and multipliers `beta` (the
+/// value of [`value_grad`] without its gradients): to compare branching choices, never
+/// as a bound.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn value_only(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    lo: &[f64],
+    hi: &[f64],
+    alpha: &[Vec<f64>],
+    beta: Option<&[Vec<f64>]>,
+    sp: Option<&Sparse>,
+) -> f64 {
+    let (mu, cst, _) = pull_f64(maps, pre, obj, alpha, beta, sp, false);
+    let mut value = cst;
+    for (t, c) in mu.iter().enumerate() {
+        value += c * if *c >= 0.0 { lo[t] } else { hi[t] };
+    }
+    value
 }
 
 /// alpha-CROWN (Xu et al., ICLR 2021) for one objective: projected gradient ascent on the
