@@ -598,15 +598,44 @@ fn margin_gradient(maps: &[(Affine, bool)], x: &[f64]) -> Vec<f64> {
 
 #[test]
 fn relu_splitting_proofs_on_many_inputs_survive_sampling_and_pgd() {
+    relu_splitting_trials(4242, &[80, 16, 16, 3], None);
+}
+
+#[test]
+fn relu_splitting_proofs_on_sparse_conv_like_layers_survive_sampling_and_pgd() {
+    // The hidden maps keep one weight in six, as a lowered convolution keeps its
+    // kernel's patch: the bounds then run over the sparse rows (symbolic::Sparse), whose
+    // proofs must survive the same sampling and attack.
+    relu_splitting_trials(4343, &[96, 48, 24, 3], Some(1.0 / 6.0));
+}
+
+/// 16 trials of ReLU splitting on random networks of `dims` (weights kept with
+/// probability `keep` in the hidden maps when given): every proof survives 10,000
+/// samples and 20 sign-gradient descents, every point found satisfies its constraint,
+/// and both verdicts occur, proofs by splitting among them.
+fn relu_splitting_trials(seed: u64, dims: &[usize], keep: Option<f64>) {
     // 80 inputs: the search splits ReLUs (beta-CROWN bounds), not inputs. The threshold
     // sits just below the sampled minimum of y_0 - y_1, where the root bounds do not
     // decide and both answers occur.
-    let mut rng = ChaCha8Rng::seed_from_u64(4242);
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let (mut proved, mut split_proofs, mut found) = (0, 0, 0);
+    let nin = dims[0];
     for trial in 0..16 {
-        let net = Network::random_mlp(&[80, 16, 16, 3], Activation::Relu, 1.0, 0.5, &mut rng);
+        let mut net = Network::random_mlp(dims, Activation::Relu, 1.0, 0.5, &mut rng);
+        if let Some(p) = keep {
+            let last = net.layers.len() - 1;
+            for (k, l) in net.layers.iter_mut().enumerate() {
+                if let (Layer::Affine(a), true) = (l, k < last) {
+                    a.w.iter_mut().for_each(|w| {
+                        if !rng.gen_bool(p) {
+                            *w = 0.0;
+                        }
+                    });
+                }
+            }
+        }
         let maps = chain(&net);
-        let x0: Vec<f64> = (0..80).map(|_| rng.gen_range(0.0..1.0)).collect();
+        let x0: Vec<f64> = (0..nin).map(|_| rng.gen_range(0.0..1.0)).collect();
         let eps = 0.05;
         let lo: Vec<f64> = x0.iter().map(|v| v - eps).collect();
         let hi: Vec<f64> = x0.iter().map(|v| v + eps).collect();
