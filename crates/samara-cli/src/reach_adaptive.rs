@@ -101,6 +101,7 @@ pub(crate) fn write_adaptive(
 
 /// `--shard I/N` of an adaptive run: the grid's starting cells `I` mod `N`, checkpointed
 /// to `OUT.cells` as they finish (a rerun resumes), written as the shard file `OUT`.
+/// Exit 0 when the shard finished, 1 when it stopped early (not mergeable yet).
 #[allow(clippy::too_many_arguments)]
 fn run_shard(
     a: &ReachArgs,
@@ -143,7 +144,13 @@ fn run_shard(
     } else {
         println!("{human}");
     }
-    Ok(ExitCode::SUCCESS)
+    // A shard stopped early (its --timeout or --max-leaves) cannot be merged: exit 1, so
+    // that a job array sees it and runs it again (it resumes from its checkpoint).
+    Ok(if done.result.adaptive.stopped.is_some() {
+        ExitCode::from(1)
+    } else {
+        ExitCode::SUCCESS
+    })
 }
 /// `samara merge reach` of adaptive shards (`samara_app::reach::adaptive::merge_shards`),
 /// written as the one-process run writes them.

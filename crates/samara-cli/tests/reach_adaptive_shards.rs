@@ -2,7 +2,8 @@
 //! adaptive run's starting cells divided over shards, merged, give the one-process
 //! `reach.json` (but the wall time), JSON summary and exit code; a shard killed while
 //! it works resumes from its checkpoint (`OUT.cells`) and still merges to the same
-//! result; --shard without --grid is refused.
+//! result; a shard stopped by its budget exits 1, is refused by the merge, and its
+//! checkpoint is refused by a run of other settings; --shard without --grid is refused.
 //!
 //! The system: TORA (ARCH-COMP, the competition's controller) with its x1 and x3
 //! intervals widened three times, a 6 s horizon and the band `|x1 + x2| <= 100` at the
@@ -29,6 +30,11 @@ fn widened_tora(dir: &Path) -> PathBuf {
 }
 
 fn reach_cmd(sys: &Path, extra: &[&str]) -> Command {
+    reach_budget(sys, "64", extra)
+}
+
+/// `samara reach` of the test's adaptive run with the leaf budget `budget`.
+fn reach_budget(sys: &Path, budget: &str, extra: &[&str]) -> Command {
     let net = root().join("crates/samara-reach/tests/data/archcomp/controller_tora.onnx");
     let mut c = Command::new(env!("CARGO_BIN_EXE_samara"));
     c.arg("reach")
@@ -46,7 +52,7 @@ fn reach_cmd(sys: &Path, extra: &[&str]) -> Command {
             "--samples",
             "300",
             "--max-leaves",
-            "64",
+            budget,
             "--grid",
             "x1=2",
             "--grid",
@@ -182,21 +188,39 @@ fn adaptive_shards_merge_to_the_one_process_result_and_a_killed_shard_resumes() 
     assert_eq!(m2.status.code(), one.status.code(), "{}", text(&m2));
     assert_eq!(reach_json(&merged2), whole);
 
-    // A checkpoint of other settings is refused, naming the setting.
-    let other = d.join("o0.json");
-    let head = serde_json::json!({
-        "checkpoint": "samara adaptive reach checkpoint 1",
-        "shard": [0, 2],
-        "run": {"sets": "taylor"}
-    });
-    std::fs::write(d.join("o0.json.cells"), format!("{head}\n")).unwrap();
+    // Both shards with a budget of 2 leaves: shard 0 must cut a cell, so it stops
+    // early: exit 1, its checkpoint kept; the merge refuses it. Run again with another
+    // budget, the checkpoint (of the other settings) is refused, naming the setting.
+    let b: Vec<PathBuf> = (0..2).map(|i| d.join(format!("b{i}.json"))).collect();
+    let mut codes = Vec::new();
+    for (i, f) in b.iter().enumerate() {
+        let o = reach_budget(&sys, "2", &["--shard", &format!("{i}/2"), "--out"])
+            .arg(f)
+            .output()
+            .unwrap();
+        codes.push(o.status.code());
+        if o.status.code() == Some(1) {
+            assert!(text(&o).contains("stopped early"), "{}", text(&o));
+            assert!(d.join(format!("b{i}.json.cells")).exists());
+        }
+    }
+    assert_eq!(codes[0], Some(1), "shard 0 should stop at the budget");
+    let refused = d.join("refused");
+    let m3 = merge(&[&b[0], &b[1]], &refused);
+    assert_eq!(m3.status.code(), Some(2), "{}", text(&m3));
+    assert!(
+        text(&m3).contains("shard 0 stopped splitting early"),
+        "{}",
+        text(&m3)
+    );
+    assert!(!refused.exists());
     let o = reach_cmd(&sys, &["--shard", "0/2", "--out"])
-        .arg(&other)
+        .arg(&b[0])
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2), "{}", text(&o));
     assert!(
-        text(&o).contains("a checkpoint of another run or shard"),
+        text(&o).contains("a checkpoint of another run or shard") && text(&o).contains("max_boxes"),
         "{}",
         text(&o)
     );
