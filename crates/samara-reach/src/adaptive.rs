@@ -36,6 +36,14 @@
 //!
 //! Cell ids: the starting cell's number (row-major over `pieces`, 0 without a grid)
 //! followed by the halves taken, `0` the lower and `1` the upper (`"17.0110"`).
+//!
+//! Shards and checkpoints: `AdaptiveSettings::shard` flies the starting cells of one
+//! residue, and [`merge_adaptive`] joins the shards into the one-process result, or
+//! refuses where it would differ (a shard stopped early, cells past the budget).
+//! `AdaptiveSettings::on_finished` reports each starting cell whose cells are final and
+//! depend on its own box only ([`FinishedRoot`]); given back as
+//! `AdaptiveSettings::resume`, they are not flown again, so a killed run resumes
+//! (`tests/adaptive.rs`; the file form is `samara_app::reach::adaptive::Checkpoint`).
 
 use crate::taylor::driver::{
     checked_settings, coverage, covered_volume, falsify, leaf_hull, measure_ranges, Falsified,
