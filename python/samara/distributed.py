@@ -1,6 +1,8 @@
 """Scale-out on Ray: the P5 robustness table with its points sharded over tasks, a
-reachability analysis with its initial height interval partitioned over tasks, and a
-Taylor-model run of a system file with the cells of its grid shared out over tasks.
+reachability analysis with its initial height interval partitioned over tasks, a
+Taylor-model run of a system file with the cells of its grid shared out over tasks, and
+an adaptive run (``--target-ratio``) with the starting cells of its grid drained by
+tasks (:func:`reach_adaptive`).
 
 Each task runs the same Rust code as one process (networks travel as exact float64
 ONNX bytes), and the merge is exact: the table's counts and per-point results, and the
@@ -22,18 +24,19 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import json
 import os
-from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple
+from typing import Any, Dict, Iterator, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
 from . import Network, ReachResult, RobustnessPoint, RobustnessResult, SystemReachResult, _samara
-from . import _count, _reach_system_text, _result, _system_source, _Typed
+from . import _count, _network, _reach_system_text, _result, _system_source, _Typed
 from . import reach as _reach, read_table, robustness as _robustness
 
 __all__ = [
     "local_cluster", "robustness", "reach_partition", "reach_grid", "merge_robustness", "merge_reach",
-    "merge_reach_system", "shard_rows", "MergedReach",
+    "merge_reach_system", "shard_rows", "MergedReach", "reach_adaptive", "merge_reach_adaptive",
 ]
 
 
@@ -307,3 +310,73 @@ def reach_grid(
         net_ref = ray.put(network)
         parts = ray.get([task.remote(text, name, net_ref, dict(grid), r, kwargs) for r in ranges])
     return merge_reach_system(parts)
+
+
+def _adaptive_task(text: str, name: str, net: Network, grid: Dict[str, int], shard: Tuple[int, int],
+                   target_ratio: float, kw: Dict[str, Any], checkpoint: Optional[str]) -> str:
+    return _samara.reach_adaptive_shard(
+        text, name, _network("network", net), {str(k): int(v) for k, v in grid.items()}, shard, float(target_ratio),
+        int(kw.get("order", 4)), str(kw.get("network_error", "auto")), int(kw.get("lifted_weight", 1)),
+        float(kw.get("lift_at", 0.05)), int(kw.get("max_leaves", 256)), int(kw.get("samples", 200)),
+        int(kw.get("seed", 1)), None if kw.get("timeout") is None else float(kw["timeout"]), checkpoint,
+    )
+
+
+_ADAPTIVE_KW = {"order", "network_error", "lifted_weight", "lift_at", "max_leaves", "samples", "seed", "timeout"}
+
+
+def merge_reach_adaptive(docs: Sequence[str]) -> Dict[str, Any]:
+    """Join the shard documents of one adaptive run (every shard ``(i, n)`` once, any
+    order) into ``reach.json`` of the one-process run, as a dict
+    (``samara_app::reach::adaptive::merge_documents``). Refused (``ValueError``) where
+    the merge would not be the one-process result: a shard stopped early by its timeout
+    or budget, or the shards' cells together past ``max_leaves``."""
+    return json.loads(_samara.merge_adaptive_shards([str(d) for d in docs]))
+
+
+def reach_adaptive(
+    system: Any,
+    network: Network,
+    grid: Dict[str, int],
+    target_ratio: float = 2.0,
+    tasks: Optional[int] = None,
+    checkpoint_dir: Optional[Union[str, os.PathLike]] = None,
+    local: bool = False,
+    **kwargs: Any,
+) -> Dict[str, Any]:
+    """``samara reach --system FILE --target-ratio R --grid ...`` with the grid's starting
+    cells drained by ``tasks`` Ray tasks (default: one per starting cell, so Ray's queue
+    hands them to whichever worker is free; task ``i`` of ``n`` flies the starting cells
+    ``i`` mod ``n``, as ``--shard i/n``), merged with :func:`merge_reach_adaptive`: the
+    ``reach.json`` one process writes, as a dict (but ``result.seconds``, the tasks'
+    sum). ``local=True``: the tasks in this process, one after the other.
+
+    ``checkpoint_dir`` (a folder every worker can write, e.g. on a shared file system):
+    task ``i`` keeps its finished starting cells in ``shard-i-of-n.cells`` there, so a
+    task Ray runs again after its worker died skips them (Ray retries a task whose
+    worker died, 3 times by default). ``kwargs``: ``order``, ``network_error``,
+    ``lifted_weight``, ``lift_at``, ``max_leaves`` (per task, and for the whole run: a
+    merge past it is refused), ``samples``, ``seed``, ``timeout`` (per task)."""
+    bad = set(kwargs) - _ADAPTIVE_KW
+    if bad:
+        raise TypeError(f"reach_adaptive: unknown arguments {sorted(bad)}; give {sorted(_ADAPTIVE_KW)}")
+    if not grid:
+        raise ValueError("grid: an adaptive run is sharded by the starting cells of a grid; give grid={state: pieces}")
+    text, name = _system_source(system)
+    total = 1
+    for v in grid.values():
+        total *= max(int(v), 1)
+    n = _count("tasks", tasks if tasks is not None else total, 1, total)
+    cps: List[Optional[str]] = [None] * n
+    if checkpoint_dir is not None:
+        os.makedirs(checkpoint_dir, exist_ok=True)
+        cps = [os.path.join(os.fspath(checkpoint_dir), f"shard-{i}-of-{n}.cells") for i in range(n)]
+    args = [(text, name, dict(grid), (i, n), target_ratio, dict(kwargs), cps[i]) for i in range(n)]
+    if local:
+        docs = [_adaptive_task(a[0], a[1], network, *a[2:]) for a in args]
+    else:
+        ray = _ensure()
+        task = ray.remote(_adaptive_task)
+        net_ref = ray.put(network)
+        docs = ray.get([task.remote(a[0], a[1], net_ref, *a[2:]) for a in args])
+    return merge_reach_adaptive(docs)

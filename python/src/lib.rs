@@ -545,6 +545,97 @@ fn reach_system(
     topy::to_py(py, &part.in_words(Front::Python))
 }
 
+/// Shard `shard = (i, n)` of an adaptive run (`samara reach --system ... --target-ratio
+/// R --grid ... --shard I/N`): the grid's starting cells `i` mod `n` split until their
+/// measure meets the target, resuming from (and appending to) `checkpoint` if given
+/// (`samara_app::reach::adaptive::run_shard`). Returns the shard document (JSON text),
+/// which `merge_adaptive_shards` joins.
+#[pyfunction]
+#[allow(clippy::too_many_arguments)]
+#[pyo3(signature = (system, file, network, grid, shard, target_ratio, order, network_error, lifted_weight, lift_at, max_leaves, samples, seed, timeout, checkpoint))]
+fn reach_adaptive_shard(
+    py: Python<'_>,
+    system: &str,
+    file: &str,
+    network: PyRef<'_, PyNetwork>,
+    grid: BTreeMap<String, usize>,
+    shard: (usize, usize),
+    target_ratio: f64,
+    order: usize,
+    network_error: String,
+    lifted_weight: u32,
+    lift_at: f64,
+    max_leaves: usize,
+    samples: usize,
+    seed: u64,
+    timeout: Option<f64>,
+    checkpoint: Option<PathBuf>,
+) -> PyResult<String> {
+    let sys = samara_system::System::parse(system, file).map_err(|e| py_value_error(&e))?;
+    let net = network.net.clone();
+    let (i, n) = shard;
+    if n == 0 || i >= n {
+        return Err(PyValueError::new_err(format!(
+            "shard=({i}, {n}): give 0 <= i < n"
+        )));
+    }
+    if grid.is_empty() {
+        return Err(PyValueError::new_err(
+            "grid: an adaptive run is sharded by the starting cells of a grid; give grid={state: pieces}",
+        ));
+    }
+    let req = front::SystemRequest {
+        grid,
+        cells: None,
+        order,
+        network_error,
+        lifted_weight,
+        lift_at,
+        max_leaves,
+        samples,
+        seed,
+        timeout,
+    };
+    let plan = req
+        .plan(Front::Python, &sys, file, &net)
+        .map_err(Error::from)?;
+    let digest = samara_app::shard::digest(&prost_encode(samara_nn::onnx::export(
+        &net,
+        &samara_nn::onnx::ExportOptions {
+            float64: true,
+            ..Default::default()
+        },
+    )));
+    let file = file.to_string();
+    interruptible(py, move || {
+        use samara_app::reach::adaptive::{run_shard, ShardRun};
+        let sh = samara_app::shard::Shard { i, n };
+        let done = run_shard(ShardRun {
+            sys: &sys,
+            net: &net,
+            settings: &plan.settings,
+            pieces: &plan.pieces,
+            target_ratio,
+            shard: sh,
+            checkpoint: checkpoint.as_deref(),
+            system_name: file.clone(),
+            network_name: "network".into(),
+            network_digest: digest,
+            on_round: None,
+        })
+        .map_err(Error::from)?;
+        samara_app::shard::document("reach", sh, &done.run, &done.result).map_err(Error::from)
+    })
+}
+
+/// Join the documents of every shard of one adaptive run into the text of the
+/// `reach.json` one process writes (`samara_app::reach::adaptive::merge_documents`;
+/// refused where the merge would not be the one-process result).
+#[pyfunction]
+fn merge_adaptive_shards(docs: Vec<String>) -> PyResult<String> {
+    Ok(samara_app::reach::adaptive::merge_documents(docs).map_err(Error::from)?)
+}
+
 /// Merge the results of `reach_system` over consecutive cell ranges, in cell order,
 /// into the result of their union (`samara_app::python_front::merge_grid_parts`).
 #[pyfunction]
@@ -738,6 +829,8 @@ fn _samara(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate, m)?)?;
     m.add_function(wrap_pyfunction!(reach, m)?)?;
     m.add_function(wrap_pyfunction!(reach_system, m)?)?;
+    m.add_function(wrap_pyfunction!(reach_adaptive_shard, m)?)?;
+    m.add_function(wrap_pyfunction!(merge_adaptive_shards, m)?)?;
     m.add_function(wrap_pyfunction!(merge_reach_system, m)?)?;
     m.add_function(wrap_pyfunction!(train, m)?)?;
     m.add("SamaraError", m.py().get_type::<SamaraError>())?;

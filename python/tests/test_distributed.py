@@ -92,6 +92,44 @@ def test_reach_grid_equals_one_process(cluster):
         assert np.all(rows[..., 1] <= bbox[: len(rows), :, 1])
 
 
+def _tora_widened():
+    """TORA with its x1 and x3 intervals widened three times, a 3 s horizon and the band
+    ``|x1 + x2| <= 100`` at the end as the measure (the CLI's adaptive tests' system)."""
+    from conftest import ROOT
+
+    text = (ROOT / "examples" / "archcomp" / "tora.sys").read_text()
+    text = (text.replace("horizon 20", "horizon 3")
+            .replace("init x1 in [0.6, 0.7]", "init x1 in [0.5, 0.8]")
+            .replace("init x3 in [-0.4, -0.3]", "init x3 in [-0.5, -0.2]"))
+    text = "".join(l + "\n" for l in text.splitlines() if not l.startswith("goal"))
+    net = samara.Network.from_onnx(ROOT / "crates" / "samara-reach" / "tests" / "data" / "archcomp" / "controller_tora.onnx")
+    return text + "goal band |x1 + x2| <= 100 at end\n", net
+
+
+def test_reach_adaptive_on_ray_equals_one_process(cluster, tmp_path):
+    """An adaptive run (target ratio 1.2 on x1 + x2, 2 x 2 starting cells) drained by Ray
+    tasks on the 2-worker cluster, one task per starting cell and two tasks with
+    checkpoints, merges to the reach.json of the same run in one task in this process
+    (but the summed wall time); finished tasks leave no checkpoint behind."""
+    text, net = _tora_widened()
+    grid = {"x1": 2, "x3": 2}
+    kw = dict(order=3, network_error="symbolic:20", samples=300, max_leaves=64)
+    one = sd.reach_adaptive(text, net, grid, target_ratio=1.2, tasks=1, local=True, **kw)
+    assert one["adaptive"]["met"] is True and one["adaptive"]["leaves"] > 4, one["adaptive"]
+    assert one["settings"]["target_ratio"] == 1.2 and one["settings"]["grid"] == [2, 1, 2, 1]
+    dist = sd.reach_adaptive(text, net, grid, target_ratio=1.2, **kw)
+    two = sd.reach_adaptive(text, net, grid, target_ratio=1.2, tasks=2, checkpoint_dir=tmp_path, **kw)
+    for r in (one, dist, two):
+        r["result"].pop("seconds")
+    assert dist == one
+    assert two == one
+    assert list(tmp_path.iterdir()) == []
+    with pytest.raises(ValueError, match="grid"):
+        sd.reach_adaptive(text, net, {}, target_ratio=1.2, **kw)
+    with pytest.raises(TypeError, match="unknown arguments"):
+        sd.reach_adaptive(text, net, grid, target_ratio=1.2, pieces=3)
+
+
 def test_reach_system_bad_arguments():
     from conftest import ROOT
 

@@ -386,13 +386,22 @@ impl Shards {
 /// Read and check the shard `files` of `kind`: the same kind and run, N files for shards
 /// 0..N each once, every payload digest intact.
 pub fn read_shards(kind: &str, files: &[PathBuf]) -> Result<Shards> {
-    let mut docs: Vec<(PathBuf, Value)> = Vec::new();
+    let mut texts = Vec::with_capacity(files.len());
     for p in files {
-        let text = match std::fs::read_to_string(p) {
-            Ok(t) => t,
+        match std::fs::read_to_string(p) {
+            Ok(t) => texts.push((p.clone(), t)),
             Err(e) => return bad(format!("{}: cannot read: {e}", p.display())),
-        };
-        let v: Value = match serde_json::from_str(&text) {
+        }
+    }
+    read_shard_texts(kind, texts)
+}
+
+/// [`read_shards`] of documents already read (`(name for messages, text)`; Python's
+/// `samara.distributed` holds its shards' documents in memory).
+pub fn read_shard_texts(kind: &str, texts: Vec<(PathBuf, String)>) -> Result<Shards> {
+    let mut docs: Vec<(PathBuf, Value)> = Vec::new();
+    for (p, text) in &texts {
+        let v: Value = match serde_json::from_str(text) {
             Ok(v) => v,
             Err(e) => return bad(format!("{}: not a shard file (JSON: {e})", p.display())),
         };

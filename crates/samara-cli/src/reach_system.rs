@@ -162,6 +162,9 @@ fn run_shard(
 /// (`samara_app::reach::system::merge_taylor`), written as the one-process run writes
 /// them.
 pub fn merge_shards(shards: &Shards, out: &Path, json: bool) -> Result<ExitCode> {
+    if !shards.run["target_ratio"].is_null() {
+        return crate::reach_adaptive::merge_shards(shards, out, json);
+    }
     let run: TaylorRun = shards.run_as()?;
     let report = merge_taylor(&run, &shards.results_as::<TaylorShard>()?)?;
     let dir = samara_report::guard::OutDir::prepare(out)?;

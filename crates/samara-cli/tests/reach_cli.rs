@@ -634,7 +634,7 @@ fn grid_is_checked_and_applies_to_taylor_models_only() {
 }
 
 /// `--target-ratio R` (adaptive splitting toward a width target): R below 1, a system
-/// file without an end band to measure, and --shard are refused with exit 2 before
+/// file without an end band to measure, and --shard without --grid are refused with exit 2 before
 /// anything is written. On TORA (the competition's controller, x1 and x3 intervals
 /// widened three times, 3 s horizon, the band `|x1 + x2| <= 100` at the end as the
 /// measure) a target of 1.3 is met: exit 0, and the JSON names the leaves, the ratio
@@ -647,8 +647,8 @@ fn target_ratio_is_checked_and_cuts_cells_until_the_target_is_met() {
             "--target-ratio 0.5: give a number from 1",
         ),
         (
-            vec!["--target-ratio", "2", "--shard", "0/2", "--grid", "y=2"],
-            "--shard with --target-ratio",
+            vec!["--target-ratio", "2", "--shard", "0/2"],
+            "--shard with --target-ratio needs --grid",
         ),
     ]);
     let dir = tempfile::tempdir().unwrap();
@@ -679,15 +679,7 @@ fn target_ratio_is_checked_and_cuts_cells_until_the_target_is_met() {
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("--target-ratio needs a measure"), "{err}");
     assert!(!out.exists());
-    let widened: String = tora
-        .replace("horizon 20", "horizon 3")
-        .replace("init x1 in [0.6, 0.7]", "init x1 in [0.5, 0.8]")
-        .replace("init x3 in [-0.4, -0.3]", "init x3 in [-0.5, -0.2]")
-        .lines()
-        .filter(|l| !l.starts_with("goal"))
-        .map(|l| format!("{l}\n"))
-        .collect::<String>()
-        + "goal band |x1 + x2| <= 100 at end\n";
+    let widened = support::widened_tora(&tora, 3);
     let (o, out) = run(
         &widened,
         &[

@@ -36,6 +36,14 @@
 //!
 //! Cell ids: the starting cell's number (row-major over `pieces`, 0 without a grid)
 //! followed by the halves taken, `0` the lower and `1` the upper (`"17.0110"`).
+//!
+//! Shards and checkpoints: `AdaptiveSettings::shard` flies the starting cells of one
+//! residue, and [`merge_adaptive`] joins the shards into the one-process result, or
+//! refuses where it would differ (a shard stopped early, cells past the budget).
+//! `AdaptiveSettings::on_finished` reports each starting cell whose cells are final and
+//! depend on its own box only ([`FinishedRoot`]); given back as
+//! `AdaptiveSettings::resume`, they are not flown again, so a killed run resumes
+//! (`tests/adaptive.rs`; the file form is `samara_app::reach::adaptive::Checkpoint`).
 
 use crate::taylor::driver::{
     checked_settings, coverage, covered_volume, falsify, leaf_hull, measure_ranges, Falsified,
@@ -52,12 +60,37 @@ use samara_nn::Network;
 use samara_num::Interval;
 use samara_system::sim::{fly, goals_hold};
 use samara_system::System;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
 
 /// A progress callback: one line per round.
 pub type Progress = Arc<dyn Fn(&str) + Send + Sync>;
+
+/// A checkpoint callback: called with every starting cell whose cells are all final
+/// (see [`FinishedRoot`]), in the run's thread, as soon as its round ends.
+pub type OnFinished = Arc<dyn Fn(&FinishedRoot) + Send + Sync>;
+
+/// A starting cell whose splitting is over, with every cell cut from it: what a
+/// checkpoint keeps so that a rerun of a killed or timed-out run skips it
+/// ([`AdaptiveSettings::resume`]).
+///
+/// Only cells whose result depends on their own box are reported: a starting cell with
+/// a cell left uncut by the leaf budget, the time budget or a goal refuted elsewhere,
+/// or with a goal refuted on its own sets, is not (a rerun flies it again), so a resumed
+/// run gives what an uninterrupted one gives wherever the budget does not bind.
+#[derive(Clone, Debug)]
+pub struct FinishedRoot {
+    /// The starting cell's number (row-major over `pieces`).
+    pub root: usize,
+    /// Rounds its splitting took (the round its last cell was accepted in).
+    pub rounds: usize,
+    /// Cells flown for it, parents of cut cells included.
+    pub flown: usize,
+    /// Its final cells, in the order the run found them.
+    pub cells: Vec<(AdaptiveCell, SystemLeaf)>,
+}
 
 /// Settings of the adaptive splitting (on top of the run's [`SystemReachSettings`], whose
 /// `max_boxes` is the leaf budget, `samples` the flights that set the band and
@@ -78,6 +111,12 @@ pub struct AdaptiveSettings {
     /// of `n`; each shard flies all the flights, so every shard has the same band), and
     /// `max_boxes` bounds this shard's cells. [`merge_adaptive`] joins the shards.
     pub shard: Option<(usize, usize)>,
+    /// Starting cells finished by an earlier run of the same settings (a checkpoint):
+    /// not flown again, their cells taken as they are. Each must be one of this run's
+    /// (shard's) starting cells.
+    pub resume: Vec<FinishedRoot>,
+    /// Called with every starting cell as it finishes (to write a checkpoint).
+    pub on_finished: Option<OnFinished>,
 }
 
 impl Default for AdaptiveSettings {
@@ -88,12 +127,14 @@ impl Default for AdaptiveSettings {
             pieces: None,
             on_round: None,
             shard: None,
+            resume: Vec::new(),
+            on_finished: None,
         }
     }
 }
 
 /// One cell of the final partition: its id and whether it met its share of the target.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AdaptiveCell {
     /// The cell's id (module doc).
     pub id: String,
@@ -130,6 +171,9 @@ pub struct AdaptiveReach {
     pub rounds: usize,
     /// Cells flown in all (the cut ones included).
     pub flown: usize,
+    /// A falsification flight that could not be finished, if one could not (the same
+    /// flights in every shard: kept so that a merge words an `unknown` as one run does).
+    pub unflown: Option<String>,
 }
 
 /// A cell: its starting cell's number and the halves taken since.
@@ -147,6 +191,25 @@ impl CellId {
             let bits: String = self.path.iter().map(|b| char::from(b'0' + b)).collect();
             format!("{}.{bits}", self.root)
         }
+    }
+
+    /// The id of a label ([`CellId::label`]'s form), if it is one.
+    fn parse(label: &str) -> Option<CellId> {
+        let (root, bits) = label.split_once('.').unwrap_or((label, ""));
+        let path = bits
+            .bytes()
+            .map(|b| match b {
+                b'0' | b'1' => Some(b - b'0'),
+                _ => None,
+            })
+            .collect::<Option<Vec<u8>>>()?;
+        if label.contains('.') && path.is_empty() {
+            return None;
+        }
+        Some(CellId {
+            root: root.parse().ok()?,
+            path,
+        })
     }
 
     fn child(&self, half: u8) -> CellId {
@@ -242,6 +305,34 @@ pub fn reach_adaptive(
             s.max_boxes
         ));
     }
+    // Starting cells a checkpoint finished: their cells as they are, not flown again.
+    let mut done: Vec<(CellId, SystemLeaf, bool)> = Vec::new();
+    let (mut resumed_rounds, mut resumed_flown) = (0, 0);
+    if !a.resume.is_empty() {
+        let mut resumed = std::collections::BTreeSet::new();
+        for f in &a.resume {
+            if !frontier.iter().any(|(id, _)| id.root == f.root) || !resumed.insert(f.root) {
+                return setting(format!(
+                    "the checkpoint has starting cell {} twice or one this run does not fly: it is of another run (--grid, --shard); remove it",
+                    f.root
+                ));
+            }
+            resumed_rounds = resumed_rounds.max(f.rounds);
+            resumed_flown += f.flown;
+            for (c, l) in &f.cells {
+                match CellId::parse(&c.id) {
+                    Some(id) if id.root == f.root => done.push((id, l.clone(), c.accepted)),
+                    _ => {
+                        return setting(format!(
+                            "the checkpoint's cell `{}` is not a cell of starting cell {}: the file is damaged; remove it",
+                            c.id, f.root
+                        ))
+                    }
+                }
+            }
+        }
+        frontier.retain(|(id, _)| !resumed.contains(&id.root));
+    }
     // 1. The flights: the band, and a goal they miss.
     let Falsified {
         flights,
@@ -289,14 +380,20 @@ pub fn reach_adaptive(
             Need::Cut(1, -excess)
         }
     };
-    let mut done: Vec<(CellId, SystemLeaf, bool)> = Vec::new();
     let mut refuted: Option<(usize, Vec<f64>)> = None;
-    let mut leaves = frontier.len();
+    let mut leaves = frontier.len() + done.len();
+    // Per starting cell still being split: its cells in the frontier, its cells flown,
+    // and whether one of its cells was left uncut for a reason outside its own box.
+    let mut roots: BTreeMap<usize, Root> = BTreeMap::new();
+    for (id, _) in &frontier {
+        roots.entry(id.root).or_default().pending += 1;
+    }
     let (mut rounds, mut flown, mut timed_out, mut budget_bound) = (0, 0, false, false);
     while !frontier.is_empty() {
         if past(deadline) {
             timed_out = true;
             for (id, b) in frontier.drain(..) {
+                roots.entry(id.root).or_default().tainted = true;
                 let why = "not flown: the time budget was spent".to_string();
                 done.push((id, empty_leaf(sys, &b, Some(why)), false));
             }
@@ -310,6 +407,13 @@ pub fn reach_adaptive(
         flown += results.len();
         let mut cuts: Vec<(u8, f64, CellId, SystemLeaf)> = Vec::new();
         let (mut accepted, mut lost, mut wide) = (0usize, 0usize, 0usize);
+        let mut touched = std::collections::BTreeSet::new();
+        for (id, _) in &results {
+            let r = roots.entry(id.root).or_default();
+            r.pending -= 1;
+            r.flown += 1;
+            touched.insert(id.root);
+        }
         for (id, l) in results {
             match need(&l) {
                 Need::Accepted => {
@@ -317,6 +421,7 @@ pub fn reach_adaptive(
                     done.push((id, l, true));
                 }
                 Need::Refuted(gi) => {
+                    roots.entry(id.root).or_default().tainted = true;
                     if refuted.is_none() {
                         let centre = l.init.iter().map(|v| 0.5 * (v[0] + v[1])).collect();
                         refuted = Some((gi, centre));
@@ -346,7 +451,11 @@ pub fn reach_adaptive(
         leaves += n_cut;
         let rest = cuts.split_off(n_cut);
         for (_, _, id, l) in rest {
+            roots.entry(id.root).or_default().tainted = true;
             done.push((id, l, false));
+        }
+        for (_, _, id, _) in &cuts {
+            roots.entry(id.root).or_default().pending += 2;
         }
         let halves: Vec<Vec<(CellId, Vec<Interval>)>> = cuts
             .into_par_iter()
@@ -373,6 +482,33 @@ pub fn reach_adaptive(
             })
             .collect();
         frontier = halves.into_iter().flatten().collect();
+        for root in touched {
+            let finished = roots.get(&root).is_some_and(|r| r.pending == 0);
+            if !finished {
+                continue;
+            }
+            let r = roots.remove(&root).unwrap_or_default();
+            if let (Some(f), false) = (&a.on_finished, r.tainted) {
+                f(&FinishedRoot {
+                    root,
+                    rounds,
+                    flown: r.flown,
+                    cells: done
+                        .iter()
+                        .filter(|d| d.0.root == root)
+                        .map(|(id, l, ok)| {
+                            (
+                                AdaptiveCell {
+                                    id: id.label(),
+                                    accepted: *ok,
+                                },
+                                l.clone(),
+                            )
+                        })
+                        .collect(),
+                });
+            }
+        }
         if let Some(f) = &a.on_round {
             f(&format!(
                 "round {rounds}: {accepted} cells accepted, {lost} lost, {wide} too wide or undecided; {} to fly next; {} leaves of {}, {} accepted so far; {:.0} s",
@@ -384,6 +520,7 @@ pub fn reach_adaptive(
             ));
         }
     }
+    let (rounds, flown) = (rounds.max(resumed_rounds), flown + resumed_flown);
     let stopped = if timed_out {
         Some(format!("timeout after {:.1} s", t0.elapsed().as_secs_f64()))
     } else if budget_bound {
@@ -449,6 +586,14 @@ pub fn reach_adaptive(
     r.reach.flights = flights;
     r.reach.seconds = t0.elapsed().as_secs_f64();
     Ok(r)
+}
+
+/// A starting cell being split ([`reach_adaptive`]'s bookkeeping for checkpoints).
+#[derive(Default)]
+struct Root {
+    pending: usize,
+    flown: usize,
+    tainted: bool,
 }
 
 /// What a run or a merge of shards has at the end, for [`assemble`].
@@ -519,6 +664,7 @@ fn assemble(
     let ratio = enclosure.map(|e| (e[1] - e[0]) / (hi - lo));
     let met = ratio.is_some_and(|r| r <= a.target_ratio);
     let not_accepted = cells.iter().filter(|c| !c.accepted).count();
+    let unflown_note = unflown.clone();
     let reason = (!met).then(|| {
         let lost = leaves.iter().filter(|l| l.failure.is_some()).count();
         format!(
@@ -573,15 +719,21 @@ fn assemble(
         stopped,
         rounds,
         flown,
+        unflown: unflown_note,
     }
 }
 
 /// Join the results of the shards `0..n` of one adaptive run (`AdaptiveSettings::shard`,
 /// the same system, settings and flights) into the result of the unsharded run: the
-/// cells of every shard in id order, and the hulls, ratio and verdicts over them. The
-/// same as the one-process run where no shard's budget or deadline binds (each shard's
-/// cells depend on their own boxes only). `rounds` is the most of any shard, `flown` and
-/// `seconds` their sums, a goal missed by a flight the first shard's.
+/// cells of every shard in id order, and the hulls, ratio and verdicts over them.
+/// `rounds` is the most of any shard, `flown` and `seconds` their sums, a goal missed by
+/// a flight the first shard's.
+///
+/// The result is the one-process run's (but `seconds`) or an error: each shard's cells
+/// depend on their own boxes only as long as nothing outside them stopped the
+/// splitting, so a shard that stopped early (its deadline, its budget, a goal refuted on
+/// the sets) is refused, and so are shards whose cells together pass the leaf budget
+/// (one process would have stopped cutting at it).
 pub fn merge_adaptive(
     sys: &System,
     s: &SystemReachSettings,
@@ -601,8 +753,36 @@ pub fn merge_adaptive(
             parts[k].band, parts[k].sampled
         )));
     }
+    if let Some((k, why)) = parts
+        .iter()
+        .enumerate()
+        .find_map(|(k, p)| p.stopped.as_ref().map(|w| (k, w)))
+    {
+        return Err(SystemReachError::Setting(format!(
+            "shard {k} stopped splitting early ({why}): one process would have cut other cells, so the merge would not be its result; rerun that shard with a longer --timeout or a larger --max-leaves (it resumes from its checkpoint), or run the set in one process"
+        )));
+    }
+    let total: usize = parts.iter().map(|p| p.cells.len()).sum();
+    if total > s.max_boxes {
+        return Err(SystemReachError::Setting(format!(
+            "the shards have {total} cells together, more than the budget of {} leaves: one process would have stopped cutting at the budget; run every shard again with --max-leaves {total} or more",
+            s.max_boxes
+        )));
+    }
+    let mut ids: Vec<&str> = parts
+        .iter()
+        .flat_map(|p| p.cells.iter().map(|c| c.id.as_str()))
+        .collect();
+    ids.sort_unstable();
+    if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
+        return Err(SystemReachError::Setting(format!(
+            "cell {} is in two shards: the shards are of different runs",
+            w[0]
+        )));
+    }
     let sampled = first.reach.measures.iter().map(|m| m.sampled).collect();
     let mode = first.reach.network_error;
+    let unflown = first.unflown.clone();
     let goal_verdict = parts
         .iter()
         .map(|p| &p.reach.verdict)
@@ -627,7 +807,7 @@ pub fn merge_adaptive(
             band,
             goal_verdict,
             stopped,
-            unflown: None,
+            unflown,
             rounds,
             flown,
             mode,

@@ -13,12 +13,15 @@
 mod common;
 
 use rand::{Rng, SeedableRng};
-use samara_reach::adaptive::{merge_adaptive, reach_adaptive, AdaptiveReach, AdaptiveSettings};
+use samara_reach::adaptive::{
+    merge_adaptive, reach_adaptive, AdaptiveReach, AdaptiveSettings, FinishedRoot,
+};
 use samara_reach::grid;
 use samara_reach::system::{Measure, NetworkError, SystemReachSettings};
 use samara_system::sim::fly;
 use samara_system::System;
 use std::path::Path;
+use std::sync::{Arc, Mutex};
 
 fn tora() -> (System, samara_nn::Network) {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
@@ -209,6 +212,83 @@ fn two_shards_merge_to_the_one_process_result() {
         let m = merge_adaptive(&sys, &s, &a, parts).unwrap();
         assert_eq!(strip(&m), strip(&whole));
     }
+}
+
+/// A checkpoint: every starting cell of a 2 x 2 start is reported once, when its cells
+/// are final, and together they hold every cell of the run; a rerun given two of them
+/// (as after a killed run) flies only the other two and gives the uninterrupted run's
+/// cells, sets, ratio, rounds and count of cells flown. A checkpoint with a starting
+/// cell the run does not fly is refused.
+#[test]
+fn a_run_resumed_from_its_finished_starting_cells_gives_the_same_result() {
+    let s = settings();
+    let log: Arc<Mutex<Vec<FinishedRoot>>> = Arc::default();
+    let sink = log.clone();
+    let a = AdaptiveSettings {
+        target_ratio: 1.3,
+        pieces: Some(vec![2, 1, 2, 1]),
+        on_finished: Some(Arc::new(move |f: &FinishedRoot| {
+            sink.lock().unwrap().push(f.clone())
+        })),
+        ..AdaptiveSettings::default()
+    };
+    let whole = run_with(2, &s, &a);
+    assert!(whole.met);
+    let mut fin = log.lock().unwrap().clone();
+    fin.sort_by_key(|f| f.root);
+    assert_eq!(fin.iter().map(|f| f.root).collect::<Vec<_>>(), [0, 1, 2, 3]);
+    assert_eq!(
+        fin.iter().map(|f| f.cells.len()).sum::<usize>(),
+        whole.cells.len()
+    );
+    assert_eq!(fin.iter().map(|f| f.flown).sum::<usize>(), whole.flown);
+    assert_eq!(fin.iter().map(|f| f.rounds).max(), Some(whole.rounds));
+    let b = AdaptiveSettings {
+        resume: vec![fin[0].clone(), fin[3].clone()],
+        on_finished: None,
+        ..a.clone()
+    };
+    let again = run_with(1, &s, &b);
+    assert_eq!(strip(&again), strip(&whole));
+    // Starting cell 1 belongs to shard 1/2, not 0/2.
+    let c = AdaptiveSettings {
+        resume: vec![fin[1].clone()],
+        shard: Some((0, 2)),
+        on_finished: None,
+        ..a.clone()
+    };
+    let (sys, net) = tora();
+    let e = reach_adaptive(&sys, &net, &s, &c).unwrap_err().to_string();
+    assert!(e.contains("the checkpoint has starting cell 1"), "{e}");
+}
+
+/// Shards whose leaf budget ran out stopped where one process would not have: their
+/// merge is refused, not passed off as the one-process result.
+#[test]
+fn a_merge_of_shards_stopped_by_their_budget_is_refused() {
+    let (sys, _) = tora();
+    let mut s = settings();
+    s.max_boxes = 3;
+    let a = AdaptiveSettings {
+        target_ratio: 1.05,
+        pieces: Some(vec![2, 1, 2, 1]),
+        ..AdaptiveSettings::default()
+    };
+    let parts: Vec<AdaptiveReach> = (0..2)
+        .map(|i| {
+            run_with(
+                1,
+                &s,
+                &AdaptiveSettings {
+                    shard: Some((i, 2)),
+                    ..a.clone()
+                },
+            )
+        })
+        .collect();
+    assert!(parts[0].stopped.is_some());
+    let e = merge_adaptive(&sys, &s, &a, parts).unwrap_err().to_string();
+    assert!(e.contains("stopped splitting early"), "{e}");
 }
 
 #[test]

@@ -572,8 +572,8 @@ impl ReachArgs {
         if !(ratio.is_finite() && (1.0..=MAX_RATIO).contains(&ratio)) {
             return input(format!("--target-ratio {ratio}: give a number from 1 to {MAX_RATIO:e}: the enclosure's width over the flights' spread, which is never below 1 (2 is issue 14's criterion)"));
         }
-        if self.shard.is_some() {
-            return input("--shard with --target-ratio: adaptive runs are not sharded yet; run them in one process (--threads N), or shard a fixed --grid without --target-ratio");
+        if self.shard.is_some() && self.grid.is_empty() {
+            return input("--shard with --target-ratio needs --grid NAME=K: the shards divide the grid's starting cells (cell c to shard c mod N), e.g. --grid theta=3 --grid y=8; the one-process run with the same --grid gives the same result");
         }
         if !has_measure {
             return input(format!("--target-ratio needs a measure at the horizon: {} has no `goal band |...| <= ... at end`; add one (its expression is what the target measures)", system.display()));

@@ -242,6 +242,10 @@ pub struct TaylorRun {
     pub precondition: bool,
     /// The measures.
     pub measures: Vec<MeasureText>,
+    /// `--target-ratio` of an adaptive run (`samara_reach::adaptive`), whose shards
+    /// divide the grid's starting cells by their number mod N; none for a grid run.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub target_ratio: Option<Exact>,
 }
 
 impl TaylorRun {
@@ -274,6 +278,7 @@ impl TaylorRun {
             lifted_weight: s.flow.lifted_weight,
             precondition: s.precondition,
             measures: s.measures.iter().map(measure_text_of).collect(),
+            target_ratio: None,
         }
     }
 }
@@ -305,9 +310,10 @@ pub struct TaylorShard {
 /// The serde form of [`TaylorShard::reach`]: [`SystemReach`] field for field with every
 /// f64 a [`Float`] (finite numbers keep their bytes; `inf`, `-inf` and `NaN` are
 /// written as text where `reach.json`'s plain f64s give `null`, which reads back as
-/// nothing). The fields left out are the ones `SystemReach` does not serialise
-/// (`flights`, a leaf's `decided`): empty when read back, as before.
-mod reach_form {
+/// nothing). A leaf's `decided` is kept too (a merge's verdict needs it: a leaf read
+/// back without it would count as proved); `flights`, which `SystemReach` does not
+/// serialise, is left out (empty when read back).
+pub(crate) mod reach_form {
     use crate::shard::Float;
     use samara_reach::system::{
         MeasureRange, NetworkError, SystemLeaf, SystemReach, SystemVerdict, SystemViolation,
@@ -339,14 +345,56 @@ mod reach_form {
         goal: String,
     }
 
+    /// A [`SystemLeaf`] with exact numbers.
     #[derive(Serialize, Deserialize)]
-    struct Leaf {
+    pub(crate) struct Leaf {
         init: Vec<[Float; 2]>,
         instants: Rows,
         periods: Rows,
         failure: Option<String>,
         stopped_at: Option<Float>,
         end_measures: Vec<[Float; 2]>,
+        /// Shard files written before it was kept have none: read as "undecided" by
+        /// nothing, as before (only the adaptive merge, which came with it, needs it).
+        #[serde(default, skip_serializing_if = "Vec::is_empty")]
+        decided: Vec<Option<bool>>,
+    }
+
+    impl From<&SystemLeaf> for Leaf {
+        fn from(l: &SystemLeaf) -> Leaf {
+            let SystemLeaf {
+                init,
+                instants,
+                periods,
+                failure,
+                decided,
+                stopped_at,
+                end_measures,
+            } = l;
+            Leaf {
+                init: boxes(init),
+                instants: rows(instants),
+                periods: rows(periods),
+                failure: failure.clone(),
+                stopped_at: stopped_at.map(Float),
+                end_measures: boxes(end_measures),
+                decided: decided.clone(),
+            }
+        }
+    }
+
+    impl From<Leaf> for SystemLeaf {
+        fn from(l: Leaf) -> SystemLeaf {
+            SystemLeaf {
+                init: unboxes(l.init),
+                instants: unrows(l.instants),
+                periods: unrows(l.periods),
+                failure: l.failure,
+                decided: l.decided,
+                stopped_at: l.stopped_at.map(|x| x.0),
+                end_measures: unboxes(l.end_measures),
+            }
+        }
     }
 
     #[derive(Serialize, Deserialize)]
@@ -409,28 +457,7 @@ mod reach_form {
             order: *order,
             network_error: *network_error,
             seconds: Float(*seconds),
-            leaves: leaves
-                .iter()
-                .map(|l| {
-                    let SystemLeaf {
-                        init,
-                        instants,
-                        periods,
-                        failure,
-                        decided: _,
-                        stopped_at,
-                        end_measures,
-                    } = l;
-                    Leaf {
-                        init: boxes(init),
-                        instants: rows(instants),
-                        periods: rows(periods),
-                        failure: failure.clone(),
-                        stopped_at: stopped_at.map(Float),
-                        end_measures: boxes(end_measures),
-                    }
-                })
-                .collect(),
+            leaves: leaves.iter().map(Leaf::from).collect(),
             measures: measures
                 .iter()
                 .map(|m| {
@@ -473,19 +500,7 @@ mod reach_form {
             order: r.order,
             network_error: r.network_error,
             seconds: r.seconds.0,
-            leaves: r
-                .leaves
-                .into_iter()
-                .map(|l| SystemLeaf {
-                    init: unboxes(l.init),
-                    instants: unrows(l.instants),
-                    periods: unrows(l.periods),
-                    failure: l.failure,
-                    decided: Vec::new(),
-                    stopped_at: l.stopped_at.map(|x| x.0),
-                    end_measures: unboxes(l.end_measures),
-                })
-                .collect(),
+            leaves: r.leaves.into_iter().map(SystemLeaf::from).collect(),
             measures: r
                 .measures
                 .into_iter()
@@ -658,6 +673,7 @@ mod tests {
             lifted_weight: 1,
             precondition: true,
             measures: Vec::new(),
+            target_ratio: None,
         };
         let parts = [part(true), part(false)];
         let dir = std::env::temp_dir().join(format!("samara-taylor-merge-{}", std::process::id()));

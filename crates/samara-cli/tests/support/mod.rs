@@ -56,3 +56,17 @@ pub fn verify_vnnlib_json(
     });
     (o.status.code(), v, dt)
 }
+
+/// ARCH-COMP's TORA (`examples/archcomp/tora.sys`, text `tora`) with its x1 and x3
+/// intervals widened three times, the horizon `horizon` and the band `|x1 + x2| <= 100`
+/// at the end in place of its goals: a measure for the adaptive tests (`--target-ratio`).
+pub fn widened_tora(tora: &str, horizon: u32) -> String {
+    tora.replace("horizon 20", &format!("horizon {horizon}"))
+        .replace("init x1 in [0.6, 0.7]", "init x1 in [0.5, 0.8]")
+        .replace("init x3 in [-0.4, -0.3]", "init x3 in [-0.5, -0.2]")
+        .lines()
+        .filter(|l| !l.starts_with("goal"))
+        .map(|l| format!("{l}\n"))
+        .collect::<String>()
+        + "goal band |x1 + x2| <= 100 at end\n"
+}
