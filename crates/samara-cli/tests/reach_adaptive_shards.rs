@@ -1,9 +1,10 @@
 //! `samara reach --target-ratio R --grid ... --shard I/N` and `samara merge reach`: the
 //! adaptive run's starting cells divided over shards, merged, give the one-process
-//! `reach.json` (but the wall time), JSON summary and exit code; a shard killed while
-//! it works resumes from its checkpoint (`OUT.cells`) and still merges to the same
-//! result; a shard stopped by its budget exits 1, is refused by the merge, and its
-//! checkpoint is refused by a run of other settings; --shard without --grid is refused.
+//! `reach.json` (but the wall time), JSON summary and exit code (TORA, and the built-in
+//! glider on a small set); a shard killed while it works resumes from its checkpoint
+//! (`OUT.cells`) and still merges to the same result; a shard stopped by its budget exits
+//! 1, is refused by the merge, and its checkpoint is refused by a run of other settings;
+//! --shard without --grid is refused.
 //!
 //! The system: TORA (ARCH-COMP, the competition's controller) with its x1 and x3
 //! intervals widened three times, a 6 s horizon and the band `|x1 + x2| <= 100` at the
@@ -243,4 +244,61 @@ fn adaptive_shards_merge_to_the_one_process_result_and_a_killed_shard_resumes() 
         "{}",
         text(&o)
     );
+}
+
+/// The built-in glider (the six-state set's route: no system file) on a small set: two
+/// adaptive shards of a 2 x 2 start over theta and y, merged, give the one-process
+/// `reach.json` (but the wall time) and exit code.
+#[test]
+fn builtin_glider_adaptive_shards_merge_to_the_one_process_result() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let net = support::reference("base_model_denorm.onnx");
+    let glider = |extra: &[&str], out: &Path| {
+        Command::new(env!("CARGO_BIN_EXE_samara"))
+            .arg("reach")
+            .arg("--network")
+            .arg(&net)
+            .args([
+                "--y0",
+                "2.0:2.2",
+                "--init",
+                "theta=-0.002:0.002",
+                "--horizon",
+                "1",
+                "--samples",
+                "50",
+                "--order",
+                "3",
+                "--network-error",
+                "symbolic:20",
+                "--target-ratio",
+                "1.5",
+                "--grid",
+                "theta=2",
+                "--grid",
+                "y=2",
+                "--threads",
+                "1",
+            ])
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let full = d.join("full");
+    let one = glider(&[], &full);
+    assert_eq!(one.status.code(), Some(0), "{}", text(&one));
+    let files: Vec<PathBuf> = (0..2).map(|i| d.join(format!("g{i}.json"))).collect();
+    for (i, f) in files.iter().enumerate() {
+        let o = glider(&["--shard", &format!("{i}/2")], f);
+        assert_eq!(o.status.code(), Some(0), "{}", text(&o));
+    }
+    let merged = d.join("merged");
+    let m = merge(&[&files[0], &files[1]], &merged);
+    assert_eq!(m.status.code(), Some(0), "{}", text(&m));
+    let whole = reach_json(&full);
+    assert_eq!(whole["system"], "built-in setting");
+    assert_eq!(reach_json(&merged), whole);
 }
