@@ -694,7 +694,7 @@ pub(crate) fn row_magnitudes(
     input_magnitudes(maps, pre, lo, hi, maps.len())
         .iter()
         .enumerate()
-        .map(|(j, im)| row_magnitude(&maps[j].0, im))
+        .map(|(j, im)| row_magnitude(&maps[j].0, None, im))
         .collect()
 }
 
@@ -707,7 +707,7 @@ pub(crate) fn backward_lower_rows(
     obj: &Objective,
     rows: &[Vec<f64>],
 ) -> Linear {
-    backward_core(maps, pre, &obj.c, obj.d, None, None, Mags::Rows(rows))
+    backward_core(maps, pre, &obj.c, obj.d, None, None, Mags::Rows(rows), None)
 }
 
 /// Whether the split multiplier `c` on a neuron with bounds `(l, u)` adds a term
