@@ -13,7 +13,7 @@ Python 3 standard library only (onnxruntime and numpy optional: bench/setup_venv
 
 Usage:
   bench/vnncomp/bench_acasxu.py BENCHMARK_DIR RESULTS_DIR [--samara BIN]
-      [--timeout-scale F] [--out DIR] [--reuse SAMARA_RESULTS.csv]
+      [--timeout-scale F] [--out DIR] [--reuse SAMARA_RESULTS.csv] [--per-process]
 BENCHMARK_DIR: `benchmarks/acasxu` of stanleybak/vnncomp2021 (env SAMARA_ACASXU_DIR);
 RESULTS_DIR: `results_csv` of stanleybak/vnncomp2021_results (env SAMARA_VNNCOMP_RESULTS).
 See bench/vnncomp/README.md for how to get them.

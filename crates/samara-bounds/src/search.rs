@@ -528,8 +528,15 @@ fn piece_bounds_lin(
     known: Option<&Bounds>,
     deadline: Option<Instant>,
 ) -> (Bounds, symbolic::PreLinear) {
-    let fwd = symbolic::hidden_pre_until(maps, lo, hi, known.map(|v| &v[..]), deadline);
-    symbolic::crown_pre_lin_until(maps, lo, hi, &fwd, deadline)
+    // Bounds known on the piece (a half's, from its parent's CROWN functions) stand in
+    // for the forward pass: CROWN re-bounds every neuron they leave unstable anyway.
+    match known {
+        Some(k) => symbolic::crown_pre_lin_until(maps, lo, hi, k, deadline),
+        None => {
+            let fwd = symbolic::hidden_pre_until(maps, lo, hi, None, deadline);
+            symbolic::crown_pre_lin_until(maps, lo, hi, &fwd, deadline)
+        }
+    }
 }
 
 /// A conjunction's bounds on one piece.
@@ -992,14 +999,20 @@ fn examine(
             .map(|(a, b)| {
                 // The cheap bounds are sound on the half: full CROWN starts from them.
                 let cheap = symbolic::reconcretise(&pre, &lins, a, b);
-                let (bd, bl) = if full {
+                if full {
+                    // A half the cheap bounds already close needs no full ones (on ACAS
+                    // Xu property 1 most refined splits close one half that way).
+                    let hl = open_bounds(maps, cases, &open, &cheap, a, b, 0, deadline);
+                    if hl.is_empty() {
+                        return (a, b, cheap, None, hl);
+                    }
                     let (p, l) = piece_bounds_lin(maps, a, b, Some(&cheap), deadline);
-                    (p, Some(Arc::new(l)))
+                    let hl = open_bounds(maps, cases, &open, &p, a, b, 0, deadline);
+                    (a, b, p, Some(Arc::new(l)), hl)
                 } else {
-                    (cheap, None)
-                };
-                let hl = open_bounds(maps, cases, &open, &bd, a, b, 0, deadline);
-                (a, b, bd, bl, hl)
+                    let hl = open_bounds(maps, cases, &open, &cheap, a, b, 0, deadline);
+                    (a, b, cheap, None, hl)
+                }
             })
             .collect();
         for (a, b, bd, bl, hl) in bounded {
