@@ -57,7 +57,7 @@
 //! attack would be most of the work.
 //!
 //! With the environment variable `SAMARA_OPT_TRACE` set, the search prints its bounds
-//! and node count to stderr every 2,000 nodes (as `SAMARA_SEARCH_PROFILE` does for
+//! and node count to stderr every 2,000 nodes and when it finishes (as `SAMARA_SEARCH_PROFILE` does for
 //! [`crate::search`]).
 
 // Measured on the Goedel + Lipschitz 6-64-32-1 network's P1 (normalised spec, 2 cores):
@@ -997,6 +997,12 @@ pub fn optimise(
         .unwrap_or(f64::NEG_INFINITY);
     out.thin = thin.iter().filter(|u| **u > inc + tol(inc)).count();
     out.upper = closed.max(inc);
+    if trace {
+        eprintln!(
+            "opt: finished after {} nodes, {attacked} attack rounds, complete {}, upper {:.9}, incumbent {inc:.9}, {} thin",
+            out.nodes, out.complete, out.upper, out.thin
+        );
+    }
     out
 }
 

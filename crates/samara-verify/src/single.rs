@@ -125,6 +125,10 @@ fn block_diagonal(blocks: &[(Affine, bool)]) -> Affine {
     Affine::new(inp, out, w, b)
 }
 
+/// Starts of the attack when a search left open by rounding is run again (see
+/// [`solve`]).
+const RETRY_ATTACK_STARTS: usize = 8;
+
 /// Sound interval bounds of the outputs of `maps` over the input box (outward rounded).
 fn output_bounds(maps: &[(Affine, bool)], lo: &[f64], hi: &[f64]) -> Vec<(f64, f64)> {
     let (mut l, mut h) = (lo.to_vec(), hi.to_vec());
@@ -374,10 +378,11 @@ pub fn solve(p: &Problem<'_>, limits: Limits) -> BabResult {
     let mut r = opt::optimise(&problem, &settings, &accept);
     // A completed search that leaves the question open by rounding only (a slack bound
     // in [floor, floor + rounding] with no witness, or leaves where no point was
-    // accepted) is run again with the attack first: its incumbent cuts the boxes of
+    // accepted) is run again with a short attack first: its incumbent cuts the boxes of
     // every node from the root on, which changes the leaves the search ends in (on the
-    // case study's `p5_lipschitz`, 2 of its 360 points need it). Each run is sound on
-    // its own; the second one's answer is taken.
+    // case study's `p5_lipschitz`, 2 of its 360 points need it; most re-runs are
+    // vacuity checks whose premise truly touches the domain, hence the short attack).
+    // Each run is sound on its own; the second one's answer is taken.
     let open = r.complete
         && (r.thin > 0
             || (p.floor.is_finite()
@@ -386,10 +391,16 @@ pub fn solve(p: &Problem<'_>, limits: Limits) -> BabResult {
     let late = settings.deadline.is_some_and(|d| Instant::now() >= d);
     let spent = r.nodes;
     if open && !late && (limits.nodes == 0 || spent < limits.nodes) {
+        if std::env::var_os("SAMARA_OPT_TRACE").is_some() {
+            eprintln!(
+                "single: left open by rounding after {spent} nodes; again with the attack first"
+            );
+        }
         r = opt::optimise(
             &problem,
             &opt::Settings {
                 attack_after: 0,
+                attack_starts: RETRY_ATTACK_STARTS.min(settings.attack_starts),
                 max_nodes: if limits.nodes == 0 {
                     0
                 } else {
