@@ -113,6 +113,24 @@ def reach_system(
     timeout: Optional[float],
 ) -> Dict[str, Any]: ...
 def merge_reach_system(parts: List[Dict[str, Any]]) -> Dict[str, Any]: ...
+def reach_adaptive_shard(
+    system: str,
+    file: str,
+    network: Network,
+    grid: Dict[str, int],
+    shard: Tuple[int, int],
+    target_ratio: float,
+    order: int,
+    network_error: str,
+    lifted_weight: int,
+    lift_at: float,
+    max_leaves: int,
+    samples: int,
+    seed: int,
+    timeout: Optional[float],
+    checkpoint: Optional[str],
+) -> str: ...
+def merge_adaptive_shards(docs: List[str]) -> str: ...
 def train(
     rows: bytes,
     n: int,
