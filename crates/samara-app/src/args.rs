@@ -419,7 +419,7 @@ pub struct VnncompArgs {
     /// Multiply every instance's timeout by this (> 0).
     #[arg(long, default_value_t = 1.0)]
     pub timeout_scale: f64,
-    /// Node limit per search of the ReLU-phase engine (used for queries that are not
+    /// Node limit per search of the exact optimiser (used for queries that are not
     /// box-shaped).
     #[arg(long, default_value_t = 200_000)]
     pub max_nodes: usize,

@@ -166,7 +166,7 @@ fn print_table(r: &robustness::SweepReport, json: bool) -> Result<()> {
 
 /// Run `samara verify-vnnlib`: prints `unsat` (proved), `sat` (violated, with the
 /// counterexample) or `unknown`, as VNN-COMP tools do. Box-shaped properties go to the
-/// input-split engine, the rest to the ReLU-phase engine ([`samara_verify::route`]).
+/// input-split engine, the rest to the exact optimiser ([`samara_verify::route`]).
 pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
     let start = std::time::Instant::now();
     let timeout = timeout_flag(a.timeout)?;
