@@ -94,18 +94,34 @@ def main():
                     shutil.copyfileobj(f, g)
             src = dst
         sel.append((str(src), str((bench / vnnlib).resolve()), tmo))
-    inst_csv = tmp / "instances.csv"
-    with open(inst_csv, "w", newline="") as f:
-        csv.writer(f).writerows(sel)
-    out_csv = tmp / "samara.csv"
+    # One `samara vnncomp` run per network, so that a network samara refuses (an
+    # operator or a size it does not take) stays in the table as rows marked `error`,
+    # with the refusal quoted below it, instead of stopping the whole benchmark.
+    groups = {}
+    for row in sel:
+        groups.setdefault(row[0], []).append(row)
+    ours, refused = {}, []
     t0 = time.time()
-    p = subprocess.run([binary, "vnncomp", str(inst_csv), "--out", str(out_csv),
-                        "--timeout-scale", a.timeout_scale, "--json"], stdout=subprocess.PIPE)
+    for g, (net, grows) in enumerate(groups.items()):
+        inst_csv = tmp / f"instances_{g}.csv"
+        with open(inst_csv, "w", newline="") as f:
+            csv.writer(f).writerows(grows)
+        out_csv = tmp / f"samara_{g}.csv"
+        p = subprocess.run([binary, "vnncomp", str(inst_csv), "--out", str(out_csv),
+                            "--timeout-scale", a.timeout_scale, "--json"],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        if p.returncode == 2:
+            why = (p.stderr.strip().splitlines() or ["exit 2"])[-1]
+            refused.append((os.path.basename(net), why))
+            for onnx, vnnlib, _ in grows:
+                ours[(os.path.basename(onnx), os.path.basename(vnnlib))] = {
+                    "result": "error", "seconds": 0.0}
+            continue
+        if p.returncode not in (0, 1):
+            sys.exit(f"samara vnncomp exited {p.returncode}: {p.stderr}")
+        for r in json.loads(p.stdout)["instances"]:
+            ours[(os.path.basename(r["onnx"]), os.path.basename(r["vnnlib"]))] = r
     wall = time.time() - t0
-    if p.returncode not in (0, 1):
-        sys.exit(f"samara vnncomp exited {p.returncode}")
-    js = json.loads(p.stdout)
-    ours = {(os.path.basename(r["onnx"]), os.path.basename(r["vnnlib"])): r for r in js["instances"]}
     peers = read_peers(a.results, name) if a.results else {}
     names = sorted(peers)
     out = []
@@ -133,6 +149,10 @@ def main():
       f"{sum(1 for r in ours.values() if r['result'] == 'sat')} sat)"
       + "".join(f"; {pn} {sum(1 for k in ours if peers[pn].get(k, ('-',))[0] in ('sat', 'unsat'))}" for pn in names)
       + ".\n")
+    for net, why in refused:
+        w(f"- refused by samara (its rows are `error`): `{net}`: {why}")
+    if refused:
+        w("")
     # The consensus: the verdict most decided tools give (ties: none).
     against = 0
     for k, r in ours.items():
