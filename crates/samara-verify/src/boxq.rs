@@ -13,9 +13,9 @@
 //! `Proved` only from the search's sound bounds having closed every piece; anything cut
 //! short is `Unknown` with its reason.
 
-use crate::engine::Point;
 use crate::exact::rigorous_satisfies;
 use crate::net::PwlNet;
+use crate::point::Point;
 use crate::Counterexample;
 use samara_bounds::search::{self, Case, CasePoint, Outcome, OutputConstraint, StopReason};
 use samara_bounds::symbolic::Objective;

@@ -56,8 +56,6 @@ pub mod milp;
 /// (they live in `samara-bounds`).
 pub use samara_bounds::pwl as net;
 pub mod point;
-/// The old name of [`point`] (kept for the modules and callers that import from it).
-pub use point as engine;
 pub mod robustness;
 pub mod route;
 pub mod single;
