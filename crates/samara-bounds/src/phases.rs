@@ -564,14 +564,19 @@ fn node(
 
 /// A sound lower bound over `S` of a function with linear lower bound `g` (valid on
 /// `S`), where `fs` are linear lower bounds (valid on `S`) of functions `<= 0` on `S`:
-/// `min over the box of g + sum_p lambda_p f_p` for the LP's multipliers
-/// ([`crate::lp::min_linear_duals`]; weak duality), formed and minimised with outward
-/// rounding ([`Linear::combine`], [`Linear::min_over`]); never below `g`'s own minimum.
-fn min_over_set(g: &Linear, fs: &[Linear], lo: &[f64], hi: &[f64]) -> f64 {
+/// `min over the box of g + sum_p lambda_p f_p` for the multipliers of the LP over
+/// `fs`'s rows (`lp`, [`crate::lp::MinLinearSolver`], warm-started from its last solve;
+/// weak duality), formed and minimised with outward rounding ([`Linear::combine`],
+/// [`Linear::min_over`]); never below `g`'s own minimum, which it is without an LP.
+fn min_over_set(
+    g: &Linear,
+    fs: &[Linear],
+    lo: &[f64],
+    hi: &[f64],
+    lp: Option<&mut crate::lp::MinLinearSolver>,
+) -> f64 {
     let own = g.min_over(lo, hi);
-    let a: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
-    let d: Vec<f64> = fs.iter().map(|f| f.cst - f.slack).collect();
-    let Some(lam) = crate::lp::min_linear_duals(&g.coef, &a, &d, lo, hi) else {
+    let Some(lam) = lp.and_then(|lp| lp.solve(&g.coef)).map(|r| r.duals) else {
         return own;
     };
     let mut h = g.clone();
@@ -602,11 +607,23 @@ fn lp_layer(
     hi: &[f64],
 ) -> Option<bool> {
     let mut changed = false;
+    // One LP tableau per direction over the phase rows, each solve warm-started from
+    // the previous neuron's basis (the rows do not change within the layer).
+    let mut lps: Option<[crate::lp::MinLinearSolver; 2]> = None;
     for i in 0..layer.len() {
         let b = &mut layer[i];
         if !(b.0 < 0.0 && b.1 > 0.0) {
             continue;
         }
+        if lps.is_none() && !fs.is_empty() {
+            let a: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
+            let d: Vec<f64> = fs.iter().map(|f| f.cst - f.slack).collect();
+            lps = crate::lp::MinLinearSolver::new(&a, &d, lo, hi).map(|s| [s.clone(), s]);
+        }
+        let (lp_l, lp_u) = match lps.as_mut() {
+            Some([a, b]) => (Some(a), Some(b)),
+            None => (None, None),
+        };
         let mut c = vec![0.0; pull.last().map_or(0, |m| m.0.out)];
         c[i] = 1.0;
         let obj = Objective { c, d: 0.0 };
@@ -614,8 +631,8 @@ fn lp_layer(
         // relaxes nothing: the one of `-z_i` is its exact negation (the same products
         // with the sign flipped, the same rounding bound).
         let g = symbolic::backward_lower_rows(pull, pre, &obj, rows);
-        let l = min_over_set(&g, fs, lo, hi);
-        let u = -min_over_set(&g.negated(), fs, lo, hi);
+        let l = min_over_set(&g, fs, lo, hi, lp_l);
+        let u = -min_over_set(&g.negated(), fs, lo, hi, lp_u);
         if l > b.0 {
             b.0 = l;
             changed = true;
