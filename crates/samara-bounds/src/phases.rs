@@ -33,11 +33,21 @@
 //! splitting. Candidate points (each node's LP
 //! minimiser) are only reported after a concrete f64 evaluation with a margin
 //! ([`crate::search::satisfies`]).
+//!
+//! Cost per node: on `S` the layers before the earliest unstable one are affine, so
+//! every pull-back of a node runs on a shorter chain whose first map is their
+//! composition ([`Chain`]; its f64 rounding error is bounded and carried in the
+//! pull-backs' slack), extended from the parent's; the cases are checked once before the
+//! later layers are re-bounded, which a node they close skips; the two children of a node
+//! run in parallel (`rayon::join`).
 
 use crate::query::{combination_certifies, forward, satisfies, Case};
 use crate::symbolic::{self, Linear, Objective};
 use samara_nn::Affine;
-use std::sync::Arc;
+use samara_num::round::{gamma, inflate};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
 
 /// What the phase splitting of one piece came to.
 pub(crate) enum PhaseResult {
@@ -94,9 +104,269 @@ pub(crate) fn unstable(maps: &[(Affine, bool)], pre: &[Vec<(f64, f64)>]) -> Vec<
 /// One fixed phase: map, neuron, active.
 type Fix = (usize, usize, bool);
 
+/// What the nodes of one piece's phase tree share while they run in parallel.
+struct Tree<'a> {
+    maps: &'a [(Affine, bool)],
+    cases: &'a [Case],
+    lo: &'a [f64],
+    hi: &'a [f64],
+    /// Row magnitudes ([`symbolic::row_magnitudes`]) of the piece's bounds, for the
+    /// rounding bounds of every node's pull-backs: a node's bounds lie inside the
+    /// piece's, so magnitudes from the piece's bound its inputs from above (sound, and
+    /// computed once instead of once per node).
+    rows: Vec<Vec<f64>>,
+    budget: usize,
+    deadline: Option<Instant>,
+    /// Nodes examined so far.
+    seen: AtomicU64,
+    /// Set once a point is found or the tree gives up: the other nodes return at once.
+    stop: AtomicBool,
+    gave_up: AtomicBool,
+    /// Some fully split node was left open with a thin region.
+    thin: AtomicBool,
+    found: Mutex<Option<(usize, Vec<f64>)>>,
+}
+
+impl<'a> Tree<'a> {
+    fn new(
+        maps: &'a [(Affine, bool)],
+        cases: &'a [Case],
+        pre: &[Vec<(f64, f64)>],
+        lo: &'a [f64],
+        hi: &'a [f64],
+        budget: usize,
+        deadline: Option<Instant>,
+    ) -> Self {
+        Tree {
+            maps,
+            cases,
+            lo,
+            hi,
+            rows: symbolic::row_magnitudes(maps, pre, lo, hi),
+            budget,
+            deadline,
+            seen: AtomicU64::new(0),
+            stop: AtomicBool::new(false),
+            gave_up: AtomicBool::new(false),
+            thin: AtomicBool::new(false),
+            found: Mutex::new(None),
+        }
+    }
+
+    /// The chain of the piece itself, from map 0 (every node's starts there or later).
+    fn root_chain(&self) -> Arc<Chain> {
+        Arc::new(Chain {
+            maps: self.maps.to_vec(),
+            rows: self.rows.clone(),
+            at: 0,
+            prefix: Prefix::root(self.maps),
+        })
+    }
+
+    fn give_up(&self) {
+        self.gave_up.store(true, Ordering::Relaxed);
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    fn found(&self, ci: usize, x: Vec<f64>) {
+        let mut f = self.found.lock().unwrap_or_else(|e| e.into_inner());
+        f.get_or_insert((ci, x));
+        self.stop.store(true, Ordering::Relaxed);
+    }
+
+    /// Case `ci`'s bounds on a node's set `S` (its chain `ch`, bounds `nb` and phase constraints
+    /// `phase_fs`, all valid on `S`): `None` when they show that the case has no point
+    /// on `S` (one constraint's lower bound is positive, or a certified non-negative
+    /// combination with the phases is), else the linear lower bounds (the phases'
+    /// first) and the min-max LP's answer, if it ran.
+    fn case_open(
+        &self,
+        ch: &Chain,
+        nb: &[Vec<(f64, f64)>],
+        phase_fs: &[Linear],
+        ci: usize,
+    ) -> Option<(Vec<Linear>, Option<crate::lp::MinMax>)> {
+        let (lo, hi) = (self.lo, self.hi);
+        let mut fs = phase_fs.to_vec();
+        for k in &self.cases[ci].constraints {
+            let f = symbolic::backward_lower_rows(&ch.maps, &nb[ch.at..], &k.obj, &ch.rows);
+            let lb = f.min_over(lo, hi);
+            if if k.strict { lb >= 0.0 } else { lb > 0.0 } {
+                return None;
+            }
+            fs.push(f);
+        }
+        let (ok, mm) = if fs.len() >= 2 {
+            combination_certifies(&fs, lo, hi)
+        } else {
+            (false, None)
+        };
+        (!ok).then_some((fs, mm))
+    }
+}
+
+/// A node's network on its set `S` from hidden layer `at` on, as a shorter chain: maps
+/// `0..=at` composed into one affine map of the inputs (exact on `S`, where every
+/// neuron of the layers before `at` is stable or fixed), then maps `at + 1..`; with the
+/// row magnitudes of its pull-backs: the composed map's raised by its rounding error
+/// ([`symbolic::rows_with_error`]), the later maps' the tree's. Bounds of the chain are
+/// the node's from layer `at` on. A pull-back through it crosses one map of the inputs'
+/// width instead of `at + 1` layers.
+struct Chain {
+    maps: Vec<(Affine, bool)>,
+    rows: Vec<Vec<f64>>,
+    at: usize,
+    /// The composition behind the first map, for the children to extend.
+    prefix: Prefix,
+}
+
+/// Maps `0..=at` composed into one affine map of the inputs, `z_at = A x + c` up to an
+/// absolute error `e` per output, on a set where every neuron of the layers before `at`
+/// is stable or fixed (see [`Chain`]): `cols[t]` is column `t` of `A`, `cols[n]` is `c`.
+/// A node's children extend their parent's (their stable neurons are the parent's and
+/// more), so each layer is composed once per path.
+#[derive(Clone)]
+struct Prefix {
+    cols: Vec<Vec<f64>>,
+    e: Vec<f64>,
+    at: usize,
+}
+
+impl Prefix {
+    /// Map 0 alone (exact).
+    fn root(maps: &[(Affine, bool)]) -> Prefix {
+        let m = &maps[0].0;
+        let mut cols: Vec<Vec<f64>> = (0..m.inp)
+            .map(|t| (0..m.out).map(|i| m.w[i * m.inp + t]).collect())
+            .collect();
+        cols.push(m.b.clone());
+        Prefix {
+            cols,
+            e: vec![0.0; m.out],
+            at: 0,
+        }
+    }
+
+    /// The prefix composed on to map `to` through the phases of bounds `nb` (layers
+    /// `self.at..to` stable or fixed in `nb`): per layer `A' = W D A`, `c' = W D c + b`
+    /// (`D` the 0/1 phases), in f64, with the error bound
+    /// `e' = |W| D e + gamma(inp + 1) (|W| D m + |b|)`, `m = |A| xmax + |c|` (the sums'
+    /// rounding, Higham's bound, plus the earlier error carried through), raised by
+    /// [`inflate`] for its own rounding.
+    fn extend(
+        mut self,
+        maps: &[(Affine, bool)],
+        nb: &[Vec<(f64, f64)>],
+        xmax: &[f64],
+        to: usize,
+    ) -> Prefix {
+        let n = xmax.len();
+        for j in self.at + 1..=to {
+            let m = &maps[j].0;
+            let relu = maps[j - 1].1;
+            // An inactive neuron passes 0; every other neuron of these layers is active.
+            let on: Vec<f64> = (0..m.inp)
+                .map(|s| {
+                    if relu && nb[j - 1][s].1 <= 0.0 {
+                        0.0
+                    } else {
+                        1.0
+                    }
+                })
+                .collect();
+            let mut mag: Vec<f64> = self.cols[n].iter().map(|v| v.abs()).collect();
+            for (col, x) in self.cols[..n].iter().zip(xmax) {
+                for (mg, v) in mag.iter_mut().zip(col) {
+                    *mg += v.abs() * x;
+                }
+            }
+            let masked: Vec<Vec<f64>> = self
+                .cols
+                .iter()
+                .map(|col| col.iter().zip(&on).map(|(v, d)| v * d).collect())
+                .collect();
+            let me: Vec<f64> = self.e.iter().zip(&on).map(|(v, d)| v * d).collect();
+            let mm: Vec<f64> = mag.iter().zip(&on).map(|(v, d)| v * d).collect();
+            let g = gamma(m.inp + 1);
+            let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+            let absdot =
+                |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x.abs() * y).sum::<f64>();
+            let mut cols = vec![vec![0.0; m.out]; n + 1];
+            let mut e = vec![0.0; m.out];
+            for i in 0..m.out {
+                let row = &m.w[i * m.inp..(i + 1) * m.inp];
+                for (col, v) in cols.iter_mut().zip(&masked) {
+                    col[i] = dot(row, v);
+                }
+                cols[n][i] += m.b[i];
+                e[i] = inflate(absdot(row, &me) + g * (absdot(row, &mm) + m.b[i].abs()));
+            }
+            self = Prefix { cols, e, at: j };
+        }
+        self
+    }
+}
+
+/// The [`Chain`] of a node with bounds `nb` from its earliest layer with a neuron not
+/// shown stable (the last hidden layer when there is none): `parent` itself when it
+/// starts there, else `parent`'s prefix extended (composed through layers that are
+/// stable in `nb` too).
+fn chain(t: &Tree, nb: &[Vec<(f64, f64)>], parent: &Arc<Chain>) -> Arc<Chain> {
+    let (maps, lo, hi) = (t.maps, t.lo, t.hi);
+    // The earliest layer with a neuron not shown stable (unstable, or a NaN bound).
+    let last = maps.len() - 2;
+    let at = (0..last)
+        .find(|&j| maps[j].1 && nb[j].iter().any(|&(l, u)| !(u <= 0.0 || l >= 0.0)))
+        .unwrap_or(last);
+    if at == parent.at {
+        return parent.clone();
+    }
+    let prefix = &parent.prefix;
+    let n = lo.len();
+    let xmax: Vec<f64> = lo
+        .iter()
+        .zip(hi)
+        .map(|(a, b)| a.abs().max(b.abs()))
+        .collect();
+    let start = if prefix.at <= at {
+        prefix.clone()
+    } else {
+        Prefix::root(maps)
+    };
+    let p = start.extend(maps, nb, &xmax, at);
+    let out = maps[at].0.out;
+    let mut w = vec![0.0; out * n];
+    for (t, col) in p.cols[..n].iter().enumerate() {
+        for (i, v) in col.iter().enumerate() {
+            w[i * n + t] = *v;
+        }
+    }
+    let first = Affine {
+        inp: n,
+        out,
+        w,
+        b: p.cols[n].clone(),
+    };
+    let mut rows = vec![symbolic::rows_with_error(&first, lo, hi, &p.e)];
+    rows.extend(t.rows[at + 1..].iter().cloned());
+    let mut cm = vec![(first, maps[at].1)];
+    cm.extend(maps[at + 1..].iter().cloned());
+    Arc::new(Chain {
+        maps: cm,
+        rows,
+        at,
+        prefix: p,
+    })
+}
+
 /// Decide the open cases `open` on the piece `[lo, hi]` (pre-activation bounds `pre`,
 /// valid on the whole piece) by splitting its unstable ReLUs, examining at most
-/// `budget` nodes and stopping at `deadline`. See the module doc.
+/// `budget` nodes and stopping at `deadline`. See the module doc. The two children of a
+/// node run as a `rayon::join`, so an idle core takes over half of a large tree (the
+/// search's batch of pieces otherwise waits for its largest tree on one core); which
+/// point is reported, when there are several, may depend on the schedule, the verdict
+/// does not (a budget spent in a different order only hands the piece back to input
+/// splitting).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn split_phases(
     maps: &[(Affine, bool)],
@@ -106,198 +376,207 @@ pub(crate) fn split_phases(
     lo: &[f64],
     hi: &[f64],
     budget: usize,
-    deadline: Option<std::time::Instant>,
+    deadline: Option<Instant>,
     nodes: &mut u64,
 ) -> PhaseResult {
-    // Each node: its phases, the cases still open, bounds valid on its set (the
-    // parent's, to be clamped by the last phase and tightened).
-    #[allow(clippy::type_complexity)]
-    let mut stack: Vec<(
-        Vec<Fix>,
-        Vec<usize>,
-        Arc<Vec<Vec<(f64, f64)>>>,
-        Arc<Vec<Linear>>,
-    )> = Vec::new();
     let Some(&(j0, i0)) = unstable(maps, pre).first() else {
         return PhaseResult::GaveUp;
     };
-    let root = Arc::new(pre.to_vec());
-    let none = Arc::new(Vec::new());
-    stack.push((
-        vec![(j0, i0, false)],
-        open.to_vec(),
-        root.clone(),
-        none.clone(),
-    ));
-    stack.push((vec![(j0, i0, true)], open.to_vec(), root, none));
-    let mut seen = 0usize;
-    let mut thin = false;
-    while let Some((fixes, open, parent, parent_fs)) = stack.pop() {
-        seen += 1;
-        *nodes += 1;
-        if seen > budget || deadline.is_some_and(|d| std::time::Instant::now() >= d) {
-            return PhaseResult::GaveUp;
-        }
-        // Bounds valid on S: the parent's, clamped by the new phase; the maps after it
-        // are re-bounded by full CROWN below (once).
-        let mut nb = (*parent).clone();
-        let &(jl, il, on) = fixes.last().expect("a node has a phase");
-        {
-            let b = &mut nb[jl][il];
-            if on {
-                b.0 = b.0.max(0.0);
-            } else {
-                b.1 = b.1.min(0.0);
-            }
-        }
-        // Row magnitudes for the rounding bounds of this node's pull-backs: from the
-        // clamped parent bounds, which contain every bound computed below.
-        let rows = symbolic::row_magnitudes(maps, &nb, lo, hi);
-        // The phases as constraints `h <= 0` with linear lower bounds of `h`: the
-        // parent's (valid on its set, so on this one), and the new phase's. Phases are
-        // fixed in layer order, so every earlier layer is fixed or stable and the new
-        // phase's bound is exact up to rounding; it only needs the maps before `jl`,
-        // whose bounds the clamp did not change.
-        let mut phase_fs: Vec<Linear> = (*parent_fs).clone();
-        {
-            let (j, i) = (jl, il);
-            let mut c = vec![0.0; maps[j].0.out];
-            c[i] = if on { -1.0 } else { 1.0 };
-            let f = symbolic::backward_lower_rows(
-                &maps[..=j],
-                &nb[..j],
-                &Objective { c, d: 0.0 },
-                &rows,
-            );
-            if f.min_over(lo, hi) > 0.0 {
-                continue;
-            }
-            phase_fs.push(f);
-        }
-        // The earliest layer with unstable neurons is affine on S (every earlier neuron
-        // is fixed or stable): bound its neurons over S, not the box, by the LP with the
-        // phases as constraints (nnenum's exact bounds of a star set), certified by weak
-        // duality; layers that become stable let the next one be bounded the same way.
-        // When that layer is at or before the new phase's (the usual case: splits go in
-        // layer order), its LP bounds need only the bounds before it, and the maps after
-        // it are re-bounded by CROWN once, after the LPs, instead of before and after.
-        let early = unstable(maps, &nb).first().is_some_and(|u| u.0 <= jl);
-        if !early {
-            nb = symbolic::crown_pre_from(maps, lo, hi, Some(&nb), jl + 1);
-            // A bound that crosses shows S empty (every bound is valid on S).
-            if nb.iter().flatten().any(|&(l, u)| l > u) {
-                continue;
-            }
-        }
-        match tighten_rows(maps, &mut nb, &phase_fs, lo, hi, &rows) {
-            None => continue,
-            Some(false) if early => {
-                nb = symbolic::crown_pre_from(maps, lo, hi, Some(&nb), jl + 1);
-                if nb.iter().flatten().any(|&(l, u)| l > u) {
-                    continue;
-                }
-            }
-            Some(_) => {}
-        }
-        let mut still = Vec::new();
-        // Whether every case left open here is thin (see [`PhaseResult::Thin`]).
-        let mut all_thin = true;
-        for &ci in &open {
-            let cs = &cases[ci].constraints;
-            let mut fs = phase_fs.clone();
-            let mut closed = false;
-            for k in cs {
-                let f = symbolic::backward_lower_rows(maps, &nb, &k.obj, &rows);
-                let lb = f.min_over(lo, hi);
-                if if k.strict { lb >= 0.0 } else { lb > 0.0 } {
-                    closed = true;
-                    break;
-                }
-                fs.push(f);
-            }
-            if closed {
-                continue;
-            }
-            if fs.is_empty() {
-                // An empty conjunction without phases: the centre is a point.
-                let x: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * (a + b)).collect();
-                return PhaseResult::Found(ci, x);
-            }
-            let (ok, mm) = if fs.len() >= 2 {
-                combination_certifies(&fs, lo, hi)
-            } else {
-                (false, None)
-            };
-            if ok {
-                continue;
-            }
-            let mut cands = Vec::with_capacity(2);
-            all_thin &= mm
-                .as_ref()
-                .is_some_and(|m| thin_value(m.value, &fs, lo, hi));
-            if let Some(mm) = mm {
-                cands.push(mm.x);
-            }
-            cands.push(fs[fs.len() - 1].argmin_corner(lo, hi));
-            for x in cands {
-                let y = forward(maps, &x, None);
-                if satisfies(cs, &y) {
-                    return PhaseResult::Found(ci, x);
-                }
-            }
-            still.push(ci);
-        }
-        if still.is_empty() {
-            continue;
-        }
-        // Split in the earliest layer with unstable neurons on S, the neuron whose
-        // range is the most balanced (both phases far from excluded).
-        let un = unstable(maps, &nb);
-        let Some(&(j0, _)) = un.first() else {
-            // Fully split: the network is affine on S and the LP exact up to rounding.
-            if all_thin {
-                thin = true;
-                continue;
-            }
-            return PhaseResult::GaveUp;
-        };
-        let (j, i) = un
-            .iter()
-            .take_while(|u| u.0 == j0)
-            .max_by(|a, b| {
-                let s = |u: &(usize, usize)| {
-                    let (l, h) = nb[u.0][u.1];
-                    (-l).min(h)
-                };
-                s(a).total_cmp(&s(b))
-            })
-            .copied()
-            .expect("some neuron");
-        let nb = Arc::new(nb);
-        let fsa = Arc::new(phase_fs);
-        for on in [false, true] {
-            let mut f = fixes.clone();
-            f.push((j, i, on));
-            stack.push((f, still.clone(), nb.clone(), fsa.clone()));
-        }
-    }
-    if thin {
+    let t = Tree::new(maps, cases, pre, lo, hi, budget, deadline);
+    let root = t.root_chain();
+    rayon::join(
+        || node(&t, (j0, i0, true), open, pre, &[], &root),
+        || node(&t, (j0, i0, false), open, pre, &[], &root),
+    );
+    *nodes += t.seen.load(Ordering::Relaxed);
+    if let Some((ci, x)) = t.found.into_inner().unwrap_or_else(|e| e.into_inner()) {
+        PhaseResult::Found(ci, x)
+    } else if t.gave_up.load(Ordering::Relaxed) {
+        PhaseResult::GaveUp
+    } else if t.thin.load(Ordering::Relaxed) {
         PhaseResult::Thin
     } else {
         PhaseResult::Closed
     }
 }
 
+/// One node of [`split_phases`]: the parent's set with the phase `fix` added, the cases
+/// `open` still open on the parent, the parent's bounds and phase constraints (valid on
+/// its set, so on this one). Records a point, a give-up or a thin leaf in `t`; returns
+/// when the node is closed or its children are done.
+fn node(
+    t: &Tree,
+    fix: Fix,
+    open: &[usize],
+    parent: &[Vec<(f64, f64)>],
+    parent_fs: &[Linear],
+    parent_ch: &Arc<Chain>,
+) {
+    let (maps, lo, hi) = (t.maps, t.lo, t.hi);
+    if t.stop.load(Ordering::Relaxed) {
+        return;
+    }
+    let seen = t.seen.fetch_add(1, Ordering::Relaxed) + 1;
+    if seen > t.budget as u64 || t.deadline.is_some_and(|d| Instant::now() >= d) {
+        t.give_up();
+        return;
+    }
+    // Bounds valid on S: the parent's, clamped by the new phase; the maps after it are
+    // re-bounded by full CROWN below (once).
+    let mut nb = parent.to_vec();
+    let (jl, il, on) = fix;
+    {
+        let b = &mut nb[jl][il];
+        if on {
+            b.0 = b.0.max(0.0);
+        } else {
+            b.1 = b.1.min(0.0);
+        }
+    }
+    // The phases as constraints `h <= 0` with linear lower bounds of `h`: the parent's
+    // (valid on its set, so on this one), and the new phase's. Phases are fixed in layer
+    // order, so every earlier layer is fixed or stable and the new phase's bound is exact
+    // up to rounding; it only needs the maps before `jl`, whose bounds the clamp did not
+    // change.
+    let mut phase_fs: Vec<Linear> = Vec::with_capacity(parent_fs.len() + 1);
+    phase_fs.extend_from_slice(parent_fs);
+    {
+        let mut c = vec![0.0; maps[jl].0.out];
+        c[il] = if on { -1.0 } else { 1.0 };
+        let f = symbolic::backward_lower_rows(
+            &maps[..=jl],
+            &nb[..jl],
+            &Objective { c, d: 0.0 },
+            &t.rows,
+        );
+        if f.min_over(lo, hi) > 0.0 {
+            return;
+        }
+        phase_fs.push(f);
+    }
+    // The earliest layer with unstable neurons is affine on S (every earlier neuron is
+    // fixed or stable): bound its neurons over S, not the box, by the LP with the phases
+    // as constraints (nnenum's exact bounds of a star set), certified by weak duality;
+    // then re-bound the later layers by CROWN (once per layer bounded so). A layer that
+    // becomes stable lets the next one be bounded the same way. Every pull-back runs on
+    // the [`Chain`] of S from that layer on. Before the first re-bound (the node's
+    // largest cost) the cases are checked with the bounds at hand (valid on S, the later
+    // layers' still the parent's): a case closed by them is closed on S, and a node whose
+    // cases all close so needs no re-bound.
+    let mut open = open.to_vec();
+    // The layers after the new phase's do not reflect it yet.
+    let mut stale = true;
+    let mut prechecked = false;
+    let mut ch = parent_ch.clone();
+    let ch = loop {
+        ch = chain(t, &nb, &ch);
+        let at = ch.at;
+        let Some(changed) = lp_layer(&ch.maps[..1], &[], &ch.rows, &mut nb[at], &phase_fs, lo, hi)
+        else {
+            return;
+        };
+        if !(changed || stale) || at + 2 >= maps.len() {
+            break ch;
+        }
+        if !prechecked {
+            prechecked = true;
+            open.retain(|&ci| t.case_open(&ch, &nb, &phase_fs, ci).is_some());
+            if open.is_empty() {
+                return;
+            }
+        }
+        let later = symbolic::crown_pre_from_rows(&ch.maps, lo, hi, &nb[at..], 1, &ch.rows);
+        for (k, b) in later.into_iter().enumerate().skip(1) {
+            nb[at + k] = b;
+        }
+        // A bound that crosses shows S empty (every bound is valid on S).
+        if nb.iter().flatten().any(|&(l, u)| l > u) {
+            return;
+        }
+        stale = false;
+        if unstable(maps, &nb).first().is_some_and(|u| u.0 == at) {
+            break ch;
+        }
+    };
+    let mut still = Vec::new();
+    // Whether every case left open here is thin (see [`PhaseResult::Thin`]).
+    let mut all_thin = true;
+    for &ci in &open {
+        let Some((fs, mm)) = t.case_open(&ch, &nb, &phase_fs, ci) else {
+            continue;
+        };
+        let cs = &t.cases[ci].constraints;
+        if fs.is_empty() {
+            // An empty conjunction without phases: the centre is a point.
+            let x: Vec<f64> = lo.iter().zip(hi).map(|(a, b)| 0.5 * (a + b)).collect();
+            t.found(ci, x);
+            return;
+        }
+        let mut cands = Vec::with_capacity(2);
+        all_thin &= mm
+            .as_ref()
+            .is_some_and(|m| thin_value(m.value, &fs, lo, hi));
+        if let Some(mm) = mm {
+            cands.push(mm.x);
+        }
+        cands.push(fs[fs.len() - 1].argmin_corner(lo, hi));
+        for x in cands {
+            let y = forward(maps, &x, None);
+            if satisfies(cs, &y) {
+                t.found(ci, x);
+                return;
+            }
+        }
+        still.push(ci);
+    }
+    if still.is_empty() {
+        return;
+    }
+    // Split in the earliest layer with unstable neurons on S, the neuron whose range is
+    // the most balanced (both phases far from excluded).
+    let un = unstable(maps, &nb);
+    let Some(&(j0, _)) = un.first() else {
+        // Fully split: the network is affine on S and the LP exact up to rounding.
+        if all_thin {
+            t.thin.store(true, Ordering::Relaxed);
+        } else {
+            t.give_up();
+        }
+        return;
+    };
+    let (j, i) = un
+        .iter()
+        .take_while(|u| u.0 == j0)
+        .max_by(|a, b| {
+            let s = |u: &(usize, usize)| {
+                let (l, h) = nb[u.0][u.1];
+                (-l).min(h)
+            };
+            s(a).total_cmp(&s(b))
+        })
+        .copied()
+        .expect("some neuron");
+    rayon::join(
+        || node(t, (j, i, true), &still, &nb, &phase_fs, &ch),
+        || node(t, (j, i, false), &still, &nb, &phase_fs, &ch),
+    );
+}
+
 /// A sound lower bound over `S` of a function with linear lower bound `g` (valid on
 /// `S`), where `fs` are linear lower bounds (valid on `S`) of functions `<= 0` on `S`:
-/// `min over the box of g + sum_p lambda_p f_p` for the LP's multipliers
-/// ([`crate::lp::min_linear_duals`]; weak duality), formed and minimised with outward
-/// rounding ([`Linear::combine`], [`Linear::min_over`]); never below `g`'s own minimum.
-fn min_over_set(g: &Linear, fs: &[Linear], lo: &[f64], hi: &[f64]) -> f64 {
+/// `min over the box of g + sum_p lambda_p f_p` for the multipliers of the LP over
+/// `fs`'s rows (`lp`, [`crate::lp::MinLinearSolver`], warm-started from its last solve;
+/// weak duality), formed and minimised with outward rounding ([`Linear::combine`],
+/// [`Linear::min_over`]); never below `g`'s own minimum, which it is without an LP.
+fn min_over_set(
+    g: &Linear,
+    fs: &[Linear],
+    lo: &[f64],
+    hi: &[f64],
+    lp: Option<&mut crate::lp::MinLinearSolver>,
+) -> f64 {
     let own = g.min_over(lo, hi);
-    let a: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
-    let d: Vec<f64> = fs.iter().map(|f| f.cst - f.slack).collect();
-    let Some(lam) = crate::lp::min_linear_duals(&g.coef, &a, &d, lo, hi) else {
+    let Some(lam) = lp.and_then(|lp| lp.solve(&g.coef)).map(|r| r.duals) else {
         return own;
     };
     let mut h = g.clone();
@@ -312,6 +591,61 @@ fn min_over_set(g: &Linear, fs: &[Linear], lo: &[f64], hi: &[f64]) -> f64 {
     } else {
         v.max(own)
     }
+}
+
+/// Tighten the bounds `layer` of the unstable neurons of the last map of `pull` (a
+/// chain whose earlier layers are all stable or fixed on `S`, with bounds `pre` and row
+/// magnitudes `rows`) to their minimum and maximum over `S` by [`min_over_set`] with the
+/// phase constraints `fs`. `Some(changed)`, or `None` when a bound crosses (`S` empty).
+fn lp_layer(
+    pull: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    rows: &[Vec<f64>],
+    layer: &mut [(f64, f64)],
+    fs: &[Linear],
+    lo: &[f64],
+    hi: &[f64],
+) -> Option<bool> {
+    let mut changed = false;
+    // One LP tableau per direction over the phase rows, each solve warm-started from
+    // the previous neuron's basis (the rows do not change within the layer).
+    let mut lps: Option<[crate::lp::MinLinearSolver; 2]> = None;
+    for i in 0..layer.len() {
+        let b = &mut layer[i];
+        if !(b.0 < 0.0 && b.1 > 0.0) {
+            continue;
+        }
+        if lps.is_none() && !fs.is_empty() {
+            let a: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
+            let d: Vec<f64> = fs.iter().map(|f| f.cst - f.slack).collect();
+            lps = crate::lp::MinLinearSolver::new(&a, &d, lo, hi).map(|s| [s.clone(), s]);
+        }
+        let (lp_l, lp_u) = match lps.as_mut() {
+            Some([a, b]) => (Some(a), Some(b)),
+            None => (None, None),
+        };
+        let mut c = vec![0.0; pull.last().map_or(0, |m| m.0.out)];
+        c[i] = 1.0;
+        let obj = Objective { c, d: 0.0 };
+        // Every layer before this one is stable or fixed on S, so the pull-back of `z_i`
+        // relaxes nothing: the one of `-z_i` is its exact negation (the same products
+        // with the sign flipped, the same rounding bound).
+        let g = symbolic::backward_lower_rows(pull, pre, &obj, rows);
+        let l = min_over_set(&g, fs, lo, hi, lp_l);
+        let u = -min_over_set(&g.negated(), fs, lo, hi, lp_u);
+        if l > b.0 {
+            b.0 = l;
+            changed = true;
+        }
+        if u < b.1 {
+            b.1 = u;
+            changed = true;
+        }
+        if b.0 > b.1 {
+            return None;
+        }
+    }
+    Some(changed)
 }
 
 /// Tighten the bounds `nb` (valid on `S`) of the earliest layers with unstable neurons
@@ -345,30 +679,8 @@ fn tighten_rows(
         let Some(&(lj, _)) = un.first() else {
             return Some(recomputed);
         };
-        let mut changed = false;
-        for &(j, i) in un.iter().take_while(|u| u.0 == lj) {
-            let mut c = vec![0.0; maps[j].0.out];
-            c[i] = 1.0;
-            let obj = Objective { c, d: 0.0 };
-            // Every layer before `j` is stable or fixed on S, so the pull-back of `z_i`
-            // relaxes nothing: the one of `-z_i` is its exact negation (the same
-            // products with the sign flipped, the same rounding bound).
-            let g = symbolic::backward_lower_rows(&maps[..=j], &nb[..j], &obj, rows);
-            let l = min_over_set(&g, fs, lo, hi);
-            let u = -min_over_set(&g.negated(), fs, lo, hi);
-            let b = &mut nb[j][i];
-            if l > b.0 {
-                b.0 = l;
-                changed = true;
-            }
-            if u < b.1 {
-                b.1 = u;
-                changed = true;
-            }
-            if b.0 > b.1 {
-                return None;
-            }
-        }
+        let (before, rest) = nb.split_at_mut(lj);
+        let changed = lp_layer(&maps[..=lj], before, rows, &mut rest[0], fs, lo, hi)?;
         if !changed {
             return Some(recomputed);
         }
@@ -387,6 +699,22 @@ fn tighten_rows(
 mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
+
+    /// Every map's output at `x` (before its ReLU), in f64.
+    fn pre_activations(maps: &[(Affine, bool)], x: &[f64]) -> Vec<Vec<f64>> {
+        let mut z = x.to_vec();
+        let mut out = Vec::new();
+        for (m, r) in maps {
+            let mut o = vec![0.0; m.out];
+            m.apply_f64(&z, &mut o);
+            out.push(o.clone());
+            if *r {
+                o.iter_mut().for_each(|v| *v = v.max(0.0));
+            }
+            z = o;
+        }
+        out
+    }
 
     fn random_maps(rng: &mut rand_chacha::ChaCha8Rng, widths: &[usize]) -> Vec<(Affine, bool)> {
         let last = widths.len() - 2;
@@ -421,17 +749,7 @@ mod tests {
             // Fix every unstable neuron before layer `j` to its phase at a random point
             // (the set S of points with those phases contains that point).
             let x0: Vec<f64> = (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
-            let mut z = x0.clone();
-            let mut zs = Vec::new();
-            for (m, r) in &maps {
-                let mut o = vec![0.0; m.out];
-                m.apply_f64(&z, &mut o);
-                zs.push(o.clone());
-                if *r {
-                    o.iter_mut().for_each(|v| *v = v.max(0.0));
-                }
-                z = o;
-            }
+            let zs = pre_activations(&maps, &x0);
             let j = 1 + trial % 3;
             let mut nb = pre.clone();
             for (k, layer) in nb.iter_mut().enumerate().take(j) {
@@ -478,5 +796,129 @@ mod tests {
             }
         }
         assert!(checked > 300);
+    }
+
+    /// The [`Chain`] of a node (maps composed up to its earliest unstable layer, the
+    /// composition's error carried in its row magnitudes): on 80 random networks with
+    /// the phases of a random point fixed in the layers before a random one, (1) the
+    /// composed map agrees with the layer-by-layer f64 evaluation at points of S within
+    /// its error bound plus that evaluation's own rounding (Higham's bound), (2) a chain
+    /// extended from its parent's equals one composed from map 0, and (3) the chain's
+    /// linear lower bounds of random output objectives have the coefficients of the
+    /// layer-by-layer pull-back (up to rounding), a slack at least as large, and bound
+    /// the objective at every sampled point of S.
+    #[test]
+    fn composed_chains_bound_the_network_on_the_phase_set() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(44);
+        let mut points = 0;
+        for trial in 0..80 {
+            let n = 2 + trial % 4;
+            let scale = [1.0, 30.0, 1e-3][trial % 3];
+            let mut maps = random_maps(&mut rng, &[n, 9, 8, 7, 6, 3]);
+            for (m, _) in maps.iter_mut() {
+                m.w.iter_mut().for_each(|w| *w *= scale);
+            }
+            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..0.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.1..1.5)).collect();
+            let pre = crate::search::piece_bounds(&maps, &lo, &hi, None, None);
+            let x0: Vec<f64> = (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
+            let zs = |x: &[f64]| pre_activations(&maps, x);
+            let z0 = zs(&x0);
+            // Fix the phases of x0 in the layers before `j` (S: the points of the box
+            // with those phases), and make one neuron of layer j unstable when none is.
+            let j = 1 + trial % 4;
+            let mut nb = pre.clone();
+            for (k, layer) in nb.iter_mut().enumerate().take(j) {
+                for (i, b) in layer.iter_mut().enumerate() {
+                    if z0[k][i] > 0.0 {
+                        b.0 = b.0.max(0.0);
+                    } else {
+                        b.1 = b.1.min(0.0);
+                    }
+                }
+            }
+            let t = Tree::new(&maps, &[], &pre, &lo, &hi, 0, None);
+            let root = t.root_chain();
+            let ch = chain(&t, &nb, &root);
+            let want = unstable(&maps, &nb).first().map_or(maps.len() - 2, |u| u.0);
+            assert_eq!(ch.at, want, "trial {trial}");
+            // (2) from a parent composed to an earlier layer.
+            let mut half = nb.clone();
+            if ch.at >= 2 {
+                half[ch.at / 2].iter_mut().for_each(|b| *b = (-1.0, 1.0));
+                let mid = chain(&t, &half, &root);
+                let again = chain(&t, &nb, &mid);
+                assert_eq!(again.at, ch.at);
+                assert_eq!(again.maps[0].0.w, ch.maps[0].0.w, "trial {trial}");
+                assert_eq!(again.prefix.e, ch.prefix.e, "trial {trial}");
+            }
+            let (first, _) = &ch.maps[0];
+            let objs: Vec<Objective> = (0..3)
+                .map(|_| Objective {
+                    c: (0..3).map(|_| rng.gen_range(-1.0..1.0)).collect(),
+                    d: rng.gen_range(-1.0..1.0),
+                })
+                .collect();
+            let rows_now = symbolic::row_magnitudes(&maps, &nb, &lo, &hi);
+            let fs: Vec<(Linear, Linear)> = objs
+                .iter()
+                .map(|o| {
+                    let f = symbolic::backward_lower_rows(&ch.maps, &nb[ch.at..], o, &ch.rows);
+                    let g = symbolic::backward_lower_rows(&maps, &nb, o, &rows_now);
+                    (f, g)
+                })
+                .collect();
+            // (3) the same function as the layer-by-layer pull-back.
+            for (f, g) in &fs {
+                let size = 1.0 + g.cst.abs() + g.coef.iter().map(|v| v.abs()).sum::<f64>();
+                for (a, b) in f.coef.iter().zip(&g.coef) {
+                    assert!((a - b).abs() <= 1e-9 * size, "trial {trial}: {a} vs {b}");
+                }
+                assert!((f.cst - g.cst).abs() <= 1e-9 * size, "trial {trial}");
+                assert!(f.slack > 0.0, "trial {trial}");
+            }
+            for _ in 0..300 {
+                let x: Vec<f64> = (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
+                let z = zs(&x);
+                let in_s = (0..j.min(maps.len() - 1))
+                    .all(|k| (0..z[k].len()).all(|i| (z[k][i] > 0.0) == (z0[k][i] > 0.0)));
+                if !in_s {
+                    continue;
+                }
+                points += 1;
+                // (1) the composed map against the evaluation, within the error bound
+                // plus the evaluation's own rounding.
+                let mut y = vec![0.0; first.out];
+                first.apply_f64(&x, &mut y);
+                let mag: f64 = maps
+                    .iter()
+                    .take(ch.at + 1)
+                    .map(|(m, _)| {
+                        m.w.iter().map(|w| w.abs()).sum::<f64>()
+                            + m.b.iter().map(|b| b.abs()).sum::<f64>()
+                    })
+                    .product::<f64>()
+                    * (1.0 + x.iter().map(|v| v.abs()).sum::<f64>());
+                for i in 0..first.out {
+                    let d = (y[i] - z[ch.at][i]).abs();
+                    assert!(
+                        d <= ch.prefix.e[i] + 1e-13 * mag,
+                        "trial {trial}: {d} > {}",
+                        ch.prefix.e[i]
+                    );
+                }
+                let out = &z[maps.len() - 1];
+                for ((f, _), o) in fs.iter().zip(&objs) {
+                    let v = o.d + o.c.iter().zip(out).map(|(a, b)| a * b).sum::<f64>();
+                    let at =
+                        f.cst + f.coef.iter().zip(&x).map(|(a, b)| a * b).sum::<f64>() - f.slack;
+                    assert!(
+                        at <= v + 1e-12 * (1.0 + v.abs()),
+                        "trial {trial}: {at} > {v}"
+                    );
+                }
+            }
+        }
+        assert!(points > 2000, "{points} points of S sampled");
     }
 }

@@ -1485,16 +1485,65 @@ fn crown_pre_core(
     fwd: Option<&[Vec<(f64, f64)>]>,
     from: usize,
     deadline: Option<std::time::Instant>,
+    lins: Option<&mut PreLinear>,
+    sp: Option<&Sparse>,
+) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_core_rows(maps, lo, hi, fwd, from, deadline, lins, sp, None)
+}
+
+/// [`crown_pre_from`] with the row magnitudes of every map given (`rows`, as for
+/// [`backward_lower_rows`]: from bounds containing `fwd`'s, or raised by
+/// [`rows_with_error`]) instead of computed from the bounds.
+pub(crate) fn crown_pre_from_rows(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: &[Vec<(f64, f64)>],
+    from: usize,
+    rows: &[Vec<f64>],
+) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_core_rows(maps, lo, hi, Some(fwd), from, None, None, None, Some(rows))
+}
+
+/// The row magnitudes of a map `m` applied to the box `[lo, hi]` whose outputs are
+/// only known up to an absolute error `err[i]` (a map composed in f64 from several,
+/// [`crate::phases`]), for [`backward_lower_rows`] and [`crown_pre_from_rows`]: a
+/// pull-back through the map adds `gamma(out + 1) * sum_i |mu_i| * rows[i]` to its slack
+/// (see [`backward_core`]), so raising `rows[i]` by `err[i] / gamma(out + 1)` (and a
+/// relative `1e-9` for the rounding of this division) adds `sum_i |mu_i| * err[i]`, the
+/// most the error can change `mu . z`.
+pub(crate) fn rows_with_error(m: &Affine, lo: &[f64], hi: &[f64], err: &[f64]) -> Vec<f64> {
+    let g = gamma(m.out + 1);
+    row_magnitude(m, None, &magnitudes(lo, hi))
+        .iter()
+        .zip(err)
+        .map(|(r, e)| inflate(r + inflate(e / g)))
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn crown_pre_core_rows(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: Option<&[Vec<(f64, f64)>]>,
+    from: usize,
+    deadline: Option<std::time::Instant>,
     mut lins: Option<&mut PreLinear>,
     sp: Option<&Sparse>,
+    rows: Option<&[Vec<f64>]>,
 ) -> Vec<Vec<(f64, f64)>> {
     // Past the deadline, neurons keep their forward bounds (only when those are given).
     let late = || fwd.is_some() && deadline.is_some_and(|d| std::time::Instant::now() >= d);
     let body = maps.len() - 1;
     let mut pre: Vec<Vec<(f64, f64)>> = Vec::with_capacity(body);
     let mut c = Vec::new();
-    // The row magnitudes of every map's input bound up to k (only the last one is new).
-    let mut rowmag: Vec<Vec<f64>> = Vec::with_capacity(body);
+    // The row magnitudes of every map's input bound up to k (only the last one is new),
+    // or all of them given.
+    let mut rowmag: Vec<Vec<f64>> = match rows {
+        Some(r) => r.to_vec(),
+        None => Vec::with_capacity(body),
+    };
     for k in 0..body {
         if k < from {
             if let Some(f) = fwd {
