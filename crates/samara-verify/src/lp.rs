@@ -35,44 +35,6 @@ pub struct Lp {
     pub c: Vec<f64>,
 }
 
-impl Lp {
-    /// The equalities `z_i - W_i a = b_i` of one affine map, with `z` at variables
-    /// `zo..` and its input `a` at `prev..`.
-    pub(crate) fn push_affine(&mut self, m: &samara_nn::Affine, zo: usize, prev: usize) {
-        for i in 0..m.out {
-            let mut row: Row = vec![(zo + i, 1.0)];
-            for j in 0..m.inp {
-                let w = m.w[i * m.inp + j];
-                if w != 0.0 {
-                    row.push((prev + j, -w));
-                }
-            }
-            self.eq.push((row, m.b[i]));
-        }
-    }
-
-    /// `a = relu(z)` for one layer (`a` at `a..`, `z` at `zo..`): exact for a neuron
-    /// fixed by `phase` (1 active, -1 inactive) or by its bounds `[zl, zh]`, otherwise
-    /// the triangle relaxation (Ehlers 2017) `a >= z`, `a <= s (z - zl)` with a
-    /// `1e-12 (1 + |zh| + |zl|)` margin (`a >= 0` comes from the variable box).
-    pub(crate) fn push_relu(&mut self, a: usize, zo: usize, zl: &[f64], zh: &[f64], phase: &[i8]) {
-        for i in 0..zl.len() {
-            let (l, h) = (zl[i], zh[i]);
-            if phase[i] == 1 || l >= 0.0 {
-                self.eq.push((vec![(a + i, 1.0), (zo + i, -1.0)], 0.0));
-            } else if phase[i] == -1 || h <= 0.0 {
-                self.eq.push((vec![(a + i, 1.0)], 0.0));
-            } else {
-                self.le.push((vec![(zo + i, 1.0), (a + i, -1.0)], 0.0));
-                let s = h / (h - l);
-                let margin = 1e-12 * (1.0 + h.abs() + l.abs());
-                self.le
-                    .push((vec![(a + i, 1.0), (zo + i, -s)], -s * l + margin));
-            }
-        }
-    }
-}
-
 /// Outcome of one LP.
 #[derive(Clone, Debug)]
 pub enum LpResult {
