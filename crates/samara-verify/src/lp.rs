@@ -9,11 +9,11 @@
 //! exact arithmetic whatever the solver's accuracy. Infeasibility is accepted only when
 //! the same inequality with `c = 0` proves it (a Farkas certificate checked the same way).
 
-use crate::net::up;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, ZeroConeT,
 };
+use samara_num::round::{gamma, up};
 
 /// A sparse row `sum coef * var`.
 pub type Row = Vec<(usize, f64)>;
@@ -54,14 +54,12 @@ pub enum LpResult {
     },
 }
 
-const U: f64 = f64::EPSILON;
-
-/// Upper bound on `sum terms` in exact arithmetic.
+/// Upper bound on `sum terms` in exact arithmetic: the float sum plus twice `gamma` of
+/// the term count times the sum of magnitudes (which is itself rounded).
 fn sum_up(terms: &[f64]) -> f64 {
     let s: f64 = terms.iter().sum();
     let a: f64 = terms.iter().map(|t| t.abs()).sum();
-    let n = terms.len() as f64 + 2.0;
-    up(up(s) + up(2.0 * n * U * a))
+    up(up(s) + up(2.0 * gamma(terms.len()) * a))
 }
 
 impl Lp {
@@ -88,7 +86,9 @@ impl Lp {
             for &(j, a) in row {
                 let p = y * a;
                 r[j] -= p;
-                rad[j] += 2.0 * U * (p.abs() + r[j].abs());
+                // The product's and the difference's rounding: `gamma(0) = 2^-51`, four
+                // unit roundoffs, on the larger magnitudes.
+                rad[j] += gamma(0) * (p.abs() + r[j].abs());
             }
         }
         let mut terms = yb;
