@@ -653,7 +653,6 @@ class Spec:
         property: Optional[str] = None,
         timeout: float = 60.0,
         max_nodes: int = 200_000,
-        lp_tighten: bool = False,
     ) -> List[VerifyResult]:
         """Verify every property (or only ``property``): one :class:`VerifyResult` per
         instance (a data-set property has one per point), as ``samara verify --json``.
@@ -662,7 +661,7 @@ class Spec:
         then the label). ``timeout`` is per query in seconds (``math.inf``: none)."""
         with _Datasets(datasets) as ds:
             rows, ws = self._spec.verify(
-                _nets(networks), _params(params), ds, property, _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
+                _nets(networks), _params(params), ds, property, _timeout(timeout), _count("max_nodes", max_nodes)
             )
         _warn(ws)
         return [VerifyResult._of(d) for d in rows]
@@ -676,14 +675,13 @@ class Spec:
         datasets: Optional[Mapping[str, Any]] = None,
         timeout: float = 60.0,
         max_nodes: int = 200_000,
-        lp_tighten: bool = False,
     ) -> CriticalResult:
         """The critical value of parameter ``param`` (declared with a range) for
         ``property``, as ``samara critical --json``."""
         with _Datasets(datasets) as ds:
             d, ws = self._spec.critical(
                 _str("property", property), _str("param", param), _nets(networks), _params(params), ds,
-                _timeout(timeout), _count("max_nodes", max_nodes), bool(lp_tighten)
+                _timeout(timeout), _count("max_nodes", max_nodes)
             )
         _warn(ws)
         return CriticalResult._of(d)

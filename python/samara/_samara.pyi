@@ -44,7 +44,6 @@ class Spec:
         property: Optional[str],
         timeout: float,
         max_nodes: int,
-        lp_tighten: bool,
     ) -> Tuple[List[Dict[str, Any]], List[str]]: ...
     def critical(
         self,
@@ -55,7 +54,6 @@ class Spec:
         datasets: Dict[str, str],
         timeout: float,
         max_nodes: int,
-        lp_tighten: bool,
     ) -> Tuple[Dict[str, Any], List[str]]: ...
 
 def robustness(

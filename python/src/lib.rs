@@ -226,7 +226,7 @@ impl PySpec {
     /// instance (the typed rows of `samara_app::run_verify`, the fields of
     /// `samara verify --json`), and the warnings. Ctrl-C interrupts it.
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (networks, params, datasets, property, timeout, max_nodes, lp_tighten))]
+    #[pyo3(signature = (networks, params, datasets, property, timeout, max_nodes))]
     fn verify<'py>(
         &self,
         py: Python<'py>,
@@ -236,14 +236,13 @@ impl PySpec {
         property: Option<String>,
         timeout: f64,
         max_nodes: usize,
-        lp_tighten: bool,
     ) -> PyResult<(Vec<PyObject>, Vec<String>)> {
         let nets = owned(networks);
         let spec = self.spec.clone();
         let (run, warnings) = interruptible(py, move || {
             let start = Instant::now();
             let l = bind(&spec, nets, &params, None, &datasets)?;
-            let s = settings(timeout, max_nodes, lp_tighten)?;
+            let s = settings(timeout, max_nodes)?;
             let run = samara_app::run_verify(&l, property.as_deref(), &s, start, false, |_| {})?;
             Ok((run, python_words(l.warnings)))
         })?;
@@ -258,7 +257,7 @@ impl PySpec {
     /// `samara_app::CriticalValue` (as `samara critical --json`), and the warnings.
     /// Ctrl-C interrupts it.
     #[allow(clippy::too_many_arguments)]
-    #[pyo3(signature = (property, param, networks, params, datasets, timeout, max_nodes, lp_tighten))]
+    #[pyo3(signature = (property, param, networks, params, datasets, timeout, max_nodes))]
     fn critical<'py>(
         &self,
         py: Python<'py>,
@@ -269,13 +268,12 @@ impl PySpec {
         datasets: HashMap<String, String>,
         timeout: f64,
         max_nodes: usize,
-        lp_tighten: bool,
     ) -> PyResult<(PyObject, Vec<String>)> {
         let nets = owned(networks);
         let spec = self.spec.clone();
         let (c, warnings) = interruptible(py, move || {
             let l = bind(&spec, nets, &params, Some(&param), &datasets)?;
-            let s = settings(timeout, max_nodes, lp_tighten)?;
+            let s = settings(timeout, max_nodes)?;
             let c = samara_app::critical_value(&l, &property, &param, &s)?;
             Ok((c, python_words(l.warnings)))
         })?;
@@ -298,13 +296,8 @@ fn owned(networks: HashMap<String, PyRef<'_, PyNetwork>>) -> HashMap<String, sam
 }
 
 /// The verifier's settings ([`front::verify_settings`]).
-fn settings(timeout: f64, max_nodes: usize, lp_tighten: bool) -> R<Settings> {
-    Ok(front::verify_settings(
-        Front::Python,
-        timeout,
-        max_nodes,
-        lp_tighten,
-    )?)
+fn settings(timeout: f64, max_nodes: usize) -> R<Settings> {
+    Ok(front::verify_settings(Front::Python, timeout, max_nodes)?)
 }
 
 /// Bind a spec's networks, parameters and data sets with the library's checks

@@ -49,10 +49,6 @@ pub struct CheckArgs {
 /// The search flags of `samara verify` and `samara critical`.
 #[derive(clap::Args, Debug, Clone, Copy, Serialize)]
 pub struct SearchFlags {
-    /// Tighten unstable neurons' bounds with LPs at the root of each search
-    /// (`samara_verify::tighten`; off by default).
-    #[arg(long)]
-    pub lp_tighten: bool,
     /// Node limit per search (branch-and-bound nodes per disjunct); a search that reaches
     /// it is `unknown` (node_limit).
     #[arg(long, default_value_t = 200_000)]

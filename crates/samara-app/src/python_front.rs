@@ -36,15 +36,12 @@ pub use crate::simulate::{
 pub use crate::train::{default_min_r2, TrainReport};
 
 /// The verifier's settings of a `verify`, `critical` or `robustness` call: `timeout`
-/// seconds per query (infinite: none; NaN or negative refused), `max_nodes` and the LP
-/// tightening at the root.
+/// seconds per query (infinite: none; NaN or negative refused) and `max_nodes`.
 pub fn verify_settings(
     front: Front,
     timeout: f64,
     max_nodes: usize,
-    lp_tighten: bool,
 ) -> Result<samara_verify::Settings> {
-    use samara_verify::LpTighten;
     let Ok(timeout) = samara_verify::Timeout::from_secs_f64(timeout) else {
         let none = match front {
             Front::Cli => "inf",
@@ -59,11 +56,6 @@ pub fn verify_settings(
     Ok(samara_verify::Settings {
         timeout,
         max_nodes,
-        lp_tighten: if lp_tighten {
-            LpTighten::Root
-        } else {
-            LpTighten::Off
-        },
         ..Default::default()
     })
 }
@@ -667,17 +659,17 @@ mod tests {
 
     #[test]
     fn a_bad_timeout_is_named_in_each_front() {
-        let py = verify_settings(Front::Python, -1.0, 10, false).unwrap_err();
+        let py = verify_settings(Front::Python, -1.0, 10).unwrap_err();
         assert_eq!(
             py.to_string(),
             "timeout -1: must be a number of seconds >= 0 (e.g. timeout=60; float('inf') for no limit)"
         );
-        let cli = verify_settings(Front::Cli, f64::NAN, 10, false).unwrap_err();
+        let cli = verify_settings(Front::Cli, f64::NAN, 10).unwrap_err();
         assert_eq!(
             cli.to_string(),
             "--timeout NaN: must be a number of seconds >= 0 (e.g. --timeout 60; inf for no limit)"
         );
-        let s = verify_settings(Front::Python, f64::INFINITY, 10, true).unwrap();
+        let s = verify_settings(Front::Python, f64::INFINITY, 10).unwrap();
         assert_eq!(
             (s.timeout, s.max_nodes),
             (samara_verify::Timeout::none(), 10)

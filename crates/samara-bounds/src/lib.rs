@@ -36,6 +36,9 @@
 //! - [`optimise`]: branch and bound for the maximum of a linear objective over one
 //!   network's graph under linear constraints on its inputs, outputs and extra variables
 //!   (critical values), input and ReLU splitting with LP bounds certified by weak duality.
+//! - [`rules`]: one home per operator's bound rules (ReLU, clamp, sigmoid, tanh: the
+//!   interval rule, the linear relaxation, the slope range), which every routine above
+//!   and reachability's network step take their relaxations from.
 #![warn(missing_docs)]
 
 pub mod constant;
@@ -46,5 +49,6 @@ pub mod phases;
 pub mod pwl;
 mod query;
 mod relusplit;
+pub mod rules;
 pub mod search;
 pub mod symbolic;

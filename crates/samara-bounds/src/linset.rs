@@ -13,23 +13,9 @@
 //! `(xi, eta)` lose `eta` by the magnitudes of its coefficients; what is returned is their
 //! midpoint over `xi` and a deviation covering both.
 //!
-//! Relaxations (each sound for *any* slope: the intercept is a rigorous bound of
-//! `f(z) - a z` over the range, so the slope choice only affects tightness):
-//!
-//! - ReLU and Clamp: a range inside one linear piece is passed exactly; otherwise
-//!   `f(z) - a z` is piecewise linear, its extremes lie at the range ends and the kinks,
-//!   and the slope is chosen among 0, 1 and the chords between those points by the area
-//!   between the line and the function (CROWN's criterion; for ReLU this gives the chord
-//!   above and DeepPoly/CROWN's adaptive 0-or-1 slope below).
-//! - Tanh and Sigmoid: convex on `z <= 0`, concave on `z >= 0`. On a piece where
-//!   `h(z) = +-(f(z) - a z)` is convex, its maximum is at the piece's ends; where it is
-//!   concave, it lies below its tangent at (a floating-point approximation of) its
-//!   maximiser, which is rigorous at any point. Slopes: CROWN's chord over a range of
-//!   fixed curvature on the chord side and the tangent at the midpoint on the other; on
-//!   a range containing the inflection point (CROWN's mixed case) the best slope for the
-//!   area criterion is searched among the chord, the end and midpoint derivatives and a
-//!   ternary search over the slope range (the optimum is CROWN's tangent through an end
-//!   point, reached up to the search's resolution; every candidate is sound).
+//! Relaxations: each activation's lines and interval rule come from [`crate::rules`]
+//! (ReLU and clamp as piecewise-linear functions, tanh and sigmoid by chords and
+//! tangents); each is sound for *any* slope, so the slope choice only affects tightness.
 //!
 //! Rounding (the discipline of [`crate::symbolic`]): every f64 dot product of the
 //! back-substitution has its error bounded by `(k + 2) * EPSILON` (twice Higham's
@@ -120,17 +106,8 @@ pub enum LinsetError {
     },
 }
 
+use crate::rules::{self, Relax};
 use samara_num::round::{gamma, inflate};
-
-/// Lower and upper lines of one activation over its pre-activation range:
-/// `al z + bl <= f(z) <= au z + bu` for every real `z` in the range, exactly.
-#[derive(Clone, Copy, Debug, PartialEq)]
-struct Relax {
-    al: f64,
-    bl: f64,
-    au: f64,
-    bu: f64,
-}
 
 enum Op {
     Aff(Affine),
@@ -249,7 +226,7 @@ pub fn bound_over_linear_set(
         let rel = match &st.ops[k] {
             Op::Act(act) => bounds[k - 1]
                 .iter()
-                .map(|&(l, u)| relax(*act, l, u))
+                .map(|&(l, u)| rules::relax(*act, l, u))
                 .collect(),
             Op::Aff(_) => Vec::new(),
         };
@@ -260,7 +237,7 @@ pub fn bound_over_linear_set(
         let b: Vec<(f64, f64)> = match &st.ops[k] {
             Op::Act(act) => bounds[k - 1]
                 .iter()
-                .map(|&(l, u)| act_range(*act, l, u))
+                .map(|&(l, u)| rules::interval(*act, l, u))
                 .collect(),
             Op::Aff(a) => (0..a.out)
                 .into_par_iter()
@@ -315,7 +292,8 @@ pub fn bound_over_linear_set(
             let f = match &st.ops[last] {
                 Op::Aff(a) => forward_interval(a, j, &bounds[last - 1]),
                 Op::Act(act) => {
-                    let (l, u) = act_range(*act, bounds[last - 1][j].0, bounds[last - 1][j].1);
+                    let (l, u) =
+                        rules::interval(*act, bounds[last - 1][j].0, bounds[last - 1][j].1);
                     Interval::new(l, u)
                 }
             };
@@ -483,329 +461,5 @@ impl State {
             cst,
             err: inflate(err),
         }
-    }
-}
-
-/// Sound range of `f(z)` for `z in [l, u]` (every activation here is monotone).
-fn act_range(act: Activation, l: f64, u: f64) -> (f64, f64) {
-    match act {
-        Activation::Relu => (l.max(0.0), u.max(0.0)),
-        Activation::Clamp { lo, hi } => (l.max(lo).min(hi), u.max(lo).min(hi)),
-        Activation::Tanh | Activation::Sigmoid => {
-            let (a, b) = (smooth_f(act, l), smooth_f(act, u));
-            let (lo, hi) = if act == Activation::Tanh {
-                (-1.0, 1.0)
-            } else {
-                (0.0, 1.0)
-            };
-            (a.lo.max(lo), b.hi.min(hi))
-        }
-    }
-}
-
-/// Enclosure of `tanh(z)` or `sigmoid(z)`.
-fn smooth_f(act: Activation, z: f64) -> Interval {
-    let x = Interval::point(z);
-    if act == Activation::Tanh {
-        x.tanh()
-    } else {
-        x.sigmoid()
-    }
-}
-
-/// Enclosure of the derivative of `tanh` or `sigmoid` at `z`.
-fn smooth_df(act: Activation, z: f64) -> Interval {
-    let f = smooth_f(act, z);
-    let one = Interval::point(1.0);
-    if act == Activation::Tanh {
-        one - f.sqr()
-    } else {
-        f * (one - f)
-    }
-}
-
-/// An approximate non-negative solution of `f'(z) = a` (`+inf` when `a <= 0`, 0 when
-/// `a` is at least the maximum of `f'`); only used to place a tangent, never for soundness.
-fn smooth_dinv(act: Activation, a: f64) -> f64 {
-    if a <= 0.0 {
-        return f64::INFINITY;
-    }
-    if act == Activation::Tanh {
-        if a >= 1.0 {
-            0.0
-        } else {
-            (1.0 - a).sqrt().atanh()
-        }
-    } else if a >= 0.25 {
-        0.0
-    } else {
-        let s = 0.5 * (1.0 + (1.0 - 4.0 * a).sqrt());
-        (s / (1.0 - s)).ln()
-    }
-}
-
-/// A rigorous upper bound of `h(z) = s (f(z) - a z)` over `[l, u]` for `f` = tanh or
-/// sigmoid, `s = +-1`: split at the inflection point 0; on a convex piece the maximum is
-/// at an end; on a concave piece `h` lies below its tangent at any point, taken near the
-/// maximiser.
-fn smooth_max(act: Activation, s: f64, a: f64, l: f64, u: f64) -> f64 {
-    let h = |z: f64| (smooth_f(act, z) - Interval::point(a) * Interval::point(z)) * s;
-    let piece = |p: f64, q: f64| -> f64 {
-        // f is convex on z <= 0; s = -1 flips the curvature.
-        let convex = (q <= 0.0) == (s > 0.0);
-        if convex {
-            return h(p).hi.max(h(q).hi);
-        }
-        let zs = smooth_dinv(act, a);
-        let mut z1 = if q <= 0.0 { -zs } else { zs };
-        if z1.is_nan() {
-            z1 = 0.5 * p + 0.5 * q;
-        }
-        let z1 = z1.clamp(p, q);
-        let dh = (smooth_df(act, z1) - Interval::point(a)) * s;
-        let t1 = dh * (Interval::point(p) - Interval::point(z1));
-        let t2 = dh * (Interval::point(q) - Interval::point(z1));
-        (h(z1) + t1).hi.max((h(z1) + t2).hi)
-    };
-    let r = if l < 0.0 && u > 0.0 {
-        piece(l, 0.0).max(piece(0.0, u))
-    } else {
-        piece(l, u)
-    };
-    if r.is_nan() {
-        f64::INFINITY
-    } else {
-        r
-    }
-}
-
-/// Sound lines for one activation over `[l, u]` (module doc).
-fn relax(act: Activation, l: f64, u: f64) -> Relax {
-    match act {
-        Activation::Relu => pwl_relax(|z| z.max(0.0), &[0.0], l, u),
-        Activation::Clamp { lo, hi } => {
-            let bps: Vec<f64> = [lo, hi].into_iter().filter(|b| b.is_finite()).collect();
-            pwl_relax(|z| z.max(lo).min(hi), &bps, l, u)
-        }
-        Activation::Tanh | Activation::Sigmoid => smooth_relax(act, l, u),
-    }
-}
-
-/// Piecewise-linear `f` with slopes 0 or 1 and kinks `bps` (sorted).
-fn pwl_relax(f: impl Fn(f64) -> f64, bps: &[f64], l: f64, u: f64) -> Relax {
-    let inside: Vec<f64> = bps.iter().copied().filter(|&b| b > l && b < u).collect();
-    if inside.is_empty() {
-        // One linear piece, passed exactly: the identity (the only slope-1 piece of ReLU
-        // and Clamp) or a constant.
-        let (fl, fu) = (f(l), f(u));
-        if fl == l && fu == u {
-            return Relax {
-                al: 1.0,
-                bl: 0.0,
-                au: 1.0,
-                bu: 0.0,
-            };
-        }
-        debug_assert!(fl == fu);
-        return Relax {
-            al: 0.0,
-            bl: fl.min(fu),
-            au: 0.0,
-            bu: fl.max(fu),
-        };
-    }
-    let mut pts = vec![l];
-    pts.extend_from_slice(&inside);
-    pts.push(u);
-    let g = |a: f64, z: f64| sub_prod(f(z), a, z);
-    let upper = |a: f64| {
-        pts.iter()
-            .map(|&z| g(a, z).hi)
-            .fold(f64::NEG_INFINITY, f64::max)
-    };
-    let lower = |a: f64| {
-        pts.iter()
-            .map(|&z| g(a, z).lo)
-            .fold(f64::INFINITY, f64::min)
-    };
-    let mut cands = vec![0.0, 1.0];
-    for (i, &x) in pts.iter().enumerate() {
-        for &y in &pts[i + 1..] {
-            let s = (f(y) - f(x)) / (y - x);
-            if s.is_finite() {
-                cands.push(s);
-            }
-        }
-    }
-    let mid = 0.5 * l + 0.5 * u;
-    pick(&cands, mid, upper, lower)
-}
-
-/// Enclosure of `f - a z`: the exact value when the f64 operations are exact (checked
-/// with an FMA residual and a two-sum error term), else outward interval arithmetic.
-fn sub_prod(f: f64, a: f64, z: f64) -> Interval {
-    let p = a * z;
-    let tiny = p.abs() < 1e-290 && !(a == 0.0 || z == 0.0);
-    if !tiny && p.is_finite() && f.is_finite() {
-        let e = a.mul_add(z, -p); // a z = p + e exactly (no underflow)
-        let s = f - p;
-        let bp = s - f;
-        let t = (f - (s - bp)) + (-p - bp); // f - p = s + t exactly
-        if e == 0.0 && t == 0.0 {
-            return Interval::point(s);
-        }
-    }
-    Interval::point(f) - Interval::point(a) * Interval::point(z)
-}
-
-/// Among slopes `cands`, the upper line with the least value at `mid` and the lower line
-/// with the greatest (CROWN's area criterion); the intercepts are `upper(a)`, `lower(a)`.
-fn pick(cands: &[f64], mid: f64, upper: impl Fn(f64) -> f64, lower: impl Fn(f64) -> f64) -> Relax {
-    let mut best_u = (f64::INFINITY, 0.0, f64::INFINITY);
-    let mut best_l = (f64::NEG_INFINITY, 0.0, f64::NEG_INFINITY);
-    for &a in cands {
-        let bu = upper(a);
-        let vu = bu + a * mid;
-        if vu < best_u.0 {
-            best_u = (vu, a, bu);
-        }
-        let bl = lower(a);
-        let vl = bl + a * mid;
-        if vl > best_l.0 {
-            best_l = (vl, a, bl);
-        }
-    }
-    Relax {
-        al: best_l.1,
-        bl: best_l.2,
-        au: best_u.1,
-        bu: best_u.2,
-    }
-}
-
-/// CROWN-style lines for tanh or sigmoid over `[l, u]` (module doc).
-fn smooth_relax(act: Activation, l: f64, u: f64) -> Relax {
-    let upper = |a: f64| smooth_max(act, 1.0, a, l, u);
-    let lower = |a: f64| -smooth_max(act, -1.0, a, l, u);
-    let mid = 0.5 * l + 0.5 * u;
-    let d = |z: f64| smooth_df(act, z).value();
-    let (fl, fu) = (smooth_f(act, l).value(), smooth_f(act, u).value());
-    let mut cands = vec![0.0, d(l), d(u), d(mid)];
-    let chord = (fu - fl) / (u - l);
-    if chord.is_finite() {
-        cands.push(chord);
-    }
-    let mut r = pick(&cands, mid, upper, lower);
-    if l < 0.0 && u > 0.0 {
-        // Mixed curvature: ternary search of the slope for each line, over
-        // [0, max f'] (f' is largest at 0).
-        let amax = d(0.0);
-        let search = |val: &dyn Fn(f64) -> f64| -> f64 {
-            let (mut a, mut b) = (0.0, amax);
-            for _ in 0..48 {
-                let m1 = a + (b - a) / 3.0;
-                let m2 = b - (b - a) / 3.0;
-                if val(m1) <= val(m2) {
-                    b = m2;
-                } else {
-                    a = m1;
-                }
-            }
-            0.5 * (a + b)
-        };
-        let au = search(&|a| upper(a) + a * mid);
-        let al = search(&|a| -(lower(a) + a * mid));
-        let (bu, bl) = (upper(au), lower(al));
-        if bu + au * mid < r.bu + r.au * mid {
-            r.au = au;
-            r.bu = bu;
-        }
-        if bl + al * mid > r.bl + r.al * mid {
-            r.al = al;
-            r.bl = bl;
-        }
-    }
-    r
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use rand::{Rng, SeedableRng};
-
-    /// Every relaxation is checked on a dense grid and at random points, in f64 with a
-    /// tolerance far below the margins involved (1e-12 absolute on values in [-1e2, 1e2]).
-    #[test]
-    fn relaxations_are_sound_on_grids() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(3);
-        let acts = [
-            Activation::Relu,
-            Activation::Tanh,
-            Activation::Sigmoid,
-            Activation::Clamp { lo: -0.5, hi: 1.5 },
-            Activation::Clamp {
-                lo: f64::NEG_INFINITY,
-                hi: 0.25,
-            },
-            Activation::Clamp {
-                lo: 0.0,
-                hi: f64::INFINITY,
-            },
-        ];
-        for _ in 0..3000 {
-            let act = acts[rng.gen_range(0..acts.len())];
-            let scale: f64 = [0.01, 1.0, 5.0, 40.0][rng.gen_range(0..4)];
-            let (a, b): (f64, f64) = (rng.gen_range(-scale..scale), rng.gen_range(-scale..scale));
-            let (l, u) = if rng.gen_bool(0.05) {
-                (a, a)
-            } else {
-                (a.min(b), a.max(b))
-            };
-            let r = relax(act, l, u);
-            for t in 0..=200 {
-                let z = if t < 200 {
-                    l + (u - l) * t as f64 / 200.0
-                } else {
-                    u
-                };
-                let z = z.clamp(l, u);
-                let f = act.apply_f64(z);
-                let lo = r.al * z + r.bl;
-                let hi = r.au * z + r.bu;
-                assert!(
-                    lo <= f + 1e-12 && f <= hi + 1e-12,
-                    "{act:?} on [{l}, {u}] at {z}: {lo} <= {f} <= {hi} ({r:?})"
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn relu_relaxation_is_crowns() {
-        // Intercepts are rounded outward by an ulp even when exact.
-        let r = relax(Activation::Relu, -1.0, 3.0);
-        assert!(r.al == 1.0 && r.bl.abs() < 1e-300, "{r:?}");
-        assert!((r.au - 0.75).abs() < 1e-15 && (r.bu - 0.75).abs() < 1e-15);
-        let r = relax(Activation::Relu, -3.0, 1.0);
-        assert!(r.al == 0.0 && r.bl.abs() < 1e-300, "{r:?}");
-        let r = relax(Activation::Relu, 0.5, 3.0);
-        assert_eq!(
-            r,
-            Relax {
-                al: 1.0,
-                bl: 0.0,
-                au: 1.0,
-                bu: 0.0
-            }
-        );
-    }
-
-    #[test]
-    fn tanh_chord_in_convex_region() {
-        let (l, u) = (-3.0f64, -1.0f64);
-        let r = relax(Activation::Tanh, l, u);
-        let chord = (u.tanh() - l.tanh()) / (u - l);
-        assert!((r.au - chord).abs() < 1e-12, "{r:?} vs {chord}");
-        assert!((r.au * l + r.bu - l.tanh()).abs() < 1e-12);
     }
 }

@@ -71,6 +71,7 @@
 // alpha steps and 5,500 with; ReLU splitting only: no answer in 60 s).
 
 use crate::phases::unstable;
+use crate::rules::relu;
 use crate::symbolic::{self, Linear, Objective};
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
@@ -1077,8 +1078,8 @@ fn process(
                 Some(z) => {
                     let zc = z[u.1].clamp(l, h);
                     let relu = zc.max(0.0);
-                    let chord = h * (zc - l) / (h - l);
-                    let lower = if h > -l { zc } else { 0.0 };
+                    let chord = relu::chord_at(l, h, zc);
+                    let lower = relu::default_lower_slope(l, h) * zc;
                     (chord - relu) + (relu - lower) + 1e-9 * balance
                 }
                 None => balance,

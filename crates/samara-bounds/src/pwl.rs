@@ -4,6 +4,7 @@
 //! `clamp(z, lo, hi) = lo + relu(z - lo) - relu(z - hi)`), and sound interval bounds
 //! with outward rounding.
 
+use crate::rules::relu;
 use samara_nn::{Activation, Affine, Layer, Network};
 
 /// The network as a chain of affine maps `z = W a + b`, each followed by a ReLU or not.
@@ -276,7 +277,7 @@ pub fn back_substitute(
                 zc[t] = *c;
             } else if ph == -1 || u <= 0.0 {
             } else {
-                let slope = u / (u - l);
+                let slope = relu::chord_slope(l, u);
                 if *c > 0.0 {
                     // a <= slope (z - l)
                     zc[t] = c * slope;
@@ -284,7 +285,7 @@ pub fn back_substitute(
                     mag += (c * slope * l).abs();
                 } else {
                     // a >= lambda z, lambda in {0, 1}.
-                    let lambda = if u > -l { 1.0 } else { 0.0 };
+                    let lambda = relu::default_lower_slope(l, u);
                     zc[t] = c * lambda;
                 }
             }

@@ -30,6 +30,7 @@
 //! reports that as unknown, not as a proof.
 
 use crate::query::{forward, satisfies, Case};
+use crate::rules::relu;
 use crate::symbolic::{self, Linear, Objective, Sparse};
 use rayon::prelude::*;
 use samara_nn::Affine;
@@ -230,7 +231,7 @@ fn optimise(
             break;
         }
         adam_a.step(&mut alpha, &cur, it, &lr_a, unstable, |_, _, v| {
-            v.clamp(0.0, 1.0)
+            relu::alpha_range(v)
         });
         if !splits.is_empty() {
             adam_b.step(
@@ -381,10 +382,10 @@ pub(crate) fn examine(
             continue;
         }
         for (t, &(l, u)) in layer.iter().enumerate() {
-            if !(l < 0.0 && u > 0.0) {
+            if !relu::unstable(l, u) {
                 continue;
             }
-            let gap = u * (-l) / (u - l);
+            let gap = relu::gap(l, u);
             let sc = nu[j + 1][t].abs() * gap;
             if pick.is_none_or(|p| sc > p.0) {
                 pick = Some((sc, j, t));
@@ -410,8 +411,8 @@ pub(crate) fn examine(
                 continue;
             }
             for (t, &(l, u)) in layer.iter().enumerate() {
-                if l < 0.0 && u > 0.0 {
-                    let sc = nu[j + 1][t].abs() * (u * (-l) / (u - l));
+                if relu::unstable(l, u) {
+                    let sc = nu[j + 1][t].abs() * relu::gap(l, u);
                     if sc > 0.0 {
                         cands.push((sc, j, t));
                     }

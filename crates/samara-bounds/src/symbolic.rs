@@ -17,6 +17,7 @@
 //! (whichever loses less area, as DeepPoly chooses). A neuron whose ranges decide its
 //! phase is passed exactly.
 
+use crate::rules::relu;
 use samara_nn::Affine;
 
 /// One linear function of the inputs, `coef . x + cst`, with a slack.
@@ -270,8 +271,7 @@ pub fn relu(z: &LayerBounds, lo: &[f64], hi: &[f64], known: Option<&[(f64, f64)]
             u.clone()
         } else {
             // Chord over [ul, uh]: relu(t) <= s (t - ul), s >= uh / (uh - ul).
-            let d = (uh - ul).next_down();
-            let s = (uh / d).next_up();
+            let s = relu::chord_slope_up(ul, uh);
             let mut f = Linear::zero(n);
             let mut mag = 0.0;
             for ((fc, uc), xm) in f.coef.iter_mut().zip(&u.coef).zip(&xmax) {
@@ -288,7 +288,7 @@ pub fn relu(z: &LayerBounds, lo: &[f64], hi: &[f64], known: Option<&[(f64, f64)]
         let (ll, lh) = (l.min_over(lo, hi), l.max_over(lo, hi));
         lower.push(if lh <= 0.0 {
             Linear::zero(n)
-        } else if ll >= 0.0 || lh > -ll {
+        } else if ll >= 0.0 || relu::default_lower_slope(ll, lh) == 1.0 {
             // relu(t) >= t.
             l.clone()
         } else {
@@ -575,8 +575,7 @@ pub fn hidden_pre_until(
                     zu.cst[i] = 0.0;
                     zu.slack[i] = 0.0;
                 } else if ul < 0.0 {
-                    let d = (uh - ul).next_down();
-                    let s = (uh / d).next_up();
+                    let s = relu::chord_slope_up(ul, uh);
                     let mut mg = 0.0;
                     for (fc, xm) in zu.coef[row.clone()].iter_mut().zip(&xmax) {
                         *fc *= s;
@@ -588,7 +587,7 @@ pub fn hidden_pre_until(
                     zu.slack[i] = inflate(s * zu.slack[i] + gamma(3) * mg);
                 }
                 let (ll, lh) = (zl.bound(i, n, lo, hi, false), zl.bound(i, n, lo, hi, true));
-                if lh <= 0.0 || !(ll >= 0.0 || lh > -ll) {
+                if lh <= 0.0 || !(ll >= 0.0 || relu::default_lower_slope(ll, lh) == 1.0) {
                     zl.coef[row].iter_mut().for_each(|v| *v = 0.0);
                     zl.cst[i] = 0.0;
                     zl.slack[i] = 0.0;
@@ -935,8 +934,7 @@ fn backward_core(
             if l >= 0.0 {
                 z[t] = v;
             } else if v < 0.0 {
-                let d = (u - l).next_down();
-                let s = (u / d).next_up();
+                let s = relu::chord_slope_up(l, u);
                 z[t] = v * s;
                 let c = -(v * s) * l;
                 cst += c;
@@ -944,10 +942,10 @@ fn backward_core(
                 err += 2.0 * f64::EPSILON * (z[t].abs() * l.abs().max(u.abs()) + c.abs())
                     + f64::EPSILON * cst.abs();
             } else if let Some(a) = alpha {
-                let al = a[j - 1][t].clamp(0.0, 1.0);
+                let al = relu::alpha_range(a[j - 1][t]);
                 z[t] = v * al;
                 err += f64::EPSILON * z[t].abs() * l.abs().max(u.abs());
-            } else if u > -l {
+            } else if relu::default_lower_slope(l, u) == 1.0 {
                 z[t] = v;
             }
         }
@@ -975,7 +973,7 @@ pub fn default_alpha(maps: &[(Affine, bool)], pre: &[Vec<(f64, f64)>]) -> Vec<Ve
         .take(maps.len().saturating_sub(1))
         .map(|b| {
             b.iter()
-                .map(|&(l, u)| if u > -l { 1.0 } else { 0.0 })
+                .map(|&(l, u)| relu::default_lower_slope(l, u))
                 .collect()
         })
         .collect()
@@ -1091,7 +1089,7 @@ pub(crate) fn value_grad(
                 *gt = 0.0;
             } else if l >= 0.0 {
             } else if v < 0.0 {
-                let s = u / (u - l);
+                let s = relu::chord_slope(l, u);
                 *gt = *gt * s - s * l;
             } else {
                 grad[j][t] = *gt * v;
@@ -1145,7 +1143,7 @@ fn pull_f64(
                 *v = 0.0;
             } else if l >= 0.0 {
             } else if *v < 0.0 {
-                let s = u / (u - l);
+                let s = relu::chord_slope(l, u);
                 cst -= *v * s * l;
                 *v *= s;
             } else {
@@ -1256,7 +1254,7 @@ fn alpha_lower_sp(
         let eta = 0.5 / (1.0 + it as f64 * 0.3);
         for (a, g) in alpha.iter_mut().zip(&grad) {
             for (ai, gi) in a.iter_mut().zip(g) {
-                *ai = (*ai + eta * gi / gmax).clamp(0.0, 1.0);
+                *ai = relu::alpha_range(*ai + eta * gi / gmax);
             }
         }
     }

@@ -9,7 +9,7 @@ use samara_app::bind::timeout_flag;
 use samara_app::robustness::{self, SweepDone};
 use samara_app::vnncomp::{decide, load_instance, result_text, InstanceVerdict};
 use samara_app::{Holds, VerdictRow};
-use samara_verify::{LpTighten, Settings, Verdict};
+use samara_verify::{Settings, Verdict};
 use std::path::Path;
 use std::process::ExitCode;
 use std::time::Instant;
@@ -48,7 +48,6 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
     let settings = Settings {
         timeout,
         max_nodes: a.search.max_nodes,
-        lp_tighten: tighten_mode(a.search.lp_tighten),
         ..Default::default()
     };
     let json_out = a.search.json;
@@ -80,14 +79,6 @@ pub fn run_verify(a: &VerifyArgs) -> Result<ExitCode> {
     })
 }
 
-fn tighten_mode(on: bool) -> LpTighten {
-    if on {
-        LpTighten::Root
-    } else {
-        LpTighten::Off
-    }
-}
-
 /// Run `samara critical`: exit 0 with a result from complete searches, 1 when a
 /// search was cut short (`unknown`). The decision is the library's
 /// ([`samara_app::critical_value`]).
@@ -106,7 +97,6 @@ pub fn run_critical(a: &CriticalArgs) -> Result<ExitCode> {
         &Settings {
             timeout,
             max_nodes: a.search.max_nodes,
-            lp_tighten: tighten_mode(a.search.lp_tighten),
             ..Default::default()
         },
     )?;

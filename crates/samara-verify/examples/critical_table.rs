@@ -1,16 +1,15 @@
 //! P1-P4 critical values for networks with the case study's conventions:
 //! `cargo run --release -p samara-verify --example critical_table -- REFERENCE_DIR
-//! [--lp-tighten off|root|depth:N] [--raw NET.onnx ...] [--only-raw]`
+//! [--raw NET.onnx ...] [--only-raw]`
 //! (`--raw`: more networks in raw units, e.g. a 6-64-32-1 one trained by samara).
 //! The properties, units and domain are those of models/alsomitra/alsomitra.spec.
 
-use samara_verify::{optimise, LpTighten, Prepared, Settings};
+use samara_verify::{optimise, Prepared, Settings};
 use std::collections::HashMap;
 
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let mut dir = std::path::PathBuf::from("../shared/reference");
-    let mut tighten = LpTighten::Off;
     let mut files: Vec<String> = [
         "base_model_norm.onnx",
         "adversarial_model_norm.onnx",
@@ -24,25 +23,13 @@ fn main() {
     let mut it = args.iter();
     while let Some(a) = it.next() {
         match a.as_str() {
-            "--lp-tighten" => {
-                tighten = match it.next().map(|s| s.as_str()) {
-                    Some("off") => LpTighten::Off,
-                    Some("root") => LpTighten::Root,
-                    Some(d) if d.starts_with("depth:") => LpTighten::Depth(d[6..].parse().unwrap()),
-                    o => panic!("--lp-tighten off|root|depth:N, not {o:?}"),
-                }
-            }
             "--raw" => raw_extra.push(it.next().expect("--raw PATH").clone()),
             "--only-raw" => files.clear(),
             d => dir = d.into(),
         }
     }
     files.extend(raw_extra);
-    let settings = Settings {
-        lp_tighten: tighten,
-        ..Default::default()
-    };
-    println!("lp_tighten: {tighten:?}");
+    let settings = Settings::default();
     let mut total = 0.0;
     for file in &files {
         let net = samara_nn::onnx::load(dir.join(file)).unwrap();

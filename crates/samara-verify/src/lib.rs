@@ -60,7 +60,6 @@ pub mod robustness;
 pub mod route;
 pub mod single;
 pub mod smooth;
-pub mod tighten;
 
 use net::PwlNet;
 use point::{Limits, Point, Problem};
@@ -70,7 +69,6 @@ pub use samara_num::Timeout;
 use samara_spec::normal::{Goal, Query, Sense, Var};
 use std::collections::HashMap;
 use std::time::Instant;
-pub use tighten::LpTighten;
 
 /// Verification settings.
 #[derive(Clone, Copy, Debug)]
@@ -82,12 +80,6 @@ pub struct Settings {
     pub max_nodes: usize,
     /// Absolute optimality gap at which a critical value counts as exact.
     pub gap: f64,
-    /// LP-based tightening of each unstable neuron's pre-activation bounds
-    /// ([`tighten`]), a setting of the ReLU-phase search that was removed: the exact
-    /// engine ([`single`]) tightens the earliest unstable layer by LP at every node
-    /// itself and does not read this field (kept so that callers setting it still
-    /// build; `samara --lp-tighten` has no effect).
-    pub lp_tighten: LpTighten,
 }
 
 impl Default for Settings {
@@ -96,7 +88,6 @@ impl Default for Settings {
             timeout: Timeout::from_secs(60),
             max_nodes: 200_000,
             gap: 1e-9,
-            lp_tighten: LpTighten::Off,
         }
     }
 }

@@ -9,11 +9,11 @@
 //! exact arithmetic whatever the solver's accuracy. Infeasibility is accepted only when
 //! the same inequality with `c = 0` proves it (a Farkas certificate checked the same way).
 
-use crate::net::up;
 use clarabel::algebra::CscMatrix;
 use clarabel::solver::{
     DefaultSettingsBuilder, DefaultSolver, IPSolver, NonnegativeConeT, SolverStatus, ZeroConeT,
 };
+use samara_num::round::{gamma, up};
 
 /// A sparse row `sum coef * var`.
 pub type Row = Vec<(usize, f64)>;
@@ -35,44 +35,6 @@ pub struct Lp {
     pub c: Vec<f64>,
 }
 
-impl Lp {
-    /// The equalities `z_i - W_i a = b_i` of one affine map, with `z` at variables
-    /// `zo..` and its input `a` at `prev..`.
-    pub(crate) fn push_affine(&mut self, m: &samara_nn::Affine, zo: usize, prev: usize) {
-        for i in 0..m.out {
-            let mut row: Row = vec![(zo + i, 1.0)];
-            for j in 0..m.inp {
-                let w = m.w[i * m.inp + j];
-                if w != 0.0 {
-                    row.push((prev + j, -w));
-                }
-            }
-            self.eq.push((row, m.b[i]));
-        }
-    }
-
-    /// `a = relu(z)` for one layer (`a` at `a..`, `z` at `zo..`): exact for a neuron
-    /// fixed by `phase` (1 active, -1 inactive) or by its bounds `[zl, zh]`, otherwise
-    /// the triangle relaxation (Ehlers 2017) `a >= z`, `a <= s (z - zl)` with a
-    /// `1e-12 (1 + |zh| + |zl|)` margin (`a >= 0` comes from the variable box).
-    pub(crate) fn push_relu(&mut self, a: usize, zo: usize, zl: &[f64], zh: &[f64], phase: &[i8]) {
-        for i in 0..zl.len() {
-            let (l, h) = (zl[i], zh[i]);
-            if phase[i] == 1 || l >= 0.0 {
-                self.eq.push((vec![(a + i, 1.0), (zo + i, -1.0)], 0.0));
-            } else if phase[i] == -1 || h <= 0.0 {
-                self.eq.push((vec![(a + i, 1.0)], 0.0));
-            } else {
-                self.le.push((vec![(zo + i, 1.0), (a + i, -1.0)], 0.0));
-                let s = h / (h - l);
-                let margin = 1e-12 * (1.0 + h.abs() + l.abs());
-                self.le
-                    .push((vec![(a + i, 1.0), (zo + i, -s)], -s * l + margin));
-            }
-        }
-    }
-}
-
 /// Outcome of one LP.
 #[derive(Clone, Debug)]
 pub enum LpResult {
@@ -92,14 +54,12 @@ pub enum LpResult {
     },
 }
 
-const U: f64 = f64::EPSILON;
-
-/// Upper bound on `sum terms` in exact arithmetic.
+/// Upper bound on `sum terms` in exact arithmetic: the float sum plus twice `gamma` of
+/// the term count times the sum of magnitudes (which is itself rounded).
 fn sum_up(terms: &[f64]) -> f64 {
     let s: f64 = terms.iter().sum();
     let a: f64 = terms.iter().map(|t| t.abs()).sum();
-    let n = terms.len() as f64 + 2.0;
-    up(up(s) + up(2.0 * n * U * a))
+    up(up(s) + up(2.0 * gamma(terms.len()) * a))
 }
 
 impl Lp {
@@ -126,7 +86,9 @@ impl Lp {
             for &(j, a) in row {
                 let p = y * a;
                 r[j] -= p;
-                rad[j] += 2.0 * U * (p.abs() + r[j].abs());
+                // The product's and the difference's rounding: `gamma(0) = 2^-51`, four
+                // unit roundoffs, on the larger magnitudes.
+                rad[j] += gamma(0) * (p.abs() + r[j].abs());
             }
         }
         let mut terms = yb;

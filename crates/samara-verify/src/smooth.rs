@@ -1,22 +1,18 @@
 //! Networks with smooth activations (sigmoid, tanh): a sound interval prover with input
 //! splitting. Each box of inputs is pushed through the network in interval arithmetic
-//! (outward rounding; sigmoid and tanh are monotone, so their images are the images of
-//! the end points, widened by a relative 4e-16 plus one ulp to cover the at most few-ulp
-//! error of the library `exp`/`tanh`); a box whose outputs certainly violate a region
+//! (each activation's interval rule from `samara_bounds::rules`: sigmoid and tanh are
+//! monotone, so their images are the enclosures of the end points' images in
+//! outward-rounded `samara_num::Interval` arithmetic); a box whose outputs certainly violate a region
 //! constraint holds no counterexample. Boxes are bisected along their widest input until
 //! a box's centre, evaluated concretely, is a counterexample (Violated), every box is
 //! pruned (Proved), or the budget runs out (Unknown, never Proved).
 
 use crate::net::{affine_bounds, down, up};
 use crate::point::Point;
-use samara_nn::{Activation, Layer, Network};
+use samara_nn::{Layer, Network};
 use samara_num::Timeout;
 use samara_spec::normal::{Cmp, Constraint, Var};
 use std::time::Instant;
-
-fn widen(lo: f64, hi: f64) -> (f64, f64) {
-    (down(lo - 4e-16 * lo.abs()), up(hi + 4e-16 * hi.abs()))
-}
 
 /// Sound interval image of a box through a network (any of the IR's activations).
 pub fn interval_eval(net: &Network, lo: &[f64], hi: &[f64]) -> (Vec<f64>, Vec<f64>) {
@@ -30,18 +26,7 @@ pub fn interval_eval(net: &Network, lo: &[f64], hi: &[f64]) -> (Vec<f64>, Vec<f6
             }
             Layer::Act(act) => {
                 for i in 0..l.len() {
-                    let (a, b) = match act {
-                        Activation::Relu => (l[i].max(0.0), h[i].max(0.0)),
-                        Activation::Clamp { lo, hi } => {
-                            (l[i].max(lo).min(hi), h[i].max(lo).min(hi))
-                        }
-                        Activation::Sigmoid => {
-                            widen(1.0 / (1.0 + (-l[i]).exp()), 1.0 / (1.0 + (-h[i]).exp()))
-                        }
-                        Activation::Tanh => widen(l[i].tanh(), h[i].tanh()),
-                    };
-                    l[i] = a;
-                    h[i] = b;
+                    (l[i], h[i]) = samara_bounds::rules::interval(act, l[i], h[i]);
                 }
             }
         }

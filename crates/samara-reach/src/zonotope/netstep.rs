@@ -15,6 +15,7 @@
 
 use super::set::Zonotope;
 use samara_bounds::pwl::{affine_bounds, back_substitute, deeppoly, relu_indices, PwlNet};
+use samara_bounds::rules::relu;
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_num::Interval;
 
@@ -107,8 +108,11 @@ fn crown(net: &PwlNet, k: usize) -> ControlSet {
         lo.push(l.clone());
         hi.push(h.clone());
         if *relu {
-            alo = l.iter().map(|v| v.max(0.0)).collect();
-            ahi = h.iter().map(|v| v.max(0.0)).collect();
+            (alo, ahi) = l
+                .iter()
+                .zip(&h)
+                .map(|(&a, &b)| relu::interval(a, b))
+                .unzip();
         } else {
             alo = l;
             ahi = h;

@@ -1,5 +1,5 @@
 //! P1-P4 as `models/alsomitra/alsomitra.spec` states them, lowered to critical queries
-//! for the tests (shared by `lp_tighten.rs` and `highs_crosscheck.rs`).
+//! for the tests (`highs_crosscheck.rs`).
 
 /// P1-P4 of models/alsomitra/alsomitra.spec as critical queries of `ystar` (P1, P2 hold
 /// above the supremum, P3, P4 below the infimum), for a network in the spec's units or,
