@@ -7,18 +7,44 @@
 use super::import::{chain_from_bytes, OnnxError};
 use super::proto::ModelProto;
 use crate::ir::Network;
+use crate::limits::{import_memory, show_bytes, Budget, IMPORT_MEMORY_ENV};
 use prost::Message;
 use std::path::Path;
 
-/// Load a network from an ONNX file.
+/// Load a network from an ONNX file, within the import memory budget
+/// ([`crate::limits`]).
 pub fn load(path: impl AsRef<Path>) -> Result<Network, OnnxError> {
     let (bytes, file) = read(path.as_ref())?;
     from_bytes(&bytes, &file)
 }
 
-/// The file's bytes and its name for messages.
+/// The budget of [`import_memory`], or the error naming the variable.
+fn env_budget(file: &str) -> Result<u64, OnnxError> {
+    import_memory().map_err(|message| OnnxError::Structure {
+        file: file.into(),
+        place: "import memory".into(),
+        message,
+    })
+}
+
+/// The file's bytes and its name for messages. A file larger than the import budget
+/// is refused before it is read (its weights alone would not fit).
 fn read(path: &Path) -> Result<(Vec<u8>, String), OnnxError> {
     let file = path.display().to_string();
+    let allowed = env_budget(&file)?;
+    if let Ok(meta) = std::fs::metadata(path) {
+        if meta.len() > allowed {
+            return Err(OnnxError::Structure {
+                file,
+                place: "file".into(),
+                message: format!(
+                    "the file has {}, more than the {} samara allows for a network's import; if the machine has the memory, raise the limit with the environment variable {IMPORT_MEMORY_ENV} (e.g. {IMPORT_MEMORY_ENV}=32G)",
+                    show_bytes(meta.len()),
+                    show_bytes(allowed)
+                ),
+            });
+        }
+    }
     let bytes = std::fs::read(path).map_err(|cause| OnnxError::Io {
         file: file.clone(),
         cause,
@@ -36,16 +62,32 @@ fn read(path: &Path) -> Result<(Vec<u8>, String), OnnxError> {
 /// ([`crate::graph::lower`]); an error then names the node, the operator and, where
 /// one is at fault, the attribute.
 pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
-    match chain_from_bytes(bytes, file) {
+    from_bytes_within(bytes, file, env_budget(file)?)
+}
+
+/// [`from_bytes`] with an import budget of `allowed` bytes: every allocation that
+/// grows with a shape the file declares (its constants as f64, the dense maps built,
+/// the lowering's layers) is charged first, and past `allowed` the import stops with
+/// an error naming the tensor or node and the bytes needed.
+pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Network, OnnxError> {
+    match chain_from_bytes(bytes, file, &Budget::new(allowed)) {
         Err(chain_err @ OnnxError::Unsupported { .. }) => {
-            let graph = match graph_from_bytes(bytes, file) {
+            // The chain importer's allocations are dropped: the graph starts afresh.
+            let budget = Budget::new(allowed);
+            let graph = match graph_within(bytes, file, &budget) {
                 Ok(g) => g,
                 Err(graph_err @ OnnxError::Unsupported { .. }) => {
                     return Err(more_relevant(bytes, chain_err, graph_err))
                 }
+                // Over the memory budget: that is the reason to show.
+                Err(e @ OnnxError::Structure { .. })
+                    if e.to_string().contains(IMPORT_MEMORY_ENV) =>
+                {
+                    return Err(e)
+                }
                 Err(_) => return Err(chain_err),
             };
-            crate::graph::lower::lower(&graph).map_err(|e| OnnxError::Unsupported {
+            crate::graph::lower::lower_within(&graph, &budget).map_err(|e| OnnxError::Unsupported {
                 file: file.into(),
                 node: e.node,
                 op: e.op,
@@ -88,11 +130,20 @@ fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> On
 /// Read an ONNX model held in memory as a [`crate::graph::Graph`] (any DAG of the
 /// supported operators, piecewise linear or not); `file` names it in errors.
 pub fn graph_from_bytes(bytes: &[u8], file: &str) -> Result<crate::graph::Graph, OnnxError> {
+    graph_within(bytes, file, &Budget::new(env_budget(file)?))
+}
+
+/// [`graph_from_bytes`] charging the graph's constants to `budget`.
+fn graph_within(
+    bytes: &[u8],
+    file: &str,
+    budget: &Budget,
+) -> Result<crate::graph::Graph, OnnxError> {
     let model = ModelProto::decode(bytes).map_err(|e| OnnxError::Decode {
         file: file.into(),
         message: e.to_string(),
     })?;
-    crate::graph::import::from_model(&model, file)
+    crate::graph::import::from_model_within(&model, file, budget)
 }
 
 /// Read an ONNX file as a [`crate::graph::Graph`].

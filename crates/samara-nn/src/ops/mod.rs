@@ -17,10 +17,6 @@ pub mod shape;
 pub use conv::{ConvAttrs, ConvTransposeAttrs};
 pub use pool::PoolAttrs;
 
-/// Most values one tensor may hold (16M, 128 MB as f64): a file declaring more is
-/// refused before anything is allocated.
-pub const MAX_TENSOR_VALUES: usize = 1 << 24;
-
 /// A dense row-major tensor of f64 values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tensor {
@@ -89,13 +85,16 @@ pub fn norm_axis(a: i64, r: usize) -> Result<usize, String> {
     }
 }
 
-/// Check a result's size before allocating it.
+/// Check a result's size before allocating it: at most the import memory budget
+/// ([`crate::limits::max_tensor_values`]).
 pub fn check_size(shape: &[usize]) -> Result<usize, String> {
-    numel(shape)
-        .filter(|&n| n <= MAX_TENSOR_VALUES)
-        .ok_or_else(|| {
-            format!("gives shape {shape:?}, more than {MAX_TENSOR_VALUES} values; samara evaluates controller- and benchmark-sized networks")
-        })
+    let max = crate::limits::max_tensor_values();
+    numel(shape).filter(|&n| n <= max).ok_or_else(|| {
+        format!(
+            "gives shape {shape:?}, more than the {max} values (8 bytes each) of the import memory budget; raise it with {}=<size> if the machine has the memory",
+            crate::limits::IMPORT_MEMORY_ENV
+        )
+    })
 }
 
 /// `Slice`'s attribute form (opsets before 10): starts, ends, optional axes.

@@ -2,7 +2,7 @@
 //! `Split`, `Gather`, `Reshape`, `Transpose`, `Squeeze`, `Unsqueeze` (Flatten and
 //! Identity need no logic of their own).
 
-use super::{check_size, norm_axis, strides, Tensor, MAX_TENSOR_VALUES};
+use super::{check_size, norm_axis, strides, Tensor};
 
 /// Map a function over every multi-index of `shape` (row-major), passing the flat index
 /// and the multi-index.
@@ -250,11 +250,16 @@ pub fn reshape_shape(
                 out.push(1);
             }
             0 if !allowzero => out.push(*shape.get(k).ok_or_else(bad)?),
-            t if t >= 0 && (t as usize) <= MAX_TENSOR_VALUES => out.push(t as usize),
+            t if t >= 0 && (t as usize) <= crate::limits::max_tensor_values() => {
+                out.push(t as usize)
+            }
             _ => return Err(bad()),
         }
     }
-    let known: usize = out.iter().product();
+    let known: usize = out
+        .iter()
+        .try_fold(1usize, |a, &b| a.checked_mul(b))
+        .ok_or_else(bad)?;
     if let Some(k) = infer {
         if known == 0 || !d.is_multiple_of(known) {
             return Err(bad());
