@@ -22,6 +22,7 @@ pub const GRAPH_OPS: &[&str] = &[
     "AveragePool",
     "GlobalAveragePool",
     "Pad",
+    "Upsample",
     "Add",
     "Sub",
     "Mul",
@@ -100,6 +101,7 @@ fn known_attrs(op: &str) -> &'static [&'static str] {
             "strides",
         ],
         "Pad" => &["mode", "pads", "value"],
+        "Upsample" => &["mode", "scales"],
         "LeakyRelu" => &["alpha"],
         "Clip" => &["min", "max"],
         "Softmax" => &["axis"],
@@ -269,6 +271,21 @@ fn parse_op(n: &NodeProto, opset: i64, e: &NodeErr) -> Result<Op, OnnxError> {
         }
         "AveragePool" => Op::AveragePool(pool_attrs(n, e)?),
         "GlobalAveragePool" => Op::GlobalAveragePool,
+        "Upsample" => {
+            let mode = string(n, "mode").unwrap_or_else(|| "nearest".into());
+            if mode != "nearest" {
+                return Err(
+                    e.unsupported(format!(" with attribute `mode` = {mode} (nearest only)"))
+                );
+            }
+            Op::Upsample {
+                scales: n
+                    .attribute
+                    .iter()
+                    .find(|a| a.name == "scales")
+                    .map(|a| a.floats.iter().map(|&v| v as f64).collect()),
+            }
+        }
         "Pad" => {
             let mode = string(n, "mode").unwrap_or_else(|| "constant".into());
             if mode != "constant" {

@@ -4,7 +4,7 @@
 //! The lowering walks the nodes in order keeping every live tensor as an affine
 //! function `A z + c` of the current chain state `z` (the network's input, then the
 //! outputs of the last ReLU layer emitted). Affine operators (Conv, ConvTranspose,
-//! BatchNormalization, AveragePool, GlobalAveragePool, Pad, Add/Sub of any operands,
+//! BatchNormalization, AveragePool, GlobalAveragePool, Pad, Upsample, Add/Sub of any operands,
 //! Mul/Div/MatMul/Gemm by a constant, Concat, Slice, Split, Gather, Reshape, Flatten,
 //! Transpose, Squeeze, Unsqueeze) are applied to `c` and to each column of `A` (their
 //! linear part is `f(a) - f(0)`), so every operator needs only its evaluation. A
@@ -358,6 +358,7 @@ impl Lower<'_> {
             Op::Transpose { .. }
             | Op::Slice { .. }
             | Op::Gather { .. }
+            | Op::Upsample { .. }
             | Op::Pad { .. }
             | Op::Split { .. }
             | Op::Concat { .. } => {
@@ -721,6 +722,7 @@ impl Lower<'_> {
             | Op::Slice { .. }
             | Op::Split { .. }
             | Op::Gather { .. }
+            | Op::Upsample { .. }
             | Op::Reshape { .. }
             | Op::Flatten { .. }
             | Op::Transpose { .. }

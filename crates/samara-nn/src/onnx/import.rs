@@ -33,6 +33,7 @@ pub const SUPPORTED_OPS: &[&str] = &[
     "AveragePool",
     "GlobalAveragePool",
     "Pad",
+    "Upsample",
     "Pow",
     "Neg",
     "LeakyRelu",

@@ -104,8 +104,14 @@ pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Netwo
 /// chain importer's more specific message (all but Conv, MatMul and Gemm, which the
 /// chain importer refuses whenever they are not a dense layer).
 fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> OnnxError {
-    let (OnnxError::Unsupported { node: cn, .. }, OnnxError::Unsupported { node: gn, op, .. }) =
-        (&chain_err, &graph_err)
+    let (
+        OnnxError::Unsupported {
+            node: cn,
+            detail: cd,
+            ..
+        },
+        OnnxError::Unsupported { node: gn, op, .. },
+    ) = (&chain_err, &graph_err)
     else {
         return graph_err;
     };
@@ -120,7 +126,10 @@ fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> On
     };
     match (index(cn), index(gn)) {
         (Some(c), Some(g)) if g < c => chain_err,
-        (Some(c), Some(g)) if g == c && !matches!(op.as_str(), "Conv" | "MatMul" | "Gemm") => {
+        // (An operator only the graph importer reads has no detail from the chain's.)
+        (Some(c), Some(g))
+            if g == c && !cd.is_empty() && !matches!(op.as_str(), "Conv" | "MatMul" | "Gemm") =>
+        {
             chain_err
         }
         _ => graph_err,

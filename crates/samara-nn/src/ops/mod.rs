@@ -126,6 +126,13 @@ pub enum Op {
         /// Fill value from the attribute, if given there.
         value: f64,
     },
+    /// Nearest-neighbour upsampling (opsets 7 to 9): output index `o` of an axis reads
+    /// input index `floor(o / scale)`; scales from the attribute (opset 7) or the
+    /// second input, each at least 1.
+    Upsample {
+        /// Scales from the attribute, if given there.
+        scales: Option<Vec<f64>>,
+    },
     /// Numpy-broadcast binary operator.
     Binary(elementwise::BinOp),
     /// Elementwise unary map.
@@ -269,6 +276,13 @@ impl Op {
                     .unwrap_or(*value);
                 let axes = opt(3).map(|t| t.ints()).transpose()?;
                 one(shape::pad(x(0)?, &pads, axes.as_deref(), value)?)
+            }
+            Op::Upsample { scales } => {
+                let scales = match scales {
+                    Some(s) => s.clone(),
+                    None => x(1)?.data.clone(),
+                };
+                one(shape::upsample_nearest(x(0)?, &scales)?)
             }
             Op::Binary(b) => one(elementwise::binary(*b, x(0)?, x(1)?)?),
             Op::Unary(u) => one(elementwise::unary(*u, x(0)?)),
