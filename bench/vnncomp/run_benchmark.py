@@ -93,6 +93,10 @@ def main():
     ap.add_argument("--samara", default=None)
     ap.add_argument("--md", default=None, help="write the table here (default: stdout)")
     ap.add_argument("--year", default="2021", help="the competition year of --results (for the table's text)")
+    ap.add_argument("--save", default=None, help="also write samara's verdicts here (JSON)")
+    ap.add_argument("--load", default=None,
+                    help="read samara's verdicts from a --save file instead of running samara "
+                         "(the same instances beside another year's results)")
     a = ap.parse_args()
     bench = Path(a.bench).resolve()
     name = bench.name
@@ -110,11 +114,15 @@ def main():
         subprocess.run(["cargo", "build", "--release", "-q", "-p", "samara-cli"], cwd=REPO, check=True)
         binary = str(REPO / "target/release/samara")
     tmp = Path(tempfile.mkdtemp(prefix=f"samara_{name}_"))
-    sel = []
+    sel, absent = [], []
     key_of = {}  # (onnx, vnnlib) as samara reports them -> paths inside the benchmark
     for onnx, vnnlib, tmo in rows:
         src = (bench / onnx).resolve()
-        if not src.exists() and Path(str(src) + ".gz").exists():
+        if not src.exists() and not Path(str(src) + ".gz").exists():
+            # A network whose blob the fetched snapshot lacks: a row, not run.
+            absent.append((os.path.normpath(onnx), os.path.normpath(vnnlib)))
+            continue
+        if not src.exists():
             dst = tmp / os.path.normpath(onnx).replace(os.sep, "__")
             if not dst.exists():
                 with gzip.open(str(src) + ".gz", "rb") as f, open(dst, "wb") as g:
@@ -131,7 +139,7 @@ def main():
         groups.setdefault(row[0], []).append(row)
     ours, refused = {}, []
     t0 = time.time()
-    for g, (net, grows) in enumerate(groups.items()):
+    for g, (net, grows) in enumerate(groups.items() if not a.load else []):
         inst_csv = tmp / f"instances_{g}.csv"
         with open(inst_csv, "w", newline="") as f:
             csv.writer(f).writerows(grows)
@@ -152,6 +160,14 @@ def main():
             assert os.path.basename(r["vnnlib"]) == os.path.basename(vnnlib), (r["vnnlib"], vnnlib)
             ours[key_of[(onnx, vnnlib)]] = r
     wall = time.time() - t0
+    if a.load:
+        saved = json.loads(Path(a.load).read_text())
+        ours = {tuple(k): r for k, r in saved["ours"]}
+        refused, wall = saved["refused"], saved["wall"]
+    if a.save:
+        Path(a.save).write_text(json.dumps({"ours": list(ours.items()), "refused": refused, "wall": wall}))
+    for k in absent:
+        ours[k] = {"result": "absent", "seconds": 0.0}
     peers = read_peers(a.results, name, a.year) if a.results else {}
 
     def peer(pn, k):
@@ -186,7 +202,9 @@ def main():
       + ".\n")
     for net, why in refused:
         w(f"- refused by samara (its rows are `error`): `{net}`: {why}")
-    if refused:
+    for net in sorted({k[0] for k in absent}):
+        w(f"- not in the fetched snapshot (its rows are `absent`, not run): `{net}`")
+    if refused or absent:
         w("")
     # The consensus: the verdict most decided tools give (ties: none).
     against = 0

@@ -69,6 +69,13 @@ fn upsample_fixture_agrees_with_onnxruntime() {
     check_fixture("upsample", 18, 4);
 }
 
+/// bench/nn/make_upsample_fixture.py: the input used twice, once through a Slice to
+/// INT64_MAX (PyTorch's `x[:, 2:]`), as VNN-COMP 2024's linearizenn networks are.
+#[test]
+fn skip_slice_fixture_agrees_with_onnxruntime() {
+    check_fixture("skip_slice", 4, 2);
+}
+
 #[test]
 fn ops_mix_fixture_agrees_with_onnxruntime() {
     check_fixture("ops_mix", 32, 4);

@@ -85,6 +85,11 @@ pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Netwo
                 {
                     return Err(e)
                 }
+                // A node the graph importer reads but cannot take (a value, a shape): its
+                // message, when the chain importer refused that node or an earlier one.
+                Err(e @ OnnxError::Structure { .. }) if structure_first(bytes, &chain_err, &e) => {
+                    return Err(e)
+                }
                 Err(_) => return Err(chain_err),
             };
             crate::graph::lower::lower_within(&graph, &budget).map_err(|e| OnnxError::Unsupported {
@@ -119,11 +124,7 @@ fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> On
         return graph_err;
     };
     let nodes = model.graph.map(|g| g.node).unwrap_or_default();
-    let index = |name: &str| {
-        nodes.iter().enumerate().position(|(k, n)| {
-            n.name == name || (n.name.is_empty() && format!("#{k} ({})", n.op_type) == name)
-        })
-    };
+    let index = |name: &str| node_index(&nodes, name);
     match (index(cn), index(gn)) {
         (Some(c), Some(g)) if g < c => chain_err,
         // (An operator only the graph importer reads has no detail from the chain's.)
@@ -134,6 +135,34 @@ fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> On
         }
         _ => graph_err,
     }
+}
+
+/// The position of the node named `name` in errors (its name, or `#k (Op)`).
+fn node_index(nodes: &[super::proto::NodeProto], name: &str) -> Option<usize> {
+    nodes.iter().enumerate().position(|(k, n)| {
+        n.name == name || (n.name.is_empty() && format!("#{k} ({})", n.op_type) == name)
+    })
+}
+
+/// Whether the graph importer's structural error `graph_err` is at the node the chain
+/// importer refused in `chain_err` or after it (then it is the reason to show; before
+/// it, the chain importer read that node, e.g. with legacy broadcasting).
+fn structure_first(bytes: &[u8], chain_err: &OnnxError, graph_err: &OnnxError) -> bool {
+    let (OnnxError::Unsupported { node: cn, .. }, OnnxError::Structure { place, .. }) =
+        (chain_err, graph_err)
+    else {
+        return false;
+    };
+    let Ok(model) = ModelProto::decode(bytes) else {
+        return false;
+    };
+    let nodes = model.graph.map(|g| g.node).unwrap_or_default();
+    let index = |name: &str| node_index(&nodes, name);
+    let gname = place
+        .strip_prefix("node `")
+        .and_then(|r| r.split('`').next())
+        .unwrap_or("");
+    matches!((index(cn), index(gname)), (Some(c), Some(g)) if g >= c)
 }
 
 /// Read an ONNX model held in memory as a [`crate::graph::Graph`] (any DAG of the

@@ -52,7 +52,9 @@ impl Tensor {
         self.data
             .iter()
             .map(|&v| {
-                (v.fract() == 0.0 && v.abs() < 9.0e15)
+                // Integers past 2^53 are not exact as f64 but stay integers: INT64_MAX
+                // (PyTorch's "to the end" in a Slice) saturates to i64::MAX.
+                (v.is_finite() && v.fract() == 0.0)
                     .then_some(v as i64)
                     .ok_or_else(|| format!("{v} is not an integer"))
             })
