@@ -14,8 +14,12 @@ usage:
       [--limit N] [--every K] [--match NET] [--samara BIN] [--md OUT.md]
 BENCH_DIR: e.g. benchmarks/verivital of stanleybak/vnncomp2021 (its *_instances.csv);
 RESULTS_DIR: results_csv of stanleybak/vnncomp2021_results, or the root of
-ChristopherBrix/vnncomp2022_results (TOOL/BENCH/results.csv; pass --year 2022). Networks stored gzipped
-(nn4sys) are unzipped next to a copy of the instances CSV in a temporary folder.
+ChristopherBrix/vnncomp2022_results (TOOL/BENCH/results.csv; pass --year 2022), or of
+ChristopherBrix/vnncomp2023_results / vnncomp2024_results (TOOL/YEAR_BENCH/results.csv;
+pass --year 2023 or 2024). Instances are matched by their path inside the benchmark
+folder (safenlp has networks of the same name in two subfolders), else by file name.
+Networks stored gzipped (nn4sys) are unzipped next to a copy of the instances CSV in a
+temporary folder.
 """
 import argparse
 import csv
@@ -35,12 +39,30 @@ from bench_acasxu import confirm_with_onnxruntime, norm  # noqa: E402
 REPO = Path(__file__).resolve().parents[2]
 
 
-def read_peers(results_dir, bench_name):
-    """Each tool's verdict and time per (network, property): the 2021 layout (one CSV per
-    tool, `results_csv/TOOL.csv`) or the 2022 one (`TOOL/BENCH/results.csv`)."""
+def rel_key(path, bench_name):
+    """An instance file's path inside its benchmark folder (`onnx/sub/net.onnx`), from a
+    path of the instances CSV or of a results CSV (`vnncomp2024_benchmarks/benchmarks/
+    safenlp/./onnx/...`); `None` if the benchmark's folder is not in the path."""
+    p = os.path.normpath(path.strip())
+    if p.endswith(".gz"):
+        p = p[:-3]
+    parts = p.split(os.sep)
+    if bench_name in parts:
+        k = len(parts) - 1 - parts[::-1].index(bench_name)
+        return "/".join(parts[k + 1:])
+    return None
+
+
+def read_peers(results_dir, bench_name, year="2021"):
+    """Each tool's verdict and time per (network, property), keyed by the files' paths
+    inside the benchmark folder and by their names: the 2021 layout (one CSV per tool,
+    `results_csv/TOOL.csv`), the 2022 one (`TOOL/BENCH/results.csv`) or the 2023/2024
+    one (`TOOL/YEAR_BENCH/results.csv`)."""
     peers = {}
     files = [(f.stem, f) for f in sorted(Path(results_dir).glob("*.csv"))]
     files += [(f.parent.parent.name, f) for f in sorted(Path(results_dir).glob(f"*/{bench_name}/results.csv"))]
+    files += [(f.parent.parent.name, f)
+              for f in sorted(Path(results_dir).glob(f"*/{year}_{bench_name}/results.csv"))]
     for tool, f in files:
         rows = {}
         with open(f, newline="") as fh:
@@ -50,7 +72,11 @@ def read_peers(results_dir, bench_name):
                         t = float(r[5])
                     except ValueError:
                         t = float("nan")
-                    rows[(os.path.basename(r[1]), os.path.basename(r[2]))] = (norm(r[4]), t)
+                    v = (norm(r[4]), t)
+                    rows.setdefault((os.path.basename(r[1]), os.path.basename(r[2])), v)
+                    ko, kv = rel_key(r[1], bench_name), rel_key(r[2], bench_name)
+                    if ko and kv:
+                        rows[(ko, kv)] = v
         if rows:
             peers[tool] = rows
     return peers
@@ -67,6 +93,10 @@ def main():
     ap.add_argument("--samara", default=None)
     ap.add_argument("--md", default=None, help="write the table here (default: stdout)")
     ap.add_argument("--year", default="2021", help="the competition year of --results (for the table's text)")
+    ap.add_argument("--save", default=None, help="also write samara's verdicts here (JSON)")
+    ap.add_argument("--load", default=None,
+                    help="read samara's verdicts from a --save file instead of running samara "
+                         "(the same instances beside another year's results)")
     a = ap.parse_args()
     bench = Path(a.bench).resolve()
     name = bench.name
@@ -84,16 +114,23 @@ def main():
         subprocess.run(["cargo", "build", "--release", "-q", "-p", "samara-cli"], cwd=REPO, check=True)
         binary = str(REPO / "target/release/samara")
     tmp = Path(tempfile.mkdtemp(prefix=f"samara_{name}_"))
-    sel = []
+    sel, absent = [], []
+    key_of = {}  # (onnx, vnnlib) as samara reports them -> paths inside the benchmark
     for onnx, vnnlib, tmo in rows:
         src = (bench / onnx).resolve()
-        if not src.exists() and Path(str(src) + ".gz").exists():
-            dst = tmp / (Path(onnx).name)
+        if not src.exists() and not Path(str(src) + ".gz").exists():
+            # A network whose blob the fetched snapshot lacks: a row, not run.
+            absent.append((os.path.normpath(onnx), os.path.normpath(vnnlib)))
+            continue
+        if not src.exists():
+            dst = tmp / os.path.normpath(onnx).replace(os.sep, "__")
             if not dst.exists():
                 with gzip.open(str(src) + ".gz", "rb") as f, open(dst, "wb") as g:
                     shutil.copyfileobj(f, g)
             src = dst
-        sel.append((str(src), str((bench / vnnlib).resolve()), tmo))
+        prop = str((bench / vnnlib).resolve())
+        sel.append((str(src), prop, tmo))
+        key_of[(str(src), prop)] = (os.path.normpath(onnx), os.path.normpath(vnnlib))
     # One `samara vnncomp` run per network, so that a network samara refuses (an
     # operator or a size it does not take) stays in the table as rows marked `error`,
     # with the refusal quoted below it, instead of stopping the whole benchmark.
@@ -102,7 +139,7 @@ def main():
         groups.setdefault(row[0], []).append(row)
     ours, refused = {}, []
     t0 = time.time()
-    for g, (net, grows) in enumerate(groups.items()):
+    for g, (net, grows) in enumerate(groups.items() if not a.load else []):
         inst_csv = tmp / f"instances_{g}.csv"
         with open(inst_csv, "w", newline="") as f:
             csv.writer(f).writerows(grows)
@@ -114,15 +151,29 @@ def main():
             why = (p.stderr.strip().splitlines() or ["exit 2"])[-1]
             refused.append((os.path.basename(net), why))
             for onnx, vnnlib, _ in grows:
-                ours[(os.path.basename(onnx), os.path.basename(vnnlib))] = {
-                    "result": "error", "seconds": 0.0}
+                ours[key_of[(onnx, vnnlib)]] = {"result": "error", "seconds": 0.0}
             continue
         if p.returncode not in (0, 1):
             sys.exit(f"samara vnncomp exited {p.returncode}: {p.stderr}")
-        for r in json.loads(p.stdout)["instances"]:
-            ours[(os.path.basename(r["onnx"]), os.path.basename(r["vnnlib"]))] = r
+        for r, (onnx, vnnlib, _) in zip(json.loads(p.stdout)["instances"], grows):
+            assert os.path.basename(r["onnx"]) == os.path.basename(onnx), (r["onnx"], onnx)
+            assert os.path.basename(r["vnnlib"]) == os.path.basename(vnnlib), (r["vnnlib"], vnnlib)
+            ours[key_of[(onnx, vnnlib)]] = r
     wall = time.time() - t0
-    peers = read_peers(a.results, name) if a.results else {}
+    if a.load:
+        saved = json.loads(Path(a.load).read_text())
+        ours = {tuple(k): r for k, r in saved["ours"]}
+        refused, wall = saved["refused"], saved["wall"]
+    if a.save:
+        Path(a.save).write_text(json.dumps({"ours": list(ours.items()), "refused": refused, "wall": wall}))
+    for k in absent:
+        ours[k] = {"result": "absent", "seconds": 0.0}
+    peers = read_peers(a.results, name, a.year) if a.results else {}
+
+    def peer(pn, k):
+        """Tool `pn`'s verdict on our instance `k` (by path, else by file name)."""
+        pr = peers[pn]
+        return pr.get(k) or pr.get((os.path.basename(k[0]), os.path.basename(k[1])), ("-", float("nan")))
     names = sorted(peers)
     out = []
     w = out.append
@@ -137,7 +188,7 @@ def main():
     for k, r in ours.items():
         cells = []
         for pn in names:
-            v, t = peers[pn].get(k, ("-", float("nan")))
+            v, t = peer(pn, k)
             cells.append(f"{v} {t:.0f}" if t == t else v)
             if r["result"] in ("sat", "unsat") and v in ("sat", "unsat") and v != r["result"]:
                 dis.append((k, pn, r["result"], v))
@@ -147,16 +198,18 @@ def main():
     w(f"Decided on these {len(ours)} instances: **samara {dec}** "
       f"({sum(1 for r in ours.values() if r['result'] == 'unsat')} unsat, "
       f"{sum(1 for r in ours.values() if r['result'] == 'sat')} sat)"
-      + "".join(f"; {pn} {sum(1 for k in ours if peers[pn].get(k, ('-',))[0] in ('sat', 'unsat'))}" for pn in names)
+      + "".join(f"; {pn} {sum(1 for k in ours if peer(pn, k)[0] in ('sat', 'unsat'))}" for pn in names)
       + ".\n")
     for net, why in refused:
         w(f"- refused by samara (its rows are `error`): `{net}`: {why}")
-    if refused:
+    for net in sorted({k[0] for k in absent}):
+        w(f"- not in the fetched snapshot (its rows are `absent`, not run): `{net}`")
+    if refused or absent:
         w("")
     # The consensus: the verdict most decided tools give (ties: none).
     against = 0
     for k, r in ours.items():
-        votes = [peers[pn].get(k, ("-",))[0] for pn in names]
+        votes = [peer(pn, k)[0] for pn in names]
         votes = [v for v in votes if v in ("sat", "unsat")]
         if votes and r["result"] in ("sat", "unsat"):
             top = max(set(votes), key=votes.count)
@@ -169,11 +222,10 @@ def main():
         w(f"- {d[0]}: samara {d[2]}, {d[1]} {d[3]}")
     sats = [(k, r) for k, r in ours.items() if r["result"] == "sat"]
     ok = 0
+    file_of = {v: key for key, v in key_of.items()}
     for k, r in sats:
-        good, y = confirm_with_onnxruntime(
-            [s for s in sel if os.path.basename(s[0]) == k[0]][0][0],
-            [s for s in sel if os.path.basename(s[1]) == k[1]][0][1],
-            r["counterexample"]["inputs"])
+        net_file, prop_file = file_of[k]
+        good, y = confirm_with_onnxruntime(net_file, prop_file, r["counterexample"]["inputs"])
         ok += good
         if not good:
             w(f"- NOT CONFIRMED by onnxruntime: {k}")

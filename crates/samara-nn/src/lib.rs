@@ -11,6 +11,7 @@ pub mod attack;
 pub mod data;
 pub mod graph;
 pub mod ir;
+pub mod limits;
 pub mod nnet;
 pub mod onnx;
 pub mod ops;

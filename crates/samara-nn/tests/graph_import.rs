@@ -62,6 +62,20 @@ fn conv_bn_residual_pool_fixture_agrees_with_onnxruntime() {
     check_fixture("conv_residual", 72, 3);
 }
 
+/// bench/nn/make_upsample_fixture.py: nearest Upsample (opset 9, scales as an input)
+/// by integer and by non-integer scales, as VNN-COMP 2023's cgan uses it.
+#[test]
+fn upsample_fixture_agrees_with_onnxruntime() {
+    check_fixture("upsample", 18, 4);
+}
+
+/// bench/nn/make_upsample_fixture.py: the input used twice, once through a Slice to
+/// INT64_MAX (PyTorch's `x[:, 2:]`), as VNN-COMP 2024's linearizenn networks are.
+#[test]
+fn skip_slice_fixture_agrees_with_onnxruntime() {
+    check_fixture("skip_slice", 4, 2);
+}
+
 #[test]
 fn ops_mix_fixture_agrees_with_onnxruntime() {
     check_fixture("ops_mix", 32, 4);
@@ -160,6 +174,40 @@ fn unsupported_attribute_values_name_node_operator_and_attribute() {
         });
     let (_, msg) = load_err(&m);
     assert_names(&msg, &["`bn1`", "`BatchNormalization`", "`training_mode`"]);
+}
+
+/// Upsample's other modes, and downsampling scales, are refused naming the node.
+#[test]
+fn upsample_modes_and_scales_samara_does_not_take_are_refused_by_name() {
+    let bytes = std::fs::read(data("upsample.onnx")).unwrap();
+    let mut m = proto::ModelProto::decode(bytes.as_slice()).unwrap();
+    node_mut(&mut m, "up_int")
+        .attribute
+        .iter_mut()
+        .find(|a| a.name == "mode")
+        .unwrap()
+        .s = b"linear".to_vec();
+    let (e, msg) = load_err(&m);
+    assert!(matches!(e, OnnxError::Unsupported { .. }), "{msg}");
+    assert_names(&msg, &["`up_int`", "`Upsample`", "`mode`", "linear"]);
+    let mut m = proto::ModelProto::decode(bytes.as_slice()).unwrap();
+    let s2 = m
+        .graph
+        .as_mut()
+        .unwrap()
+        .initializer
+        .iter_mut()
+        .find(|t| t.name == "s2")
+        .unwrap();
+    s2.raw_data = [1.0f32, 1.0, 0.5, 2.0]
+        .iter()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    s2.float_data.clear();
+    let msg = onnx::graph_from_bytes(&m.encode_to_vec(), "fixture.onnx")
+        .unwrap_err()
+        .to_string();
+    assert_names(&msg, &["`up_frac`", "scale 0.5"]);
 }
 
 #[test]

@@ -1,8 +1,9 @@
-//! Every network of the VNN-COMP 2021 benchmarks (issue 37) loads and evaluates: over
-//! files fetched outside the repository (too large to check in), so `#[ignore]`d.
+//! Every network of the VNN-COMP 2021 benchmarks (issue 37), and of the 2023/2024
+//! folders given, loads and evaluates: over files fetched outside the repository (too
+//! large to check in), so `#[ignore]`d.
 //!
 //! `SAMARA_VNNCOMP2021=.../vnncomp2021/benchmarks cargo test -p samara-nn --release
-//!  --test vnncomp_networks -- --ignored --nocapture`
+//!  --test vnncomp_networks -- --ignored --nocapture` (and `SAMARA_VNNCOMP_DIRS`, below)
 //!
 //! Per network: the graph import, 100 random inputs in [0, 1] through the graph
 //! evaluation and, where the network lowers to the verifier's chain, through the chain
@@ -62,15 +63,36 @@ fn plain(p: &Path) -> PathBuf {
 #[ignore = "needs the VNN-COMP benchmark files (SAMARA_VNNCOMP2021), fetched outside the repository"]
 fn vnncomp_networks_load_and_evaluate() {
     let root = PathBuf::from(std::env::var("SAMARA_VNNCOMP2021").expect("set SAMARA_VNNCOMP2021"));
-    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2021);
+    let dirs: Vec<PathBuf> = BENCHMARKS.iter().map(|b| root.join(b)).collect();
+    check_dirs(&dirs, 2021);
+}
+
+/// The VNN-COMP 2023/2024 benchmark folders this machine holds (issues 36 and 37):
+/// `SAMARA_VNNCOMP_DIRS=/tmp/vnn23/cgan:/tmp/vnn23/dist_shift:...` (folders
+/// separated by `:`), e.g. tllverifybench, dist_shift, acasxu, collins_rul_cnn,
+/// traffic_signs_recognition, cgan, metaroom, cora, safenlp, linearizenn.
+#[test]
+#[ignore = "needs the VNN-COMP 2023/2024 benchmark files (SAMARA_VNNCOMP_DIRS), fetched outside the repository"]
+fn vnncomp_2023_2024_networks_load_and_evaluate() {
+    let dirs: Vec<PathBuf> = std::env::var("SAMARA_VNNCOMP_DIRS")
+        .expect("set SAMARA_VNNCOMP_DIRS")
+        .split(':')
+        .map(PathBuf::from)
+        .collect();
+    check_dirs(&dirs, 2023);
+}
+
+/// Every network under `dirs`: graph import, 100 random inputs through the graph and
+/// the lowered chain, then check_onnx.py against onnxruntime (see the module docs).
+fn check_dirs(benchmarks: &[PathBuf], seed: u64) {
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let mut dirs = Vec::new();
     let mut n = 0;
-    for b in BENCHMARKS {
-        let dir = root.join(b);
+    for dir in benchmarks {
         let mut files = Vec::new();
-        onnx_files(&dir, &mut files);
+        onnx_files(dir, &mut files);
         if files.is_empty() {
-            println!("{b}: no networks under {}", dir.display());
+            println!("no networks under {}", dir.display());
             continue;
         }
         dirs.push(dir.clone());
@@ -109,7 +131,7 @@ fn vnncomp_networks_load_and_evaluate() {
             n += 1;
         }
     }
-    assert!(n > 0, "no networks found under {}", root.display());
+    assert!(n > 0, "no networks found under {benchmarks:?}");
     if let Ok(py) = std::env::var("SAMARA_PYTHON") {
         let script =
             Path::new(env!("CARGO_MANIFEST_DIR")).join("../../bench/vnncomp/check_onnx.py");

@@ -4,12 +4,13 @@
 //! others are evaluated once on zeros so that every tensor's shape is known.
 
 use super::{Graph, Node, Value};
+use crate::limits::Budget;
 use crate::onnx::import::{attr, default_opset, model_graph, sample_shape, tensor_to_const};
 use crate::onnx::proto::{ModelProto, NodeProto};
 use crate::onnx::OnnxError;
 use crate::ops::conv::AutoPad;
 use crate::ops::elementwise::{BinOp, UnOp};
-use crate::ops::{ConvAttrs, ConvTransposeAttrs, Op, PoolAttrs, Tensor, MAX_TENSOR_VALUES};
+use crate::ops::{ConvAttrs, ConvTransposeAttrs, Op, PoolAttrs, Tensor};
 use std::collections::HashMap;
 
 /// Operators the graph importer reads.
@@ -21,6 +22,7 @@ pub const GRAPH_OPS: &[&str] = &[
     "AveragePool",
     "GlobalAveragePool",
     "Pad",
+    "Upsample",
     "Add",
     "Sub",
     "Mul",
@@ -99,6 +101,7 @@ fn known_attrs(op: &str) -> &'static [&'static str] {
             "strides",
         ],
         "Pad" => &["mode", "pads", "value"],
+        "Upsample" => &["mode", "scales"],
         "LeakyRelu" => &["alpha"],
         "Clip" => &["min", "max"],
         "Softmax" => &["axis"],
@@ -268,6 +271,21 @@ fn parse_op(n: &NodeProto, opset: i64, e: &NodeErr) -> Result<Op, OnnxError> {
         }
         "AveragePool" => Op::AveragePool(pool_attrs(n, e)?),
         "GlobalAveragePool" => Op::GlobalAveragePool,
+        "Upsample" => {
+            let mode = string(n, "mode").unwrap_or_else(|| "nearest".into());
+            if mode != "nearest" {
+                return Err(
+                    e.unsupported(format!(" with attribute `mode` = {mode} (nearest only)"))
+                );
+            }
+            Op::Upsample {
+                scales: n
+                    .attribute
+                    .iter()
+                    .find(|a| a.name == "scales")
+                    .map(|a| a.floats.iter().map(|&v| v as f64).collect()),
+            }
+        }
         "Pad" => {
             let mode = string(n, "mode").unwrap_or_else(|| "constant".into());
             if mode != "constant" {
@@ -380,7 +398,10 @@ fn parse_op(n: &NodeProto, opset: i64, e: &NodeErr) -> Result<Op, OnnxError> {
         "ConstantOfShape" => Op::ConstantOfShape {
             value: attr(n, "value")
                 .and_then(|a| a.t.as_ref())
-                .map(|t| tensor_to_const(t, e.file).map(|c| c.data.first().copied().unwrap_or(0.0)))
+                .map(|t| {
+                    tensor_to_const(t, e.file, &Budget::new(1 << 20))
+                        .map(|c| c.data.first().copied().unwrap_or(0.0))
+                })
                 .transpose()?
                 .unwrap_or(0.0),
         },
@@ -399,8 +420,24 @@ fn may_be_dynamic(op: &str, k: usize) -> bool {
     }
 }
 
-/// Read an ONNX model into a [`Graph`]; `file` names it in errors.
+/// Read an ONNX model into a [`Graph`]; `file` names it in errors. Its constants are
+/// charged to the import budget of [`crate::limits::import_memory`].
 pub fn from_model(model: &ModelProto, file: &str) -> Result<Graph, OnnxError> {
+    let budget = Budget::from_env().map_err(|message| OnnxError::Structure {
+        file: file.into(),
+        place: "import memory".into(),
+        message,
+    })?;
+    from_model_within(model, file, &budget)
+}
+
+/// [`from_model`] charging every constant the graph keeps (initializers, `Constant`
+/// nodes, folded nodes) to `budget` before it is stored.
+pub fn from_model_within(
+    model: &ModelProto,
+    file: &str,
+    budget: &Budget,
+) -> Result<Graph, OnnxError> {
     let structure = |place: &str, message: String| OnnxError::Structure {
         file: file.into(),
         place: place.into(),
@@ -426,7 +463,7 @@ pub fn from_model(model: &ModelProto, file: &str) -> Result<Graph, OnnxError> {
         values.len() - 1
     }
     for t in &graph.initializer {
-        let c = tensor_to_const(t, file)?;
+        let c = tensor_to_const(t, file, budget)?;
         add(
             &mut values,
             &mut ids,
@@ -455,10 +492,13 @@ pub fn from_model(model: &ModelProto, file: &str) -> Result<Graph, OnnxError> {
         .map(|s| s.dim.as_slice())
         .unwrap_or(&[]);
     let in_shape = sample_shape(dims);
-    if crate::ops::numel(&in_shape).is_none_or(|n| n > MAX_TENSOR_VALUES) {
+    if crate::ops::numel(&in_shape).is_none_or(|n| !budget.fits(n)) {
         return Err(structure(
             &format!("input `{}`", input.name),
-            format!("declares shape {in_shape:?}, more entries than samara imports"),
+            format!(
+                "declares shape {in_shape:?}, more entries than the import's memory budget holds ({}); is the file corrupt?",
+                crate::limits::show_bytes(budget.allowed())
+            ),
         ));
     }
     let in_id = add(&mut values, &mut ids, &input.name, in_shape, None);
@@ -478,7 +518,7 @@ pub fn from_model(model: &ModelProto, file: &str) -> Result<Graph, OnnxError> {
         }
         if n.op_type == "Constant" {
             let t = if let Some(t) = attr(n, "value").and_then(|a| a.t.as_ref()) {
-                let c = tensor_to_const(t, file)?;
+                let c = tensor_to_const(t, file, budget)?;
                 Tensor::new(c.dims, c.data)
             } else if let Some(a) = attr(n, "value_float") {
                 Tensor::new(vec![], vec![a.f as f64])
@@ -566,6 +606,13 @@ pub fn from_model(model: &ModelProto, file: &str) -> Result<Graph, OnnxError> {
                 " broadcasting the activation to the larger shape {:?} (a constant that depends on the batch row, or enlarges one sample)",
                 outs[0].shape
             )));
+        }
+        if all_const {
+            // Folded constants stay in the graph.
+            let kept: usize = outs.iter().map(Tensor::numel).sum();
+            budget
+                .charge(kept, &|| format!("its constant result ({kept} values)"))
+                .map_err(|m| e.structure(m))?;
         }
         let mut out_ids = Vec::new();
         for (name, t) in n.output.iter().zip(outs) {

@@ -4,7 +4,7 @@
 //! The lowering walks the nodes in order keeping every live tensor as an affine
 //! function `A z + c` of the current chain state `z` (the network's input, then the
 //! outputs of the last ReLU layer emitted). Affine operators (Conv, ConvTranspose,
-//! BatchNormalization, AveragePool, GlobalAveragePool, Pad, Add/Sub of any operands,
+//! BatchNormalization, AveragePool, GlobalAveragePool, Pad, Upsample, Add/Sub of any operands,
 //! Mul/Div/MatMul/Gemm by a constant, Concat, Slice, Split, Gather, Reshape, Flatten,
 //! Transpose, Squeeze, Unsqueeze) are applied to `c` and to each column of `A` (their
 //! linear part is `f(a) - f(0)`), so every operator needs only its evaluation. A
@@ -20,18 +20,18 @@
 //!
 //! While lowering, the maps are kept by sparse columns; the layers emitted are dense (the
 //! chain IR's [`Affine`]): a layer of `m` neurons over a state of `n` takes `m n` f64.
-//! Lowering refuses, naming the node, any layer of more than [`MAX_DENSE`] entries
-//! (1 GB), e.g. a 16x32x32 convolution over a 16x32x32 state (CIFAR ResNets), and
-//! live tensors storing more than `2 MAX_DENSE` entries in all.
+//! Every layer emitted is charged to the import's memory [`Budget`] before it is
+//! allocated, and the live tensors' sparse maps must fit in what is left of it; past
+//! it, lowering refuses naming the node, the bytes needed and allowed and the
+//! environment variable that raises the limit (e.g. a 16x32x32 convolution over a
+//! 16x32x32 state, CIFAR ResNets, needs 2 GiB per layer).
 
 use super::Graph;
 use crate::ir::{Activation, Affine, Layer, Network};
+use crate::limits::{show_bytes, Budget};
 use crate::ops::elementwise::{BinOp, UnOp};
 use crate::ops::{pool, Op, Tensor};
 use std::collections::HashMap;
-
-/// Most entries of one dense map the lowering builds (2^27 f64, 1 GB).
-pub const MAX_DENSE: usize = 1 << 27;
 
 /// A sparse column: (row, value) pairs, a row possibly repeated (values add up).
 type Col = Vec<(u32, f64)>;
@@ -149,6 +149,7 @@ struct Lower<'g> {
     reps: HashMap<usize, Lin>,
     layers: Vec<Layer>,
     last_use: Vec<usize>,
+    budget: &'g Budget,
 }
 
 /// Why a graph cannot be lowered: the node, its operator and the reason.
@@ -188,17 +189,32 @@ fn graph_err(message: String) -> LowerError {
 }
 
 impl Lower<'_> {
-    fn check(&self, node: usize, rows: usize, cols: usize) -> Result<(), LowerError> {
-        if rows.saturating_mul(cols) > MAX_DENSE {
-            return Err(err(
-                self.g,
-                node,
-                format!(
-                    "lowering to dense layers needs a {rows} x {cols} map, more than {MAX_DENSE} entries (1 GB); samara lowers networks whose layers fit in that size"
-                ),
-            ));
+    /// Charge a dense `rows x cols` layer the node emits to the budget.
+    fn charge(&self, node: usize, rows: usize, cols: usize) -> Result<(), LowerError> {
+        self.budget
+            .charge(rows.saturating_mul(cols), &|| {
+                format!("lowering to dense layers: its {rows} x {cols} map")
+            })
+            .map_err(|m| err(self.g, node, m))
+    }
+
+    /// Whether a live tensor's map of `stored` entries fits in what is left of the
+    /// budget (it is not charged: it is dropped once no node reads it).
+    fn fits(&self, node: usize, stored: usize) -> Result<(), LowerError> {
+        if self.budget.fits(stored) {
+            return Ok(());
         }
-        Ok(())
+        Err(err(
+            self.g,
+            node,
+            format!(
+                "lowering to dense layers: the maps of the live tensors store {stored} entries ({}), more than is left of the import's {} (used: {}); raise the limit with {}=<size> if the machine has the memory",
+                show_bytes(stored as u64 * 8),
+                show_bytes(self.budget.allowed()),
+                show_bytes(self.budget.used()),
+                crate::limits::IMPORT_MEMORY_ENV
+            ),
+        ))
     }
 
     /// Apply an operator affine in its dynamic inputs.
@@ -238,7 +254,7 @@ impl Lower<'_> {
                 .map(|(spec, c)| {
                     let mut l = Lin::combine(&srcs, &spec, nonneg);
                     l.c = c.data;
-                    self.check(ni, 1, l.stored())?;
+                    self.fits(ni, l.stored())?;
                     Ok(l)
                 })
                 .collect();
@@ -273,7 +289,7 @@ impl Lower<'_> {
                 c: outc.into_iter().next().expect("one output").data,
                 nonneg,
             };
-            self.check(ni, 1, out.stored())?;
+            self.fits(ni, out.stored())?;
             return Ok(vec![out]);
         }
         let f0 = run(&|_| None)?;
@@ -307,7 +323,7 @@ impl Lower<'_> {
             })
             .collect();
         for l in &out {
-            self.check(ni, 1, l.stored())?;
+            self.fits(ni, l.stored())?;
         }
         Ok(out)
     }
@@ -342,6 +358,7 @@ impl Lower<'_> {
             Op::Transpose { .. }
             | Op::Slice { .. }
             | Op::Gather { .. }
+            | Op::Upsample { .. }
             | Op::Pad { .. }
             | Op::Split { .. }
             | Op::Concat { .. } => {
@@ -591,7 +608,7 @@ impl Lower<'_> {
             srcs.push(l.clone());
         }
         let m = all_rows.len();
-        self.check(ni, m, self.zdim)?;
+        self.charge(ni, m, self.zdim)?;
         let refs: Vec<&Lin> = srcs.iter().collect();
         let pre = Lin::combine(&refs, &all_rows, false);
         let w = pre.matrix();
@@ -705,6 +722,7 @@ impl Lower<'_> {
             | Op::Slice { .. }
             | Op::Split { .. }
             | Op::Gather { .. }
+            | Op::Upsample { .. }
             | Op::Reshape { .. }
             | Op::Flatten { .. }
             | Op::Transpose { .. }
@@ -898,7 +916,7 @@ impl Lower<'_> {
                     return refuse("a smooth activation while another branch is live");
                 }
                 let n = x.rows();
-                self.check(ni, n, self.zdim)?;
+                self.charge(ni, n, self.zdim)?;
                 let w = x.matrix();
                 self.layers
                     .push(Layer::Affine(Affine::new(self.zdim, n, w, x.c.clone())));
@@ -925,9 +943,16 @@ impl Lower<'_> {
     }
 }
 
-/// Lower a graph to the chain form (see the module documentation); `Err` names the
-/// node that cannot be lowered and why.
+/// Lower a graph to the chain form (see the module documentation) within the import
+/// budget of [`crate::limits::import_memory`]; `Err` names the node that cannot be
+/// lowered and why.
 pub fn lower(g: &Graph) -> Result<Network, LowerError> {
+    let budget = Budget::from_env().map_err(graph_err)?;
+    lower_within(g, &budget)
+}
+
+/// [`lower`], charging every dense layer to `budget` before it is allocated.
+pub fn lower_within(g: &Graph, budget: &Budget) -> Result<Network, LowerError> {
     let n_in = g.n_inputs();
     let mut last_use = vec![0usize; g.values.len()];
     for (k, n) in g.nodes.iter().enumerate() {
@@ -942,6 +967,7 @@ pub fn lower(g: &Graph) -> Result<Network, LowerError> {
         reps: HashMap::new(),
         layers: Vec::new(),
         last_use,
+        budget,
     };
     let ident = (0..n_in).map(|r| vec![(r, 1.0)]).collect::<Vec<_>>();
     lw.reps.insert(
@@ -954,16 +980,7 @@ pub fn lower(g: &Graph) -> Result<Network, LowerError> {
         let lu = &lw.last_use;
         lw.reps.retain(|&k, _| lu[k] > ni);
         let stored: usize = lw.reps.values().map(Lin::stored).sum();
-        if stored > 2 * MAX_DENSE {
-            return Err(err(
-                g,
-                ni,
-                format!(
-                    "the live tensors take {stored} stored entries, more than {}",
-                    2 * MAX_DENSE
-                ),
-            ));
-        }
+        lw.fits(ni, stored)?;
     }
     let out = lw
         .reps
@@ -972,6 +989,11 @@ pub fn lower(g: &Graph) -> Result<Network, LowerError> {
         .clone();
     let m = out.rows();
     let zd = lw.zdim;
+    budget
+        .charge(m.saturating_mul(zd), &|| {
+            format!("lowering to dense layers: the output's {m} x {zd} map")
+        })
+        .map_err(graph_err)?;
     let w = out.matrix();
     lw.layers.push(Layer::Affine(Affine::new(zd, m, w, out.c)));
     let iname = &g.values[g.input].name;

@@ -1,5 +1,6 @@
 use super::proto::{self, AttributeProto, ModelProto, NodeProto, TensorProto};
 use crate::ir::{Activation, Affine, Layer, Network};
+use crate::limits::Budget;
 use prost::Message;
 use std::collections::HashMap;
 
@@ -32,6 +33,7 @@ pub const SUPPORTED_OPS: &[&str] = &[
     "AveragePool",
     "GlobalAveragePool",
     "Pad",
+    "Upsample",
     "Pow",
     "Neg",
     "LeakyRelu",
@@ -52,16 +54,8 @@ pub const SUPPORTED_OPS: &[&str] = &[
     "ConstantOfShape",
 ];
 
-/// Widest activation vector (inputs, outputs, hidden layers) the importer builds: the
-/// affine maps are stored dense, so a declared width is a `width x width` allocation.
-/// A file that declares more is refused before anything is allocated.
-pub const MAX_WIDTH: usize = 4096;
-
 /// Most dimensions of a tensor (constant or activation).
 pub const MAX_RANK: usize = 32;
-
-/// Most values of one constant tensor (16M, 128 MB as f64).
-pub const MAX_TENSOR_VALUES: usize = 1 << 24;
 
 /// Why a file could not be imported.
 #[derive(Debug, thiserror::Error)]
@@ -115,7 +109,12 @@ pub(crate) struct Const {
     pub(crate) data: Vec<f64>,
 }
 
-pub(crate) fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, OnnxError> {
+/// A constant tensor in f64, its values charged to `budget` before they are converted.
+pub(crate) fn tensor_to_const(
+    t: &TensorProto,
+    file: &str,
+    budget: &Budget,
+) -> Result<Const, OnnxError> {
     let err = |m: String| OnnxError::Structure {
         file: file.into(),
         place: format!("tensor `{}`", t.name),
@@ -141,10 +140,9 @@ pub(crate) fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, Onnx
     let n = dims
         .iter()
         .try_fold(1usize, |a, &d| a.checked_mul(d))
-        .filter(|&n| n <= MAX_TENSOR_VALUES)
         .ok_or_else(|| {
             err(format!(
-                "shape {dims:?} declares more than {MAX_TENSOR_VALUES} values; samara imports controller-sized networks"
+                "shape {dims:?} declares more than 2^64 values; the file is corrupt"
             ))
         })?;
     // The bytes or values the file holds must match the shape before anything is
@@ -163,6 +161,9 @@ pub(crate) fn tensor_to_const(t: &TensorProto, file: &str) -> Result<Const, Onnx
             "holds {held} values but its shape {dims:?} needs {n}; the file is corrupt or truncated"
         )));
     }
+    budget
+        .charge(n, &|| format!("its shape {dims:?} ({n} values as f64)"))
+        .map_err(err)?;
     let data: Vec<f64> = match t.data_type {
         proto::FLOAT => {
             if !t.raw_data.is_empty() {
@@ -233,25 +234,85 @@ struct Builder<'f> {
     file: &'f str,
     segs: Vec<Seg>,
     dim: usize,
+    /// Every map built is charged here before it is allocated.
+    budget: &'f Budget,
 }
 
 impl Builder<'_> {
+    /// Charge `values` f64 entries of a map `node` builds.
+    fn charge(
+        &self,
+        values: usize,
+        node: &str,
+        what: &dyn Fn() -> String,
+    ) -> Result<(), OnnxError> {
+        self.budget
+            .charge(values, what)
+            .map_err(|message| OnnxError::Structure {
+                file: self.file.into(),
+                place: node.into(),
+                message,
+            })
+    }
+
     /// Compose `y = W x + b` (new map) after the pending segment. Elementwise maps merge
     /// into a pending affine; dense maps start a new segment after an elementwise one.
-    fn push_affine(&mut self, a: Affine, elementwise: bool) {
-        self.dim = a.out;
+    /// Two dense maps are composed only when their product is no larger than the two
+    /// (a 2 -> 64 -> 4096 stack becomes one 2 -> 4096 map; an 8192 -> 2048 -> 4096 one
+    /// stays two maps, as the product would be larger and cost 69 G multiplications).
+    /// The product is charged to the budget; `node` names the node in errors.
+    fn push_affine(&mut self, a: Affine, elementwise: bool, node: &str) -> Result<(), OnnxError> {
         if let Some(Seg::Affine {
             a: prev,
             elementwise: pe,
-        }) = self.segs.last_mut()
+        }) = self.segs.last()
         {
-            if elementwise || !*pe {
-                *prev = compose(prev, &a);
-                *pe = *pe && elementwise;
-                return;
+            let (n, k, m) = (prev.inp, prev.out, a.out);
+            let smaller =
+                (m as u128) * (n as u128) <= (m as u128) * (k as u128) + (k as u128) * (n as u128);
+            if elementwise || (!*pe && smaller) {
+                self.charge(m.saturating_mul(n), node, &|| {
+                    format!("composing its {k} -> {m} map with the preceding {n} -> {k} one")
+                })?;
+                if let Some(Seg::Affine {
+                    a: prev,
+                    elementwise: pe,
+                }) = self.segs.last_mut()
+                {
+                    *prev = compose(prev, &a);
+                    *pe = *pe && elementwise;
+                }
+                self.dim = m;
+                return Ok(());
             }
         }
+        self.dim = a.out;
         self.segs.push(Seg::Affine { a, elementwise });
+        Ok(())
+    }
+
+    /// The elementwise map `y_i = scale_i x_i + bias_i`: folded into a pending affine map
+    /// row by row (no allocation), else a new diagonal map (`n x n` dense, charged).
+    fn push_diag(&mut self, scale: &[f64], bias: &[f64], node: &str) -> Result<(), OnnxError> {
+        if let Some(Seg::Affine { a: prev, .. }) = self.segs.last_mut() {
+            let n = prev.inp;
+            for (i, (&s, &c)) in scale.iter().zip(bias).enumerate() {
+                // As `compose` with a diagonal map: a zero scale clears the row.
+                let row = &mut prev.w[i * n..(i + 1) * n];
+                if s == 0.0 {
+                    row.fill(0.0);
+                } else {
+                    row.iter_mut().for_each(|w| *w *= s);
+                }
+                prev.b[i] = s * prev.b[i] + c;
+            }
+            return Ok(());
+        }
+        let n = scale.len();
+        self.charge(n.saturating_mul(n), node, &|| {
+            format!("its elementwise map on {n} entries (an {n} x {n} dense map)")
+        })?;
+        self.push_affine(diag(scale, bias), true, node)
     }
 }
 
@@ -348,7 +409,12 @@ fn norm_axis(a: i64, r: usize, inclusive: bool) -> Option<usize> {
 }
 
 /// The chain importer: one live tensor through dense layers and activations.
-pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
+/// Every allocation that grows with a declared shape is charged to `budget` first.
+pub(crate) fn chain_from_bytes(
+    bytes: &[u8],
+    file: &str,
+    budget: &Budget,
+) -> Result<Network, OnnxError> {
     let model = ModelProto::decode(bytes).map_err(|e| OnnxError::Decode {
         file: file.into(),
         message: e.to_string(),
@@ -371,7 +437,7 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
     }
     let mut consts: HashMap<String, Const> = HashMap::new();
     for t in &graph.initializer {
-        consts.insert(t.name.clone(), tensor_to_const(t, file)?);
+        consts.insert(t.name.clone(), tensor_to_const(t, file, budget)?);
     }
     let inputs: Vec<_> = graph
         .input
@@ -417,11 +483,11 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
     // batch size no longer broadcasts and is refused.
     let in_shape = sample_shape(dims);
     let in_dim = numel(&in_shape)
-        .filter(|&d| d <= MAX_WIDTH)
+        .filter(|&d| budget.fits(d))
         .ok_or_else(|| {
             structure(
                 &in_place,
-                format!("declares shape {in_shape:?}, more entries than samara imports (at most {MAX_WIDTH}); is the file corrupt?"),
+                format!("declares shape {in_shape:?}, more entries than the import's memory budget holds ({}); is the file corrupt?", crate::limits::show_bytes(budget.allowed())),
             )
         })?;
     let mut live = input.name.clone();
@@ -429,6 +495,7 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
         file,
         segs: Vec::new(),
         dim: in_dim,
+        budget,
     };
     // Shape of the live tensor (symbolic dimensions as 1); its row-major entries are the
     // activation vector, so the product of `shape` is always `b.dim`.
@@ -455,7 +522,7 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
                 .and_then(|a| a.t.as_ref())
                 .ok_or_else(|| unsupported(" without a tensor `value` attribute".into()))?;
             let out = node.output.first().cloned().unwrap_or_default();
-            consts.insert(out, tensor_to_const(t, file)?);
+            consts.insert(out, tensor_to_const(t, file, budget)?);
             continue;
         }
         let uses_live = node.input.contains(&live);
@@ -479,11 +546,6 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
             }
         };
         let d = b.dim;
-        let too_wide = |m: usize| {
-            shape_err(format!(
-                "gives {m} entries; samara imports networks at most {MAX_WIDTH} wide"
-            ))
-        };
         let int_attr = |name: &str, default: i64| attr(node, name).map(|a| a.i).unwrap_or(default);
         // A single row: every dimension but the last is 1 (the activation is one sample).
         let one_row = |what: &str| -> Result<(), OnnxError> {
@@ -518,14 +580,12 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
                 }
                 let (r, c) = (bm.dims[0], bm.dims[1]);
                 let (k, m) = if tb == 0 { (r, c) } else { (c, r) };
-                if m > MAX_WIDTH {
-                    return Err(too_wide(m));
-                }
                 if k != d {
                     return Err(shape_err(format!(
                         "B has {k} rows (after transB) but the activation has {d} entries"
                     )));
                 }
+                b.charge(m * d, &nname, &|| format!("its {d} -> {m} map"))?;
                 let mut w = vec![0.0; m * d];
                 for i in 0..m {
                     for j in 0..d {
@@ -571,7 +631,7 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
                         }
                     }
                 };
-                b.push_affine(Affine::new(d, m, w, bias), false);
+                b.push_affine(Affine::new(d, m, w, bias), false, &nname)?;
                 vec![1, m]
             }
             "MatMul" => {
@@ -587,16 +647,14 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
                     )));
                 }
                 let m = bm.dims[1];
-                if m > MAX_WIDTH {
-                    return Err(too_wide(m));
-                }
+                b.charge(m * d, &nname, &|| format!("its {d} -> {m} map"))?;
                 let mut w = vec![0.0; m * d];
                 for i in 0..m {
                     for j in 0..d {
                         w[i * d + j] = bm.data[j * m + i];
                     }
                 }
-                b.push_affine(Affine::new(d, m, w, vec![0.0; m]), false);
+                b.push_affine(Affine::new(d, m, w, vec![0.0; m]), false, &nname)?;
                 let mut s = shape.clone();
                 if let Some(l) = s.last_mut() {
                     *l = m;
@@ -613,10 +671,11 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
                 &shape_err,
             )
             .and_then(|(a, s)| {
-                if a.out > MAX_WIDTH {
-                    return Err(too_wide(a.out));
-                }
-                b.push_affine(a, false);
+                // The map is a copy of the kernel (itself charged as a constant).
+                b.charge(a.w.len(), &nname, &|| {
+                    format!("its {} -> {} map", a.inp, a.out)
+                })?;
+                b.push_affine(a, false, &nname)?;
                 Ok(s)
             })?,
             "Add" | "Sub" | "Mul" | "Div" => {
@@ -662,7 +721,7 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
                         ))
                     }
                 };
-                b.push_affine(diag(&scale, &bias), true);
+                b.push_diag(&scale, &bias, &nname)?;
                 out
             }
             "Relu" => {
@@ -811,11 +870,14 @@ pub(crate) fn chain_from_bytes(bytes: &[u8], file: &str) -> Result<Network, Onnx
                     })
                     .collect();
                 if src.iter().enumerate().any(|(i, &j)| i != j) {
+                    b.charge(d.saturating_mul(d), &nname, &|| {
+                        format!("its permutation of {d} entries (a {d} x {d} dense map)")
+                    })?;
                     let mut w = vec![0.0; d * d];
                     for (i, &j) in src.iter().enumerate() {
                         w[i * d + j] = 1.0;
                     }
-                    b.push_affine(Affine::new(d, d, w, vec![0.0; d]), false);
+                    b.push_affine(Affine::new(d, d, w, vec![0.0; d]), false, &nname)?;
                 }
                 out
             }

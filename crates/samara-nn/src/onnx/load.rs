@@ -7,18 +7,44 @@
 use super::import::{chain_from_bytes, OnnxError};
 use super::proto::ModelProto;
 use crate::ir::Network;
+use crate::limits::{import_memory, show_bytes, Budget, IMPORT_MEMORY_ENV};
 use prost::Message;
 use std::path::Path;
 
-/// Load a network from an ONNX file.
+/// Load a network from an ONNX file, within the import memory budget
+/// ([`crate::limits`]).
 pub fn load(path: impl AsRef<Path>) -> Result<Network, OnnxError> {
     let (bytes, file) = read(path.as_ref())?;
     from_bytes(&bytes, &file)
 }
 
-/// The file's bytes and its name for messages.
+/// The budget of [`import_memory`], or the error naming the variable.
+fn env_budget(file: &str) -> Result<u64, OnnxError> {
+    import_memory().map_err(|message| OnnxError::Structure {
+        file: file.into(),
+        place: "import memory".into(),
+        message,
+    })
+}
+
+/// The file's bytes and its name for messages. A file larger than the import budget
+/// is refused before it is read (its weights alone would not fit).
 fn read(path: &Path) -> Result<(Vec<u8>, String), OnnxError> {
     let file = path.display().to_string();
+    let allowed = env_budget(&file)?;
+    if let Ok(meta) = std::fs::metadata(path) {
+        if meta.len() > allowed {
+            return Err(OnnxError::Structure {
+                file,
+                place: "file".into(),
+                message: format!(
+                    "the file has {}, more than the {} samara allows for a network's import; if the machine has the memory, raise the limit with the environment variable {IMPORT_MEMORY_ENV} (e.g. {IMPORT_MEMORY_ENV}=32G)",
+                    show_bytes(meta.len()),
+                    show_bytes(allowed)
+                ),
+            });
+        }
+    }
     let bytes = std::fs::read(path).map_err(|cause| OnnxError::Io {
         file: file.clone(),
         cause,
@@ -36,16 +62,37 @@ fn read(path: &Path) -> Result<(Vec<u8>, String), OnnxError> {
 /// ([`crate::graph::lower`]); an error then names the node, the operator and, where
 /// one is at fault, the attribute.
 pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
-    match chain_from_bytes(bytes, file) {
+    from_bytes_within(bytes, file, env_budget(file)?)
+}
+
+/// [`from_bytes`] with an import budget of `allowed` bytes: every allocation that
+/// grows with a shape the file declares (its constants as f64, the dense maps built,
+/// the lowering's layers) is charged first, and past `allowed` the import stops with
+/// an error naming the tensor or node and the bytes needed.
+pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Network, OnnxError> {
+    match chain_from_bytes(bytes, file, &Budget::new(allowed)) {
         Err(chain_err @ OnnxError::Unsupported { .. }) => {
-            let graph = match graph_from_bytes(bytes, file) {
+            // The chain importer's allocations are dropped: the graph starts afresh.
+            let budget = Budget::new(allowed);
+            let graph = match graph_within(bytes, file, &budget) {
                 Ok(g) => g,
                 Err(graph_err @ OnnxError::Unsupported { .. }) => {
                     return Err(more_relevant(bytes, chain_err, graph_err))
                 }
+                // Over the memory budget: that is the reason to show.
+                Err(e @ OnnxError::Structure { .. })
+                    if e.to_string().contains(IMPORT_MEMORY_ENV) =>
+                {
+                    return Err(e)
+                }
+                // A node the graph importer reads but cannot take (a value, a shape): its
+                // message, when the chain importer refused that node or an earlier one.
+                Err(e @ OnnxError::Structure { .. }) if structure_first(bytes, &chain_err, &e) => {
+                    return Err(e)
+                }
                 Err(_) => return Err(chain_err),
             };
-            crate::graph::lower::lower(&graph).map_err(|e| OnnxError::Unsupported {
+            crate::graph::lower::lower_within(&graph, &budget).map_err(|e| OnnxError::Unsupported {
                 file: file.into(),
                 node: e.node,
                 op: e.op,
@@ -62,8 +109,14 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
 /// chain importer's more specific message (all but Conv, MatMul and Gemm, which the
 /// chain importer refuses whenever they are not a dense layer).
 fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> OnnxError {
-    let (OnnxError::Unsupported { node: cn, .. }, OnnxError::Unsupported { node: gn, op, .. }) =
-        (&chain_err, &graph_err)
+    let (
+        OnnxError::Unsupported {
+            node: cn,
+            detail: cd,
+            ..
+        },
+        OnnxError::Unsupported { node: gn, op, .. },
+    ) = (&chain_err, &graph_err)
     else {
         return graph_err;
     };
@@ -71,28 +124,64 @@ fn more_relevant(bytes: &[u8], chain_err: OnnxError, graph_err: OnnxError) -> On
         return graph_err;
     };
     let nodes = model.graph.map(|g| g.node).unwrap_or_default();
-    let index = |name: &str| {
-        nodes.iter().enumerate().position(|(k, n)| {
-            n.name == name || (n.name.is_empty() && format!("#{k} ({})", n.op_type) == name)
-        })
-    };
+    let index = |name: &str| node_index(&nodes, name);
     match (index(cn), index(gn)) {
         (Some(c), Some(g)) if g < c => chain_err,
-        (Some(c), Some(g)) if g == c && !matches!(op.as_str(), "Conv" | "MatMul" | "Gemm") => {
+        // (An operator only the graph importer reads has no detail from the chain's.)
+        (Some(c), Some(g))
+            if g == c && !cd.is_empty() && !matches!(op.as_str(), "Conv" | "MatMul" | "Gemm") =>
+        {
             chain_err
         }
         _ => graph_err,
     }
 }
 
+/// The position of the node named `name` in errors (its name, or `#k (Op)`).
+fn node_index(nodes: &[super::proto::NodeProto], name: &str) -> Option<usize> {
+    nodes.iter().enumerate().position(|(k, n)| {
+        n.name == name || (n.name.is_empty() && format!("#{k} ({})", n.op_type) == name)
+    })
+}
+
+/// Whether the graph importer's structural error `graph_err` is at the node the chain
+/// importer refused in `chain_err` or after it (then it is the reason to show; before
+/// it, the chain importer read that node, e.g. with legacy broadcasting).
+fn structure_first(bytes: &[u8], chain_err: &OnnxError, graph_err: &OnnxError) -> bool {
+    let (OnnxError::Unsupported { node: cn, .. }, OnnxError::Structure { place, .. }) =
+        (chain_err, graph_err)
+    else {
+        return false;
+    };
+    let Ok(model) = ModelProto::decode(bytes) else {
+        return false;
+    };
+    let nodes = model.graph.map(|g| g.node).unwrap_or_default();
+    let index = |name: &str| node_index(&nodes, name);
+    let gname = place
+        .strip_prefix("node `")
+        .and_then(|r| r.split('`').next())
+        .unwrap_or("");
+    matches!((index(cn), index(gname)), (Some(c), Some(g)) if g >= c)
+}
+
 /// Read an ONNX model held in memory as a [`crate::graph::Graph`] (any DAG of the
 /// supported operators, piecewise linear or not); `file` names it in errors.
 pub fn graph_from_bytes(bytes: &[u8], file: &str) -> Result<crate::graph::Graph, OnnxError> {
+    graph_within(bytes, file, &Budget::new(env_budget(file)?))
+}
+
+/// [`graph_from_bytes`] charging the graph's constants to `budget`.
+fn graph_within(
+    bytes: &[u8],
+    file: &str,
+    budget: &Budget,
+) -> Result<crate::graph::Graph, OnnxError> {
     let model = ModelProto::decode(bytes).map_err(|e| OnnxError::Decode {
         file: file.into(),
         message: e.to_string(),
     })?;
-    crate::graph::import::from_model(&model, file)
+    crate::graph::import::from_model_within(&model, file, budget)
 }
 
 /// Read an ONNX file as a [`crate::graph::Graph`].

@@ -17,10 +17,6 @@ pub mod shape;
 pub use conv::{ConvAttrs, ConvTransposeAttrs};
 pub use pool::PoolAttrs;
 
-/// Most values one tensor may hold (16M, 128 MB as f64): a file declaring more is
-/// refused before anything is allocated.
-pub const MAX_TENSOR_VALUES: usize = 1 << 24;
-
 /// A dense row-major tensor of f64 values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Tensor {
@@ -56,7 +52,9 @@ impl Tensor {
         self.data
             .iter()
             .map(|&v| {
-                (v.fract() == 0.0 && v.abs() < 9.0e15)
+                // Integers past 2^53 are not exact as f64 but stay integers: INT64_MAX
+                // (PyTorch's "to the end" in a Slice) saturates to i64::MAX.
+                (v.is_finite() && v.fract() == 0.0)
                     .then_some(v as i64)
                     .ok_or_else(|| format!("{v} is not an integer"))
             })
@@ -89,13 +87,16 @@ pub fn norm_axis(a: i64, r: usize) -> Result<usize, String> {
     }
 }
 
-/// Check a result's size before allocating it.
+/// Check a result's size before allocating it: at most the import memory budget
+/// ([`crate::limits::max_tensor_values`]).
 pub fn check_size(shape: &[usize]) -> Result<usize, String> {
-    numel(shape)
-        .filter(|&n| n <= MAX_TENSOR_VALUES)
-        .ok_or_else(|| {
-            format!("gives shape {shape:?}, more than {MAX_TENSOR_VALUES} values; samara evaluates controller- and benchmark-sized networks")
-        })
+    let max = crate::limits::max_tensor_values();
+    numel(shape).filter(|&n| n <= max).ok_or_else(|| {
+        format!(
+            "gives shape {shape:?}, more than the {max} values (8 bytes each) of the import memory budget; raise it with {}=<size> if the machine has the memory",
+            crate::limits::IMPORT_MEMORY_ENV
+        )
+    })
 }
 
 /// `Slice`'s attribute form (opsets before 10): starts, ends, optional axes.
@@ -126,6 +127,13 @@ pub enum Op {
         pads: Option<Vec<i64>>,
         /// Fill value from the attribute, if given there.
         value: f64,
+    },
+    /// Nearest-neighbour upsampling (opsets 7 to 9): output index `o` of an axis reads
+    /// input index `floor(o / scale)`; scales from the attribute (opset 7) or the
+    /// second input, each at least 1.
+    Upsample {
+        /// Scales from the attribute, if given there.
+        scales: Option<Vec<f64>>,
     },
     /// Numpy-broadcast binary operator.
     Binary(elementwise::BinOp),
@@ -270,6 +278,13 @@ impl Op {
                     .unwrap_or(*value);
                 let axes = opt(3).map(|t| t.ints()).transpose()?;
                 one(shape::pad(x(0)?, &pads, axes.as_deref(), value)?)
+            }
+            Op::Upsample { scales } => {
+                let scales = match scales {
+                    Some(s) => s.clone(),
+                    None => x(1)?.data.clone(),
+                };
+                one(shape::upsample_nearest(x(0)?, &scales)?)
             }
             Op::Binary(b) => one(elementwise::binary(*b, x(0)?, x(1)?)?),
             Op::Unary(u) => one(elementwise::unary(*u, x(0)?)),

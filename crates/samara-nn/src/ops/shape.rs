@@ -2,7 +2,7 @@
 //! `Split`, `Gather`, `Reshape`, `Transpose`, `Squeeze`, `Unsqueeze` (Flatten and
 //! Identity need no logic of their own).
 
-use super::{check_size, norm_axis, strides, Tensor, MAX_TENSOR_VALUES};
+use super::{check_size, norm_axis, strides, Tensor};
 
 /// Map a function over every multi-index of `shape` (row-major), passing the flat index
 /// and the multi-index.
@@ -232,6 +232,53 @@ pub fn gather(x: &Tensor, indices: &[i64], ishape: &[usize], axis: i64) -> Resul
     Ok(Tensor::new(out, y))
 }
 
+/// Nearest-neighbour upsampling (ONNX `Upsample`, mode `nearest`, as onnxruntime
+/// computes it): each axis of size `d` becomes `floor(d * scale)`, and output index `o`
+/// reads input index `floor(o / scale)`. Scales below 1 (downsampling) are refused.
+pub fn upsample_nearest(x: &Tensor, scales: &[f64]) -> Result<Tensor, String> {
+    let r = x.shape.len();
+    if scales.len() != r {
+        return Err(format!(
+            "has {} scales for an input of rank {r}; give one per axis",
+            scales.len()
+        ));
+    }
+    if let Some(s) = scales.iter().find(|s| !(s.is_finite() && **s >= 1.0)) {
+        return Err(format!(
+            "scale {s} is not supported (nearest upsampling by scales of at least 1)"
+        ));
+    }
+    let out: Vec<usize> = x
+        .shape
+        .iter()
+        .zip(scales)
+        .map(|(&d, &s)| (d as f64 * s).floor() as usize)
+        .collect();
+    let n = check_size(&out)?;
+    // Per axis, the input index each output index reads.
+    let src: Vec<Vec<usize>> = out
+        .iter()
+        .zip(scales)
+        .zip(&x.shape)
+        .map(|((&o, &s), &d)| {
+            (0..o)
+                .map(|k| ((k as f64 / s).floor() as usize).min(d.saturating_sub(1)))
+                .collect()
+        })
+        .collect();
+    let (ist, ost) = (strides(&x.shape), strides(&out));
+    let data = (0..n)
+        .map(|flat| {
+            let mut at = 0;
+            for a in 0..r {
+                at += src[a][(flat / ost[a]) % out[a]] * ist[a];
+            }
+            x.data[at]
+        })
+        .collect();
+    Ok(Tensor::new(out, data))
+}
+
 /// The shape `Reshape` gives a tensor of `shape`: `0` copies the input's dimension
 /// (unless `allowzero`), `-1` is inferred.
 pub fn reshape_shape(
@@ -250,11 +297,16 @@ pub fn reshape_shape(
                 out.push(1);
             }
             0 if !allowzero => out.push(*shape.get(k).ok_or_else(bad)?),
-            t if t >= 0 && (t as usize) <= MAX_TENSOR_VALUES => out.push(t as usize),
+            t if t >= 0 && (t as usize) <= crate::limits::max_tensor_values() => {
+                out.push(t as usize)
+            }
             _ => return Err(bad()),
         }
     }
-    let known: usize = out.iter().product();
+    let known: usize = out
+        .iter()
+        .try_fold(1usize, |a, &b| a.checked_mul(b))
+        .ok_or_else(bad)?;
     if let Some(k) = infer {
         if known == 0 || !d.is_multiple_of(known) {
             return Err(bad());
