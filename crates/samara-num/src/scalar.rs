@@ -113,6 +113,12 @@ pub trait Scalar:
             Sign::Mixed => self.hull(other),
         }
     }
+    /// The product `self * o` of two borrowed values: the same number as the product
+    /// by value, without copying the operands first (types whose values own their
+    /// storage, such as Taylor models, multiply by reference).
+    fn mul_by_ref(&self, o: &Self) -> Self {
+        self.clone() * o.clone()
+    }
     /// Square, `x * x` (types may do better, e.g. intervals).
     fn sqr(&self) -> Self {
         self.clone() * self.clone()

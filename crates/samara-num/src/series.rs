@@ -94,9 +94,9 @@ impl<S: Scalar, const K: usize> Series<S, K> {
 /// expansion (`samara_system::taylor`) so that both sum in the same order.
 #[inline]
 pub fn dconv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
-    let mut acc = a[1].clone() * b[i - 1].clone() * (1.0 / i as f64);
+    let mut acc = a[1].mul_by_ref(&b[i - 1]) * (1.0 / i as f64);
     for j in 2..=i {
-        acc += a[j].clone() * b[i - j].clone() * (j as f64 / i as f64);
+        acc += a[j].mul_by_ref(&b[i - j]) * (j as f64 / i as f64);
     }
     acc
 }
@@ -106,9 +106,9 @@ pub fn dconv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
 /// expansion.
 #[inline]
 pub fn conv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
-    let mut acc = a[0].clone() * b[i].clone();
+    let mut acc = a[0].mul_by_ref(&b[i]);
     for j in 1..=i {
-        acc += a[j].clone() * b[i - j].clone();
+        acc += a[j].mul_by_ref(&b[i - j]);
     }
     acc
 }
@@ -139,7 +139,7 @@ impl<S: Scalar, const K: usize> Mul for Series<S, K> {
             r.konst = other.konst;
             let m = if other.konst { 1 } else { n };
             for i in 0..m {
-                r.c[i] = other.c[i].clone() * k.clone();
+                r.c[i] = other.c[i].mul_by_ref(&k);
             }
             return r;
         }
@@ -165,7 +165,7 @@ impl<S: Scalar, const K: usize> Div for Series<S, K> {
         for i in 0..n {
             let mut acc = self.c[i].clone();
             for j in 1..=i {
-                acc -= o.c[j].clone() * r.c[i - j].clone();
+                acc -= o.c[j].mul_by_ref(&r.c[i - j]);
             }
             r.c[i] = acc / o.c[0].clone();
         }
@@ -284,7 +284,7 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
             let k = i - 1;
             let mut acc = self.c[k + 1].clone() * (k as f64 + 1.0);
             for j in 1..=k {
-                acc -= q.c[j].clone() * d[k - j].clone();
+                acc -= q.c[j].mul_by_ref(&d[k - j]);
             }
             d[k] = acc / q.c[0].clone();
             u.c[i] = d[k].clone() / i as f64;
@@ -294,7 +294,7 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
     /// The product with itself, its constant term by `S::sqr` (a square of one quantity:
     /// intervals and Taylor models know it is `>= 0`, a product of two copies does not).
     fn sqr(&self) -> Self {
-        let mut r = self.clone() * self.clone();
+        let mut r = self.mul_by_ref(self);
         r.c[0] = self.c[0].sqr();
         r
     }
@@ -310,7 +310,7 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         for i in 1..self.n {
             let mut acc = self.c[i].clone();
             for j in 1..i {
-                acc -= r.c[j].clone() * r.c[i - j].clone();
+                acc -= r.c[j].mul_by_ref(&r.c[i - j]);
             }
             r.c[i] = acc / two_r0.clone();
         }
@@ -341,7 +341,7 @@ impl<S: Scalar, const K: usize> Scalar for Series<S, K> {
         for i in 1..self.n {
             let mut acc = self.c[i].clone();
             for j in 1..i {
-                acc -= u.c[j].clone() * self.c[i - j].clone() * (j as f64 / i as f64);
+                acc -= u.c[j].mul_by_ref(&self.c[i - j]) * (j as f64 / i as f64);
             }
             u.c[i] = acc / self.c[0].clone();
         }

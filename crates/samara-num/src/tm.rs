@@ -68,6 +68,7 @@ use std::fmt;
 use std::hash::{BuildHasherDefault, Hasher};
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 use std::rc::Rc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, OnceLock};
 
 /// Unit roundoff of binary64, round-to-nearest.
@@ -440,6 +441,48 @@ pub struct Tm {
     /// are `>= 0`, whatever the monomial-wise bound of their polynomial says, so
     /// `sqrt(x^2 + eps)` keeps its domain where `x` straddles 0.
     lo: f64,
+    /// The upward bounds `[sn, sp]` of the downward and upward extent of the
+    /// non-constant terms over the box (what [`Tm::poly_range`] adds to the constant),
+    /// computed on first use and kept until a non-constant coefficient changes (NaN:
+    /// not yet computed): a product reads each operand's range where the other has a
+    /// remainder, and a series convolution multiplies each coefficient many times.
+    ext: Ext,
+}
+
+/// [`Tm::ext`] not yet computed.
+const NO_EXT: [f64; 2] = [f64::NAN, f64::NAN];
+
+/// A model's kept extents `[sn, sp]` ([`Tm::ext`]; NaN: not computed), in atomics so
+/// that models stay `Sync`: threads that read one model's range at once both compute
+/// the same numbers, and `sn` is published after `sp` (release / acquire), so a reader
+/// that sees `sn` sees `sp` too.
+struct Ext([AtomicU64; 2]);
+
+impl Ext {
+    fn new(v: [f64; 2]) -> Ext {
+        Ext([
+            AtomicU64::new(v[0].to_bits()),
+            AtomicU64::new(v[1].to_bits()),
+        ])
+    }
+    fn get(&self) -> [f64; 2] {
+        let sn = f64::from_bits(self.0[0].load(Ordering::Acquire));
+        let sp = f64::from_bits(self.0[1].load(Ordering::Relaxed));
+        if sp.is_nan() {
+            return NO_EXT;
+        }
+        [sn, sp]
+    }
+    fn set(&self, v: [f64; 2]) {
+        self.0[1].store(v[1].to_bits(), Ordering::Relaxed);
+        self.0[0].store(v[0].to_bits(), Ordering::Release);
+    }
+}
+
+impl Clone for Ext {
+    fn clone(&self) -> Ext {
+        Ext::new(self.get())
+    }
 }
 
 impl fmt::Debug for Tm {
@@ -568,6 +611,7 @@ impl Tm {
             c,
             rem,
             lo: f64::NEG_INFINITY,
+            ext: Ext::new(NO_EXT),
         }
     }
 
@@ -738,6 +782,34 @@ impl Tm {
     /// Higham, "Accuracy and Stability of Numerical Algorithms", 2nd ed., section 4.2).
     /// Exact sums stay exact (every error is 0). A NaN coefficient gives the entire line.
     fn poly_range_from(&self, start: usize, c0: f64) -> Interval {
+        let whole = start <= 1;
+        if whole {
+            let [sn, sp] = self.ext.get();
+            if !sn.is_nan() {
+                return Tm::range_of(c0, sn, sp);
+            }
+        }
+        let [sn, sp] = self.extent_from(start);
+        if whole {
+            self.ext.set([sn, sp]);
+        }
+        Tm::range_of(c0, sn, sp)
+    }
+
+    /// `c0` plus the extents `[-sn, sp]`, outward.
+    fn range_of(c0: f64, sn: f64, sp: f64) -> Interval {
+        if sn == 0.0 && sp == 0.0 {
+            return Interval::point(c0);
+        }
+        Interval {
+            lo: sum_dn(c0, -sn),
+            hi: sum_up(c0, sp),
+        }
+    }
+
+    /// Upward bounds `[sn, sp]` of the downward and upward extent over the box of the
+    /// terms with index `>= start` (at least 1; `[inf, inf]` where a coefficient is NaN).
+    fn extent_from(&self, start: usize) -> [f64; 2] {
         #[inline(always)]
         fn acc(s: &mut f64, err: &mut f64, a: f64) {
             let t = *s + a;
@@ -760,10 +832,7 @@ impl Tm {
             }
         }
         if odd.is_nan() || pos.is_nan() || neg.is_nan() {
-            return Interval {
-                lo: f64::NEG_INFINITY,
-                hi: f64::INFINITY,
-            };
+            return [f64::INFINITY, f64::INFINITY];
         }
         let n = self.c.len() - from;
         let raise = 1.0 + 4.0 * (n as f64 + 2.0) * f64::EPSILON;
@@ -778,15 +847,7 @@ impl Tm {
             }
         };
         let (odd, pos, neg) = (lift(odd, eo), lift(pos, ep), lift(neg, en));
-        let sp = sum_up(odd, pos);
-        let sn = sum_up(odd, neg);
-        if sn == 0.0 && sp == 0.0 {
-            return Interval::point(c0);
-        }
-        Interval {
-            lo: sum_dn(c0, -sn),
-            hi: sum_up(c0, sp),
-        }
+        [sum_up(odd, neg), sum_up(odd, pos)]
     }
 
     /// Range of the polynomial part over the box (without the remainder).
@@ -1123,6 +1184,7 @@ impl Tm {
         // Each inexact sum is off by at most u |z| (Higham (2.5)); their magnitudes are
         // summed plainly and bounded once ([`nonneg_sum_bound`]).
         let (mut sa, mut cnt) = (0.0, 0usize);
+        a.ext.set(NO_EXT);
         for (x, &y) in a.c.iter_mut().zip(&b.c) {
             if y != 0.0 {
                 let z = *x + s * y;
@@ -1154,6 +1216,7 @@ impl Tm {
             return self;
         }
         let (mut sa, mut cnt) = (0.0, 0usize);
+        self.ext.set(NO_EXT);
         for v in self.c.iter_mut() {
             if *v != 0.0 {
                 *v *= s;
@@ -1177,6 +1240,7 @@ impl Tm {
     /// `self / s` for a float `s`.
     fn div_f64(mut self, s: f64) -> Tm {
         let (mut sa, mut cnt) = (0.0, 0usize);
+        self.ext.set(NO_EXT);
         for v in self.c.iter_mut() {
             if *v != 0.0 {
                 *v /= s;
@@ -1298,6 +1362,16 @@ impl Tm {
         }
         if !is_zero(&b.rem) {
             rem = rem + b.rem * a.poly_range();
+        }
+        // Every coefficient is at most the sum of its pairs' |a_i b_j|, so at most
+        // `kept` (up to the rounding of the sums), which bounds them all: when it is
+        // far from overflow, no coefficient can be infinite or NaN (the operands'
+        // are finite), and only the remainder needs the invariant's check.
+        if kept < f64::MAX / 4.0 {
+            if has_nan(&rem) {
+                return Tm::entire_on(t, fixed);
+            }
+            return Tm::raw(t, fixed, r, rem);
         }
         Tm::raw(t, fixed, r, rem).finish()
     }
@@ -1448,6 +1522,9 @@ impl Neg for Tm {
         for v in self.c.iter_mut() {
             *v = -*v;
         }
+        // The extents trade places.
+        let [sn, sp] = self.ext.get();
+        self.ext.set([sp, sn]);
         self.rem = -self.rem;
         self.lo = f64::NEG_INFINITY;
         self
@@ -1550,6 +1627,9 @@ impl Scalar for Tm {
             Sign::Negative | Sign::NonPositive => -self.clone(),
             Sign::Mixed => Tm::from_interval_on(self.t, self.fixed, self.bound().abs()),
         }
+    }
+    fn mul_by_ref(&self, o: &Self) -> Self {
+        Tm::mul_ref(self, o)
     }
     fn sqr(&self) -> Self {
         let mut r = Tm::mul_ref(self, self);
@@ -1725,6 +1805,77 @@ mod tests {
     /// builds it: every entry of `mul` is the index of the sum of its pair's exponents,
     /// every pair within the order appears once, and no other (classic and mixed
     /// tables; the reach runs use 6 of weight 1 and up to 40 of weight 2).
+    /// The kept extents ([`Tm::ext`]) never go stale: a model whose range was read
+    /// (so kept) and then changed by each coefficient-changing operation (sum,
+    /// difference, in-place sum, products by a model and by a float, quotient by a float,
+    /// negation, a constant added, a change of table) reads the same range as one
+    /// recomputed from its coefficients; and the polynomial's value at a random point
+    /// lies in that range.
+    /// A product past overflow (the coefficient scan it skips below overflow) is still
+    /// the entire model.
+    #[test]
+    fn kept_ranges_follow_every_operation() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let fresh = |m: &Tm| {
+            let [sn, sp] = m.extent_from(1);
+            Tm::range_of(m.c[0], sn, sp)
+        };
+        let check = |m: &Tm, what: &str| {
+            assert_eq!(m.poly_range(), fresh(m), "{what}: first read");
+            assert_eq!(m.poly_range(), fresh(m), "{what}: kept");
+        };
+        for _ in 0..50 {
+            let n = 3;
+            let mut rnd = || rng.gen_range(-1.0..1.0);
+            let x: Vec<Tm> = (0..n)
+                .map(|k| {
+                    (Tm::var(k, n, 3) * (0.5 + rnd()) + rnd()).with_rem(Interval::new(-1e-3, 1e-3))
+                })
+                .collect();
+            let a = x[0].clone() * x[1].clone() + x[2].sqr();
+            let b = x[1].clone() * x[2].clone() - x[0].clone();
+            let _ = (a.bound(), b.bound());
+            let ops: Vec<(&str, Tm)> = vec![
+                ("sum", a.clone() + b.clone()),
+                ("difference", a.clone() - b.clone()),
+                ("in-place sum", {
+                    let mut c = a.clone();
+                    c += b.clone();
+                    c
+                }),
+                ("product", a.clone() * b.clone()),
+                ("product by ref", a.mul_by_ref(&b)),
+                ("square", a.sqr()),
+                ("scaled", a.clone() * 0.3),
+                ("quotient", a.clone() / 3.0),
+                ("negated", -a.clone()),
+                ("shifted", a.clone() + 0.25),
+                ("lower order", a.clone().with_order(2)),
+                ("more parameters", a.clone() + Tm::var(3, 4, 3)),
+            ];
+            for (what, m) in &ops {
+                check(m, what);
+                let xi: Vec<f64> = (0..m.n_vars()).map(|_| rnd()).collect();
+                // The polynomial's value at the point lies in its (kept) range.
+                let v = m.clone().split_rem().0.eval_at(&xi);
+                let bd = m.poly_range();
+                assert!(
+                    bd.lo <= v.lo && v.hi <= bd.hi,
+                    "{what}: {v:?} outside {bd:?}"
+                );
+            }
+        }
+        let big = Tm::var(0, 2, 2) * 1e200 + Tm::var(1, 2, 2) * 1e200;
+        let _ = big.bound();
+        let p = big.clone() * big;
+        assert_eq!(
+            p.bound(),
+            Interval::entire(),
+            "an overflowing product is entire"
+        );
+    }
+
     #[test]
     fn product_table_matches_exponent_sums() {
         for &(n, order, full, lw) in &[(3, 4, 3, 1), (6, 4, 6, 1), (8, 4, 2, 2), (20, 4, 6, 2)] {

@@ -162,7 +162,7 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
                             let num = if i == 0 { S::cst(v) } else { zero.clone() };
                             let mut acc = num;
                             for j in 1..=i {
-                                acc -= r(a)[j].clone() * c[k * m + i - j].clone();
+                                acc -= r(a)[j].mul_by_ref(&c[k * m + i - j]);
                             }
                             acc / r(a)[0].clone()
                         }
@@ -172,9 +172,9 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
                         Bin2::Sub => r(a)[i].clone() - r(b)[i].clone(),
                         Bin2::Mul => {
                             if konst[a] {
-                                r(b)[i].clone() * r(a)[0].clone()
+                                r(b)[i].mul_by_ref(&r(a)[0])
                             } else if konst[b] {
-                                r(a)[i].clone() * r(b)[0].clone()
+                                r(a)[i].mul_by_ref(&r(b)[0])
                             } else {
                                 conv(r(a), r(b), i)
                             }
@@ -185,7 +185,7 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
                             } else {
                                 let mut acc = r(a)[i].clone();
                                 for j in 1..=i {
-                                    acc -= r(b)[j].clone() * c[k * m + i - j].clone();
+                                    acc -= r(b)[j].mul_by_ref(&c[k * m + i - j]);
                                 }
                                 acc / r(b)[0].clone()
                             }
@@ -208,7 +208,7 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
                             } else {
                                 let mut acc = r(a)[i].clone();
                                 for j in 1..i {
-                                    acc -= c[k * m + j].clone() * c[k * m + i - j].clone();
+                                    acc -= c[k * m + j].mul_by_ref(&c[k * m + i - j]);
                                 }
                                 acc / (c[k * m].clone() * 2.0)
                             }
