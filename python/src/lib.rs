@@ -392,7 +392,7 @@ fn robustness(
     let net = network.net.clone();
     let data = f64s(rows);
     let report = interruptible(py, move || {
-        let s = settings(timeout, max_nodes, false)?;
+        let s = settings(timeout, max_nodes)?;
         let r = front::robustness(
             Front::Python,
             &net,

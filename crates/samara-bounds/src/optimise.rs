@@ -636,6 +636,17 @@ impl Ctx<'_> {
         if upper.is_nan() || upper < self.s.floor {
             return None;
         }
+        // A bound below the objective's least value on the box: the bound holds at every
+        // point of the node that satisfies the rows (weak duality), and every point of
+        // the box has at least that value, so no point satisfies them: the node is
+        // empty. (For P1 with `ystar` in `[0, 100]` where P1 holds for every `ystar`,
+        // the search used to keep splitting such nodes for want of an incumbent: half
+        // of the nodes of generated seed 4.)
+        if !self.p.objective.uses_outputs()
+            && upper < exact_v(&self.p.objective, 1.0).min_over(lo, hi)
+        {
+            return None;
+        }
         let unstable = if self.net {
             unstable(maps, pre).len()
         } else {

@@ -1,6 +1,7 @@
 //! P1-P4 critical values of raw-unit 6-input networks by samara's exact engine and by the
 //! HiGHS big-M MILP (`samara_verify::milp`), with times (bench/verify/wide.sh).
-//! Usage: cargo run --release -p samara-verify --features highs --example wide_milp -- [--timeout S] NET.onnx...
+//! Usage: cargo run --release -p samara-verify --features highs --example wide_milp -- [--timeout S] [--only pK] NET.onnx...
+//! (HiGHS stops at `samara_verify::milp::TIME_LIMIT_S` per disjunct: an error row then).
 
 #[path = "../tests/support/case_study.rs"]
 mod case_study;
@@ -24,6 +25,12 @@ fn main() {
         timeout = Timeout::from_secs_f64(secs).expect("--timeout S: seconds >= 0");
         args.drain(..2);
     }
+    // `--only pK` (next) computes one property.
+    let mut only: Option<String> = None;
+    if args.first().map(String::as_str) == Some("--only") && args.len() >= 2 {
+        only = Some(args[1].clone());
+        args.drain(..2);
+    }
     for path in args {
         let net = samara_nn::onnx::load(&path).expect("an ONNX network");
         let mut nets = HashMap::new();
@@ -44,6 +51,9 @@ fn main() {
         // normalised units.
         let raw = !name.ends_with("_norm");
         for q in p1_to_p4(raw) {
+            if only.as_ref().is_some_and(|o| *o != q.name) {
+                continue;
+            }
             let t = Instant::now();
             let ours = optimise(
                 &q,

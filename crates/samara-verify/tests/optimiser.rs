@@ -375,6 +375,41 @@ fn one_network_agrees_with_pattern_enumeration_and_sampling() {
     assert!(compared >= 8, "too few feasible cases compared: {compared}");
 }
 
+/// P1's shape, maximise the free `t` alone (`x0 + x1 >= t`) with the output bound
+/// pushed down so that the region is often empty: a node whose bound falls below `t`'s
+/// least value is closed as empty (no incumbent is needed), so the searches that end
+/// without a point must agree with the enumeration (no feasible pattern) and with
+/// sampling, and those that find one with its value.
+#[test]
+fn objectives_without_outputs_agree_when_the_region_is_empty_or_not() {
+    let (mut empty, mut found) = (0, 0);
+    for seed in 200..216u64 {
+        let dims: &[usize] = if seed.is_multiple_of(2) {
+            &[4, 6, 4, 1]
+        } else {
+            &[3, 8, 3, 1]
+        };
+        let mut c = case(seed, &[dims]);
+        c.objective = LinExpr {
+            terms: vec![(Var::Free(0), 1.0)],
+            constant: 0.0,
+        };
+        c.constraints[0].expr.constant += [0.0, 0.1, 0.3, 1.0][(seed % 4) as usize];
+        check(seed, &c);
+        let pwl = pwls(&c);
+        let r = solve(&problem(&c, &pwl), limits(60.0));
+        if r.best.is_none() {
+            empty += 1;
+        } else {
+            found += 1;
+        }
+    }
+    assert!(
+        empty >= 3 && found >= 3,
+        "{empty} empty, {found} with a point"
+    );
+}
+
 /// Two different networks (of different depths, so the product carries the shorter
 /// one's output through a ReLU layer) in one relational query.
 #[test]
