@@ -43,7 +43,13 @@ fn main() {
             constraints,
         });
     }
+    // SAMARA_PHASE_MAX_UNSTABLE overrides the setting (for tuning).
+    let phase_max_unstable = std::env::var("SAMARA_PHASE_MAX_UNSTABLE")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(Settings::default().phase_max_unstable);
     let s = Settings {
+        phase_max_unstable,
         timeout: Timeout::from_secs_f64(200.0).unwrap(),
         ..Default::default()
     };
