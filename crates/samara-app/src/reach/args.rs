@@ -766,6 +766,29 @@ mod tests {
         assert!(e
             .to_string()
             .starts_with("--order applies to Taylor-model sets"));
+        for (flags, start) in [
+            (&["--time-order", "9"][..], "--time-order 9: give 1 to 8"),
+            (&["--time-order", "0"], "--time-order 0: give 1 to 8"),
+            (&["--step-tol", "0"], "--step-tol 0: give a share"),
+            (&["--step-tol", "0.5"], "--step-tol 0.5: give a share"),
+            (&["--step-tol", "NaN"], "--step-tol NaN: give a share"),
+        ] {
+            let e = args(flags).taylor_settings().unwrap_err().to_string();
+            assert!(e.starts_with(start), "{flags:?}: {e}");
+        }
+        let s = args(&["--time-order", "8", "--step-tol", "1e-5"])
+            .taylor_settings()
+            .unwrap();
+        assert_eq!(
+            (s.flow.time_order, s.flow.rem_rel, s.flow.rem_tol),
+            (8, 1e-5, 1e-5 * 1e-2)
+        );
+        let e = args(&["--step-tol", "1e-5"])
+            .check_zonotope_flags()
+            .unwrap_err();
+        assert!(e
+            .to_string()
+            .starts_with("--time-order and --step-tol apply"));
     }
 
     #[test]
