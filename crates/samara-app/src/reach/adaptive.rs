@@ -560,6 +560,8 @@ pub fn merge_shards(
     };
     s.flow.lift_at = run.lift_at.0;
     s.flow.lifted_weight = run.lifted_weight;
+    s.flow.time_order = run.time_order;
+    crate::reach::args::set_step_tol(&mut s.flow, run.step_tol.0);
     let a = AdaptiveSettings {
         target_ratio: ratio.0,
         pieces: Some(run.grid.clone()),

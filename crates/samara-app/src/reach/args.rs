@@ -36,6 +36,16 @@ pub const MAX_RATIO: f64 = 1e6;
 pub const MAX_THREADS: usize = 1024;
 /// The built-in glider's `--lift-at` on Taylor-model sets (docs/reach.md).
 pub const GLIDER_LIFT_AT: f64 = 1e-3;
+/// The built-in glider's `--time-order` in adaptive runs (`--target-ratio`): on the
+/// six-state cell (bench/reach/cell_cost.md), order 8 with [`GLIDER_STEP_TOL`] takes
+/// 790 flow steps where order 6 with the flow's default tolerance takes 1,792, at a
+/// slightly narrower x + y.
+pub const GLIDER_TIME_ORDER: usize = 8;
+/// The built-in glider's `--step-tol` in adaptive runs (`--target-ratio`): each step's
+/// Lagrange remainder may reach 1e-5 of the set's width (at order 6, the flow's default
+/// 1e-7 takes 1,792 steps on that cell and 1e-5 1,078; the glider lifts the remainders
+/// into parameters at [`GLIDER_LIFT_AT`] of the width anyway).
+pub const GLIDER_STEP_TOL: f64 = 1e-5;
 
 /// The published initial heights: y0 in [0.1/0.07, 0.3/0.07].
 pub const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
@@ -138,6 +148,18 @@ pub struct ReachArgs {
     /// so more of them can be kept; docs/reach.md).
     #[arg(long, allow_hyphen_values = true)]
     pub lifted_weight: Option<i64>,
+    /// Order in time of the Taylor-model flow's steps (--system, --sets taylor), 1 to 8:
+    /// higher orders take longer steps where the flow is smooth, each step costing more
+    /// (default 6; 8 in the built-in glider's adaptive runs, docs/reach.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub time_order: Option<i64>,
+    /// Widest Lagrange remainder a step of the Taylor-model flow may add, as a share of
+    /// the set's width (--system, --sets taylor), in (0, 0.01]; steps are halved until
+    /// they meet it (an absolute floor of a hundredth of it keeps narrow states
+    /// moving). Larger: longer, fewer steps; every remainder stays a sound enclosure
+    /// (default 1e-7; 1e-5 in the built-in glider's adaptive runs, docs/reach.md).
+    #[arg(long, allow_hyphen_values = true)]
+    pub step_tol: Option<f64>,
     /// A spec file whose closed loop to fly (`loop`, `start`, `goal` statements; e.g.
     /// models/alsomitra/alsomitra.spec, loop `published`): model, initial set, period,
     /// horizon, clip and goal come from it, so the flags that set them are refused
@@ -417,6 +439,9 @@ impl ReachArgs {
         if self.lifted_weight.is_some() {
             return input("--lifted-weight applies to Taylor-model sets (--sets taylor or --system); the zonotope sets have no lifted parameters");
         }
+        if self.time_order.is_some() || self.step_tol.is_some() {
+            return input("--time-order and --step-tol apply to Taylor-model sets (--sets taylor or --system); the zonotope flow has its own step control");
+        }
         Ok(())
     }
 
@@ -469,6 +494,10 @@ impl ReachArgs {
             }
         }
         t.lift_at = self.lift_at.or(Some(GLIDER_LIFT_AT));
+        if self.target_ratio.is_some() {
+            t.time_order = self.time_order.or(Some(GLIDER_TIME_ORDER as i64));
+            t.step_tol = self.step_tol.or(Some(GLIDER_STEP_TOL));
+        }
         t
     }
 
@@ -502,6 +531,13 @@ impl ReachArgs {
         if let Some(v) = a.lifted_weight {
             check_lifted_weight(Front::Cli, v, s.order)?;
             s.flow.lifted_weight = v as u32;
+        }
+        if let Some(v) = a.time_order {
+            s.flow.time_order = check_time_order(Front::Cli, v)?;
+        }
+        if let Some(v) = a.step_tol {
+            check_step_tol(Front::Cli, v)?;
+            set_step_tol(&mut s.flow, v);
         }
         Ok(s)
     }
@@ -730,6 +766,29 @@ mod tests {
         assert!(e
             .to_string()
             .starts_with("--order applies to Taylor-model sets"));
+        for (flags, start) in [
+            (&["--time-order", "9"][..], "--time-order 9: give 1 to 8"),
+            (&["--time-order", "0"], "--time-order 0: give 1 to 8"),
+            (&["--step-tol", "0"], "--step-tol 0: give a share"),
+            (&["--step-tol", "0.5"], "--step-tol 0.5: give a share"),
+            (&["--step-tol", "NaN"], "--step-tol NaN: give a share"),
+        ] {
+            let e = args(flags).taylor_settings().unwrap_err().to_string();
+            assert!(e.starts_with(start), "{flags:?}: {e}");
+        }
+        let s = args(&["--time-order", "8", "--step-tol", "1e-5"])
+            .taylor_settings()
+            .unwrap();
+        assert_eq!(
+            (s.flow.time_order, s.flow.rem_rel, s.flow.rem_tol),
+            (8, 1e-5, 1e-5 * 1e-2)
+        );
+        let e = args(&["--step-tol", "1e-5"])
+            .check_zonotope_flags()
+            .unwrap_err();
+        assert!(e
+            .to_string()
+            .starts_with("--time-order and --step-tol apply"));
     }
 
     #[test]
@@ -740,8 +799,15 @@ mod tests {
             (Some(2), Some("symbolic:7"))
         );
         assert_eq!(t.lift_at, Some(GLIDER_LIFT_AT));
+        assert_eq!((t.time_order, t.step_tol), (None, None));
         let t = args(&["--target-ratio", "2"]).glider_tuned();
         assert_eq!((t.order, t.lifted_weight), (Some(4), Some(2)));
+        assert_eq!(
+            (t.time_order, t.step_tol),
+            (Some(GLIDER_TIME_ORDER as i64), Some(GLIDER_STEP_TOL))
+        );
+        let t = args(&["--target-ratio", "2", "--time-order", "6"]).glider_tuned();
+        assert_eq!((t.time_order, t.step_tol), (Some(6), Some(GLIDER_STEP_TOL)));
         let t = args(&["--order", "3", "--lift-at", "0.05"]).glider_tuned();
         assert_eq!(
             (t.order, t.network_error, t.lift_at),
@@ -943,6 +1009,35 @@ pub fn check_lifted_weight(front: Front, v: i64, order: usize) -> Result<()> {
         ));
     }
     Ok(())
+}
+
+/// The flow's order in time (`--time-order`): 1 to 8.
+pub fn check_time_order(front: Front, v: i64) -> Result<usize> {
+    if !(1..=8).contains(&v) {
+        return input(format!(
+            "{} {v}: give 1 to 8 (default 6): the order in time of each flow step",
+            front.arg("time_order")
+        ));
+    }
+    Ok(v as usize)
+}
+
+/// The flow's step tolerance (`--step-tol`): a share of the set's width in (0, 0.01].
+pub fn check_step_tol(front: Front, v: f64) -> Result<()> {
+    if !(v.is_finite() && v > 0.0 && v <= 1e-2) {
+        return input(format!(
+            "{} {v}: give a share of the set's width in (0, 0.01], such as 1e-7 (default) or 1e-5",
+            front.arg("step_tol")
+        ));
+    }
+    Ok(())
+}
+
+/// Sets the flow's step tolerance to `rel` of the set's width, with an absolute floor
+/// a hundredth of it (the defaults' ratio, 1e-7 and 1e-9).
+pub fn set_step_tol(flow: &mut samara_reach::tmflow::TmFlowSettings, rel: f64) {
+    flow.rem_rel = rel;
+    flow.rem_tol = rel * 1e-2;
 }
 
 /// A Taylor-model run's time limit (`--timeout`, `timeout=`): positive seconds, at most

@@ -238,6 +238,13 @@ pub struct TaylorRun {
     pub lift_at: Exact,
     /// `--lifted-weight`.
     pub lifted_weight: u32,
+    /// `--time-order` (records from before the flag: the default, 6).
+    #[serde(default = "default_time_order")]
+    pub time_order: usize,
+    /// `--step-tol`, the flow's relative step tolerance (records from before the flag:
+    /// the default, 1e-7).
+    #[serde(default = "default_step_tol")]
+    pub step_tol: Exact,
     /// Whether sets are re-parameterised.
     pub precondition: bool,
     /// The measures.
@@ -246,6 +253,16 @@ pub struct TaylorRun {
     /// divide the grid's starting cells by their number mod N; none for a grid run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_ratio: Option<Exact>,
+}
+
+/// [`TaylorRun::time_order`] of a record without it: the flow's default.
+fn default_time_order() -> usize {
+    samara_reach::tmflow::TmFlowSettings::default().time_order
+}
+
+/// [`TaylorRun::step_tol`] of a record without it: the flow's default.
+fn default_step_tol() -> Exact {
+    Exact(samara_reach::tmflow::TmFlowSettings::default().rem_rel)
 }
 
 impl TaylorRun {
@@ -276,6 +293,8 @@ impl TaylorRun {
             network_error: s.network_error,
             lift_at: Exact(s.flow.lift_at),
             lifted_weight: s.flow.lifted_weight,
+            time_order: s.flow.time_order,
+            step_tol: Exact(s.flow.rem_rel),
             precondition: s.precondition,
             measures: s.measures.iter().map(measure_text_of).collect(),
             target_ratio: None,
@@ -671,6 +690,8 @@ mod tests {
             network_error: None,
             lift_at: Exact(0.5),
             lifted_weight: 1,
+            time_order: 6,
+            step_tol: Exact(1e-7),
             precondition: true,
             measures: Vec::new(),
             target_ratio: None,
