@@ -464,6 +464,15 @@ impl Lower<'_> {
                     .map(|r| r.into_iter().map(|(i, v)| (0, i, v)).collect())
                     .collect())
             }
+            Op::ConvTranspose(a) => {
+                let Some(w) = konst(1) else { return Ok(None) };
+                let sh = shape_of(0).unwrap_or_default();
+                let (_, rows) = crate::ops::conv::conv_transpose_rows(&sh, w, a).map_err(e)?;
+                one(rows
+                    .into_iter()
+                    .map(|r| r.into_iter().map(|(i, v)| (0, i, v)).collect())
+                    .collect())
+            }
             Op::Unary(UnOp::Neg) => {
                 let n = dyn_in[0].map_or(0, |l| l.rows());
                 one((0..n).map(|r| vec![(0, r, -1.0)]).collect())
