@@ -591,7 +591,10 @@ fn conv_that_is_not_a_dense_layer_loads_through_the_graph_path() {
     let err = |m: proto::ModelProto| load(&m, "conv.onnx").unwrap_err();
     // The graph importer reads grouped convolutions; its message says why this one
     // does not fit (the kernel's channels against the group).
-    check(err(with(&|n| n.attribute[0].i = 2)), &["group 2", "input channels"]);
+    check(
+        err(with(&|n| n.attribute[0].i = 2)),
+        &["group 2", "input channels"],
+    );
     check(
         err(with(&|n| n.attribute[2].ints = vec![1, 2])),
         &["kernel_shape"],

@@ -200,8 +200,9 @@ impl Lower<'_> {
 
     /// Whether a live tensor's map of `stored` entries fits in what is left of the
     /// budget (it is not charged: it is dropped once no node reads it).
+    /// A stored entry is a (row, value) pair: 16 bytes, two f64's worth.
     fn fits(&self, node: usize, stored: usize) -> Result<(), LowerError> {
-        if self.budget.fits(stored) {
+        if self.budget.fits(stored.saturating_mul(2)) {
             return Ok(());
         }
         Err(err(
@@ -209,7 +210,7 @@ impl Lower<'_> {
             node,
             format!(
                 "lowering to dense layers: the maps of the live tensors store {stored} entries ({}), more than is left of the import's {} (used: {}); raise the limit with {}=<size> if the machine has the memory",
-                show_bytes(stored as u64 * 8),
+                show_bytes(stored as u64 * 16),
                 show_bytes(self.budget.allowed()),
                 show_bytes(self.budget.used()),
                 crate::limits::IMPORT_MEMORY_ENV
@@ -459,6 +460,15 @@ impl Lower<'_> {
                 let Some(w) = konst(1) else { return Ok(None) };
                 let sh = shape_of(0).unwrap_or_default();
                 let rows = crate::ops::conv::conv_rows(&sh, w, a).map_err(e)?;
+                one(rows
+                    .into_iter()
+                    .map(|r| r.into_iter().map(|(i, v)| (0, i, v)).collect())
+                    .collect())
+            }
+            Op::ConvTranspose(a) => {
+                let Some(w) = konst(1) else { return Ok(None) };
+                let sh = shape_of(0).unwrap_or_default();
+                let (_, rows) = crate::ops::conv::conv_transpose_rows(&sh, w, a).map_err(e)?;
                 one(rows
                     .into_iter()
                     .map(|r| r.into_iter().map(|(i, v)| (0, i, v)).collect())

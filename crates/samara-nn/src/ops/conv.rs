@@ -271,14 +271,51 @@ pub fn conv(x: &Tensor, w: &Tensor, b: Option<&Tensor>, a: &ConvAttrs) -> Result
 }
 
 /// `ConvTranspose`: every input position scatters its kernel-weighted value to
-/// `o = i s + k d - p`; W has shape `[C, M / G, k...]`.
+/// `o = i s + k d - p`; W has shape `[C, M / G, k...]`. Evaluated through
+/// [`conv_transpose_rows`], so evaluation and lowering share one geometry.
 pub fn conv_transpose(
     x: &Tensor,
     w: &Tensor,
     b: Option<&Tensor>,
     a: &ConvTransposeAttrs,
 ) -> Result<Tensor, String> {
-    let xs = &x.shape;
+    let (oshape, rows) = conv_transpose_rows(&x.shape, w, a)?;
+    let m = oshape[1];
+    if let Some(b) = b {
+        if b.numel() != m {
+            return Err(format!(
+                "the bias B has shape {:?}, expected [{m}]",
+                b.shape
+            ));
+        }
+    }
+    let per_channel: usize = oshape[2..].iter().product();
+    let y = rows
+        .iter()
+        .enumerate()
+        .map(|(o, row)| {
+            let mut acc = b.map_or(0.0, |b| b.data[(o / per_channel) % m]);
+            for &(i, wv) in row {
+                let xv = x.data[i];
+                if xv != 0.0 {
+                    acc += xv * wv;
+                }
+            }
+            acc
+        })
+        .collect();
+    Ok(Tensor::new(oshape, y))
+}
+
+/// The output shape of a `ConvTranspose` on an input of shape `xs` and its rows as a
+/// sparse linear map (the bias left out): per output entry (row-major), the input
+/// entries it reads and their weights, in the order the direct scatter adds them.
+#[allow(clippy::type_complexity)]
+pub fn conv_transpose_rows(
+    xs: &[usize],
+    w: &Tensor,
+    a: &ConvTransposeAttrs,
+) -> Result<(Vec<usize>, Vec<Vec<(usize, f64)>>), String> {
     let (h, wd) = spatial2(xs)?;
     if w.shape.len() != xs.len() {
         return Err(format!(
@@ -324,22 +361,11 @@ pub fn conv_transpose(
         vec![n, m, oh, ow]
     };
     check_size(&oshape)?;
-    if let Some(b) = b {
-        if b.numel() != m {
-            return Err(format!(
-                "the bias B has shape {:?}, expected [{m}]",
-                b.shape
-            ));
-        }
-    }
-    let mut y = vec![0.0; n * m * oh * ow];
+    // Each output entry's row holds (input entry, weight) pairs: c / group input
+    // channels times the kernel taps that land on it.
+    check_size(&[n, c, h, wd, mg, kh, kw])?;
+    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n * m * oh * ow];
     for ni in 0..n {
-        for mi in 0..m {
-            let bias = b.map_or(0.0, |b| b.data[mi]);
-            y[(ni * m + mi) * oh * ow..][..oh * ow]
-                .iter_mut()
-                .for_each(|v| *v = bias);
-        }
         for ci in 0..c {
             let gi = ci / cg;
             for mj in 0..mg {
@@ -347,10 +373,7 @@ pub fn conv_transpose(
                 let wk = &w.data[(ci * mg + mj) * kh * kw..][..kh * kw];
                 for ii in 0..h {
                     for jj in 0..wd {
-                        let xv = x.data[((ni * c + ci) * h + ii) * wd + jj];
-                        if xv == 0.0 {
-                            continue;
-                        }
+                        let xi = ((ni * c + ci) * h + ii) * wd + jj;
                         for ki in 0..kh {
                             let o = (ii * sh + ki * dh) as isize - pbh as isize;
                             if o < 0 || o as usize >= oh {
@@ -361,8 +384,8 @@ pub fn conv_transpose(
                                 if q < 0 || q as usize >= ow {
                                     continue;
                                 }
-                                y[((ni * m + mi) * oh + o as usize) * ow + q as usize] +=
-                                    xv * wk[ki * kw + kj];
+                                rows[((ni * m + mi) * oh + o as usize) * ow + q as usize]
+                                    .push((xi, wk[ki * kw + kj]));
                             }
                         }
                     }
@@ -370,7 +393,7 @@ pub fn conv_transpose(
             }
         }
     }
-    Ok(Tensor::new(oshape, y))
+    Ok((oshape, rows))
 }
 
 /// The rows of a `Conv` as a sparse linear map (the bias left out): per output entry
