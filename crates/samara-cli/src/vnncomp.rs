@@ -50,13 +50,10 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     let mut loaded = Vec::new();
     for l in lines {
         let at = format!("{}:{}", a.instances.display(), l.lineno);
-        let (net, q) = load_instance(
-            &root.join(&l.onnx),
-            &root.join(&l.vnnlib),
-            &format!("{at}: onnx"),
-            &format!("{at}: vnnlib"),
-        )
-        .map_err(|e| anyhow!("{at}: {e}"))?;
+        let (net, q) = load_instance(&root.join(&l.onnx), &root.join(&l.vnnlib), "onnx", "vnnlib")
+            // Every message gets the CSV line once, here (the labels stay bare, so a
+            // network the loader refuses does not read `FILE:LINE: FILE:LINE: onnx ...`).
+            .map_err(|e| anyhow!("{at}: {e}"))?;
         let t = l.timeout * a.timeout_scale;
         let limit = samara_app::bind::timeout_flag(t)?;
         loaded.push((net, q, t, limit));

@@ -246,4 +246,6 @@ fn bad_vnnlib_and_unsupported_operators_are_input_errors() {
     ]);
     assert_eq!(code, Some(2), "{err}");
     assert!(err.contains("i.csv:1") && err.contains("`Selu`"), "{err}");
+    // The CSV line is named once, not once per layer of the error's path.
+    assert_eq!(err.matches("i.csv:1").count(), 1, "{err}");
 }
