@@ -92,11 +92,23 @@ pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Netwo
                 }
                 Err(_) => return Err(chain_err),
             };
-            crate::graph::lower::lower_within(&graph, &budget).map_err(|e| OnnxError::Unsupported {
-                file: file.into(),
-                node: e.node,
-                op: e.op,
-                detail: format!(": {}", e.message),
+            crate::graph::lower::lower_within(&graph, &budget).map_err(|e| {
+                // Over the memory budget the operator is supported: the network is too
+                // large for the limit, which the message names with the way to raise it.
+                if e.message.contains(IMPORT_MEMORY_ENV) {
+                    OnnxError::Structure {
+                        file: file.into(),
+                        place: format!("node `{}` ({})", e.node, e.op),
+                        message: e.message,
+                    }
+                } else {
+                    OnnxError::Unsupported {
+                        file: file.into(),
+                        node: e.node,
+                        op: e.op,
+                        detail: format!(": {}", e.message),
+                    }
+                }
             })
         }
         other => other,
