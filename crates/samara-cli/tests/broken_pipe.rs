@@ -6,7 +6,7 @@ use samara_nn::{onnx, Activation, Affine, Layer, Network};
 use std::io::Read;
 use std::process::Stdio;
 
-mod support;
+use crate::support;
 use support::samara;
 
 /// Run `samara args`, read at most `keep` bytes of its stdout, close the pipe, and return

@@ -19,7 +19,7 @@ use std::path::Path;
 use std::process::Stdio;
 use std::time::{Duration, Instant};
 
-mod support;
+use crate::support;
 use support::{reference, samara};
 
 const TIMEOUT: Duration = Duration::from_secs(20);

@@ -5,7 +5,7 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-mod support;
+use crate::support;
 use support::{reference, samara};
 
 /// A copy of a published file in `dir` (tests never write next to the reference files).

@@ -10,7 +10,7 @@ use samara_nn::{onnx, Activation, Affine, Layer, Network};
 use std::path::Path;
 use std::time::Duration;
 
-mod support;
+use crate::support;
 use support::verify_vnnlib_json;
 
 fn net(layers: Vec<Layer>, n_in: usize, n_out: usize) -> Network {

@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-mod support;
+use crate::support;
 
 /// A network with `n` inputs and 1 output, `u = 0.1 relu(sum of inputs) + 0.05`, as
 /// ONNX.

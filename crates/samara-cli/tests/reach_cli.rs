@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-mod support;
+use crate::support;
 use support::{json_of_success, reference, samara};
 
 /// A small network with `inputs` inputs and one output, written as ONNX.

@@ -8,7 +8,7 @@ use serde_json::Value;
 use std::ffi::OsStr;
 use std::path::Path;
 
-mod support;
+use crate::support;
 use support::{reference, samara};
 
 const BOX: [&str; 16] = [

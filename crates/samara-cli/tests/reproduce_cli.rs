@@ -2,7 +2,7 @@
 //! parses, every number in it equals the stored results (`GOLDEN`), and a re-run reuses the
 //! finished stages; a bad `--spec` is a usage error with its place.
 
-mod support;
+use crate::support;
 use serde_json::Value;
 use support::samara;
 
@@ -10,7 +10,7 @@ use support::samara;
 /// (the view of [`golden_view`]), produced by the code before the stages took the spec
 /// as a value (issue 12) and unchanged by that refactor. Regenerate it, after a change
 /// meant to move the numbers, with
-/// `SAMARA_BLESS=1 cargo test -p samara-cli --test reproduce_cli quick_reproduction`
+/// `SAMARA_BLESS=1 cargo test -p samara-cli --test all reproduce_cli::quick_reproduction`
 /// (the test then writes the file instead of comparing, and passes), and review the diff.
 ///
 /// Every compared number is deterministic: the same bit for bit with 1 and 2 threads

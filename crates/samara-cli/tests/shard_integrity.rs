@@ -9,7 +9,7 @@ use serde_json::Value;
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 
-mod support;
+use crate::support;
 use support::sealing::write_shard as write;
 use support::{reference, samara};
 

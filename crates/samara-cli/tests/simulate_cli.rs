@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-mod support;
+use crate::support;
 use support::{reference, samara};
 
 fn reference_rows() -> Vec<Vec<f64>> {

@@ -10,7 +10,7 @@
 use samara_nn::{onnx, Activation, Affine, Layer, Network};
 use std::time::Duration;
 
-mod support;
+use crate::support;
 use support::verify_vnnlib_json;
 
 fn split_net() -> Network {

@@ -2,7 +2,7 @@
 //! worker as with two (the engines batch their searches in a fixed order), and a bad
 //! count refused naming the flag.
 
-mod support;
+use crate::support;
 use support::samara;
 use support::{reference_str as reference, SPEC};
 

@@ -6,7 +6,7 @@ use samara_nn::{onnx, Activation, Affine, Layer, Network};
 use std::path::Path;
 use std::time::{Duration, Instant};
 
-mod support;
+use crate::support;
 use support::samara;
 
 /// A VNN-COMP-style MNIST classifier: 784 inputs, two dense layers of 256 ReLUs, 10

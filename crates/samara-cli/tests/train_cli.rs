@@ -1,7 +1,7 @@
 //! `samara train`: JSON metrics, a loadable ONNX file, bit-identical reruns, and input
 //! errors (empty or ragged CSV, bad method) with exit code 2.
 
-mod support;
+use crate::support;
 use support::samara;
 
 /// The published training data (fails naming the file when it is missing).

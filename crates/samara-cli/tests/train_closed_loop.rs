@@ -2,7 +2,7 @@
 //! the rounds figure, a network `samara reach` proves, and bad flags refused before
 //! anything is written.
 
-mod support;
+use crate::support;
 use support::samara;
 
 const SPEC: &str = concat!(

@@ -7,7 +7,7 @@
 use serde_json::Value;
 use std::ffi::OsStr;
 
-mod support;
+use crate::support;
 use support::{reference, samara};
 
 fn run(args: &[&OsStr]) -> (Option<i32>, Value, String) {

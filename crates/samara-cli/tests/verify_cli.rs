@@ -2,7 +2,7 @@
 //! exit codes (0 proved, 1 violated/unknown, 2 input error) and verdicts re-checked here
 //! against the plain network evaluation.
 
-mod support;
+use crate::support;
 use support::samara;
 
 use support::{reference_str as reference, SPEC};

@@ -7,7 +7,7 @@
 use samara_spec::normal::Var;
 use std::path::{Path, PathBuf};
 
-mod support;
+use crate::support;
 use support::samara;
 
 fn data() -> PathBuf {

@@ -3,7 +3,7 @@
 //! large to check in), so `#[ignore]`d.
 //!
 //! `SAMARA_VNNCOMP2021=.../vnncomp2021/benchmarks cargo test -p samara-nn --release
-//!  --test vnncomp_networks -- --ignored --nocapture` (and `SAMARA_VNNCOMP_DIRS`, below)
+//!  --test all vnncomp_networks:: -- --ignored --nocapture` (and `SAMARA_VNNCOMP_DIRS`, below)
 //!
 //! Per network: the graph import, 100 random inputs in [0, 1] through the graph
 //! evaluation and, where the network lowers to the verifier's chain, through the chain

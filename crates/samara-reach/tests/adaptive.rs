@@ -10,7 +10,7 @@
 //! - one and two threads give the same cells, sets and ratio;
 //! - a budget too small for the target ends with the target unmet and says why.
 
-mod common;
+use crate::common;
 
 use rand::{Rng, SeedableRng};
 use samara_reach::adaptive::{

@@ -9,7 +9,7 @@
 //! Fixtures: ARCH-COMP AINNCS controllers (tests/data/archcomp/README.md) and the
 //! published Alsomitra controller (../shared/reference).
 
-mod common;
+use crate::common;
 
 use rand::{Rng, SeedableRng};
 use samara_reach::system::SystemViolation;
@@ -844,7 +844,7 @@ const FIELD: &[(&str, &str, usize, &str)] = &[
 /// `SAMARA_ARCHCOMP_2024` at ARCH-COMP2024's (NAV, CartPole); a verdict opposite to the
 /// competition's fails the test. E.g.
 /// `SAMARA_ARCHCOMP=/tmp/ARCH-COMP2023/benchmarks cargo test --release -p samara-reach
-/// --test system_containment -- --ignored field`.
+/// --test all system_containment:: -- --ignored field`.
 #[test]
 #[ignore = "needs SAMARA_ARCHCOMP (and SAMARA_ARCHCOMP_2024) pointing at the ARCH-COMP benchmark folders; minutes in release"]
 fn field_benchmarks_sets_contain_flights() {

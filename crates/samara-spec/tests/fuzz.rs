@@ -10,7 +10,7 @@
 //! counts:
 //!
 //! ```text
-//! cargo test --release -p samara-spec --test fuzz -- --ignored --nocapture
+//! cargo test --release -p samara-spec --test all fuzz:: -- --ignored --nocapture
 //! ```
 
 use proptest::prelude::*;
@@ -653,7 +653,7 @@ fn fuzz_10000_cases_per_kind() {
 }
 
 /// Reproduce one case: `SAMARA_FUZZ_KIND=SpecGrammar SAMARA_FUZZ_SEED=123 cargo test
-/// -p samara-spec --test fuzz show_case -- --ignored --nocapture` prints the input, the
+/// -p samara-spec --test all fuzz::show_case -- --ignored --nocapture` prints the input, the
 /// outcome and the time.
 #[test]
 #[ignore = "prints one case named by SAMARA_FUZZ_KIND and SAMARA_FUZZ_SEED"]

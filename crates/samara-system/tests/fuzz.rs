@@ -1,7 +1,7 @@
 //! Seeded fuzzing of the system parser: mutations of the shipped files, token soups and
 //! deep nesting. No input may panic; an accepted system must evaluate (f64, intervals,
 //! duals, Taylor series) without panicking. CI runs a bounded number of cases with a
-//! fixed seed; `cargo test -p samara-system --test fuzz -- --ignored` runs 10,000.
+//! fixed seed; `cargo test -p samara-system --test all fuzz:: -- --ignored` runs 10,000.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
