@@ -676,6 +676,7 @@ pub(crate) fn backward_lower_sp(
         beta,
         Mags::Inputs(&inmax),
         sp,
+        None,
     )
 }
 
@@ -706,7 +707,17 @@ pub(crate) fn backward_lower_rows(
     obj: &Objective,
     rows: &[Vec<f64>],
 ) -> Linear {
-    backward_core(maps, pre, &obj.c, obj.d, None, None, Mags::Rows(rows), None)
+    backward_core(
+        maps,
+        pre,
+        &obj.c,
+        obj.d,
+        None,
+        None,
+        Mags::Rows(rows),
+        None,
+        None,
+    )
 }
 
 /// Whether the split multiplier `c` on a neuron with bounds `(l, u)` adds a term
@@ -872,7 +883,10 @@ fn row_coef_magnitude(m: &Affine, sp: Option<&Rows>, i: usize, x: &[f64]) -> f64
 
 /// The pull-back of [`backward_lower_alpha`] with the magnitudes for its rounding bound
 /// given ([`Mags`]); the objective is `c . y + d`, with the split multipliers `beta` of
-/// [`backward_lower_beta`].
+/// [`backward_lower_beta`]. `slopes[j][t]`, when given, is the chord slope
+/// ([`relu::chord_slope_up`]) of unstable neuron `t` of `pre[j]`, computed once for the
+/// many pull-backs through the same bounds (CROWN's intermediate bounds) instead of a
+/// division per neuron in each.
 #[allow(clippy::too_many_arguments)]
 fn backward_core(
     maps: &[(Affine, bool)],
@@ -883,6 +897,7 @@ fn backward_core(
     beta: Option<&[Vec<f64>]>,
     mags: Mags,
     sp: Option<&Sparse>,
+    slopes: Option<&[Vec<f64>]>,
 ) -> Linear {
     let mut mu = c.to_vec();
     let mut cst = d;
@@ -899,20 +914,35 @@ fn backward_core(
         let mut cmag = cst.abs();
         // sum_t (sum_i |mu_i w_it|) |x_t|, regrouped (see `row_magnitudes`).
         let mut wmag = 0.0;
-        for (i, &mi) in mu.iter().enumerate() {
+        let rows = Sparse::map(sp, j);
+        let given = match mags {
+            Mags::Rows(r) => Some(&r[j][..]),
+            Mags::Inputs(_) => None,
+        };
+        for (i, (&mi, &bi)) in mu.iter().zip(&m.b).enumerate() {
             if mi == 0.0 {
                 continue;
             }
-            let p = mi * m.b[i];
+            let p = mi * bi;
             cst += p;
             cmag += p.abs();
-            let rows = Sparse::map(sp, j);
             wmag += mi.abs()
-                * match mags {
-                    Mags::Rows(r) => r[j][i],
-                    Mags::Inputs(x) => row_coef_magnitude(m, rows, i, &x[j]),
+                * match (given, mags) {
+                    (Some(r), _) => r[i],
+                    (None, Mags::Inputs(x)) => row_coef_magnitude(m, rows, i, &x[j]),
+                    (None, Mags::Rows(r)) => r[j][i],
                 };
-            axpy_row(m, rows, i, mi, &mut nu);
+            match rows {
+                // The dense row inline (the pull-backs of CROWN's intermediate bounds
+                // spend most of their time here): `axpy_row`'s operations, in its order.
+                None => {
+                    let w = &m.w[i * m.inp..(i + 1) * m.inp];
+                    for (o, &wt) in nu.iter_mut().zip(w) {
+                        *o += mi * wt;
+                    }
+                }
+                Some(_) => axpy_row(m, rows, i, mi, &mut nu),
+            }
         }
         err += gamma(k) * (cmag + wmag);
         if j == 0 || !maps[j - 1].1 {
@@ -934,7 +964,10 @@ fn backward_core(
             if l >= 0.0 {
                 z[t] = v;
             } else if v < 0.0 {
-                let s = relu::chord_slope_up(l, u);
+                let s = match slopes {
+                    Some(sl) => sl[j - 1][t],
+                    None => relu::chord_slope_up(l, u),
+                };
                 z[t] = v * s;
                 let c = -(v * s) * l;
                 cst += c;
@@ -1536,6 +1569,18 @@ fn crown_pre_core_rows(
     let body = maps.len() - 1;
     let mut pre: Vec<Vec<(f64, f64)>> = Vec::with_capacity(body);
     let mut c = Vec::new();
+    // The chord slopes of every bounded layer's unstable neurons, computed once per layer
+    // instead of once per pull-back (the same function of the same bounds, so the same
+    // bits; 0 where a neuron is stable, which no pull-back reads).
+    let mut slopes: Vec<Vec<f64>> = Vec::with_capacity(body);
+    let chords = |b: &[(f64, f64)]| -> Vec<f64> {
+        b.iter()
+            .map(|&(l, u)| match l < 0.0 && u > 0.0 {
+                true => relu::chord_slope_up(l, u),
+                false => 0.0,
+            })
+            .collect()
+    };
     // The row magnitudes of every map's input bound up to k (only the last one is new),
     // or all of them given.
     let mut rowmag: Vec<Vec<f64>> = match rows {
@@ -1545,6 +1590,7 @@ fn crown_pre_core_rows(
     for k in 0..body {
         if k < from {
             if let Some(f) = fwd {
+                slopes.push(chords(&f[k]));
                 pre.push(f[k].clone());
                 if let Some(v) = lins.as_deref_mut() {
                     v.push(vec![None; f[k].len()]);
@@ -1578,10 +1624,11 @@ fn crown_pre_core_rows(
             c.clear();
             c.resize(m.out, 0.0);
             c[i] = 1.0;
-            let lf = backward_core(sub, &pre, &c, 0.0, None, None, Mags::Rows(&rowmag), sp);
+            let rm = Mags::Rows(&rowmag);
+            let lf = backward_core(sub, &pre, &c, 0.0, None, None, rm, sp, Some(&slopes));
             let l = lf.min_over(lo, hi);
             c[i] = -1.0;
-            let uf = backward_core(sub, &pre, &c, 0.0, None, None, Mags::Rows(&rowmag), sp);
+            let uf = backward_core(sub, &pre, &c, 0.0, None, None, rm, sp, Some(&slopes));
             let u = -uf.min_over(lo, hi);
             bounds.push((l.max(fl), u.min(fu)));
             if lins.is_some() {
@@ -1591,6 +1638,7 @@ fn crown_pre_core_rows(
         if let Some(v) = lins.as_deref_mut() {
             v.push(ls);
         }
+        slopes.push(chords(&bounds));
         pre.push(bounds);
     }
     pre
@@ -1665,6 +1713,73 @@ mod tests {
                 (Affine::new(inp, out, w, b), j + 1 < n)
             })
             .collect()
+    }
+
+    #[test]
+    fn crown_bounds_with_slopes_once_per_layer_equal_slopes_per_pull_back() {
+        // `crown_pre_core_rows` computes each layer's chord slopes once and passes them
+        // to every pull-back; the reference below is the per-neuron loop it replaced,
+        // each pull-back computing its slopes itself. Bounds and linear functions must
+        // be bit for bit the same, on dense chains at three weight scales, wide and
+        // narrow boxes.
+        use rand::{Rng, SeedableRng};
+        let mut compared = 0;
+        for seed in 0..12u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+            let sizes = [5, 12, 12, 12, 3];
+            let scale = [0.3, 1.0, 3.0][seed as usize % 3];
+            let maps: Vec<(Affine, bool)> = (0..sizes.len() - 1)
+                .map(|j| {
+                    let (inp, out) = (sizes[j], sizes[j + 1]);
+                    let w = (0..inp * out)
+                        .map(|_| scale * rng.gen_range(-1.0..1.0))
+                        .collect();
+                    let b = (0..out).map(|_| rng.gen_range(-0.3..0.3)).collect();
+                    (Affine::new(inp, out, w, b), j + 2 < sizes.len())
+                })
+                .collect();
+            let width = [0.05, 0.5, 2.0][(seed / 3) as usize % 3];
+            let lo: Vec<f64> = (0..5).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|v| v + width).collect();
+            let fwd = hidden_pre(&maps, &lo, &hi, None);
+            let (got, lins) = crown_pre_lin_until(&maps, &lo, &hi, &fwd, None);
+            // The reference: the same loop, slopes computed in every pull-back.
+            let mut pre: Vec<Vec<(f64, f64)>> = Vec::new();
+            let mut rowmag: Vec<Vec<f64>> = Vec::new();
+            for k in 0..maps.len() - 1 {
+                let sub = &maps[..=k];
+                let inmax = input_magnitudes(sub, &pre, &lo, &hi, k + 1);
+                for (j, im) in inmax.iter().enumerate().skip(rowmag.len()) {
+                    rowmag.push(row_magnitude(&maps[j].0, None, im));
+                }
+                let mut layer = Vec::new();
+                for i in 0..maps[k].0.out {
+                    let (fl, fu) = fwd[k][i];
+                    if fl >= 0.0 || fu <= 0.0 {
+                        layer.push((fl, fu));
+                        assert!(lins[k][i].is_none());
+                        continue;
+                    }
+                    let mut c = vec![0.0; maps[k].0.out];
+                    c[i] = 1.0;
+                    let rm = Mags::Rows(&rowmag);
+                    let lf = backward_core(sub, &pre, &c, 0.0, None, None, rm, None, None);
+                    c[i] = -1.0;
+                    let uf = backward_core(sub, &pre, &c, 0.0, None, None, rm, None, None);
+                    let (l, u) = (lf.min_over(&lo, &hi), -uf.min_over(&lo, &hi));
+                    let (gl, gu) = lins[k][i].as_ref().expect("an unstable neuron is bounded");
+                    assert_eq!((gl, gu), (&lf, &uf), "seed {seed} layer {k} neuron {i}");
+                    compared += 1;
+                    layer.push((l.max(fl), u.min(fu)));
+                }
+                for (a, b) in got[k].iter().zip(&layer) {
+                    assert_eq!(a.0.to_bits(), b.0.to_bits(), "seed {seed} layer {k}");
+                    assert_eq!(a.1.to_bits(), b.1.to_bits(), "seed {seed} layer {k}");
+                }
+                pre.push(layer);
+            }
+        }
+        assert!(compared > 100, "only {compared} unstable neurons compared");
     }
 
     #[test]
