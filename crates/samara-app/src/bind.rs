@@ -405,7 +405,8 @@ pub fn read_data(path: &Path, flag: &str) -> Result<samara_nn::data::Table, AppE
         .map_err(|e| AppError::Input(format!("{}{e}", flag_prefix(flag))))
 }
 
-fn flag_prefix(flag: &str) -> String {
+/// `flag` as the start of a message: `--network=` as is, any other followed by a space.
+pub(crate) fn flag_prefix(flag: &str) -> String {
     if flag.ends_with('=') {
         flag.to_string()
     } else {

@@ -25,16 +25,71 @@ pub fn load_instance(
     net_flag: &str,
     prop_flag: &str,
 ) -> Result<(Network, Query), AppError> {
-    let net = crate::bind::load_network(network, net_flag)?;
-    let text = std::fs::read_to_string(property).map_err(|e| {
-        AppError::Input(format!(
-            "{prop_flag} {}: cannot read: {e}",
-            property.display()
-        ))
-    })?;
+    load_instance_logits(network, property, net_flag, prop_flag).map(|(net, q, _)| (net, q))
+}
+
+/// [`load_instance`], leaving out a final `Softmax` over all the outputs when the
+/// property only compares outputs with each other ([`compares_outputs_only`]: the
+/// answer is the same on the logits, softmax being strictly increasing in each logit
+/// against any other). The third value is `true` when the softmax was left out: the
+/// network then computes the logits, and outputs shown as the file's (a counterexample's
+/// `Y_j`) are [`softmax`] of the network's.
+pub fn load_instance_logits(
+    network: &Path,
+    property: &Path,
+    net_flag: &str,
+    prop_flag: &str,
+) -> Result<(Network, Query, bool), AppError> {
+    // The property is read first to choose how to load the network, but a bad network
+    // is reported before a bad property, as always.
+    let q = read_property(property, prop_flag);
+    let logits = wants_logits(network, &q);
+    let (net, logits) = load_network_as(network, net_flag, logits)?;
+    let q = check_instance(&net, q?, network, property)?;
+    Ok((net, q, logits))
+}
+
+/// The property file as a query (exit 2 naming the flag or the file's line).
+pub fn read_property(property: &Path, prop_flag: &str) -> Result<Query, AppError> {
     let file = property.display().to_string();
-    let q = vnnlib::import(&text, &file, "f", "property")
-        .map_err(|e| AppError::Input(e.to_string()))?;
+    let text = std::fs::read_to_string(property)
+        .map_err(|e| AppError::Input(format!("{prop_flag} {file}: cannot read: {e}")))?;
+    vnnlib::import(&text, &file, "f", "property").map_err(|e| AppError::Input(e.to_string()))
+}
+
+/// Whether an ONNX network for this property may be loaded without a final softmax
+/// ([`compares_outputs_only`]).
+pub fn wants_logits(network: &Path, q: &Result<Query, AppError>) -> bool {
+    let nnet = network
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("nnet"));
+    matches!(q, Ok(q) if !nnet && compares_outputs_only(q))
+}
+
+/// Load the network, without a final softmax over all outputs when `logits` (then the
+/// flag says whether one was left out).
+pub fn load_network_as(
+    network: &Path,
+    net_flag: &str,
+    logits: bool,
+) -> Result<(Network, bool), AppError> {
+    if logits {
+        samara_nn::onnx::load_logits(network)
+            .map_err(|e| AppError::Input(format!("{}{e}", crate::bind::flag_prefix(net_flag))))
+    } else {
+        Ok((crate::bind::load_network(network, net_flag)?, false))
+    }
+}
+
+/// Check a property against its network: dimensions, the variables it uses, finite
+/// input bounds (exit 2 naming the file and the fix).
+pub fn check_instance(
+    net: &Network,
+    q: Query,
+    network: &Path,
+    property: &Path,
+) -> Result<Query, AppError> {
+    let file = property.display().to_string();
     let Some(app) = q.applications.first() else {
         return crate::input(format!("{file}: the property calls no network"));
     };
@@ -89,7 +144,47 @@ pub fn load_instance(
             "{file}: input X_{i} is bounded by [{l}, {h}]; give it finite bounds with top-level asserts, e.g. (assert (>= X_{i} 0.0)) and (assert (<= X_{i} 1.0))"
         ));
     }
-    Ok((net, q))
+    Ok(q)
+}
+
+/// Whether every constraint of the property's region leaves the outputs alone or
+/// compares two distinct outputs of its one network with each other,
+/// `a Y_i - a Y_j cmp 0` (VNN-COMP's classification properties): then the answer is
+/// the same on the logits as on their softmax (`s_i >= s_j` iff `x_i >= x_j`).
+pub fn compares_outputs_only(q: &Query) -> bool {
+    q.applications.len() == 1
+        && q.free_vars.is_empty()
+        && q.region.iter().flatten().all(|c| {
+            let outs: Vec<(usize, f64)> = c
+                .expr
+                .terms
+                .iter()
+                .filter_map(|&(v, k)| match v {
+                    Var::Output { index, .. } => Some((index, k)),
+                    _ => None,
+                })
+                .collect();
+            match outs.as_slice() {
+                [] => true,
+                [(i, a), (j, b)] => {
+                    outs.len() == c.expr.terms.len()
+                        && c.expr.constant == 0.0
+                        && i != j
+                        && *a == -*b
+                        && *a != 0.0
+                }
+                _ => false,
+            }
+        })
+}
+
+/// Softmax of logits in f64 (shifted by the largest, so no overflow): the outputs of a
+/// network whose final softmax [`load_instance_logits`] left out.
+pub fn softmax(x: &[f64]) -> Vec<f64> {
+    let m = x.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let e: Vec<f64> = x.iter().map(|v| (v - m).exp()).collect();
+    let s: f64 = e.iter().sum();
+    e.iter().map(|v| v / s).collect()
 }
 
 /// The name of a VNN-LIB variable.
@@ -841,5 +936,30 @@ mod tests {
         let e = parse_instances(p, "a.onnx,b.vnnlib\n").unwrap_err();
         assert!(e.to_string().starts_with("i.csv:1: 2 fields"), "{e}");
         assert!(parse_instances(p, "# only a comment\n").is_err());
+    }
+
+    /// Only properties whose every output constraint is `a Y_i - a Y_j cmp 0` keep
+    /// their answer when a final softmax is left out; a constant, a third output, an
+    /// input term beside outputs or unequal weights make the softmax matter.
+    #[test]
+    fn only_pairwise_output_comparisons_ignore_a_softmax() {
+        let head = "(declare-const X_0 Real)\n(declare-const Y_0 Real)\n(declare-const Y_1 Real)\n(declare-const Y_2 Real)\n(assert (>= X_0 0.0))\n(assert (<= X_0 1.0))\n";
+        let q =
+            |body: &str| vnnlib::import(&format!("{head}{body}"), "p", "f", "property").unwrap();
+        assert!(compares_outputs_only(&q(
+            "(assert (or (and (>= Y_0 Y_1)) (and (>= Y_2 Y_1))))"
+        )));
+        assert!(compares_outputs_only(&q("(assert (<= Y_0 Y_2))")));
+        assert!(!compares_outputs_only(&q("(assert (>= Y_0 0.5))")));
+        assert!(!compares_outputs_only(&q(
+            "(assert (>= (+ Y_0 Y_1) (* 2.0 Y_2)))"
+        )));
+        assert!(!compares_outputs_only(&q("(assert (>= Y_0 (+ Y_1 X_0)))")));
+        assert!(!compares_outputs_only(&q("(assert (>= Y_0 (* 2.0 Y_1)))")));
+        // Softmax of logits, as onnxruntime's output is (sums to 1, order kept).
+        let s = softmax(&[1.0, 3.0, -2.0]);
+        assert!((s.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+        assert!(s[1] > s[0] && s[0] > s[2]);
+        assert!((s[1] - 3f64.exp() / (1f64.exp() + 3f64.exp() + (-2f64).exp())).abs() < 1e-15);
     }
 }

@@ -34,6 +34,13 @@ fn identity(n: usize) -> Affine {
 impl PwlNet {
     /// Build from a network in raw units (normalisation layers included).
     pub fn from_network(net: &Network) -> Result<Self, EncodeError> {
+        // Refused before any weight is copied (an image-sized network's are gigabytes).
+        if let Some(a) = net.layers.iter().find_map(|l| match l {
+            Layer::Act(a @ (Activation::Sigmoid | Activation::Tanh | Activation::Sign)) => Some(a),
+            _ => None,
+        }) {
+            return Err(EncodeError::Unsupported(format!("{a:?}")));
+        }
         let mut maps: Vec<(Affine, bool)> = Vec::new();
         let mut dim = net.n_inputs();
         for l in net.raw_layers() {

@@ -7,7 +7,7 @@ pub use samara_app::args::{
 };
 use samara_app::bind::timeout_flag;
 use samara_app::robustness::{self, SweepDone};
-use samara_app::vnncomp::{decide, load_instance, result_text, InstanceVerdict};
+use samara_app::vnncomp::{decide, load_instance_logits, result_text, softmax, InstanceVerdict};
 use samara_app::{Holds, VerdictRow};
 use samara_verify::{Settings, Verdict};
 use std::path::Path;
@@ -167,10 +167,15 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
             &[("--network", &a.network), ("--property", &a.property)],
         )?;
     }
-    let (net, q) = load_instance(&a.network, &a.property, "--network", "--property")?;
+    let (net, q, logits) =
+        load_instance_logits(&a.network, &a.property, "--network", "--property")?;
     // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
     // lowered to dense maps) takes seconds of it.
-    let d = decide(net, &q, timeout.left(start), a.max_nodes)?;
+    let mut d = decide(net, &q, timeout.left(start), a.max_nodes)?;
+    if logits {
+        // The file's network ends in the softmax that was left out: show its outputs.
+        d.outputs = d.outputs.map(|y| softmax(&y));
+    }
     if let Some(n) = &d.note {
         eprintln!("note: {n}");
     }

@@ -5,8 +5,11 @@
 use anyhow::{anyhow, Result};
 pub use samara_app::args::VnncompArgs;
 use samara_app::benchmark::Tally;
-pub use samara_app::vnncomp::{decide, load_instance};
+pub use samara_app::vnncomp::decide;
+use samara_app::vnncomp::{check_instance, load_network_as, read_property, wants_logits};
 use samara_app::vnncomp::{parse_instances, InstanceResult as Part, VnncompRun, VnncompShard};
+use samara_nn::Network;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
@@ -47,16 +50,33 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         None => None,
     };
     // Load everything first: a bad instance is an input error before any computation.
+    // A network used by several lines is loaded once (an image-sized one takes seconds
+    // and gigabytes); each instance gets a copy when it runs.
     let mut loaded = Vec::new();
+    let mut networks: Vec<Network> = Vec::new();
+    let mut index: HashMap<(PathBuf, bool), usize> = HashMap::new();
     for l in lines {
         let at = format!("{}:{}", a.instances.display(), l.lineno);
-        let (net, q) = load_instance(&root.join(&l.onnx), &root.join(&l.vnnlib), "onnx", "vnnlib")
-            // Every message gets the CSV line once, here (the labels stay bare, so a
-            // network the loader refuses does not read `FILE:LINE: FILE:LINE: onnx ...`).
-            .map_err(|e| anyhow!("{at}: {e}"))?;
+        // Every message gets the CSV line once, here (the labels stay bare, so a
+        // network the loader refuses does not read `FILE:LINE: FILE:LINE: onnx ...`).
+        let line_err = |e: samara_app::AppError| anyhow!("{at}: {e}");
+        let (onnx, vnnlib) = (root.join(&l.onnx), root.join(&l.vnnlib));
+        let q = read_property(&vnnlib, "vnnlib");
+        let key = (onnx.clone(), wants_logits(&onnx, &q));
+        let k = match index.get(&key) {
+            Some(&k) => k,
+            None => {
+                let (net, _) = load_network_as(&onnx, "onnx", key.1).map_err(line_err)?;
+                networks.push(net);
+                index.insert(key, networks.len() - 1);
+                networks.len() - 1
+            }
+        };
+        let q =
+            check_instance(&networks[k], q.map_err(line_err)?, &onnx, &vnnlib).map_err(line_err)?;
         let t = l.timeout * a.timeout_scale;
         let limit = samara_app::bind::timeout_flag(t)?;
-        loaded.push((net, q, t, limit));
+        loaded.push((k, q, t, limit));
     }
     let bar = {
         use std::io::IsTerminal;
@@ -84,9 +104,9 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         // file, and a cut-short shard leaves one that the merge refuses.
         crate::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
     }
-    for (l, (net, q, t, limit)) in lines.iter().zip(loaded) {
+    for (l, (k, q, t, limit)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
-        let d = decide(net, &q, limit, a.max_nodes)?;
+        let d = decide(networks[k].clone(), &q, limit, a.max_nodes)?;
         if let Some(n) = &d.note {
             bar.suspend(|| eprintln!("note: {n}"));
         }

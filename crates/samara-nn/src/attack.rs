@@ -33,15 +33,31 @@ impl Default for PgdSettings {
     }
 }
 
-/// `c . f(x)` and its gradient in `x` (a subgradient at ReLU kinks).
+/// `c . f(x)` and its gradient in `x` (a subgradient at ReLU kinks; through `Sign`,
+/// the straight-through estimator, see [`outputs_and_gradient`]).
 pub fn objective_and_gradient(net: &Network, c: &[f64], x: &[f64]) -> (f64, Vec<f64>) {
-    let layers = net.raw_layers();
+    let (y, g) = outputs_and_gradient(net, x, |_| c.to_vec());
+    (c.iter().zip(&y).map(|(a, b)| a * b).sum(), g)
+}
+
+/// The outputs `f(x)` and the gradient of `c . f(x)` in `x`, where the weights
+/// `c = pick(f(x))` are chosen from the outputs (an attack aims at the constraint
+/// nearest to holding there). `Sign` has derivative 0 almost everywhere; its
+/// gradient here is the straight-through estimator's 1 (Bengio et al., 2013; the
+/// binarised networks are trained with it), a search direction only: the outputs are
+/// exact, and an attack checks its points on them.
+pub fn outputs_and_gradient(
+    net: &Network,
+    x: &[f64],
+    pick: impl FnOnce(&[f64]) -> Vec<f64>,
+) -> (Vec<f64>, Vec<f64>) {
+    let layers = net.raw_layer_refs();
     // Forward, keeping every layer's input.
     let mut acts: Vec<Vec<f64>> = Vec::with_capacity(layers.len() + 1);
     let mut z = x.to_vec();
     for l in &layers {
         acts.push(z.clone());
-        z = match l {
+        z = match l.as_ref() {
             Layer::Affine(a) => {
                 let mut y = vec![0.0; a.out];
                 a.apply_f64(&z, &mut y);
@@ -50,11 +66,10 @@ pub fn objective_and_gradient(net: &Network, c: &[f64], x: &[f64]) -> (f64, Vec<
             Layer::Act(act) => z.iter().map(|&v| act.apply_f64(v)).collect(),
         };
     }
-    let value = c.iter().zip(&z).map(|(a, b)| a * b).sum();
     // Backward.
-    let mut g = c.to_vec();
+    let mut g = pick(&z);
     for (l, inp) in layers.iter().zip(&acts).rev() {
-        g = match l {
+        g = match l.as_ref() {
             Layer::Affine(a) => {
                 let mut gi = vec![0.0; a.inp];
                 for (i, gv) in g.iter().enumerate() {
@@ -78,12 +93,14 @@ pub fn objective_and_gradient(net: &Network, c: &[f64], x: &[f64]) -> (f64, Vec<
                         }
                         Activation::Tanh => 1.0 - v.tanh().powi(2),
                         Activation::Clamp { lo, hi } => f64::from(u8::from(v > lo && v < hi)),
+                        // The straight-through estimator (see `outputs_and_gradient`).
+                        Activation::Sign => 1.0,
                     }
                 })
                 .collect(),
         };
     }
-    (value, g)
+    (z, g)
 }
 
 /// Minimise `c . f(x)` over the box `[lo, hi]`: the best point found and its value.

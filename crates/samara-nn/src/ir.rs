@@ -116,6 +116,10 @@ pub enum Activation {
         /// Upper bound (may be `+inf`).
         hi: f64,
     },
+    /// ONNX `Sign`: `-1` for `x < 0`, `0` at `0`, `1` for `x > 0` (the binarised layers of
+    /// BNNs). A step, so no chain of ReLUs computes it: engines that need a
+    /// piecewise-linear network refuse it, and bounds come from its own rule.
+    Sign,
 }
 
 impl Activation {
@@ -126,6 +130,9 @@ impl Activation {
             Activation::Sigmoid => x.sigmoid(),
             Activation::Tanh => x.tanh(),
             Activation::Clamp { lo, hi } => x.clamp_to(lo, hi),
+            // NaN stays NaN (a point type's `sgn` of NaN would be a number).
+            Activation::Sign if x.value().is_nan() => x.clone(),
+            Activation::Sign => x.sgn(),
         }
     }
 
@@ -148,6 +155,16 @@ impl Activation {
                     x
                 } else {
                     x.max(lo).min(hi)
+                }
+            }
+            Activation::Sign => {
+                if x > 0.0 {
+                    1.0
+                } else if x < 0.0 {
+                    -1.0
+                } else {
+                    // 0 stays 0 (of either sign), NaN stays NaN.
+                    x
                 }
             }
         }
@@ -268,7 +285,23 @@ impl Network {
         Ok(self)
     }
 
-    /// All layers in raw units, normalisation folded in as ordinary affine layers.
+    /// All layers in raw units, normalisation folded in as ordinary affine layers:
+    /// the body's layers borrowed, only the normalisation layers copied.
+    pub fn raw_layer_refs(&self) -> Vec<std::borrow::Cow<'_, Layer>> {
+        use std::borrow::Cow;
+        let mut v = Vec::with_capacity(self.layers.len() + 2);
+        if let Some(a) = &self.input_norm {
+            v.push(Cow::Owned(Layer::Affine(a.clone())));
+        }
+        v.extend(self.layers.iter().map(Cow::Borrowed));
+        if let Some(a) = &self.output_denorm {
+            v.push(Cow::Owned(Layer::Affine(a.clone())));
+        }
+        v
+    }
+
+    /// [`Network::raw_layer_refs`] as owned layers (a copy of every weight: for a
+    /// network with image-sized dense layers, gigabytes).
     pub fn raw_layers(&self) -> Vec<Layer> {
         let mut v = Vec::new();
         if let Some(a) = &self.input_norm {

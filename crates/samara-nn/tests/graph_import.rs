@@ -76,6 +76,43 @@ fn skip_slice_fixture_agrees_with_onnxruntime() {
     check_fixture("skip_slice", 4, 2);
 }
 
+/// bench/nn/make_sign_fixture.py: VNN-COMP 2023 traffic_signs' binarised layout (NHWC
+/// transposes around a +-1 convolution, Larq's `sign(sign(x) + 0.1)`, a +-1 dense layer,
+/// a final Softmax), on integer inputs that put exact zeros into `Sign` and on uniform
+/// ones. The graph evaluation equals onnxruntime, and so does the chain without the
+/// final softmax (`load_logits`) followed by a softmax; `load` still refuses the
+/// Softmax by name.
+#[test]
+fn sign_fixture_agrees_with_onnxruntime() {
+    let path = data("sign_bnn.onnx");
+    let graph = onnx::load_graph(&path).unwrap();
+    let (chain, dropped) = onnx::load_logits(&path).unwrap();
+    assert!(dropped);
+    assert_eq!((chain.n_inputs(), chain.n_outputs()), (32, 5));
+    assert!(chain
+        .layers
+        .iter()
+        .any(|l| matches!(l, Layer::Act(Activation::Sign))));
+    let msg = onnx::load(&path).unwrap_err().to_string();
+    assert!(
+        msg.contains("`softmax`") && msg.contains("Softmax"),
+        "{msg}"
+    );
+    let softmax = |z: &[f64]| {
+        let m = z.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        let e: Vec<f64> = z.iter().map(|v| (v - m).exp()).collect();
+        let s: f64 = e.iter().sum();
+        e.iter().map(|v| v / s).collect::<Vec<f64>>()
+    };
+    let rs = rows("sign_bnn", 32);
+    assert_eq!(rs.len(), 30);
+    for (x, y) in &rs {
+        let eg = worst(&graph.eval_f64(x).unwrap(), y);
+        let ec = worst(&softmax(&chain.eval_f64(x)), y);
+        assert!(eg < 1e-5 && ec < 1e-5, "graph off by {eg:e}, chain {ec:e}");
+    }
+}
+
 #[test]
 fn ops_mix_fixture_agrees_with_onnxruntime() {
     check_fixture("ops_mix", 32, 4);

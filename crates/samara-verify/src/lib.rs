@@ -577,9 +577,40 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
     })
 }
 
+/// Networks with `Sign` layers (a gradient of zero almost everywhere): a
+/// straight-through sign-gradient attack on the whole disjunction first
+/// ([`smooth::attack`]), for half of the time limit (the interval search after it
+/// rarely proves anything of an image-sized binarised network). `Some` only with a
+/// point whose f64 outputs robustly satisfy a disjunct.
+fn step_attack(q: &Query, prep: &Prepared, s: &Settings, t0: Instant) -> Option<Verdict> {
+    let [a] = q.applications.as_slice() else {
+        return None;
+    };
+    let net = prep.plain.get(&a.network)?;
+    let has_sign = net
+        .layers
+        .iter()
+        .any(|l| matches!(l, samara_nn::Layer::Act(samara_nn::Activation::Sign)));
+    if !has_sign || !q.free_vars.is_empty() {
+        return None;
+    }
+    let half = Timeout::from_secs_f64(s.timeout.left(t0).secs() * 0.5).ok()?;
+    let (d, pt) = smooth::attack(net, &a.input_box, &q.region, half, Instant::now())?;
+    pt.robustly_satisfies(&q.region[d]).ok()?;
+    Some(Verdict::Violated(Counterexample {
+        margin: pt.margin(&q.region[d]),
+        point: pt,
+        exact: None,
+        disjunct: d,
+    }))
+}
+
 fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, VerifyError> {
     let t0 = Instant::now();
     let mut unknown = None;
+    if let Some(v) = step_attack(q, prep, s, t0) {
+        return Ok(v);
+    }
     for d in 0..q.region.len() {
         // Slack formulation: maximise s subject to e_i + s <= 0 for every inequality.
         // The region is empty iff the sound bound of max s is negative; a concrete point

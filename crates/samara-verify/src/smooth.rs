@@ -17,16 +17,16 @@ use std::time::Instant;
 /// Sound interval image of a box through a network (any of the IR's activations).
 pub fn interval_eval(net: &Network, lo: &[f64], hi: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let (mut l, mut h) = (lo.to_vec(), hi.to_vec());
-    for layer in net.raw_layers() {
-        match layer {
+    for layer in net.raw_layer_refs() {
+        match layer.as_ref() {
             Layer::Affine(a) => {
-                let (nl, nh) = affine_bounds(&a, &l, &h);
+                let (nl, nh) = affine_bounds(a, &l, &h);
                 l = nl;
                 h = nh;
             }
             Layer::Act(act) => {
                 for i in 0..l.len() {
-                    (l[i], h[i]) = samara_bounds::rules::interval(act, l[i], h[i]);
+                    (l[i], h[i]) = samara_bounds::rules::interval(*act, l[i], h[i]);
                 }
             }
         }
@@ -115,6 +115,134 @@ fn concrete_point(nets: &[&Network], inputs: Vec<Vec<f64>>) -> Point {
     }
 }
 
+/// Starts of [`attack`] that descend (the centre first).
+pub const DESCENTS: usize = 4;
+/// Steps of each descent of [`attack`].
+pub const STEPS: i32 = 8;
+/// Starts of [`attack`] in all (the ones after [`DESCENTS`] evaluate a corner only).
+pub const STARTS: usize = 1024;
+
+/// Falsification of a whole disjunction on one network by a sign-gradient descent
+/// (iterated FGSM, Goodfellow et al., 2015) on the constraint nearest to holding, with
+/// the straight-through gradient through `Sign` ([`samara_nn::attack::outputs_and_gradient`]):
+/// for networks whose gradient is zero almost everywhere (binarised layers), where a
+/// box's centre and sampling rarely meet the region. Every point is checked on the
+/// network's exact f64 outputs; the first that satisfies a disjunct is returned with
+/// its index. Descends from the centre and [`DESCENTS`]` - 1` pseudo-random corners
+/// ([`STEPS`] steps each), then evaluates further corners, [`STARTS`] starts in all;
+/// stops at `timeout` (from `t0`).
+pub fn attack(
+    net: &Network,
+    bx: &[(f64, f64)],
+    region: &[Vec<Constraint>],
+    timeout: Timeout,
+    t0: Instant,
+) -> Option<(usize, Point)> {
+    let value = |c: &Constraint, x: &[f64], y: &[f64]| {
+        c.expr.eval(|v| match v {
+            Var::Input { index, .. } => x[index],
+            Var::Output { index, .. } => y[index],
+            Var::Free(_) => f64::NAN,
+        })
+    };
+    // How far a disjunct is from holding at (x, y): its largest constraint value (a
+    // constraint holds at <= 0) and that constraint.
+    let nearest = |x: &[f64], y: &[f64]| {
+        let mut best: Option<(f64, usize, usize)> = None;
+        for (d, conj) in region.iter().enumerate() {
+            let worst = conj
+                .iter()
+                .enumerate()
+                .map(|(k, c)| (value(c, x, y), k))
+                .fold((f64::NEG_INFINITY, 0), |a, b| if b.0 > a.0 { b } else { a });
+            if best.is_none_or(|b| worst.0 < b.0) {
+                best = Some((worst.0, d, worst.1));
+            }
+        }
+        best
+    };
+    if region
+        .iter()
+        .flatten()
+        .any(|c| c.expr.terms.iter().any(|(v, _)| matches!(v, Var::Free(_))))
+    {
+        return None;
+    }
+    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = move || {
+        // SplitMix64: a fixed sequence of corners, the same on every run.
+        seed = seed.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = seed;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    let centre: Vec<f64> = bx.iter().map(|(l, h)| 0.5 * (l + h)).collect();
+    for start in 0..STARTS {
+        let mut x = if start == 0 {
+            centre.clone()
+        } else {
+            bx.iter()
+                .map(|&(l, h)| if next() & 1 == 0 { l } else { h })
+                .collect()
+        };
+        if start >= DESCENTS {
+            // A corner, evaluated only (a binarised network's counterexamples are often
+            // corners of the box, and a forward pass costs half a descent step).
+            if timeout.expired(t0, Instant::now()) {
+                return None;
+            }
+            let p = concrete_point(&[net], vec![x]);
+            if let Some(d) = region.iter().position(|conj| p.satisfies(conj)) {
+                return Some((d, p));
+            }
+            continue;
+        }
+        for k in 0..STEPS {
+            if timeout.expired(t0, Instant::now()) {
+                return None;
+            }
+            let mut target = None;
+            let (y, mut g) = samara_nn::attack::outputs_and_gradient(net, &x, |y| {
+                let mut c = vec![0.0; y.len()];
+                if let Some((_, d, k)) = nearest(&x, y) {
+                    target = Some((d, k));
+                    for (v, a) in &region[d][k].expr.terms {
+                        if let Var::Output { index, .. } = v {
+                            c[*index] += a;
+                        }
+                    }
+                }
+                c
+            });
+            let (d, ci) = target?;
+            // The outputs of the forward pass: the network's own f64 evaluation.
+            let p = Point {
+                inputs: vec![x.clone()],
+                outputs: vec![y],
+                free: vec![],
+            };
+            if p.satisfies(&region[d]) {
+                return Some((d, p));
+            }
+            for (v, a) in &region[d][ci].expr.terms {
+                if let Var::Input { index, .. } = v {
+                    g[*index] += a;
+                }
+            }
+            // Descend the constraint's value: a step of a shrinking fraction of each
+            // input's range against the gradient's sign (the first to a corner).
+            let frac = 0.8f64.powi(k);
+            for ((xi, gi), &(l, h)) in x.iter_mut().zip(&g).zip(bx) {
+                if *gi != 0.0 {
+                    *xi = (*xi - frac * (h - l) * gi.signum()).clamp(l, h);
+                }
+            }
+        }
+    }
+    None
+}
+
 /// Outcome of the smooth prover for one conjunction, in the one answer vocabulary:
 /// `Proved` (no counterexample in the domain), `Violated` with a concrete
 /// counterexample, or `Unknown` when the budget (time or box limit) is exhausted.
@@ -153,6 +281,10 @@ pub fn search(
         // Falsification by sampling (deterministic low-discrepancy points).
         let flat: Vec<(f64, f64)> = boxes.iter().flatten().copied().collect();
         for i in 0..2000u64 {
+            // A wide network takes a good part of a second per evaluation.
+            if timeout.expired(t0, Instant::now()) {
+                return SmoothResult::Unknown(crate::UnknownReason::Timeout { nodes: 0 });
+            }
             let x: Vec<f64> = flat
                 .iter()
                 .enumerate()

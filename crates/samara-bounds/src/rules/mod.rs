@@ -15,6 +15,9 @@
 //!   kinks by CROWN's area criterion, intercepts rigorous.
 //! - [`sigmoid_tanh`]: the chord and tangent lines of the S-shaped activations, with
 //!   rigorous intercepts (convex/concave pieces split at the inflection point 0).
+//! - [`sign`]: the step `Sign` (-1, 0, 1): constant on a range inside one piece; across
+//!   the jump, the constant bounds or the lines through the jump's corners, intercepts
+//!   rigorous (`Sign(0) = 0` is a piece of its own).
 //!
 //! Relaxations here are sound for *any* slope: the intercept is a rigorous bound of
 //! `f(z) - a z` over the range, so the slope choice only affects tightness. Directed
@@ -23,6 +26,7 @@
 pub mod piecewise;
 pub mod relu;
 pub mod sigmoid_tanh;
+pub mod sign;
 
 use samara_nn::Activation;
 use samara_num::Interval;
@@ -43,7 +47,7 @@ pub struct Relax {
 
 /// The interval rule: a sound range of `f(z)` for `z in [l, u]` (every activation here
 /// is monotone, so the ends' images bound it; tanh and sigmoid in outward-rounded
-/// [`Interval`] arithmetic, clipped to their ranges).
+/// [`Interval`] arithmetic, clipped to their ranges; sign exactly).
 pub fn interval(act: Activation, l: f64, u: f64) -> (f64, f64) {
     match act {
         Activation::Relu => (l.max(0.0), u.max(0.0)),
@@ -57,6 +61,7 @@ pub fn interval(act: Activation, l: f64, u: f64) -> (f64, f64) {
             };
             (a.lo.max(lo), b.hi.min(hi))
         }
+        Activation::Sign => sign::interval(l, u),
     }
 }
 
@@ -69,6 +74,7 @@ pub fn relax(act: Activation, l: f64, u: f64) -> Relax {
             piecewise::relax(|z| z.max(lo).min(hi), &bps, l, u)
         }
         Activation::Tanh | Activation::Sigmoid => sigmoid_tanh::relax(act, l, u),
+        Activation::Sign => sign::relax(l, u),
     }
 }
 
@@ -142,6 +148,7 @@ mod tests {
                 lo: 0.0,
                 hi: f64::INFINITY,
             },
+            Activation::Sign,
         ];
         for _ in 0..3000 {
             let act = acts[rng.gen_range(0..acts.len())];

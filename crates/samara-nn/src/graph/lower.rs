@@ -16,7 +16,8 @@
 //! - `LeakyRelu`/`PRelu` with slope `a`: `relu(x) - a relu(-x)`;
 //! - `Clip(lo, hi)`: `lo + relu(x - lo) - relu(x - hi)`;
 //! - `MaxPool`: a tree of `max(a, b) = a + relu(b - a)`, one layer per level;
-//! - `Sigmoid`/`Tanh`: a layer of that activation, only when no other tensor is live.
+//! - `Sigmoid`/`Tanh`/`Sign`: a layer of that activation, only when no other tensor is
+//!   live (`Sign`, a step, has its own bound rule in `samara-bounds`).
 //!
 //! While lowering, the maps are kept by sparse columns; the layers emitted are dense (the
 //! chain IR's [`Affine`]): a layer of `m` neurons over a state of `n` takes `m n` f64.
@@ -919,21 +920,21 @@ impl Lower<'_> {
                 let l = Lin::combine(&[&cand], &order, nonneg);
                 self.reps.insert(out0, l);
             }
-            Op::Unary(u @ (UnOp::Sigmoid | UnOp::Tanh)) => {
+            Op::Unary(u @ (UnOp::Sigmoid | UnOp::Tanh | UnOp::Sign)) => {
                 let x = self.input_rep(ni, 0)?;
                 let live = self.reps.keys().filter(|&&k| self.last_use[k] > ni).count();
                 if live > 0 {
-                    return refuse("a smooth activation while another branch is live");
+                    return refuse("a smooth or step activation while another branch is live");
                 }
                 let n = x.rows();
                 self.charge(ni, n, self.zdim)?;
                 let w = x.matrix();
                 self.layers
                     .push(Layer::Affine(Affine::new(self.zdim, n, w, x.c.clone())));
-                self.layers.push(Layer::Act(if *u == UnOp::Sigmoid {
-                    Activation::Sigmoid
-                } else {
-                    Activation::Tanh
+                self.layers.push(Layer::Act(match u {
+                    UnOp::Sigmoid => Activation::Sigmoid,
+                    UnOp::Sign => Activation::Sign,
+                    _ => Activation::Tanh,
                 }));
                 self.zdim = n;
                 let out = (0..n).map(|r| vec![(r, 1.0)]).collect::<Vec<_>>();

@@ -98,4 +98,34 @@ impl Graph {
             .map(|t| t.data)
             .ok_or_else(|| "the output was not computed".into())
     }
+
+    /// Remove a final `Softmax` taken over all the output's entries at once (every
+    /// other dimension 1, so ONNX's old flattening semantics and the per-axis one
+    /// agree): the graph then computes the logits. `true` when it was removed.
+    ///
+    /// Softmax is strictly increasing in each logit against any other
+    /// (`s_i >= s_j` iff `x_i >= x_j`), so a property that only compares two outputs
+    /// with each other (VNN-COMP's classification properties `Y_i >= Y_j`) has the same
+    /// answer on the logits; the caller checks the property is of that form.
+    pub fn strip_final_softmax(&mut self) -> bool {
+        let Some(last) = self.nodes.last() else {
+            return false;
+        };
+        let Op::Softmax { axis } = last.op else {
+            return false;
+        };
+        let (Some(Some(x)), [out]) = (last.inputs.first(), last.outputs.as_slice()) else {
+            return false;
+        };
+        let shape = &self.values[*x].shape;
+        let one_group = crate::ops::norm_axis(axis, shape.len())
+            .map(|a| shape.iter().enumerate().all(|(k, &d)| k == a || d == 1))
+            .unwrap_or(false);
+        if *out != self.output || *x == self.input || !one_group {
+            return false;
+        }
+        self.output = *x;
+        self.nodes.pop();
+        true
+    }
 }

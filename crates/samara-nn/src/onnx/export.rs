@@ -192,6 +192,13 @@ pub fn export(net: &Network, o: &ExportOptions) -> ModelProto {
                 out.clone(),
                 vec![],
             )),
+            Layer::Act(Activation::Sign) => nodes.push(node(
+                "Sign",
+                format!("sign{k}"),
+                vec![live.clone()],
+                out.clone(),
+                vec![],
+            )),
             Layer::Act(Activation::Clamp { lo, hi }) => {
                 let (ln, hn) = (format!("lo{k}"), format!("hi{k}"));
                 // Clip bounds are scalars of the input's type.

@@ -5,8 +5,9 @@ use prost::Message;
 use std::collections::HashMap;
 
 /// Operators the importer understands (the chain importer's and the graph importer's;
-/// Sign, Softmax, Sin, Cos, Exp, Sqrt, Abs and Pow are evaluated but not lowered to the
-/// chain form the verifier reads).
+/// Softmax, Sin, Cos, Exp, Sqrt, Abs and Pow are evaluated but not lowered to the chain
+/// form the verifier reads, except a final Softmax that `load_logits` leaves out; Sign
+/// is lowered by the graph importer as an activation of its own).
 pub const SUPPORTED_OPS: &[&str] = &[
     "Gemm",
     "MatMul",

@@ -92,27 +92,56 @@ pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Netwo
                 }
                 Err(_) => return Err(chain_err),
             };
-            crate::graph::lower::lower_within(&graph, &budget).map_err(|e| {
-                // Over the memory budget the operator is supported: the network is too
-                // large for the limit, which the message names with the way to raise it.
-                if e.message.contains(IMPORT_MEMORY_ENV) {
-                    OnnxError::Structure {
-                        file: file.into(),
-                        place: format!("node `{}` ({})", e.node, e.op),
-                        message: e.message,
-                    }
-                } else {
-                    OnnxError::Unsupported {
-                        file: file.into(),
-                        node: e.node,
-                        op: e.op,
-                        detail: format!(": {}", e.message),
-                    }
-                }
-            })
+            crate::graph::lower::lower_within(&graph, &budget).map_err(|e| lower_error(file, e))
         }
         other => other,
     }
+}
+
+/// A lowering refusal as an import error. Over the memory budget the operator is
+/// supported: the network is too large for the limit, which the message names with
+/// the way to raise it.
+fn lower_error(file: &str, e: crate::graph::lower::LowerError) -> OnnxError {
+    if e.message.contains(IMPORT_MEMORY_ENV) {
+        OnnxError::Structure {
+            file: file.into(),
+            place: format!("node `{}` ({})", e.node, e.op),
+            message: e.message,
+        }
+    } else {
+        OnnxError::Unsupported {
+            file: file.into(),
+            node: e.node,
+            op: e.op,
+            detail: format!(": {}", e.message),
+        }
+    }
+}
+
+/// [`load`] for a property that only compares outputs with each other: a final
+/// `Softmax` over all the outputs is left out ([`crate::graph::Graph::strip_final_softmax`])
+/// and the network computes the logits; `true` when it was. Any other network loads as
+/// [`load`] reads it.
+pub fn load_logits(path: impl AsRef<Path>) -> Result<(Network, bool), OnnxError> {
+    let (bytes, file) = read(path.as_ref())?;
+    let allowed = env_budget(&file)?;
+    let ends_in_softmax = ModelProto::decode(bytes.as_slice())
+        .ok()
+        .and_then(|m| m.graph)
+        .and_then(|g| g.node.last().map(|n| n.op_type == "Softmax"))
+        .unwrap_or(false);
+    let budget = Budget::new(allowed);
+    if !ends_in_softmax {
+        return from_bytes_within(&bytes, &file, allowed).map(|net| (net, false));
+    }
+    if let Ok(mut graph) = graph_within(&bytes, &file, &budget) {
+        if graph.strip_final_softmax() {
+            return crate::graph::lower::lower_within(&graph, &budget)
+                .map(|net| (net, true))
+                .map_err(|e| lower_error(&file, e));
+        }
+    }
+    from_bytes_within(&bytes, &file, allowed).map(|net| (net, false))
 }
 
 /// Of the chain importer's and the graph importer's refusals, the one to show: the

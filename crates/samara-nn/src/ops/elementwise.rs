@@ -60,15 +60,7 @@ impl UnOp {
             UnOp::Sigmoid => 1.0 / (1.0 + (-v).exp()),
             UnOp::Tanh => v.tanh(),
             UnOp::Neg => -v,
-            UnOp::Sign => {
-                if v > 0.0 {
-                    1.0
-                } else if v < 0.0 {
-                    -1.0
-                } else {
-                    v
-                }
-            }
+            UnOp::Sign => crate::ir::Activation::Sign.apply_f64(v),
             UnOp::Sin => v.sin(),
             UnOp::Cos => v.cos(),
             UnOp::Exp => v.exp(),
