@@ -730,6 +730,34 @@ impl Tm {
         )
     }
 
+    /// `cst + sum_k coef[k] xi_k` in `n = coef.len()` parameters of order `order`, with
+    /// this model's parameter weights: on a mixed-degree model, the same weight-1
+    /// parameters and lifted weight ([`Tm::with_lifted_weight`]); on a classic one, a
+    /// classic table, as [`Tm::affine`].
+    ///
+    /// Models built beside mixed-degree ones (the network's outputs over the states, a
+    /// zero input) must be made so: a classic table in all the lifted parameters has
+    /// every monomial of the order in them (249,900 at order 4 in 47 parameters, where
+    /// the mixed table has 2,219), and building it took seconds that no deadline saw.
+    pub fn affine_like(&self, cst: f64, coef: &[f64], order: u32) -> Tm {
+        let n = coef.len();
+        Tm::affine_on(
+            table_mixed(n, order, self.t.full.min(n), self.t.lw),
+            cst,
+            coef,
+        )
+    }
+
+    /// The constant `c` in `n` parameters of order `order` with this model's parameter
+    /// weights ([`Tm::affine_like`]; [`Tm::constant`] for a classic model).
+    pub fn constant_like(&self, c: f64, n: usize, order: u32) -> Tm {
+        Tm::constant_on(
+            table_mixed(n, order, self.t.full.min(n), self.t.lw),
+            true,
+            c,
+        )
+    }
+
     /// A model without parameters whose value is any point of `i` (like [`Scalar::cst`],
     /// it adopts the order of the models it is combined with). An interval with a NaN
     /// end gives the entire model.
@@ -1799,6 +1827,44 @@ mod tests {
         assert_eq!(nonneg_sum_bound(f64::NAN, 10), f64::INFINITY);
         assert_eq!(nonneg_dot_bound(2.0, 0), 2.0);
         assert!(nonneg_dot_bound(0.0, 3) > 0.0);
+    }
+
+    /// `affine_like` / `constant_like` keep the weights of the model they are called on:
+    /// beside a mixed-degree model (6 weight-1 parameters, lifted weight 2, order 4) the
+    /// result is on the mixed table in 47 parameters (2,219 monomials:
+    /// C(10, 4) + 41 C(8, 2) + C(42, 2)), not the classic one (C(51, 4) = 249,900), holds
+    /// exactly the coefficients given, and adding it to the model leaves the model's
+    /// table; beside a classic model it is on `Tm::affine`'s and `Tm::constant`'s table.
+    #[test]
+    fn like_constructors_keep_the_parameter_weights() {
+        let (order, full, n) = (4, 6, 47);
+        let mixed = (Tm::var(0, full, order) * 0.5 + 1.0).with_lifted_weight(2);
+        let state = mixed.clone() + mixed.param(n - 1, n);
+        assert_eq!(state.full_params(), Some(full));
+        let coef: Vec<f64> = (0..n).map(|k| 0.25 * k as f64 - 3.0).collect();
+        let a = state.affine_like(1.5, &coef, order);
+        assert_eq!(a.full_params(), Some(full));
+        assert_eq!((a.n_vars(), a.order(), a.n_terms()), (n, order, 2_219));
+        assert!(a.same_basis(&state));
+        assert!((a.clone() + state.clone()).same_basis(&state));
+        assert_eq!(a.coef(0), 1.5);
+        for k in 1..=n {
+            assert_eq!(a.coef(k), coef[k - 1], "xi_{}", k - 1);
+        }
+        assert!((n + 1..a.n_terms()).all(|i| a.coef(i) == 0.0));
+        assert_eq!(a.rem(), Interval::point(0.0));
+        let z = state.constant_like(2.0, n, order);
+        assert!(z.same_basis(&state));
+        assert_eq!(z.bound(), Interval::point(2.0));
+        // On a classic model: the classic table, as `Tm::affine` and `Tm::constant`.
+        let c = Tm::var(0, 3, 2);
+        assert!(c
+            .affine_like(0.5, &[1.0, 2.0, 3.0], 2)
+            .same_basis(&Tm::affine(0.0, &[0.0; 3], 2)));
+        assert!(c
+            .constant_like(0.5, 5, 2)
+            .same_basis(&Tm::constant(0.0, 5, 2)));
+        assert_eq!(c.constant_like(0.5, 5, 2).full_params(), None);
     }
 
     /// The product table by exponent vectors, independently of the additive hash that
