@@ -675,8 +675,15 @@ fn six_state_cell_on_long_steps_keeps_its_time_limit() {
         s.max_boxes = 1;
         s.samples = 1;
         s.timeout = samara_num::Timeout::from_secs_f64(limit).unwrap();
+        // On a pool of its own, one thread, as `--threads 1` runs it: on the test
+        // binary's shared global pool the falsification flights wait behind the other
+        // tests' sub-boxes (seconds each), which no run of the command meets.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
         let start = std::time::Instant::now();
-        let r = reach_system(&sys, &net, &s).unwrap();
+        let r = pool.install(|| reach_system(&sys, &net, &s)).unwrap();
         let wall = start.elapsed().as_secs_f64();
         let failure = r.leaves[0].failure.clone().unwrap_or_default();
         eprintln!("--timeout {limit}: {wall:.2} s, {failure}");
