@@ -814,6 +814,8 @@ impl Tm {
         if whole {
             let [sn, sp] = self.ext.get();
             if !sn.is_nan() {
+                #[cfg(debug_assertions)]
+                self.check_kept_extent([sn, sp], start);
                 return Tm::range_of(c0, sn, sp);
             }
         }
@@ -822,6 +824,31 @@ impl Tm {
             self.ext.set([sn, sp]);
         }
         Tm::range_of(c0, sn, sp)
+    }
+
+    /// Debug builds (every test): one kept extent in 16 read is recomputed from the
+    /// coefficients and must agree bit for bit, so that an operation added later that
+    /// changes a coefficient without resetting [`Tm::ext`] (a stale, unsound range)
+    /// fails the tests that use it instead of passing unnoticed. One in 16 keeps the
+    /// tests' cost near the release build's (the kept ranges save 6-9 % of the
+    /// six-state cell; `bench/reach/cell_cost.md`).
+    #[cfg(debug_assertions)]
+    fn check_kept_extent(&self, kept: [f64; 2], start: usize) {
+        thread_local! {
+            static READS: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+        }
+        let n = READS.with(|r| {
+            let n = r.get().wrapping_add(1);
+            r.set(n);
+            n
+        });
+        if n.is_multiple_of(16) {
+            let fresh = self.extent_from(start);
+            assert!(
+                fresh[0].to_bits() == kept[0].to_bits() && fresh[1].to_bits() == kept[1].to_bits(),
+                "a Taylor model's kept range {kept:?} is stale (its coefficients give {fresh:?}): an operation changed a coefficient without resetting Tm::ext"
+            );
+        }
     }
 
     /// `c0` plus the extents `[-sn, sp]`, outward.
@@ -1867,10 +1894,6 @@ mod tests {
         assert_eq!(c.constant_like(0.5, 5, 2).full_params(), None);
     }
 
-    /// The product table by exponent vectors, independently of the additive hash that
-    /// builds it: every entry of `mul` is the index of the sum of its pair's exponents,
-    /// every pair within the order appears once, and no other (classic and mixed
-    /// tables; the reach runs use 6 of weight 1 and up to 40 of weight 2).
     /// The kept extents ([`Tm::ext`]) never go stale: a model whose range was read
     /// (so kept) and then changed by each coefficient-changing operation (sum,
     /// difference, in-place sum, products by a model and by a float, quotient by a float,
@@ -1942,6 +1965,25 @@ mod tests {
         );
     }
 
+    /// A kept range made stale on purpose (a coefficient changed behind the cache's
+    /// back, as a future operation that forgot the reset would) is caught by the debug
+    /// builds' check within 16 reads.
+    #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "is stale")]
+    fn a_stale_kept_range_fails_the_debug_check() {
+        let mut m = Tm::var(0, 2, 3) * 0.5 + Tm::var(1, 2, 3) * 0.25;
+        let _ = m.bound();
+        m.c[1] = 4.0;
+        for _ in 0..16 {
+            let _ = m.bound();
+        }
+    }
+
+    /// The product table by exponent vectors, independently of the additive hash that
+    /// builds it: every entry of `mul` is the index of the sum of its pair's exponents,
+    /// every pair within the order appears once, and no other (classic and mixed
+    /// tables; the reach runs use 6 of weight 1 and up to 40 of weight 2).
     #[test]
     fn product_table_matches_exponent_sums() {
         for &(n, order, full, lw) in &[(3, 4, 3, 1), (6, 4, 6, 1), (8, 4, 2, 2), (20, 4, 6, 2)] {
