@@ -730,6 +730,34 @@ impl Tm {
         )
     }
 
+    /// `cst + sum_k coef[k] xi_k` in `n = coef.len()` parameters of order `order`, with
+    /// this model's parameter weights: on a mixed-degree model, the same weight-1
+    /// parameters and lifted weight ([`Tm::with_lifted_weight`]); on a classic one, a
+    /// classic table, as [`Tm::affine`].
+    ///
+    /// Models built beside mixed-degree ones (the network's outputs over the states, a
+    /// zero input) must be made so: a classic table in all the lifted parameters has
+    /// every monomial of the order in them (249,900 at order 4 in 47 parameters, where
+    /// the mixed table has 2,219), and building it took seconds that no deadline saw.
+    pub fn affine_like(&self, cst: f64, coef: &[f64], order: u32) -> Tm {
+        let n = coef.len();
+        Tm::affine_on(
+            table_mixed(n, order, self.t.full.min(n), self.t.lw),
+            cst,
+            coef,
+        )
+    }
+
+    /// The constant `c` in `n` parameters of order `order` with this model's parameter
+    /// weights ([`Tm::affine_like`]; [`Tm::constant`] for a classic model).
+    pub fn constant_like(&self, c: f64, n: usize, order: u32) -> Tm {
+        Tm::constant_on(
+            table_mixed(n, order, self.t.full.min(n), self.t.lw),
+            true,
+            c,
+        )
+    }
+
     /// A model without parameters whose value is any point of `i` (like [`Scalar::cst`],
     /// it adopts the order of the models it is combined with). An interval with a NaN
     /// end gives the entire model.
@@ -786,6 +814,8 @@ impl Tm {
         if whole {
             let [sn, sp] = self.ext.get();
             if !sn.is_nan() {
+                #[cfg(debug_assertions)]
+                self.check_kept_extent([sn, sp], start);
                 return Tm::range_of(c0, sn, sp);
             }
         }
@@ -794,6 +824,31 @@ impl Tm {
             self.ext.set([sn, sp]);
         }
         Tm::range_of(c0, sn, sp)
+    }
+
+    /// Debug builds (every test): one kept extent in 16 read is recomputed from the
+    /// coefficients and must agree bit for bit, so that an operation added later that
+    /// changes a coefficient without resetting [`Tm::ext`] (a stale, unsound range)
+    /// fails the tests that use it instead of passing unnoticed. One in 16 keeps the
+    /// tests' cost near the release build's (the kept ranges save 6-9 % of the
+    /// six-state cell; `bench/reach/cell_cost.md`).
+    #[cfg(debug_assertions)]
+    fn check_kept_extent(&self, kept: [f64; 2], start: usize) {
+        thread_local! {
+            static READS: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
+        }
+        let n = READS.with(|r| {
+            let n = r.get().wrapping_add(1);
+            r.set(n);
+            n
+        });
+        if n.is_multiple_of(16) {
+            let fresh = self.extent_from(start);
+            assert!(
+                fresh[0].to_bits() == kept[0].to_bits() && fresh[1].to_bits() == kept[1].to_bits(),
+                "a Taylor model's kept range {kept:?} is stale (its coefficients give {fresh:?}): an operation changed a coefficient without resetting Tm::ext"
+            );
+        }
     }
 
     /// `c0` plus the extents `[-sn, sp]`, outward.
@@ -1801,10 +1856,44 @@ mod tests {
         assert!(nonneg_dot_bound(0.0, 3) > 0.0);
     }
 
-    /// The product table by exponent vectors, independently of the additive hash that
-    /// builds it: every entry of `mul` is the index of the sum of its pair's exponents,
-    /// every pair within the order appears once, and no other (classic and mixed
-    /// tables; the reach runs use 6 of weight 1 and up to 40 of weight 2).
+    /// `affine_like` / `constant_like` keep the weights of the model they are called on:
+    /// beside a mixed-degree model (6 weight-1 parameters, lifted weight 2, order 4) the
+    /// result is on the mixed table in 47 parameters (2,219 monomials:
+    /// C(10, 4) + 41 C(8, 2) + C(42, 2)), not the classic one (C(51, 4) = 249,900), holds
+    /// exactly the coefficients given, and adding it to the model leaves the model's
+    /// table; beside a classic model it is on `Tm::affine`'s and `Tm::constant`'s table.
+    #[test]
+    fn like_constructors_keep_the_parameter_weights() {
+        let (order, full, n) = (4, 6, 47);
+        let mixed = (Tm::var(0, full, order) * 0.5 + 1.0).with_lifted_weight(2);
+        let state = mixed.clone() + mixed.param(n - 1, n);
+        assert_eq!(state.full_params(), Some(full));
+        let coef: Vec<f64> = (0..n).map(|k| 0.25 * k as f64 - 3.0).collect();
+        let a = state.affine_like(1.5, &coef, order);
+        assert_eq!(a.full_params(), Some(full));
+        assert_eq!((a.n_vars(), a.order(), a.n_terms()), (n, order, 2_219));
+        assert!(a.same_basis(&state));
+        assert!((a.clone() + state.clone()).same_basis(&state));
+        assert_eq!(a.coef(0), 1.5);
+        for k in 1..=n {
+            assert_eq!(a.coef(k), coef[k - 1], "xi_{}", k - 1);
+        }
+        assert!((n + 1..a.n_terms()).all(|i| a.coef(i) == 0.0));
+        assert_eq!(a.rem(), Interval::point(0.0));
+        let z = state.constant_like(2.0, n, order);
+        assert!(z.same_basis(&state));
+        assert_eq!(z.bound(), Interval::point(2.0));
+        // On a classic model: the classic table, as `Tm::affine` and `Tm::constant`.
+        let c = Tm::var(0, 3, 2);
+        assert!(c
+            .affine_like(0.5, &[1.0, 2.0, 3.0], 2)
+            .same_basis(&Tm::affine(0.0, &[0.0; 3], 2)));
+        assert!(c
+            .constant_like(0.5, 5, 2)
+            .same_basis(&Tm::constant(0.0, 5, 2)));
+        assert_eq!(c.constant_like(0.5, 5, 2).full_params(), None);
+    }
+
     /// The kept extents ([`Tm::ext`]) never go stale: a model whose range was read
     /// (so kept) and then changed by each coefficient-changing operation (sum,
     /// difference, in-place sum, products by a model and by a float, quotient by a float,
@@ -1876,6 +1965,25 @@ mod tests {
         );
     }
 
+    /// A kept range made stale on purpose (a coefficient changed behind the cache's
+    /// back, as a future operation that forgot the reset would) is caught by the debug
+    /// builds' check within 16 reads.
+    #[test]
+    #[cfg(debug_assertions)]
+    #[should_panic(expected = "is stale")]
+    fn a_stale_kept_range_fails_the_debug_check() {
+        let mut m = Tm::var(0, 2, 3) * 0.5 + Tm::var(1, 2, 3) * 0.25;
+        let _ = m.bound();
+        m.c[1] = 4.0;
+        for _ in 0..16 {
+            let _ = m.bound();
+        }
+    }
+
+    /// The product table by exponent vectors, independently of the additive hash that
+    /// builds it: every entry of `mul` is the index of the sum of its pair's exponents,
+    /// every pair within the order appears once, and no other (classic and mixed
+    /// tables; the reach runs use 6 of weight 1 and up to 40 of weight 2).
     #[test]
     fn product_table_matches_exponent_sums() {
         for &(n, order, full, lw) in &[(3, 4, 3, 1), (6, 4, 6, 1), (8, 4, 2, 2), (20, 4, 6, 2)] {

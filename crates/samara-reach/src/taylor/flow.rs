@@ -225,7 +225,13 @@ fn stand_in_step(
     let zero = Interval::point(0.0);
     let nv = x.first().map_or(0, |v| v.n_vars());
     let mut ue = u.to_vec();
-    ue.extend(si.dist.iter().map(|_| Tm::constant(0.0, nv, s.order)));
+    // Zero disturbances on the states' table kind (a classic table in all of a
+    // mixed-degree state's lifted parameters would cost seconds to build).
+    let zero_dist = |_| match x.first() {
+        Some(v) => v.constant_like(0.0, nv, s.order),
+        None => Tm::constant(0.0, nv, s.order),
+    };
+    ue.extend(si.dist.iter().map(zero_dist));
     let mut bue = bu.to_vec();
     bue.extend(si.dist.iter().map(|_| zero));
     let gy = &si.graph;

@@ -10,8 +10,15 @@ use samara_num::{Interval, Tm};
 /// variables of their own (the heaviest; the others go into the noise box).
 const MAX_TERM_VARS: usize = 160;
 
-/// The inputs' Taylor models on one monomial table (`None` if they cannot share one).
+/// The inputs' Taylor models on one classic monomial table (`None` if they cannot
+/// share one). Mixed-degree inputs (with lifted parameters, [`Tm::with_lifted_weight`])
+/// never share the classic table, and building that table in all their parameters costs
+/// seconds (every monomial of the order in the lifted parameters too: 249,900 at order
+/// 4 in 47 parameters), so they go to the linear path at once.
 fn common_basis(obs: &[Tm], order: u32) -> Option<(Tm, Vec<Tm>)> {
+    if obs.iter().any(|v| v.full_params().is_some()) {
+        return None;
+    }
     let n = obs.iter().map(|v| v.n_vars()).max().unwrap_or(0);
     let base = Tm::constant(0.0, n, order);
     let obs: Vec<Tm> = obs.iter().map(|v| v.clone() + base.clone()).collect();
@@ -169,10 +176,18 @@ fn network_over_linear(net: &Network, obs: &[Tm], order: u32) -> Vec<Tm> {
     let crown = samara_bounds::linset::bound_over_linear_set(net, &c, &gens, &noise).ok();
     let direct = smooth_direct(net, obs);
     let n_out = net.n_outputs();
+    // The outputs on the inputs' table kind: a mixed-degree input's weights (a classic
+    // table in all the lifted parameters would cost seconds to build,
+    // [`Tm::affine_like`]).
+    let kind = obs.iter().find(|v| v.full_params().is_some());
+    let affine = |cst: f64, coef: &[f64]| match kind {
+        Some(k) => k.affine_like(cst, coef, order),
+        None => Tm::affine(cst, coef, order),
+    };
     (0..n_out)
         .map(|j| {
             let from_crown = crown.as_ref().map(|e| {
-                Tm::affine(e.cst[j], &e.coef[j], order).with_rem(Interval {
+                affine(e.cst[j], &e.coef[j]).with_rem(Interval {
                     lo: -e.dev[j],
                     hi: e.dev[j],
                 })
@@ -246,6 +261,63 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use samara_num::Scalar;
+
+    /// Issue 39's broken `--timeout`: over mixed-degree states (the flow's lifted
+    /// parameters, weight 2), the network step and the lifting of its remainders stay on
+    /// the states' table kind, so no classic table in all the parameters is built
+    /// (order 4 in 47 parameters: 249,900 monomials and seconds, against 2,219). A tanh
+    /// network (both paths: CROWN and the direct evaluation) and a ReLU one (CROWN
+    /// only); the outputs hold the network's value at random parameter points.
+    #[test]
+    fn the_network_step_keeps_the_states_lifted_weights() {
+        use samara_nn::{Activation, Affine, Layer};
+        let (full, n, order) = (2, 47, 4);
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(5);
+        let mut rnd = || rng.gen_range(-1.0..1.0);
+        let x: Vec<Tm> = (0..full)
+            .map(|k| {
+                let v = (Tm::var(k, full, order) * 0.1 + rnd()).with_lifted_weight(2);
+                // Lifted parameters full..n, each with a small weight.
+                (full..n).fold(v, |acc, j| {
+                    let p = acc.param(j, n);
+                    acc + p * (1e-3 * rnd())
+                })
+            })
+            .collect();
+        for act in [Activation::Tanh, Activation::Relu] {
+            let net = Network {
+                input_names: vec!["a".into(), "b".into()],
+                output_names: vec!["u".into()],
+                input_norm: None,
+                layers: vec![
+                    Layer::Affine(Affine::new(
+                        2,
+                        3,
+                        vec![0.5, -0.2, 0.3, 0.1, -0.4, 0.6],
+                        vec![0.1, 0.0, -0.1],
+                    )),
+                    Layer::Act(act),
+                    Layer::Affine(Affine::new(3, 1, vec![0.7, -0.3, 0.2], vec![0.05])),
+                ],
+                output_denorm: None,
+            };
+            let y = network_over(&net, &x, order);
+            assert_eq!(y[0].full_params(), Some(full), "{act:?}: network step");
+            let lifted = lift_remainders(y.clone(), n, order);
+            assert_eq!(lifted[0].full_params(), Some(full), "{act:?}: lifted");
+            for _ in 0..200 {
+                let xi: Vec<f64> = (0..n).map(|_| rnd()).collect();
+                let inp: Vec<f64> = x.iter().map(|v| v.eval_at(&xi).lo).collect();
+                let want = net.eval_f64(&inp)[0];
+                let got = y[0].eval_at(&xi);
+                let tol = 1e-9 * (1.0 + want.abs());
+                assert!(
+                    got.lo - tol <= want && want <= got.hi + tol,
+                    "{act:?}: {want} outside {got:?}"
+                );
+            }
+        }
+    }
 
     /// A lifted output (its remainder turned into a fresh parameter) still holds
     /// every value of the original model: at random parameter points, the original's
