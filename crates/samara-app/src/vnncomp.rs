@@ -25,7 +25,26 @@ pub fn load_instance(
     net_flag: &str,
     prop_flag: &str,
 ) -> Result<(Network, Query), AppError> {
-    let net = crate::bind::load_network(network, net_flag)?;
+    load_instance_until(network, property, net_flag, prop_flag, None)?.ok_or_else(|| {
+        AppError::Input(format!(
+            "{net_flag} {}: {}",
+            network.display(),
+            samara_nn::limits::TIMED_OUT
+        ))
+    })
+}
+
+/// [`load_instance`] within a time limit: `Ok(None)` when `deadline` passed while the
+/// network was read or lowered (an instance's limit counts its load: lowering an
+/// image-sized convolutional network takes minutes). The property is read first, so a
+/// bad property file is an input error whatever the time.
+pub fn load_instance_until(
+    network: &Path,
+    property: &Path,
+    net_flag: &str,
+    prop_flag: &str,
+    deadline: Option<Instant>,
+) -> Result<Option<(Network, Query)>, AppError> {
     let text = std::fs::read_to_string(property).map_err(|e| {
         AppError::Input(format!(
             "{prop_flag} {}: cannot read: {e}",
@@ -35,6 +54,9 @@ pub fn load_instance(
     let file = property.display().to_string();
     let q = vnnlib::import(&text, &file, "f", "property")
         .map_err(|e| AppError::Input(e.to_string()))?;
+    let Some(net) = crate::bind::load_network_until(network, net_flag, deadline)? else {
+        return Ok(None);
+    };
     let Some(app) = q.applications.first() else {
         return crate::input(format!("{file}: the property calls no network"));
     };
@@ -89,7 +111,7 @@ pub fn load_instance(
             "{file}: input X_{i} is bounded by [{l}, {h}]; give it finite bounds with top-level asserts, e.g. (assert (>= X_{i} 0.0)) and (assert (<= X_{i} 1.0))"
         ));
     }
-    Ok((net, q))
+    Ok(Some((net, q)))
 }
 
 /// The name of a VNN-LIB variable.
@@ -226,6 +248,22 @@ pub fn decide(
         outputs,
         note,
     })
+}
+
+/// The instance whose time limit ran out while its network was loaded
+/// ([`load_instance_until`]): `unknown (timeout)` after `seconds`, no engine having run
+/// (the engine named is the router's first, the input-split one).
+pub fn timed_out_loading(seconds: f64) -> Decided {
+    Decided {
+        verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
+        engine: Engine::InputSplit,
+        seconds,
+        outputs: None,
+        note: Some(format!(
+            "{}: no verification was started",
+            samara_nn::limits::TIMED_OUT
+        )),
+    }
 }
 
 /// A result word of the competition, typed.

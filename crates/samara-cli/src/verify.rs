@@ -7,7 +7,9 @@ pub use samara_app::args::{
 };
 use samara_app::bind::timeout_flag;
 use samara_app::robustness::{self, SweepDone};
-use samara_app::vnncomp::{decide, load_instance, result_text, InstanceVerdict};
+use samara_app::vnncomp::{
+    decide, load_instance_until, result_text, timed_out_loading, InstanceVerdict,
+};
 use samara_app::{Holds, VerdictRow};
 use samara_verify::{Settings, Verdict};
 use std::path::Path;
@@ -167,10 +169,21 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
             &[("--network", &a.network), ("--property", &a.property)],
         )?;
     }
-    let (net, q) = load_instance(&a.network, &a.property, "--network", "--property")?;
     // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
-    // lowered to dense maps) takes seconds of it.
-    let d = decide(net, &q, timeout.left(start), a.max_nodes)?;
+    // lowered to dense maps) takes seconds of it, minutes for an image-sized generator,
+    // so the load itself stops at the deadline.
+    let loaded = load_instance_until(
+        &a.network,
+        &a.property,
+        "--network",
+        "--property",
+        timeout.deadline_from(start),
+    )?;
+    let mut d = match loaded {
+        Some((net, q)) => decide(net, &q, timeout.left(start), a.max_nodes)?,
+        None => timed_out_loading(start.elapsed().as_secs_f64()),
+    };
+    d.seconds = start.elapsed().as_secs_f64();
     if let Some(n) = &d.note {
         eprintln!("note: {n}");
     }

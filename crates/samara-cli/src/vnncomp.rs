@@ -5,7 +5,7 @@
 use anyhow::{anyhow, Result};
 pub use samara_app::args::VnncompArgs;
 use samara_app::benchmark::Tally;
-pub use samara_app::vnncomp::{decide, load_instance};
+pub use samara_app::vnncomp::{decide, load_instance_until, timed_out_loading};
 use samara_app::vnncomp::{parse_instances, InstanceResult as Part, VnncompRun, VnncompShard};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -47,16 +47,25 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         None => None,
     };
     // Load everything first: a bad instance is an input error before any computation.
+    // Each instance's load counts against its own time limit (a generator's lowering
+    // takes minutes): it stops at the limit, and the instance is then a timeout.
     let mut loaded = Vec::new();
     for l in lines {
         let at = format!("{}:{}", a.instances.display(), l.lineno);
-        let (net, q) = load_instance(&root.join(&l.onnx), &root.join(&l.vnnlib), "onnx", "vnnlib")
-            // Every message gets the CSV line once, here (the labels stay bare, so a
-            // network the loader refuses does not read `FILE:LINE: FILE:LINE: onnx ...`).
-            .map_err(|e| anyhow!("{at}: {e}"))?;
         let t = l.timeout * a.timeout_scale;
         let limit = samara_app::bind::timeout_flag(t)?;
-        loaded.push((net, q, t, limit));
+        let start = Instant::now();
+        let inst = load_instance_until(
+            &root.join(&l.onnx),
+            &root.join(&l.vnnlib),
+            "onnx",
+            "vnnlib",
+            limit.deadline_from(start),
+        )
+        // Every message gets the CSV line once, here (the labels stay bare, so a
+        // network the loader refuses does not read `FILE:LINE: FILE:LINE: onnx ...`).
+        .map_err(|e| anyhow!("{at}: {e}"))?;
+        loaded.push((inst, t, limit, start.elapsed()));
     }
     let bar = {
         use std::io::IsTerminal;
@@ -84,9 +93,15 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         // file, and a cut-short shard leaves one that the merge refuses.
         crate::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
     }
-    for (l, (net, q, t, limit)) in lines.iter().zip(loaded) {
+    for (l, (inst, t, limit, load)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
-        let d = decide(net, &q, limit, a.max_nodes)?;
+        let start = Instant::now();
+        let mut d = match inst {
+            // What the load took is taken from the instance's limit and added to its time.
+            Some((net, q)) => decide(net, &q, limit.left_at(start, start + load), a.max_nodes)?,
+            None => timed_out_loading(0.0),
+        };
+        d.seconds = load.as_secs_f64() + start.elapsed().as_secs_f64();
         if let Some(n) = &d.note {
             bar.suspend(|| eprintln!("note: {n}"));
         }

@@ -7,15 +7,26 @@
 use super::import::{chain_from_bytes, OnnxError};
 use super::proto::ModelProto;
 use crate::ir::Network;
-use crate::limits::{import_memory, show_bytes, Budget, IMPORT_MEMORY_ENV};
+use crate::limits::{import_memory, show_bytes, Budget, IMPORT_MEMORY_ENV, TIMED_OUT};
 use prost::Message;
 use std::path::Path;
+use std::time::Instant;
 
 /// Load a network from an ONNX file, within the import memory budget
 /// ([`crate::limits`]).
 pub fn load(path: impl AsRef<Path>) -> Result<Network, OnnxError> {
+    load_until(path, None)
+}
+
+/// [`load`] that stops with [`OnnxError::Timeout`] once `deadline` has passed (checked
+/// per node and inside the lowering's long loops): a time limit that counts the import
+/// (lowering an image-sized convolutional network takes minutes) is kept.
+pub fn load_until(path: impl AsRef<Path>, deadline: Option<Instant>) -> Result<Network, OnnxError> {
     let (bytes, file) = read(path.as_ref())?;
-    from_bytes(&bytes, &file)
+    if deadline.is_some_and(|d| Instant::now() >= d) {
+        return Err(OnnxError::Timeout { file });
+    }
+    from_bytes_until(&bytes, &file, env_budget(&file)?, deadline)
 }
 
 /// The budget of [`import_memory`], or the error naming the variable.
@@ -70,18 +81,55 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
 /// the lowering's layers) is charged first, and past `allowed` the import stops with
 /// an error naming the tensor or node and the bytes needed.
 pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Network, OnnxError> {
-    match chain_from_bytes(bytes, file, &Budget::new(allowed)) {
+    from_bytes_until(bytes, file, allowed, None)
+}
+
+/// [`from_bytes_within`] with a deadline: past it, [`OnnxError::Timeout`].
+pub fn from_bytes_until(
+    bytes: &[u8],
+    file: &str,
+    allowed: u64,
+    deadline: Option<Instant>,
+) -> Result<Network, OnnxError> {
+    from_bytes_inner(bytes, file, allowed, deadline).map_err(|e| {
+        if stopped_by_deadline(&e) {
+            OnnxError::Timeout { file: file.into() }
+        } else {
+            e
+        }
+    })
+}
+
+/// Whether an importer's error is [`Budget::check_time`]'s (it travels as the message
+/// of a structural or lowering error).
+fn stopped_by_deadline(e: &OnnxError) -> bool {
+    match e {
+        OnnxError::Timeout { .. } => true,
+        OnnxError::Structure { message, .. } => message == TIMED_OUT,
+        OnnxError::Unsupported { detail, .. } => detail == &format!(": {TIMED_OUT}"),
+        _ => false,
+    }
+}
+
+fn from_bytes_inner(
+    bytes: &[u8],
+    file: &str,
+    allowed: u64,
+    deadline: Option<Instant>,
+) -> Result<Network, OnnxError> {
+    let new_budget = || Budget::new(allowed).with_deadline(deadline);
+    match chain_from_bytes(bytes, file, &new_budget()) {
         Err(chain_err @ OnnxError::Unsupported { .. }) => {
             // The chain importer's allocations are dropped: the graph starts afresh.
-            let budget = Budget::new(allowed);
+            let budget = new_budget();
             let graph = match graph_within(bytes, file, &budget) {
                 Ok(g) => g,
                 Err(graph_err @ OnnxError::Unsupported { .. }) => {
                     return Err(more_relevant(bytes, chain_err, graph_err))
                 }
-                // Over the memory budget: that is the reason to show.
+                // Over the memory budget or out of time: that is the reason to show.
                 Err(e @ OnnxError::Structure { .. })
-                    if e.to_string().contains(IMPORT_MEMORY_ENV) =>
+                    if e.to_string().contains(IMPORT_MEMORY_ENV) || stopped_by_deadline(&e) =>
                 {
                     return Err(e)
                 }
@@ -95,7 +143,7 @@ pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Netwo
             crate::graph::lower::lower_within(&graph, &budget).map_err(|e| {
                 // Over the memory budget the operator is supported: the network is too
                 // large for the limit, which the message names with the way to raise it.
-                if e.message.contains(IMPORT_MEMORY_ENV) {
+                if e.message.contains(IMPORT_MEMORY_ENV) || e.message == TIMED_OUT {
                     OnnxError::Structure {
                         file: file.into(),
                         place: format!("node `{}` ({})", e.node, e.op),

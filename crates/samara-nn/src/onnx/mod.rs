@@ -24,4 +24,6 @@ pub mod proto;
 
 pub use export::{export, save, ExportOptions};
 pub use import::{OnnxError, SUPPORTED_OPS};
-pub use load::{from_bytes, from_bytes_within, graph_from_bytes, load, load_graph};
+pub use load::{
+    from_bytes, from_bytes_until, from_bytes_within, graph_from_bytes, load, load_graph, load_until,
+};
