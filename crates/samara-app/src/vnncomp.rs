@@ -211,8 +211,15 @@ pub fn decide(
     let t0 = Instant::now();
     let mut nets = HashMap::new();
     nets.insert("f".to_string(), net);
-    // Preparing the network (its piecewise-linear form) counts against the time limit.
-    let prep = Prepared::new(&nets);
+    // Preparing the network (its piecewise-linear form) counts against the time limit,
+    // and stops at it (a copy of a lowered generator's layers takes many seconds).
+    let Some(prep) = Prepared::new_until(&nets, timeout.deadline_from(t0)) else {
+        let mut d = timed_out_loading(t0.elapsed().as_secs_f64());
+        d.note = Some(
+            "the time limit ran out while the network's piecewise-linear form was prepared: no verification was started".into(),
+        );
+        return Ok(d);
+    };
     let (mut verdict, engine) = prove_routed(
         q,
         &prep,

@@ -291,13 +291,28 @@ pub struct Prepared<'a> {
 impl<'a> Prepared<'a> {
     /// Prepare named networks.
     pub fn new(nets: &'a HashMap<String, Network>) -> Self {
-        Prepared {
-            plain: nets.iter().map(|(k, v)| (k.clone(), v)).collect(),
-            pwl: nets
-                .iter()
-                .map(|(k, v)| (k.clone(), PwlNet::from_network(v)))
-                .collect(),
+        Self::new_until(nets, None).expect("no deadline")
+    }
+
+    /// [`Prepared::new`] that gives up (`None`) once `deadline` has passed (checked
+    /// before each layer's copy: a lowered convolutional network takes gigabytes).
+    pub fn new_until(
+        nets: &'a HashMap<String, Network>,
+        deadline: Option<std::time::Instant>,
+    ) -> Option<Self> {
+        let mut pwl = HashMap::new();
+        for (k, v) in nets {
+            let p = match PwlNet::from_network_until(v, deadline) {
+                Ok(Some(p)) => Ok(p),
+                Ok(None) => return None,
+                Err(e) => Err(e),
+            };
+            pwl.insert(k.clone(), p);
         }
+        Some(Prepared {
+            plain: nets.iter().map(|(k, v)| (k.clone(), v)).collect(),
+            pwl,
+        })
     }
 
     fn check(&self, q: &Query) -> Result<(), VerifyError> {
