@@ -214,6 +214,7 @@ pub fn decide(
     // Preparing the network (its piecewise-linear form) counts against the time limit,
     // and stops at it (a copy of a lowered generator's layers takes many seconds).
     let Some(prep) = Prepared::new_until(&nets, timeout.deadline_from(t0)) else {
+        free_apart(nets);
         let mut d = timed_out_loading(t0.elapsed().as_secs_f64());
         d.note = Some(
             "the time limit ran out while the network's piecewise-linear form was prepared: no verification was started".into(),
@@ -248,6 +249,8 @@ pub fn decide(
             }
         }
     }
+    drop(prep);
+    free_apart(nets);
     Ok(Decided {
         verdict,
         engine,
@@ -255,6 +258,23 @@ pub fn decide(
         outputs,
         note,
     })
+}
+
+/// Drop the networks, on a thread of their own when they are large
+/// ([`samara_verify::FREE_APART_WEIGHTS`]): freeing a lowered generator's gigabytes
+/// took seconds past the instance's time limit.
+fn free_apart(nets: HashMap<String, Network>) {
+    let weights: usize = nets
+        .values()
+        .flat_map(|n| n.layers.iter())
+        .map(|l| match l {
+            samara_nn::Layer::Affine(a) => a.w.len(),
+            samara_nn::Layer::Act(_) => 0,
+        })
+        .sum();
+    if weights > samara_verify::FREE_APART_WEIGHTS {
+        std::thread::spawn(move || drop(nets));
+    }
 }
 
 /// The instance whose time limit ran out while its network was loaded

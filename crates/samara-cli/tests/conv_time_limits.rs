@@ -12,10 +12,10 @@
 use prost::Message;
 use samara_nn::onnx::proto;
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod support;
-use support::samara;
+use support::timed;
 
 /// A seeded xorshift in `[-scale, scale]` (the file is the same on every run).
 fn weights(n: usize, scale: f64, seed: u64) -> Vec<f32> {
@@ -170,17 +170,6 @@ fn write_instance(dir: &Path) -> (String, String) {
     (net.display().to_string(), prop.display().to_string())
 }
 
-fn run(args: &[&str]) -> (Option<i32>, String, String, Duration) {
-    let t0 = Instant::now();
-    let o = samara().args(args).output().unwrap();
-    (
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-        t0.elapsed(),
-    )
-}
-
 /// `verify-vnnlib --timeout 1` stops loading the generator at the limit: `unknown
 /// (timeout)`, exit 1, within 2 s (the load alone takes far longer; it was not counted before).
 #[test]
@@ -188,7 +177,7 @@ fn verify_vnnlib_counts_a_generators_load_against_its_timeout() {
     let dir = tempfile::tempdir().unwrap();
     let (net, prop) = write_instance(dir.path());
     for limit in ["0.3", "1"] {
-        let (code, out, err, dt) = run(&[
+        let (code, out, err, dt) = timed(&[
             "verify-vnnlib",
             "--network",
             &net,
@@ -219,7 +208,7 @@ fn vnncomp_counts_each_instances_load_against_its_limit() {
     let csv = dir.path().join("instances.csv");
     std::fs::write(&csv, format!("{net},{prop},1\n{net},{prop},1\n")).unwrap();
     let out = dir.path().join("out.csv");
-    let (code, stdout, err, dt) = run(&[
+    let (code, stdout, err, dt) = timed(&[
         "vnncomp",
         csv.to_str().unwrap(),
         "--out",

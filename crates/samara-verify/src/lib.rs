@@ -288,6 +288,26 @@ pub struct Prepared<'a> {
     pwl: HashMap<String, Result<PwlNet, net::EncodeError>>,
 }
 
+/// Weights above which a network's layers are freed on a thread of their own (about
+/// 128 MB): freeing a lowered convolutional network's gigabytes takes seconds under
+/// memory pressure, which would count against the caller's time limit.
+pub const FREE_APART_WEIGHTS: usize = 1 << 24;
+
+impl Drop for Prepared<'_> {
+    fn drop(&mut self) {
+        let weights: usize = self
+            .pwl
+            .values()
+            .flatten()
+            .flat_map(|p| p.maps.iter().map(|(a, _)| a.w.len()))
+            .sum();
+        if weights > FREE_APART_WEIGHTS {
+            let pwl = std::mem::take(&mut self.pwl);
+            std::thread::spawn(move || drop(pwl));
+        }
+    }
+}
+
 impl<'a> Prepared<'a> {
     /// Prepare named networks.
     pub fn new(nets: &'a HashMap<String, Network>) -> Self {
