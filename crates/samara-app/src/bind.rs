@@ -399,6 +399,20 @@ pub fn load_network(path: &Path, flag: &str) -> Result<samara_nn::Network, AppEr
     samara_nn::load(path).map_err(|e| AppError::Input(format!("{}{e}", flag_prefix(flag))))
 }
 
+/// [`load_network`] within a time limit: `Ok(None)` when `deadline` passed while the
+/// network was read or lowered ([`samara_nn::load_until`]).
+pub fn load_network_until(
+    path: &Path,
+    flag: &str,
+    deadline: Option<std::time::Instant>,
+) -> Result<Option<samara_nn::Network>, AppError> {
+    match samara_nn::load_until(path, deadline) {
+        Ok(n) => Ok(Some(n)),
+        Err(e) if e.timed_out() => Ok(None),
+        Err(e) => Err(AppError::Input(format!("{}{e}", flag_prefix(flag)))),
+    }
+}
+
 /// Read a data set (CSV or IDX), naming the flag on failure.
 pub fn read_data(path: &Path, flag: &str) -> Result<samara_nn::data::Table, AppError> {
     samara_nn::data::read_table(path)

@@ -25,28 +25,43 @@ pub fn load_instance(
     net_flag: &str,
     prop_flag: &str,
 ) -> Result<(Network, Query), AppError> {
-    load_instance_logits(network, property, net_flag, prop_flag).map(|(net, q, _)| (net, q))
+    load_instance_logits(network, property, net_flag, prop_flag, None)?
+        .map(|(net, q, _)| (net, q))
+        .ok_or_else(|| {
+            AppError::Input(format!(
+                "{net_flag} {}: {}",
+                network.display(),
+                samara_nn::limits::TIMED_OUT
+            ))
+        })
 }
 
-/// [`load_instance`], leaving out a final `Softmax` over all the outputs when the
-/// property only compares outputs with each other ([`compares_outputs_only`]: the
-/// answer is the same on the logits, softmax being strictly increasing in each logit
-/// against any other). The third value is `true` when the softmax was left out: the
-/// network then computes the logits, and outputs shown as the file's (a counterexample's
-/// `Y_j`) are [`softmax`] of the network's.
+/// [`load_instance`] within a time limit (`Ok(None)` when `deadline` passed while the
+/// network was read or lowered: an instance's limit counts its load, and lowering an
+/// image-sized convolutional network takes minutes), leaving out a final `Softmax`
+/// over all the outputs when the property only compares outputs with each other
+/// ([`compares_outputs_only`]: the answer is the same on the logits, softmax being
+/// strictly increasing in each logit against any other). The third value is `true`
+/// when the softmax was left out: the network then computes the logits, and outputs
+/// shown as the file's (a counterexample's `Y_j`) are [`softmax`] of the network's.
 pub fn load_instance_logits(
     network: &Path,
     property: &Path,
     net_flag: &str,
     prop_flag: &str,
-) -> Result<(Network, Query, bool), AppError> {
+    deadline: Option<Instant>,
+) -> Result<Option<(Network, Query, bool)>, AppError> {
     // The property is read first to choose how to load the network, but a bad network
-    // is reported before a bad property, as always.
+    // is reported before a bad property, as always (and a bad property before a load
+    // that ran out of time).
     let q = read_property(property, prop_flag);
     let logits = wants_logits(network, &q);
-    let (net, logits) = load_network_as(network, net_flag, logits)?;
+    let Some((net, logits)) = load_network_as(network, net_flag, logits, deadline)? else {
+        q?;
+        return Ok(None);
+    };
     let q = check_instance(&net, q?, network, property)?;
-    Ok((net, q, logits))
+    Ok(Some((net, q, logits)))
 }
 
 /// The property file as a query (exit 2 naming the flag or the file's line).
@@ -67,17 +82,25 @@ pub fn wants_logits(network: &Path, q: &Result<Query, AppError>) -> bool {
 }
 
 /// Load the network, without a final softmax over all outputs when `logits` (then the
-/// flag says whether one was left out).
+/// flag says whether one was left out); `Ok(None)` when `deadline` passed during the
+/// load ([`samara_nn::load_until`]).
 pub fn load_network_as(
     network: &Path,
     net_flag: &str,
     logits: bool,
-) -> Result<(Network, bool), AppError> {
+    deadline: Option<Instant>,
+) -> Result<Option<(Network, bool)>, AppError> {
     if logits {
-        samara_nn::onnx::load_logits(network)
-            .map_err(|e| AppError::Input(format!("{}{e}", crate::bind::flag_prefix(net_flag))))
+        match samara_nn::onnx::load_logits_until(network, deadline) {
+            Ok(n) => Ok(Some(n)),
+            Err(samara_nn::onnx::OnnxError::Timeout { .. }) => Ok(None),
+            Err(e) => Err(AppError::Input(format!(
+                "{}{e}",
+                crate::bind::flag_prefix(net_flag)
+            ))),
+        }
     } else {
-        Ok((crate::bind::load_network(network, net_flag)?, false))
+        Ok(crate::bind::load_network_until(network, net_flag, deadline)?.map(|n| (n, false)))
     }
 }
 
@@ -284,8 +307,16 @@ pub fn decide(
     let t0 = Instant::now();
     let mut nets = HashMap::new();
     nets.insert("f".to_string(), net);
-    // Preparing the network (its piecewise-linear form) counts against the time limit.
-    let prep = Prepared::new(&nets);
+    // Preparing the network (its piecewise-linear form) counts against the time limit,
+    // and stops at it (a copy of a lowered generator's layers takes many seconds).
+    let Some(prep) = Prepared::new_until(&nets, timeout.deadline_from(t0)) else {
+        free_apart(nets);
+        let mut d = timed_out_loading(t0.elapsed().as_secs_f64());
+        d.note = Some(
+            "the time limit ran out while the network's piecewise-linear form was prepared: no verification was started".into(),
+        );
+        return Ok(d);
+    };
     let (mut verdict, engine) = prove_routed(
         q,
         &prep,
@@ -314,6 +345,8 @@ pub fn decide(
             }
         }
     }
+    drop(prep);
+    free_apart(nets);
     Ok(Decided {
         verdict,
         engine,
@@ -321,6 +354,39 @@ pub fn decide(
         outputs,
         note,
     })
+}
+
+/// Drop the networks, on a thread of their own when they are large
+/// ([`samara_verify::FREE_APART_WEIGHTS`]): freeing a lowered generator's gigabytes
+/// took seconds past the instance's time limit.
+fn free_apart(nets: HashMap<String, Network>) {
+    let weights: usize = nets
+        .values()
+        .flat_map(|n| n.layers.iter())
+        .map(|l| match l {
+            samara_nn::Layer::Affine(a) => a.w.len(),
+            samara_nn::Layer::Act(_) => 0,
+        })
+        .sum();
+    if weights > samara_verify::FREE_APART_WEIGHTS {
+        std::thread::spawn(move || drop(nets));
+    }
+}
+
+/// The instance whose time limit ran out while its network was loaded
+/// ([`load_instance_until`]): `unknown (timeout)` after `seconds`, no engine having run
+/// (the engine named is the router's first, the input-split one).
+pub fn timed_out_loading(seconds: f64) -> Decided {
+    Decided {
+        verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
+        engine: Engine::InputSplit,
+        seconds,
+        outputs: None,
+        note: Some(format!(
+            "{}: no verification was started",
+            samara_nn::limits::TIMED_OUT
+        )),
+    }
 }
 
 /// A result word of the competition, typed.

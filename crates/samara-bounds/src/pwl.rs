@@ -34,6 +34,16 @@ fn identity(n: usize) -> Affine {
 impl PwlNet {
     /// Build from a network in raw units (normalisation layers included).
     pub fn from_network(net: &Network) -> Result<Self, EncodeError> {
+        Self::from_network_until(net, None).map(|p| p.expect("no deadline"))
+    }
+
+    /// [`PwlNet::from_network`] that gives up (`Ok(None)`) once `deadline` has passed,
+    /// checked before each layer is copied: a lowered convolutional network's layers
+    /// take gigabytes, and copying them took tens of seconds past an instance's limit.
+    pub fn from_network_until(
+        net: &Network,
+        deadline: Option<std::time::Instant>,
+    ) -> Result<Option<Self>, EncodeError> {
         // Refused before any weight is copied (an image-sized network's are gigabytes).
         if let Some(a) = net.layers.iter().find_map(|l| match l {
             Layer::Act(a @ (Activation::Sigmoid | Activation::Tanh | Activation::Sign)) => Some(a),
@@ -43,7 +53,15 @@ impl PwlNet {
         }
         let mut maps: Vec<(Affine, bool)> = Vec::new();
         let mut dim = net.n_inputs();
-        for l in net.raw_layers() {
+        let norm = net.input_norm.iter().map(|a| Layer::Affine(a.clone()));
+        let denorm = net.output_denorm.iter().map(|a| Layer::Affine(a.clone()));
+        // Layers are cloned one at a time, as the iterator reaches them.
+        let layers = norm.chain(net.layers.iter().cloned()).chain(denorm);
+        let late = || deadline.is_some_and(|d| std::time::Instant::now() >= d);
+        for l in layers {
+            if late() {
+                return Ok(None);
+            }
             match l {
                 Layer::Affine(a) => {
                     dim = a.out;
@@ -79,7 +97,7 @@ impl PwlNet {
         if maps.is_empty() || maps.last().map(|m| m.1).unwrap_or(false) {
             maps.push((identity(dim), false));
         }
-        Ok(PwlNet { maps })
+        Ok(Some(PwlNet { maps }))
     }
 
     /// Number of inputs.

@@ -7,7 +7,9 @@ pub use samara_app::args::{
 };
 use samara_app::bind::timeout_flag;
 use samara_app::robustness::{self, SweepDone};
-use samara_app::vnncomp::{decide, load_instance_logits, result_text, softmax, InstanceVerdict};
+use samara_app::vnncomp::{
+    decide, load_instance_logits, result_text, softmax, timed_out_loading, InstanceVerdict,
+};
 use samara_app::{Holds, VerdictRow};
 use samara_verify::{Settings, Verdict};
 use std::path::Path;
@@ -167,15 +169,29 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
             &[("--network", &a.network), ("--property", &a.property)],
         )?;
     }
-    let (net, q, logits) =
-        load_instance_logits(&a.network, &a.property, "--network", "--property")?;
     // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
-    // lowered to dense maps) takes seconds of it.
-    let mut d = decide(net, &q, timeout.left(start), a.max_nodes)?;
-    if logits {
-        // The file's network ends in the softmax that was left out: show its outputs.
-        d.outputs = d.outputs.map(|y| softmax(&y));
-    }
+    // lowered to dense maps) takes seconds of it, minutes for an image-sized generator,
+    // so the load itself stops at the deadline.
+    let loaded = load_instance_logits(
+        &a.network,
+        &a.property,
+        "--network",
+        "--property",
+        timeout.deadline_from(start),
+    )?;
+    let mut d = match loaded {
+        Some((net, q, logits)) => {
+            let mut d = decide(net, &q, timeout.left(start), a.max_nodes)?;
+            if logits {
+                // The file's network ends in the softmax that was left out: show its
+                // outputs.
+                d.outputs = d.outputs.map(|y| softmax(&y));
+            }
+            d
+        }
+        None => timed_out_loading(start.elapsed().as_secs_f64()),
+    };
+    d.seconds = start.elapsed().as_secs_f64();
     if let Some(n) = &d.note {
         eprintln!("note: {n}");
     }

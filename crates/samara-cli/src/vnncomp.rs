@@ -5,8 +5,8 @@
 use anyhow::{anyhow, Result};
 pub use samara_app::args::VnncompArgs;
 use samara_app::benchmark::Tally;
-pub use samara_app::vnncomp::decide;
 use samara_app::vnncomp::{check_instance, load_network_as, read_property, wants_logits};
+pub use samara_app::vnncomp::{decide, timed_out_loading};
 use samara_app::vnncomp::{parse_instances, InstanceResult as Part, VnncompRun, VnncompShard};
 use samara_nn::Network;
 use std::collections::HashMap;
@@ -51,7 +51,10 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     };
     // Load everything first: a bad instance is an input error before any computation.
     // A network used by several lines is loaded once (an image-sized one takes seconds
-    // and gigabytes); each instance gets a copy when it runs.
+    // and gigabytes); each instance gets a copy when it runs. The load counts against
+    // the limit of the instance that needs it first (a generator's lowering takes
+    // minutes): it stops there, that instance is a timeout, and the next line that
+    // uses the network tries again within its own limit.
     let mut loaded = Vec::new();
     let mut networks: Vec<Network> = Vec::new();
     let mut index: HashMap<(PathBuf, bool), usize> = HashMap::new();
@@ -61,22 +64,33 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         // network the loader refuses does not read `FILE:LINE: FILE:LINE: onnx ...`).
         let line_err = |e: samara_app::AppError| anyhow!("{at}: {e}");
         let (onnx, vnnlib) = (root.join(&l.onnx), root.join(&l.vnnlib));
+        let t = l.timeout * a.timeout_scale;
+        let limit = samara_app::bind::timeout_flag(t)?;
+        let start = Instant::now();
         let q = read_property(&vnnlib, "vnnlib");
         let key = (onnx.clone(), wants_logits(&onnx, &q));
         let k = match index.get(&key) {
-            Some(&k) => k,
-            None => {
-                let (net, _) = load_network_as(&onnx, "onnx", key.1).map_err(line_err)?;
-                networks.push(net);
-                index.insert(key, networks.len() - 1);
-                networks.len() - 1
-            }
+            Some(&k) => Some(k),
+            None => match load_network_as(&onnx, "onnx", key.1, limit.deadline_from(start))
+                .map_err(line_err)?
+            {
+                Some((net, _)) => {
+                    networks.push(net);
+                    index.insert(key, networks.len() - 1);
+                    Some(networks.len() - 1)
+                }
+                None => None,
+            },
         };
-        let q =
-            check_instance(&networks[k], q.map_err(line_err)?, &onnx, &vnnlib).map_err(line_err)?;
-        let t = l.timeout * a.timeout_scale;
-        let limit = samara_app::bind::timeout_flag(t)?;
-        loaded.push((k, q, t, limit));
+        let q = q.map_err(line_err)?;
+        let inst = match k {
+            Some(k) => Some((
+                k,
+                check_instance(&networks[k], q, &onnx, &vnnlib).map_err(line_err)?,
+            )),
+            None => None,
+        };
+        loaded.push((inst, t, limit, start.elapsed()));
     }
     let bar = {
         use std::io::IsTerminal;
@@ -104,9 +118,20 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         // file, and a cut-short shard leaves one that the merge refuses.
         crate::shard::write(&a.out, "vnncomp", s, &run, &shard_doc)?;
     }
-    for (l, (k, q, t, limit)) in lines.iter().zip(loaded) {
+    for (l, (inst, t, limit, load)) in lines.iter().zip(loaded) {
         bar.set_message(format!("{} {}", l.onnx, l.vnnlib));
-        let d = decide(networks[k].clone(), &q, limit, a.max_nodes)?;
+        let start = Instant::now();
+        let mut d = match inst {
+            // What the load took is taken from the instance's limit and added to its time.
+            Some((k, q)) => decide(
+                networks[k].clone(),
+                &q,
+                limit.left_at(start, start + load),
+                a.max_nodes,
+            )?,
+            None => timed_out_loading(0.0),
+        };
+        d.seconds = load.as_secs_f64() + start.elapsed().as_secs_f64();
         if let Some(n) = &d.note {
             bar.suspend(|| eprintln!("note: {n}"));
         }

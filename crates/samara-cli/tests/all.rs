@@ -3,10 +3,10 @@
 //! time went to those). Each file is a module: `cargo test -p samara-cli --test all
 //! FILE::` runs one. `every_test_file_is_built` fails for a file left out.
 
-mod support;
 mod broken_pipe;
 mod cliio_fuzz_flags;
 mod cliio_regressions;
+mod conv_time_limits;
 mod degenerate_vnnlib;
 mod plant_cli;
 mod reach_adaptive_shards;
@@ -17,6 +17,7 @@ mod reproduce_cli;
 mod shard_integrity;
 mod shard_merge;
 mod simulate_cli;
+mod support;
 mod system_cli;
 mod thin_region_vnnlib;
 mod threads_cli;

@@ -4,10 +4,10 @@
 
 use samara_nn::{onnx, Activation, Affine, Layer, Network};
 use std::path::Path;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 use crate::support;
-use support::samara;
+use support::timed;
 
 /// A VNN-COMP-style MNIST classifier: 784 inputs, two dense layers of 256 ReLUs, 10
 /// outputs, seeded He-style random weights (a fixed xorshift, so the file is the same
@@ -98,18 +98,6 @@ fn write_classifier(
     let prop = dir.join("mnist.vnnlib");
     std::fs::write(&prop, t).unwrap();
     (path.display().to_string(), prop.display().to_string())
-}
-
-/// Run a command; (exit code, stdout, stderr, wall time).
-fn timed(args: &[&str]) -> (Option<i32>, String, String, Duration) {
-    let t0 = Instant::now();
-    let o = samara().args(args).output().unwrap();
-    (
-        o.status.code(),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-        t0.elapsed(),
-    )
 }
 
 /// `verify-vnnlib --timeout SECONDS`, asserted to return within SECONDS + 1;

@@ -314,12 +314,23 @@ impl Network {
         v
     }
 
-    /// Check dimensions chain, weights are finite, names match the dimensions.
+    /// Check dimensions chain, weights are finite, names match the dimensions. Reads the
+    /// layers in place (a lowered convolutional network's layers take gigabytes: a copy
+    /// took seconds).
     pub fn validate(&self) -> Result<(), IrError> {
         let mut dim = self.n_inputs();
-        let all = self.raw_layers();
+        let norm = self.input_norm.iter();
+        let denorm = self.output_denorm.iter();
+        let all: Vec<Option<&Affine>> = norm
+            .map(Some)
+            .chain(self.layers.iter().map(|l| match l {
+                Layer::Affine(a) => Some(a),
+                Layer::Act(_) => None,
+            }))
+            .chain(denorm.map(Some))
+            .collect();
         for (k, l) in all.iter().enumerate() {
-            if let Layer::Affine(a) = l {
+            if let Some(a) = l {
                 if a.inp != dim {
                     return Err(IrError::Dimension {
                         layer: k,

@@ -33,6 +33,16 @@ pub enum LoadError {
 /// ACAS Xu, anything else as ONNX. Every command reads its network files here, so each
 /// takes both formats.
 pub fn load(path: impl AsRef<std::path::Path>) -> Result<Network, LoadError> {
+    load_until(path, None)
+}
+
+/// [`load`] within a time limit: an ONNX import past `deadline` stops with
+/// [`onnx::OnnxError::Timeout`] ([`LoadError::timed_out`]), so a command whose
+/// `--timeout` counts the load keeps it. (NNet files are read in milliseconds.)
+pub fn load_until(
+    path: impl AsRef<std::path::Path>,
+    deadline: Option<std::time::Instant>,
+) -> Result<Network, LoadError> {
     let path = path.as_ref();
     let nnet = path
         .extension()
@@ -40,8 +50,15 @@ pub fn load(path: impl AsRef<std::path::Path>) -> Result<Network, LoadError> {
     Ok(if nnet {
         nnet::load(path)?
     } else {
-        onnx::load(path)?
+        onnx::load_until(path, deadline)?
     })
+}
+
+impl LoadError {
+    /// Whether the load stopped at its deadline ([`load_until`]) rather than on the file.
+    pub fn timed_out(&self) -> bool {
+        matches!(self, LoadError::Onnx(onnx::OnnxError::Timeout { .. }))
+    }
 }
 
 /// The case study's input names, in order.

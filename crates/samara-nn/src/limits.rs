@@ -13,6 +13,7 @@
 //! that size is allocated.
 
 use std::cell::Cell;
+use std::time::Instant;
 
 /// The environment variable that sets the import budget: bytes, or a number with a
 /// `K`, `M`, `G` or `T` suffix (powers of 1024), e.g. `SAMARA_IMPORT_MEMORY=16G`.
@@ -88,11 +89,21 @@ pub fn show_bytes(b: u64) -> String {
 
 /// The memory one import may take, charged before each allocation that grows with a
 /// declared shape (see the module documentation).
+///
+/// It also carries the import's deadline, if any: the caller's time limit (`samara
+/// vnncomp`, `verify-vnnlib --timeout`) counts the import, and lowering an image-sized
+/// network takes minutes, so the long loops of import and lowering ask
+/// [`Budget::check_time`] and stop with [`TIMED_OUT`] once it has passed.
 #[derive(Debug)]
 pub struct Budget {
     allowed: u64,
     used: Cell<u64>,
+    deadline: Option<Instant>,
 }
+
+/// The message of an import stopped by its deadline ([`Budget::check_time`]); the
+/// importers turn it into [`crate::onnx::OnnxError::Timeout`].
+pub const TIMED_OUT: &str = "the time limit ran out while loading the network";
 
 impl Budget {
     /// A budget of `allowed` bytes.
@@ -100,6 +111,27 @@ impl Budget {
         Budget {
             allowed,
             used: Cell::new(0),
+            deadline: None,
+        }
+    }
+
+    /// The same budget with a deadline (`None`: no time limit).
+    pub fn with_deadline(mut self, deadline: Option<Instant>) -> Self {
+        self.deadline = deadline;
+        self
+    }
+
+    /// The deadline, if any.
+    pub fn deadline(&self) -> Option<Instant> {
+        self.deadline
+    }
+
+    /// `Err(`[`TIMED_OUT`]`)` once the deadline has passed. Cheap (one clock read):
+    /// called once per node and every few thousand columns or rows of a long loop.
+    pub fn check_time(&self) -> Result<(), String> {
+        match self.deadline {
+            Some(d) if Instant::now() >= d => Err(TIMED_OUT.to_string()),
+            _ => Ok(()),
         }
     }
 

@@ -3,8 +3,8 @@
 //! time went to those). Each file is a module: `cargo test -p samara-reach --test all
 //! FILE::` runs one. `every_test_file_is_built` fails for a file left out.
 
-mod common;
 mod adaptive;
+mod common;
 mod containment;
 mod differential_plants;
 mod discrete;

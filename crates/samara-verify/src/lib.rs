@@ -288,16 +288,51 @@ pub struct Prepared<'a> {
     pwl: HashMap<String, Result<PwlNet, net::EncodeError>>,
 }
 
+/// Weights above which a network's layers are freed on a thread of their own (about
+/// 128 MB): freeing a lowered convolutional network's gigabytes takes seconds under
+/// memory pressure, which would count against the caller's time limit.
+pub const FREE_APART_WEIGHTS: usize = 1 << 24;
+
+impl Drop for Prepared<'_> {
+    fn drop(&mut self) {
+        let weights: usize = self
+            .pwl
+            .values()
+            .flatten()
+            .flat_map(|p| p.maps.iter().map(|(a, _)| a.w.len()))
+            .sum();
+        if weights > FREE_APART_WEIGHTS {
+            let pwl = std::mem::take(&mut self.pwl);
+            std::thread::spawn(move || drop(pwl));
+        }
+    }
+}
+
 impl<'a> Prepared<'a> {
     /// Prepare named networks.
     pub fn new(nets: &'a HashMap<String, Network>) -> Self {
-        Prepared {
-            plain: nets.iter().map(|(k, v)| (k.clone(), v)).collect(),
-            pwl: nets
-                .iter()
-                .map(|(k, v)| (k.clone(), PwlNet::from_network(v)))
-                .collect(),
+        Self::new_until(nets, None).expect("no deadline")
+    }
+
+    /// [`Prepared::new`] that gives up (`None`) once `deadline` has passed (checked
+    /// before each layer's copy: a lowered convolutional network takes gigabytes).
+    pub fn new_until(
+        nets: &'a HashMap<String, Network>,
+        deadline: Option<std::time::Instant>,
+    ) -> Option<Self> {
+        let mut pwl = HashMap::new();
+        for (k, v) in nets {
+            let p = match PwlNet::from_network_until(v, deadline) {
+                Ok(Some(p)) => Ok(p),
+                Ok(None) => return None,
+                Err(e) => Err(e),
+            };
+            pwl.insert(k.clone(), p);
         }
+        Some(Prepared {
+            plain: nets.iter().map(|(k, v)| (k.clone(), v)).collect(),
+            pwl,
+        })
     }
 
     fn check(&self, q: &Query) -> Result<(), VerifyError> {

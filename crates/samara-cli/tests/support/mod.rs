@@ -22,6 +22,18 @@ pub fn samara() -> Command {
     Command::new(env!("CARGO_BIN_EXE_samara"))
 }
 
+/// Run `samara ARGS`; (exit code, stdout, stderr, wall time).
+pub fn timed(args: &[&str]) -> (Option<i32>, String, String, std::time::Duration) {
+    let t0 = std::time::Instant::now();
+    let o = samara().args(args).output().unwrap();
+    (
+        o.status.code(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+        t0.elapsed(),
+    )
+}
+
 /// The JSON a run printed on stdout, after asserting it exited 0 (its stderr in the
 /// failure message).
 pub fn json_of_success(o: &std::process::Output) -> serde_json::Value {

@@ -513,6 +513,7 @@ pub fn from_model_within(
             },
             op: n.op_type.clone(),
         };
+        budget.check_time().map_err(|m| e.structure(m))?;
         if !n.domain.is_empty() && n.domain != "ai.onnx" {
             return Err(e.unsupported(format!(" from domain `{}`", n.domain)));
         }

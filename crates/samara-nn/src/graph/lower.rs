@@ -63,7 +63,14 @@ impl Lin {
 
     /// Rows as sparse combinations of rows of `srcs`: row `i` is
     /// `sum coef * srcs[s].row(r)` over `spec[i]`.
-    fn combine(srcs: &[&Lin], spec: &[Vec<(usize, usize, f64)>], nonneg: bool) -> Lin {
+    /// `Err` ([`crate::limits::TIMED_OUT`]) once `budget`'s deadline has passed (checked
+    /// every [`CHECK_EVERY`] columns).
+    fn combine(
+        srcs: &[&Lin],
+        spec: &[Vec<(usize, usize, f64)>],
+        nonneg: bool,
+        budget: &Budget,
+    ) -> Result<Lin, String> {
         let zdim = srcs.first().map_or(0, |s| s.cols.len());
         let n = spec.len();
         let c = spec
@@ -82,6 +89,9 @@ impl Lin {
         let mut touched: Vec<u32> = Vec::new();
         let cols = (0..zdim)
             .map(|j| {
+                if j % CHECK_EVERY == 0 {
+                    budget.check_time()?;
+                }
                 for (s, l) in srcs.iter().enumerate() {
                     for &(r, v) in l.cols[j].iter().flatten() {
                         for &(i, k) in &inv[s][r as usize] {
@@ -93,7 +103,7 @@ impl Lin {
                     }
                 }
                 if touched.is_empty() {
-                    return None;
+                    return Ok(None);
                 }
                 touched.sort_unstable();
                 touched.dedup();
@@ -106,10 +116,10 @@ impl Lin {
                     acc[i as usize] = 0.0;
                 }
                 touched.clear();
-                (!col.is_empty()).then_some(col)
+                Ok((!col.is_empty()).then_some(col))
             })
-            .collect();
-        Lin { cols, c, nonneg }
+            .collect::<Result<_, String>>()?;
+        Ok(Lin { cols, c, nonneg })
     }
 
     /// Rows as sparse combinations of the new state's coordinates plus constants.
@@ -128,18 +138,27 @@ impl Lin {
         self.cols.iter().flatten().map(Vec::len).sum()
     }
 
-    /// The dense row-major matrix `out x zdim` of `A`.
-    fn matrix(&self) -> Vec<f64> {
+    /// The dense row-major matrix `out x zdim` of `A`; `Err` ([`crate::limits::TIMED_OUT`])
+    /// once `budget`'s deadline has passed (filling gigabytes takes seconds: checked
+    /// every [`CHECK_EVERY`] columns).
+    fn matrix(&self, budget: &Budget) -> Result<Vec<f64>, String> {
         let (m, zd) = (self.rows(), self.cols.len());
         let mut w = vec![0.0; m * zd];
         for (j, col) in self.cols.iter().enumerate() {
+            if j % CHECK_EVERY == 0 {
+                budget.check_time()?;
+            }
             for &(i, v) in col.iter().flatten() {
                 w[i as usize * zd + j] += v;
             }
         }
-        w
+        Ok(w)
     }
 }
+
+/// How many columns (or rows) a long loop of the lowering goes through between two
+/// looks at the clock ([`Budget::check_time`]).
+const CHECK_EVERY: usize = 1024;
 
 /// A pre-activation row: `sum coef * block[s].row(r)`.
 type Row = Vec<(usize, usize, f64)>;
@@ -254,7 +273,8 @@ impl Lower<'_> {
                 .into_iter()
                 .zip(outc)
                 .map(|(spec, c)| {
-                    let mut l = Lin::combine(&srcs, &spec, nonneg);
+                    let mut l = Lin::combine(&srcs, &spec, nonneg, self.budget)
+                        .map_err(|m| err(g, ni, m))?;
                     l.c = c.data;
                     self.fits(ni, l.stored())?;
                     Ok(l)
@@ -269,8 +289,14 @@ impl Lower<'_> {
             let cols: Vec<Option<Col>> = l
                 .cols
                 .iter()
-                .map(|col| {
-                    let col = col.as_ref()?;
+                .enumerate()
+                .map(|(j, col)| {
+                    if j % CHECK_EVERY == 0 {
+                        self.budget.check_time().map_err(|m| err(g, ni, m))?;
+                    }
+                    let Some(col) = col.as_ref() else {
+                        return Ok(None);
+                    };
                     let mut acc = vec![0.0; m];
                     for &(r, v) in col {
                         for (a, w) in acc.iter_mut().zip(&wd[r as usize]) {
@@ -283,9 +309,9 @@ impl Lower<'_> {
                         .filter(|(_, a)| **a != 0.0)
                         .map(|(i, a)| (i as u32, *a))
                         .collect();
-                    (!s.is_empty()).then_some(s)
+                    Ok((!s.is_empty()).then_some(s))
                 })
-                .collect();
+                .collect::<Result<_, LowerError>>()?;
             let out = Lin {
                 cols,
                 c: outc.into_iter().next().expect("one output").data,
@@ -297,6 +323,10 @@ impl Lower<'_> {
         let f0 = run(&|_| None)?;
         let mut cols: Vec<Vec<Option<Col>>> = vec![Vec::with_capacity(self.zdim); outc.len()];
         for j in 0..self.zdim {
+            // One evaluation of the operator per column: look at the clock every 64.
+            if j % 64 == 0 {
+                self.budget.check_time().map_err(|m| err(g, ni, m))?;
+            }
             let any = dyn_in.iter().flatten().any(|l| l.cols[j].is_some());
             if !any {
                 cols.iter_mut().for_each(|c| c.push(None));
@@ -460,7 +490,8 @@ impl Lower<'_> {
             Op::Conv(a) => {
                 let Some(w) = konst(1) else { return Ok(None) };
                 let sh = shape_of(0).unwrap_or_default();
-                let rows = crate::ops::conv::conv_rows(&sh, w, a).map_err(e)?;
+                let rows = crate::ops::conv::conv_rows(&sh, w, a, &|| self.budget.check_time())
+                    .map_err(e)?;
                 one(rows
                     .into_iter()
                     .map(|r| r.into_iter().map(|(i, v)| (0, i, v)).collect())
@@ -469,7 +500,9 @@ impl Lower<'_> {
             Op::ConvTranspose(a) => {
                 let Some(w) = konst(1) else { return Ok(None) };
                 let sh = shape_of(0).unwrap_or_default();
-                let (_, rows) = crate::ops::conv::conv_transpose_rows(&sh, w, a).map_err(e)?;
+                let (_, rows) =
+                    crate::ops::conv::conv_transpose_rows(&sh, w, a, &|| self.budget.check_time())
+                        .map_err(e)?;
                 one(rows
                     .into_iter()
                     .map(|r| r.into_iter().map(|(i, v)| (0, i, v)).collect())
@@ -621,8 +654,9 @@ impl Lower<'_> {
         let m = all_rows.len();
         self.charge(ni, m, self.zdim)?;
         let refs: Vec<&Lin> = srcs.iter().collect();
-        let pre = Lin::combine(&refs, &all_rows, false);
-        let w = pre.matrix();
+        let pre =
+            Lin::combine(&refs, &all_rows, false, self.budget).map_err(|m| err(self.g, ni, m))?;
+        let w = pre.matrix(self.budget).map_err(|m| err(self.g, ni, m))?;
         self.layers
             .push(Layer::Affine(Affine::new(self.zdim, m, w, pre.c.clone())));
         self.layers.push(Layer::Act(Activation::Relu));
@@ -869,7 +903,8 @@ impl Lower<'_> {
                     groups.push(gi);
                 }
                 let nonneg = x.nonneg;
-                let mut cand = Lin::combine(&[&x], &spec, nonneg);
+                let mut cand =
+                    Lin::combine(&[&x], &spec, nonneg, self.budget).map_err(|m| err(g, ni, m))?;
                 while groups.iter().any(|g| g.len() > 1) {
                     let mut rows: Vec<Row> = Vec::new();
                     // Per group, the new candidates as state combinations (filled after
@@ -917,7 +952,8 @@ impl Lower<'_> {
                     cand = Lin::from_state(self.zdim, &flat, vec![0.0; n], nonneg);
                 }
                 let order: Vec<Row> = groups.iter().map(|g| vec![(0, g[0], 1.0)]).collect();
-                let l = Lin::combine(&[&cand], &order, nonneg);
+                let l = Lin::combine(&[&cand], &order, nonneg, self.budget)
+                    .map_err(|m| err(g, ni, m))?;
                 self.reps.insert(out0, l);
             }
             Op::Unary(u @ (UnOp::Sigmoid | UnOp::Tanh | UnOp::Sign)) => {
@@ -928,7 +964,7 @@ impl Lower<'_> {
                 }
                 let n = x.rows();
                 self.charge(ni, n, self.zdim)?;
-                let w = x.matrix();
+                let w = x.matrix(self.budget).map_err(|m| err(g, ni, m))?;
                 self.layers
                     .push(Layer::Affine(Affine::new(self.zdim, n, w, x.c.clone())));
                 self.layers.push(Layer::Act(match u {
@@ -986,6 +1022,7 @@ pub fn lower_within(g: &Graph, budget: &Budget) -> Result<Network, LowerError> {
         Lin::from_state(n_in, &ident, vec![0.0; n_in], false),
     );
     for ni in 0..g.nodes.len() {
+        budget.check_time().map_err(|m| err(g, ni, m))?;
         lw.node(ni)?;
         // Drop tensors no later node reads.
         let lu = &lw.last_use;
@@ -1005,7 +1042,7 @@ pub fn lower_within(g: &Graph, budget: &Budget) -> Result<Network, LowerError> {
             format!("lowering to dense layers: the output's {m} x {zd} map")
         })
         .map_err(graph_err)?;
-    let w = out.matrix();
+    let w = out.matrix(budget).map_err(graph_err)?;
     lw.layers.push(Layer::Affine(Affine::new(zd, m, w, out.c)));
     let iname = &g.values[g.input].name;
     let oname = &g.values[g.output].name;

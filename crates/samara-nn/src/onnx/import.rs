@@ -91,6 +91,13 @@ pub enum OnnxError {
         /// Extra explanation.
         detail: String,
     },
+    /// The caller's deadline passed while the network was read or lowered
+    /// ([`crate::limits::Budget::check_time`]): not an input error, a time limit.
+    #[error("{file}: {}", crate::limits::TIMED_OUT)]
+    Timeout {
+        /// File.
+        file: String,
+    },
     /// Structural problem (shapes, missing tensors, several inputs...).
     #[error("{file}: {place}: {message}")]
     Structure {
@@ -515,6 +522,7 @@ pub(crate) fn chain_from_bytes(
             detail,
         };
         let shape_err = |m: String| structure(&format!("node `{nname}` ({})", node.op_type), m);
+        budget.check_time().map_err(&shape_err)?;
         if !node.domain.is_empty() && node.domain != "ai.onnx" {
             return Err(unsupported(format!(" from domain `{}`", node.domain)));
         }

@@ -7,15 +7,26 @@
 use super::import::{chain_from_bytes, OnnxError};
 use super::proto::ModelProto;
 use crate::ir::Network;
-use crate::limits::{import_memory, show_bytes, Budget, IMPORT_MEMORY_ENV};
+use crate::limits::{import_memory, show_bytes, Budget, IMPORT_MEMORY_ENV, TIMED_OUT};
 use prost::Message;
 use std::path::Path;
+use std::time::Instant;
 
 /// Load a network from an ONNX file, within the import memory budget
 /// ([`crate::limits`]).
 pub fn load(path: impl AsRef<Path>) -> Result<Network, OnnxError> {
+    load_until(path, None)
+}
+
+/// [`load`] that stops with [`OnnxError::Timeout`] once `deadline` has passed (checked
+/// per node and inside the lowering's long loops): a time limit that counts the import
+/// (lowering an image-sized convolutional network takes minutes) is kept.
+pub fn load_until(path: impl AsRef<Path>, deadline: Option<Instant>) -> Result<Network, OnnxError> {
     let (bytes, file) = read(path.as_ref())?;
-    from_bytes(&bytes, &file)
+    if deadline.is_some_and(|d| Instant::now() >= d) {
+        return Err(OnnxError::Timeout { file });
+    }
+    from_bytes_until(&bytes, &file, env_budget(&file)?, deadline)
 }
 
 /// The budget of [`import_memory`], or the error naming the variable.
@@ -70,18 +81,55 @@ pub fn from_bytes(bytes: &[u8], file: &str) -> Result<Network, OnnxError> {
 /// the lowering's layers) is charged first, and past `allowed` the import stops with
 /// an error naming the tensor or node and the bytes needed.
 pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Network, OnnxError> {
-    match chain_from_bytes(bytes, file, &Budget::new(allowed)) {
+    from_bytes_until(bytes, file, allowed, None)
+}
+
+/// [`from_bytes_within`] with a deadline: past it, [`OnnxError::Timeout`].
+pub fn from_bytes_until(
+    bytes: &[u8],
+    file: &str,
+    allowed: u64,
+    deadline: Option<Instant>,
+) -> Result<Network, OnnxError> {
+    from_bytes_inner(bytes, file, allowed, deadline).map_err(|e| {
+        if stopped_by_deadline(&e) {
+            OnnxError::Timeout { file: file.into() }
+        } else {
+            e
+        }
+    })
+}
+
+/// Whether an importer's error is [`Budget::check_time`]'s (it travels as the message
+/// of a structural or lowering error).
+fn stopped_by_deadline(e: &OnnxError) -> bool {
+    match e {
+        OnnxError::Timeout { .. } => true,
+        OnnxError::Structure { message, .. } => message == TIMED_OUT,
+        OnnxError::Unsupported { detail, .. } => detail == &format!(": {TIMED_OUT}"),
+        _ => false,
+    }
+}
+
+fn from_bytes_inner(
+    bytes: &[u8],
+    file: &str,
+    allowed: u64,
+    deadline: Option<Instant>,
+) -> Result<Network, OnnxError> {
+    let new_budget = || Budget::new(allowed).with_deadline(deadline);
+    match chain_from_bytes(bytes, file, &new_budget()) {
         Err(chain_err @ OnnxError::Unsupported { .. }) => {
             // The chain importer's allocations are dropped: the graph starts afresh.
-            let budget = Budget::new(allowed);
+            let budget = new_budget();
             let graph = match graph_within(bytes, file, &budget) {
                 Ok(g) => g,
                 Err(graph_err @ OnnxError::Unsupported { .. }) => {
                     return Err(more_relevant(bytes, chain_err, graph_err))
                 }
-                // Over the memory budget: that is the reason to show.
+                // Over the memory budget or out of time: that is the reason to show.
                 Err(e @ OnnxError::Structure { .. })
-                    if e.to_string().contains(IMPORT_MEMORY_ENV) =>
+                    if e.to_string().contains(IMPORT_MEMORY_ENV) || stopped_by_deadline(&e) =>
                 {
                     return Err(e)
                 }
@@ -102,7 +150,7 @@ pub fn from_bytes_within(bytes: &[u8], file: &str, allowed: u64) -> Result<Netwo
 /// supported: the network is too large for the limit, which the message names with
 /// the way to raise it.
 fn lower_error(file: &str, e: crate::graph::lower::LowerError) -> OnnxError {
-    if e.message.contains(IMPORT_MEMORY_ENV) {
+    if e.message.contains(IMPORT_MEMORY_ENV) || e.message == TIMED_OUT {
         OnnxError::Structure {
             file: file.into(),
             place: format!("node `{}` ({})", e.node, e.op),
@@ -123,25 +171,39 @@ fn lower_error(file: &str, e: crate::graph::lower::LowerError) -> OnnxError {
 /// and the network computes the logits; `true` when it was. Any other network loads as
 /// [`load`] reads it.
 pub fn load_logits(path: impl AsRef<Path>) -> Result<(Network, bool), OnnxError> {
+    load_logits_until(path, None)
+}
+
+/// [`load_logits`] that stops with [`OnnxError::Timeout`] once `deadline` has passed,
+/// as [`load_until`] does.
+pub fn load_logits_until(
+    path: impl AsRef<Path>,
+    deadline: Option<Instant>,
+) -> Result<(Network, bool), OnnxError> {
     let (bytes, file) = read(path.as_ref())?;
+    if deadline.is_some_and(|d| Instant::now() >= d) {
+        return Err(OnnxError::Timeout { file });
+    }
     let allowed = env_budget(&file)?;
     let ends_in_softmax = ModelProto::decode(bytes.as_slice())
         .ok()
         .and_then(|m| m.graph)
         .and_then(|g| g.node.last().map(|n| n.op_type == "Softmax"))
         .unwrap_or(false);
-    let budget = Budget::new(allowed);
-    if !ends_in_softmax {
-        return from_bytes_within(&bytes, &file, allowed).map(|net| (net, false));
-    }
-    if let Ok(mut graph) = graph_within(&bytes, &file, &budget) {
-        if graph.strip_final_softmax() {
-            return crate::graph::lower::lower_within(&graph, &budget)
-                .map(|net| (net, true))
-                .map_err(|e| lower_error(&file, e));
+    if ends_in_softmax {
+        let budget = Budget::new(allowed).with_deadline(deadline);
+        if let Ok(mut graph) = graph_within(&bytes, &file, &budget) {
+            if graph.strip_final_softmax() {
+                return crate::graph::lower::lower_within(&graph, &budget)
+                    .map(|net| (net, true))
+                    .map_err(|e| match lower_error(&file, e) {
+                        e if stopped_by_deadline(&e) => OnnxError::Timeout { file: file.clone() },
+                        e => e,
+                    });
+            }
         }
     }
-    from_bytes_within(&bytes, &file, allowed).map(|net| (net, false))
+    from_bytes_until(&bytes, &file, allowed, deadline).map(|net| (net, false))
 }
 
 /// Of the chain importer's and the graph importer's refusals, the one to show: the

@@ -24,4 +24,7 @@ pub mod proto;
 
 pub use export::{export, save, ExportOptions};
 pub use import::{OnnxError, SUPPORTED_OPS};
-pub use load::{from_bytes, from_bytes_within, graph_from_bytes, load, load_graph, load_logits};
+pub use load::{
+    from_bytes, from_bytes_until, from_bytes_within, graph_from_bytes, load, load_graph,
+    load_logits, load_logits_until, load_until,
+};

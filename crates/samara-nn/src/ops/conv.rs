@@ -272,14 +272,16 @@ pub fn conv(x: &Tensor, w: &Tensor, b: Option<&Tensor>, a: &ConvAttrs) -> Result
 
 /// `ConvTranspose`: every input position scatters its kernel-weighted value to
 /// `o = i s + k d - p`; W has shape `[C, M / G, k...]`. Evaluated through
-/// [`conv_transpose_rows`], so evaluation and lowering share one geometry.
+/// [`conv_transpose_visit`], the geometry [`conv_transpose_rows`] lowers with: each
+/// output adds its bias, then its (input, weight) pairs in the rows' order, so the two
+/// give the same bits.
 pub fn conv_transpose(
     x: &Tensor,
     w: &Tensor,
     b: Option<&Tensor>,
     a: &ConvTransposeAttrs,
 ) -> Result<Tensor, String> {
-    let (oshape, rows) = conv_transpose_rows(&x.shape, w, a)?;
+    let oshape = conv_transpose_shape(&x.shape, w, a)?;
     let m = oshape[1];
     if let Some(b) = b {
         if b.numel() != m {
@@ -290,32 +292,55 @@ pub fn conv_transpose(
         }
     }
     let per_channel: usize = oshape[2..].iter().product();
-    let y = rows
-        .iter()
-        .enumerate()
-        .map(|(o, row)| {
-            let mut acc = b.map_or(0.0, |b| b.data[(o / per_channel) % m]);
-            for &(i, wv) in row {
-                let xv = x.data[i];
-                if xv != 0.0 {
-                    acc += xv * wv;
-                }
-            }
-            acc
-        })
+    let n_out: usize = oshape.iter().product();
+    let mut y: Vec<f64> = (0..n_out)
+        .map(|o| b.map_or(0.0, |b| b.data[(o / per_channel) % m]))
         .collect();
+    conv_transpose_visit(&x.shape, w, a, &|| Ok(()), |o, i, wv| {
+        let xv = x.data[i];
+        if xv != 0.0 {
+            y[o] += xv * wv;
+        }
+    })?;
     Ok(Tensor::new(oshape, y))
 }
 
-/// The output shape of a `ConvTranspose` on an input of shape `xs` and its rows as a
-/// sparse linear map (the bias left out): per output entry (row-major), the input
-/// entries it reads and their weights, in the order the direct scatter adds them.
-#[allow(clippy::type_complexity)]
-pub fn conv_transpose_rows(
+/// The output shape of a `ConvTranspose` on an input of shape `xs`.
+fn conv_transpose_shape(
     xs: &[usize],
     w: &Tensor,
     a: &ConvTransposeAttrs,
-) -> Result<(Vec<usize>, Vec<Vec<(usize, f64)>>), String> {
+) -> Result<Vec<usize>, String> {
+    conv_transpose_geo(xs, w, a).map(|g| g.oshape)
+}
+
+/// The geometry of a `ConvTranspose` (see [`conv_transpose_visit`]).
+struct TransposeGeo {
+    oshape: Vec<usize>,
+    n: usize,
+    c: usize,
+    cg: usize,
+    mg: usize,
+    m: usize,
+    h: usize,
+    wd: usize,
+    kh: usize,
+    kw: usize,
+    sh: usize,
+    sw: usize,
+    dh: usize,
+    dw: usize,
+    pbh: usize,
+    pbw: usize,
+    oh: usize,
+    ow: usize,
+}
+
+fn conv_transpose_geo(
+    xs: &[usize],
+    w: &Tensor,
+    a: &ConvTransposeAttrs,
+) -> Result<TransposeGeo, String> {
     let (h, wd) = spatial2(xs)?;
     if w.shape.len() != xs.len() {
         return Err(format!(
@@ -361,31 +386,67 @@ pub fn conv_transpose_rows(
         vec![n, m, oh, ow]
     };
     check_size(&oshape)?;
-    // Each output entry's row holds (input entry, weight) pairs: c / group input
-    // channels times the kernel taps that land on it.
     check_size(&[n, c, h, wd, mg, kh, kw])?;
-    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); n * m * oh * ow];
-    for ni in 0..n {
-        for ci in 0..c {
-            let gi = ci / cg;
-            for mj in 0..mg {
-                let mi = gi * mg + mj;
-                let wk = &w.data[(ci * mg + mj) * kh * kw..][..kh * kw];
-                for ii in 0..h {
-                    for jj in 0..wd {
-                        let xi = ((ni * c + ci) * h + ii) * wd + jj;
+    Ok(TransposeGeo {
+        oshape,
+        n,
+        c,
+        cg,
+        mg,
+        m,
+        h,
+        wd,
+        kh,
+        kw,
+        sh,
+        sw,
+        dh,
+        dw,
+        pbh,
+        pbw,
+        oh,
+        ow,
+    })
+}
+
+/// Every (output entry, input entry, weight) term of a `ConvTranspose` on an input of
+/// shape `xs` (row-major indices), in the order the direct scatter adds them: by input
+/// entry, then kernel tap. `check` is called once per input channel (a deadline: an
+/// `Err` stops the walk and is returned). Returns the output shape.
+pub(crate) fn conv_transpose_visit(
+    xs: &[usize],
+    w: &Tensor,
+    a: &ConvTransposeAttrs,
+    check: &dyn Fn() -> Result<(), String>,
+    mut f: impl FnMut(usize, usize, f64),
+) -> Result<Vec<usize>, String> {
+    let g = conv_transpose_geo(xs, w, a)?;
+    let (kh, kw, oh, ow) = (g.kh, g.kw, g.oh, g.ow);
+    for ni in 0..g.n {
+        for ci in 0..g.c {
+            check()?;
+            let gi = ci / g.cg;
+            for mj in 0..g.mg {
+                let mi = gi * g.mg + mj;
+                let wk = &w.data[(ci * g.mg + mj) * kh * kw..][..kh * kw];
+                for ii in 0..g.h {
+                    for jj in 0..g.wd {
+                        let xi = ((ni * g.c + ci) * g.h + ii) * g.wd + jj;
                         for ki in 0..kh {
-                            let o = (ii * sh + ki * dh) as isize - pbh as isize;
+                            let o = (ii * g.sh + ki * g.dh) as isize - g.pbh as isize;
                             if o < 0 || o as usize >= oh {
                                 continue;
                             }
                             for kj in 0..kw {
-                                let q = (jj * sw + kj * dw) as isize - pbw as isize;
+                                let q = (jj * g.sw + kj * g.dw) as isize - g.pbw as isize;
                                 if q < 0 || q as usize >= ow {
                                     continue;
                                 }
-                                rows[((ni * m + mi) * oh + o as usize) * ow + q as usize]
-                                    .push((xi, wk[ki * kw + kj]));
+                                f(
+                                    ((ni * g.m + mi) * oh + o as usize) * ow + q as usize,
+                                    xi,
+                                    wk[ki * kw + kj],
+                                );
                             }
                         }
                     }
@@ -393,6 +454,23 @@ pub fn conv_transpose_rows(
             }
         }
     }
+    Ok(g.oshape)
+}
+
+/// The output shape of a `ConvTranspose` on an input of shape `xs` and its rows as a
+/// sparse linear map (the bias left out): per output entry (row-major), the input
+/// entries it reads and their weights, in the order the direct scatter adds them.
+/// `check` is called once per input channel ([`conv_transpose_visit`]).
+#[allow(clippy::type_complexity)]
+pub fn conv_transpose_rows(
+    xs: &[usize],
+    w: &Tensor,
+    a: &ConvTransposeAttrs,
+    check: &dyn Fn() -> Result<(), String>,
+) -> Result<(Vec<usize>, Vec<Vec<(usize, f64)>>), String> {
+    let oshape = conv_transpose_shape(xs, w, a)?;
+    let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); oshape.iter().product()];
+    conv_transpose_visit(xs, w, a, check, |o, i, wv| rows[o].push((i, wv)))?;
     Ok((oshape, rows))
 }
 
@@ -400,10 +478,13 @@ pub fn conv_transpose_rows(
 /// (row-major), the input entries it reads and their weights. The lowering to the
 /// chain form composes these with sparse columns instead of evaluating the convolution
 /// once per column.
+/// `check` is called once per output channel (a deadline: an `Err` stops and is
+/// returned).
 pub fn conv_rows(
     xs: &[usize],
     w: &Tensor,
     a: &ConvAttrs,
+    check: &dyn Fn() -> Result<(), String>,
 ) -> Result<Vec<Vec<(usize, f64)>>, String> {
     let (n, c) = (xs[0], xs[1]);
     let (m, cg) = (w.shape[0], w.shape[1]);
@@ -422,6 +503,7 @@ pub fn conv_rows(
     let mut rows = Vec::with_capacity(n * m * g.oh * g.ow);
     for ni in 0..n {
         for mi in 0..m {
+            check()?;
             let gi = mi / mg;
             for oi in 0..g.oh {
                 for oj in 0..g.ow {

@@ -1,0 +1,226 @@
+//! Issue 37, "limits are promises" on convolutional generators: `verify-vnnlib` and
+//! `samara vnncomp` count the network's load (its lowering to the verifier's layers)
+//! against the time limit and stop within about a second of it. Before, a VNN-COMP cgan
+//! generator took 80-120 s to load outside the instance's timer, and instances overran
+//! their limit (12.7 s against 1.8 s).
+//!
+//! The network is a cgan-shaped generator and discriminator built here (a 5-entry latent
+//! vector, a dense layer to 64x4x4, four stride-2 transposed convolutions up to a 64x64
+//! image, three stride-2 convolutions down to one score): a 300 KB file whose lowering
+//! takes far longer than the limits used.
+
+use prost::Message;
+use samara_nn::onnx::proto;
+use std::path::Path;
+use std::time::Duration;
+
+use crate::support;
+use support::timed;
+
+/// A seeded xorshift in `[-scale, scale]` (the file is the same on every run).
+fn weights(n: usize, scale: f64, seed: u64) -> Vec<f32> {
+    let mut s = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    (0..n)
+        .map(|_| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            (((s >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * scale) as f32
+        })
+        .collect()
+}
+
+fn tensor(name: &str, dims: &[i64], seed: u64) -> proto::TensorProto {
+    let n = dims.iter().product::<i64>() as usize;
+    let fan_in = (n as f64 / dims[0] as f64).max(1.0);
+    proto::TensorProto {
+        dims: dims.to_vec(),
+        data_type: proto::FLOAT,
+        float_data: weights(n, (3.0 / fan_in).sqrt(), seed),
+        name: name.into(),
+        ..Default::default()
+    }
+}
+
+fn ints(name: &str, v: &[i64]) -> proto::AttributeProto {
+    proto::AttributeProto {
+        name: name.into(),
+        ints: v.to_vec(),
+        r#type: 7,
+        ..Default::default()
+    }
+}
+
+fn node(
+    op: &str,
+    inputs: &[&str],
+    out: &str,
+    attribute: Vec<proto::AttributeProto>,
+) -> proto::NodeProto {
+    proto::NodeProto {
+        input: inputs.iter().map(|s| s.to_string()).collect(),
+        output: vec![out.into()],
+        name: format!("{op}_{out}"),
+        op_type: op.into(),
+        attribute,
+        ..Default::default()
+    }
+}
+
+fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
+    proto::ValueInfoProto {
+        name: name.into(),
+        r#type: Some(proto::TypeProto {
+            tensor_type: Some(proto::TypeProtoTensor {
+                elem_type: proto::FLOAT,
+                shape: Some(proto::TensorShapeProto {
+                    dim: dims
+                        .iter()
+                        .map(|&d| proto::Dimension {
+                            dim_value: Some(d),
+                            dim_param: None,
+                        })
+                        .collect(),
+                }),
+            }),
+        }),
+    }
+}
+
+/// The generator and discriminator (see the module documentation) as ONNX bytes.
+fn generator() -> Vec<u8> {
+    let k4 = || vec![ints("strides", &[2, 2]), ints("pads", &[1, 1, 1, 1])];
+    let mut nodes = vec![
+        node("Gemm", &["x", "w0", "b0"], "h0", vec![]),
+        node("Reshape", &["h0", "shape"], "r0", vec![]),
+        node("Relu", &["r0"], "a0", vec![]),
+    ];
+    let mut init = vec![
+        tensor("w0", &[5, 1024], 1),
+        tensor("b0", &[1024], 2),
+        proto::TensorProto {
+            dims: vec![4],
+            data_type: 7,
+            int64_data: vec![1, 64, 4, 4],
+            name: "shape".into(),
+            ..Default::default()
+        },
+    ];
+    // Up: 64x4x4 -> 32x8x8 -> 16x16x16 -> 8x32x32 -> 1x64x64.
+    let up = [(64, 32), (32, 16), (16, 8), (8, 1)];
+    let mut prev = "a0".to_string();
+    for (k, &(ci, co)) in up.iter().enumerate() {
+        let (w, y, a) = (format!("wu{k}"), format!("u{k}"), format!("au{k}"));
+        init.push(tensor(&w, &[ci, co, 4, 4], 10 + k as u64));
+        nodes.push(node("ConvTranspose", &[&prev, &w], &y, k4()));
+        nodes.push(node("Relu", &[&y], &a, vec![]));
+        prev = a;
+    }
+    // Down: 1x64x64 -> 8x32x32 -> 16x16x16 -> 32x8x8, then one score.
+    let down = [(1, 8), (8, 16), (16, 32)];
+    for (k, &(ci, co)) in down.iter().enumerate() {
+        let (w, y, a) = (format!("wd{k}"), format!("d{k}"), format!("ad{k}"));
+        init.push(tensor(&w, &[co, ci, 4, 4], 20 + k as u64));
+        nodes.push(node("Conv", &[&prev, &w], &y, k4()));
+        nodes.push(node("Relu", &[&y], &a, vec![]));
+        prev = a;
+    }
+    init.push(tensor("wout", &[1, 32, 8, 8], 30));
+    nodes.push(node("Conv", &[&prev, "wout"], "y4", vec![]));
+    nodes.push(node("Flatten", &["y4"], "y", vec![]));
+    proto::ModelProto {
+        ir_version: 8,
+        opset_import: vec![proto::OperatorSetIdProto {
+            domain: String::new(),
+            version: 13,
+        }],
+        graph: Some(proto::GraphProto {
+            node: nodes,
+            initializer: init,
+            input: vec![vinfo("x", &[1, 5])],
+            output: vec![vinfo("y", &[1, 1])],
+            ..Default::default()
+        }),
+        ..Default::default()
+    }
+    .encode_to_vec()
+}
+
+/// The network file and a cgan-style property (a small box around a latent point; the
+/// score leaves a narrow band) in `dir`.
+fn write_instance(dir: &Path) -> (String, String) {
+    let net = dir.join("gen.onnx");
+    std::fs::write(&net, generator()).unwrap();
+    let mut p = String::new();
+    for i in 0..5 {
+        p += &format!("(declare-const X_{i} Real)\n");
+    }
+    p += "(declare-const Y_0 Real)\n";
+    for i in 0..5 {
+        let c = 0.1 * i as f64 - 0.2;
+        p += &format!(
+            "(assert (>= X_{i} {}))\n(assert (<= X_{i} {}))\n",
+            c - 0.01,
+            c + 0.01
+        );
+    }
+    p += "(assert (or (and (>= Y_0 1000.0)) (and (<= Y_0 -1000.0))))\n";
+    let prop = dir.join("gen.vnnlib");
+    std::fs::write(&prop, p).unwrap();
+    (net.display().to_string(), prop.display().to_string())
+}
+
+/// `verify-vnnlib --timeout 1` stops loading the generator at the limit: `unknown
+/// (timeout)`, exit 1, within 2 s (the load alone takes far longer; it was not counted before).
+#[test]
+fn verify_vnnlib_counts_a_generators_load_against_its_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let (net, prop) = write_instance(dir.path());
+    for limit in ["0.3", "1"] {
+        let (code, out, err, dt) = timed(&[
+            "verify-vnnlib",
+            "--network",
+            &net,
+            "--property",
+            &prop,
+            "--timeout",
+            limit,
+        ]);
+        let t: f64 = limit.parse().unwrap();
+        assert!(
+            dt < Duration::from_secs_f64(t + 1.0),
+            "--timeout {limit}: {dt:?}: {out}{err}"
+        );
+        assert_eq!(code, Some(1), "{out}{err}");
+        assert_eq!(out.trim(), "unknown", "{out}{err}");
+        assert!(err.contains("unknown (timeout)"), "{err}");
+        assert!(err.contains("while loading the network"), "{err}");
+    }
+}
+
+/// `samara vnncomp`: each instance's load counts against its own limit (1 s here), so
+/// two instances of the generator take about 2 s, each a `timeout` whose time is its
+/// limit, not the load's minutes.
+#[test]
+fn vnncomp_counts_each_instances_load_against_its_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let (net, prop) = write_instance(dir.path());
+    let csv = dir.path().join("instances.csv");
+    std::fs::write(&csv, format!("{net},{prop},1\n{net},{prop},1\n")).unwrap();
+    let out = dir.path().join("out.csv");
+    let (code, stdout, err, dt) = timed(&[
+        "vnncomp",
+        csv.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert_eq!(code, Some(0), "{stdout}{err}");
+    assert!(dt < Duration::from_secs(4), "{dt:?}: {stdout}{err}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    for r in v["instances"].as_array().unwrap() {
+        assert_eq!(r["result"], "timeout", "{r}");
+        let s = r["seconds"].as_f64().unwrap();
+        assert!((0.9..2.0).contains(&s), "{r}");
+    }
+}
