@@ -40,6 +40,35 @@ pub fn reference_str(name: &str) -> String {
     reference(name).display().to_string()
 }
 
+/// Fails unless every `tests/*.rs` file of the crate at `manifest_dir` is built: a
+/// module of the crate's one integration test binary, `tests/all.rs` (a `mod NAME;`
+/// line), or one of `own`, the files that are test binaries of their own (named as
+/// `[[test]]` targets in its `Cargo.toml`). With `autotests = false`, which the one
+/// binary needs, a file in neither place would never be compiled or run.
+pub fn assert_every_test_file_is_built(manifest_dir: &str, own: &[&str]) {
+    let dir = Path::new(manifest_dir).join("tests");
+    let all = std::fs::read_to_string(dir.join("all.rs"))
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.join("all.rs").display()));
+    for e in std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display())) {
+        let name = e
+            .expect("a folder entry")
+            .file_name()
+            .to_string_lossy()
+            .into_owned();
+        let Some(stem) = name.strip_suffix(".rs") else {
+            continue;
+        };
+        if stem == "all" || own.contains(&name.as_str()) {
+            continue;
+        }
+        assert!(
+            all.contains(&format!("\nmod {stem};\n")),
+            "{}/{name} is not built: add `mod {stem};` to tests/all.rs",
+            dir.display()
+        );
+    }
+}
+
 #[cfg(test)]
 mod tests {
     #[test]

@@ -13,24 +13,11 @@ mod spec_case_study;
 mod verdicts;
 mod vnncomp_route;
 
-/// Each `tests/*.rs` file is a module here or a test binary of its own (named in
-/// Cargo.toml): with `autotests = false` a file in neither would never run.
+/// See [`samara_testkit::assert_every_test_file_is_built`].
 #[test]
 fn every_test_file_is_built() {
-    let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests");
-    let all = std::fs::read_to_string(dir.join("all.rs")).unwrap();
-    let own: &[&str] = &["highs_crosscheck.rs"];
-    for e in std::fs::read_dir(&dir).unwrap() {
-        let name = e.unwrap().file_name().to_string_lossy().into_owned();
-        let Some(stem) = name.strip_suffix(".rs") else {
-            continue;
-        };
-        if stem == "all" || own.contains(&name.as_str()) {
-            continue;
-        }
-        assert!(
-            all.contains(&format!("\nmod {stem};\n")),
-            "tests/{name} is not built: add `mod {stem};` to tests/all.rs"
-        );
-    }
+    samara_testkit::assert_every_test_file_is_built(
+        env!("CARGO_MANIFEST_DIR"),
+        &["highs_crosscheck.rs"],
+    );
 }
