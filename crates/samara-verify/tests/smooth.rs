@@ -52,19 +52,14 @@ fn query(t: f64, n_in: usize) -> Query {
     }
 }
 
-#[test]
-fn smooth_verdicts_are_sound() {
-    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(21);
+/// Over 30 random networks (`act(case)` between the layers, seeded by `seed`), two
+/// thresholds each (the sampled maximum +- 0.05): every Proved survives the 10,000
+/// samples, every Violated is a real point of the box. Returns the counts decided.
+fn checked_verdicts(seed: u64, act: impl Fn(usize) -> Activation, secs: u64) -> (usize, usize) {
+    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let (mut proved, mut violated) = (0, 0);
     for case in 0..30 {
-        let f = net(
-            &mut r,
-            if case % 2 == 0 {
-                Activation::Sigmoid
-            } else {
-                Activation::Tanh
-            },
-        );
+        let f = net(&mut r, act(case));
         let samples: Vec<f64> = (0..10_000)
             .map(|_| f.eval_f64(&[r.gen_range(-1.0..1.0), r.gen_range(-1.0..1.0)])[0])
             .collect();
@@ -77,7 +72,7 @@ fn smooth_verdicts_are_sound() {
                 &query(t, 2),
                 &prep,
                 &Settings {
-                    timeout: Timeout::from_secs(20),
+                    timeout: Timeout::from_secs(secs),
                     ..Default::default()
                 },
             )
@@ -102,6 +97,19 @@ fn smooth_verdicts_are_sound() {
             }
         }
     }
+    (proved, violated)
+}
+
+#[test]
+fn smooth_verdicts_are_sound() {
+    let sigmoid_or_tanh = |case: usize| {
+        if case.is_multiple_of(2) {
+            Activation::Sigmoid
+        } else {
+            Activation::Tanh
+        }
+    };
+    let (proved, violated) = checked_verdicts(21, sigmoid_or_tanh, 20);
     assert!(
         proved >= 25 && violated >= 25,
         "proved {proved}, violated {violated}"
@@ -112,47 +120,7 @@ fn smooth_verdicts_are_sound() {
 /// Proved survives 10,000 samples, every Violated is a real point of the box.
 #[test]
 fn sign_verdicts_are_sound() {
-    let mut r = rand_chacha::ChaCha8Rng::seed_from_u64(23);
-    let (mut proved, mut violated) = (0, 0);
-    for case in 0..30 {
-        let f = net(&mut r, Activation::Sign);
-        let samples: Vec<f64> = (0..10_000)
-            .map(|_| f.eval_f64(&[r.gen_range(-1.0..1.0), r.gen_range(-1.0..1.0)])[0])
-            .collect();
-        let max = samples.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        let mut nets = HashMap::new();
-        nets.insert("f".to_string(), f.clone());
-        let prep = Prepared::new(&nets);
-        for t in [max + 0.05, max - 0.05] {
-            let v = prove(
-                &query(t, 2),
-                &prep,
-                &Settings {
-                    timeout: Timeout::from_secs(2),
-                    ..Default::default()
-                },
-            )
-            .unwrap();
-            match v {
-                Verdict::Proved => {
-                    assert!(
-                        samples.iter().all(|y| *y <= t),
-                        "case {case}: Proved y <= {t} but a sample exceeds it"
-                    );
-                    proved += 1;
-                }
-                Verdict::Violated(c) => {
-                    assert!(
-                        f.eval_f64(&c.point.inputs[0])[0] > t
-                            && c.point.inputs[0].iter().all(|v| v.abs() <= 1.0),
-                        "case {case}: fake counterexample"
-                    );
-                    violated += 1;
-                }
-                Verdict::Unknown(_) => {}
-            }
-        }
-    }
+    let (proved, violated) = checked_verdicts(23, |_| Activation::Sign, 2);
     // Most are decided (at 5 s each: 17 proved, 27 violated of 60); a step's region can
     // be too thin for the attack or too close to a jump for the interval search.
     assert!(
