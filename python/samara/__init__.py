@@ -1226,6 +1226,8 @@ def reach_system(
     samples: int = 200,
     seed: int = 1,
     timeout: Optional[float] = None,
+    time_order: Optional[int] = None,
+    step_tol: Optional[float] = None,
 ) -> SystemReachResult:
     """Taylor-model reachable sets of any closed loop written as a system file, as
     ``samara reach --system FILE`` computes them (no files written). ``system``: a path or
@@ -1234,12 +1236,13 @@ def reach_system(
     ``[start, end)`` of it (what a shard computes; merge with
     :func:`samara.distributed.merge_reach_system`). The other arguments are the CLI's
     flags (``--order``, ``--network-error``, ``--lifted-weight``, ``--lift-at``,
-    ``--max-leaves``, ``--samples``, ``--timeout``)."""
+    ``--max-leaves``, ``--samples``, ``--timeout``, ``--time-order``, ``--step-tol``;
+    ``None``: the flow's defaults, order 6 in time and a step tolerance of 1e-7)."""
     text, name = _system_source(system)
     return _reach_system_text(
         text, name, network, grid, cells, order=order, network_error=network_error,
         lifted_weight=lifted_weight, lift_at=lift_at, max_leaves=max_leaves, samples=samples,
-        seed=seed, timeout=timeout,
+        seed=seed, timeout=timeout, time_order=time_order, step_tol=step_tol,
     )
 
 
@@ -1257,6 +1260,8 @@ def _reach_system_text(
     samples: int = 200,
     seed: int = 1,
     timeout: Optional[float] = None,
+    time_order: Optional[int] = None,
+    step_tol: Optional[float] = None,
 ) -> SystemReachResult:
     net = _network("network", network)
     if cells is not None:
@@ -1269,6 +1274,8 @@ def _reach_system_text(
         _count("lifted_weight", lifted_weight, 0, 2**32 - 1), float(lift_at),
         _count("max_leaves", max_leaves), _count("samples", samples), _count("seed", seed, 0, 2**64 - 1),
         None if timeout is None else float(timeout),
+        None if time_order is None else _count("time_order", time_order, -(2**63), 2**63 - 1),
+        None if step_tol is None else float(step_tol),
     )
     return SystemReachResult._of(out)
 

@@ -109,6 +109,8 @@ def reach_system(
     samples: int,
     seed: int,
     timeout: Optional[float],
+    time_order: Optional[int] = None,
+    step_tol: Optional[float] = None,
 ) -> Dict[str, Any]: ...
 def merge_reach_system(parts: List[Dict[str, Any]]) -> Dict[str, Any]: ...
 def reach_adaptive_shard(
@@ -127,6 +129,8 @@ def reach_adaptive_shard(
     seed: int,
     timeout: Optional[float],
     checkpoint: Optional[str],
+    time_order: Optional[int] = None,
+    step_tol: Optional[float] = None,
 ) -> str: ...
 def merge_adaptive_shards(docs: List[str]) -> str: ...
 def train(

@@ -319,10 +319,13 @@ def _adaptive_task(text: str, name: str, net: Network, grid: Dict[str, int], sha
         int(kw.get("order", 4)), str(kw.get("network_error", "auto")), int(kw.get("lifted_weight", 1)),
         float(kw.get("lift_at", 0.05)), int(kw.get("max_leaves", 256)), int(kw.get("samples", 200)),
         int(kw.get("seed", 1)), None if kw.get("timeout") is None else float(kw["timeout"]), checkpoint,
+        None if kw.get("time_order") is None else int(kw["time_order"]),
+        None if kw.get("step_tol") is None else float(kw["step_tol"]),
     )
 
 
-_ADAPTIVE_KW = {"order", "network_error", "lifted_weight", "lift_at", "max_leaves", "samples", "seed", "timeout"}
+_ADAPTIVE_KW = {"order", "network_error", "lifted_weight", "lift_at", "max_leaves", "samples", "seed", "timeout",
+                "time_order", "step_tol"}
 
 
 def merge_reach_adaptive(docs: Sequence[str]) -> Dict[str, Any]:
@@ -356,7 +359,8 @@ def reach_adaptive(
     task Ray runs again after its worker died skips them (Ray retries a task whose
     worker died, 3 times by default). ``kwargs``: ``order``, ``network_error``,
     ``lifted_weight``, ``lift_at``, ``max_leaves`` (per task, and for the whole run: a
-    merge past it is refused), ``samples``, ``seed``, ``timeout`` (per task)."""
+    merge past it is refused), ``samples``, ``seed``, ``timeout`` (per task),
+    ``time_order`` and ``step_tol`` (the flow's ``--time-order`` and ``--step-tol``)."""
     bad = set(kwargs) - _ADAPTIVE_KW
     if bad:
         raise TypeError(f"reach_adaptive: unknown arguments {sorted(bad)}; give {sorted(_ADAPTIVE_KW)}")

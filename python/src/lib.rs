@@ -496,7 +496,7 @@ fn simulate<'py>(
 /// Python objects. The arguments are checked by `python_front::SystemRequest`.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (system, file, network, grid, cells, order, network_error, lifted_weight, lift_at, max_leaves, samples, seed, timeout))]
+#[pyo3(signature = (system, file, network, grid, cells, order, network_error, lifted_weight, lift_at, max_leaves, samples, seed, timeout, time_order=None, step_tol=None))]
 fn reach_system(
     py: Python<'_>,
     system: &str,
@@ -512,6 +512,8 @@ fn reach_system(
     samples: usize,
     seed: u64,
     timeout: Option<f64>,
+    time_order: Option<i64>,
+    step_tol: Option<f64>,
 ) -> PyResult<PyObject> {
     let sys = samara_system::System::parse(system, file).map_err(|e| py_value_error(&e))?;
     let net = network.net.clone();
@@ -526,6 +528,8 @@ fn reach_system(
         samples,
         seed,
         timeout,
+        time_order,
+        step_tol,
     };
     let plan = req
         .plan(Front::Python, &sys, file, &net)
@@ -545,7 +549,7 @@ fn reach_system(
 /// which `merge_adaptive_shards` joins.
 #[pyfunction]
 #[allow(clippy::too_many_arguments)]
-#[pyo3(signature = (system, file, network, grid, shard, target_ratio, order, network_error, lifted_weight, lift_at, max_leaves, samples, seed, timeout, checkpoint))]
+#[pyo3(signature = (system, file, network, grid, shard, target_ratio, order, network_error, lifted_weight, lift_at, max_leaves, samples, seed, timeout, checkpoint, time_order=None, step_tol=None))]
 fn reach_adaptive_shard(
     py: Python<'_>,
     system: &str,
@@ -563,6 +567,8 @@ fn reach_adaptive_shard(
     seed: u64,
     timeout: Option<f64>,
     checkpoint: Option<PathBuf>,
+    time_order: Option<i64>,
+    step_tol: Option<f64>,
 ) -> PyResult<String> {
     let sys = samara_system::System::parse(system, file).map_err(|e| py_value_error(&e))?;
     let net = network.net.clone();
@@ -588,6 +594,8 @@ fn reach_adaptive_shard(
         samples,
         seed,
         timeout,
+        time_order,
+        step_tol,
     };
     let plan = req
         .plan(Front::Python, &sys, file, &net)

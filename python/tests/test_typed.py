@@ -378,3 +378,36 @@ def test_ctrl_c_interrupts_reach_and_train_within_a_second(call):
     took = time.monotonic() - sent["at"]
     t.join()
     assert took < 1.0, f"KeyboardInterrupt {took:.2f} s after SIGINT"
+
+
+def test_reach_system_takes_the_flows_time_order_and_step_tol_as_the_cli_does(tmp_path):
+    """``time_order`` and ``step_tol`` are ``samara reach --time-order`` and ``--step-tol``:
+    the same sets as the CLI's run with those flags (its reach.json), other sets than the
+    defaults' (the flags reach the flow), and out-of-range values named as the CLI names
+    them."""
+    from test_spec import cli
+
+    ctl = samara.Network.from_onnx(TORA_NET)
+    fast = samara.reach_system(TORA, ctl, time_order=8, step_tol=1e-5, **TORA_KW)
+    default = samara.reach_system(TORA, ctl, **TORA_KW)
+    assert fast.verdict == default.verdict == "proved"
+    assert fast.instants.shape == default.instants.shape
+    assert not np.array_equal(fast.instants, default.instants)
+    with pytest.raises(ValueError, match=r"time_order 9: give 1 to 8"):
+        samara.reach_system(TORA, ctl, time_order=9, **TORA_KW)
+    with pytest.raises(ValueError, match=r"step_tol 0.5: give a share of the set's width in \(0, 0.01\]"):
+        samara.reach_system(TORA, ctl, step_tol=0.5, **TORA_KW)
+    exe = cli()
+    if exe is None:
+        pytest.skip("the samara CLI is not built (cargo build --release -p samara-cli)")
+    out = tmp_path / "r"
+    subprocess.run(
+        [exe, "reach", "--system", str(TORA), "--network", str(TORA_NET), "--order", "3",
+         "--network-error", "symbolic:20", "--samples", "16", "--time-order", "8", "--step-tol", "1e-5",
+         "--out", str(out)],
+        check=True, capture_output=True, text=True,
+    )
+    import json
+
+    d = json.loads((out / "reach.json").read_text())
+    assert np.array_equal(np.array(d["result"]["instants"], dtype=np.float64), fast.instants)

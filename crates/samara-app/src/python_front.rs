@@ -303,6 +303,11 @@ pub struct SystemRequest {
     pub seed: u64,
     /// Time limit in seconds.
     pub timeout: Option<f64>,
+    /// The flow's order in time, 1 to 8 (`--time-order`; `None`: the flow's default).
+    pub time_order: Option<i64>,
+    /// The flow's step tolerance as a share of the set's width, in (0, 0.01]
+    /// (`--step-tol`; `None`: the flow's default).
+    pub step_tol: Option<f64>,
 }
 
 /// A checked [`SystemRequest`]: the settings, the grid's pieces per state, and the
@@ -366,6 +371,13 @@ impl SystemRequest {
         };
         s.flow.lift_at = lift_at;
         s.flow.lifted_weight = lw;
+        if let Some(v) = self.time_order {
+            s.flow.time_order = crate::reach::args::check_time_order(front, v)?;
+        }
+        if let Some(v) = self.step_tol {
+            crate::reach::args::check_step_tol(front, v)?;
+            crate::reach::args::set_step_tol(&mut s.flow, v);
+        }
         let mut pieces = vec![1usize; sys.dim()];
         for (k, &n) in &self.grid {
             let Some(i) = sys.states.iter().position(|x| x == k) else {
