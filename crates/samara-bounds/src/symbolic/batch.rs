@@ -12,10 +12,11 @@
 //! weights are finite, checked by [`finite`]), and adding `+-0` changes no sum: a non-zero sum stays
 //! itself, and a sum started at `+0` is never `-0` (in round-to-nearest `x + y` is `-0`
 //! only when both are), so `+0 + -0 = +0` leaves it too. The scalar parts of each
-//! pull-back (the bias terms, the rounding bound, the ReLU relaxation) are its own loops
-//! in its own order ([`relax_relu`]); Rust never fuses a multiply and an add.
+//! pull-back (the bias terms, the rounding bound, the ReLU relaxation of
+//! [`super::relax_relu`]) are its operations in its order; Rust never fuses a multiply
+//! and an add.
 
-use super::{gamma, inflate, relax_relu, Linear};
+use super::{gamma, inflate, relu, Linear};
 use samara_nn::Affine;
 
 /// The rows of the kernel's blocks of `N`, and its columns.
@@ -130,26 +131,21 @@ pub(super) fn pull_units(
                 }
             }
         } else {
-            act.clear();
             for (q, c) in cst.iter_mut().enumerate() {
                 let row = &mu[q * k..q * k + m.out];
                 let mut cmag = c.abs();
                 let mut wmag = 0.0;
-                for (i, (&mi, &bi)) in row.iter().zip(&m.b).enumerate() {
+                for &i in &act {
+                    let mi = row[i];
                     if mi == 0.0 {
                         continue;
                     }
-                    let p = mi * bi;
+                    let p = mi * m.b[i];
                     *c += p;
                     cmag += p.abs();
                     wmag += mi.abs() * rowmag[j][i];
                 }
                 err[q] += g * (cmag + wmag);
-            }
-            for i in 0..m.out {
-                if (0..r).any(|q| mu[q * k + i] != 0.0) {
-                    act.push(i);
-                }
             }
             product(&mu, k, rows, &act, m, &mut nu);
         }
@@ -159,22 +155,51 @@ pub(super) fn pull_units(
         k = m.inp;
         mu.clear();
         mu.resize(rows * k, 0.0);
-        for q in 0..r {
-            let v = &nu[q * k..(q + 1) * k];
-            let z = &mut mu[q * k..(q + 1) * k];
-            if maps[j - 1].1 {
-                relax_relu(
-                    v,
-                    &pre[j - 1],
-                    Some(&slopes[j - 1]),
-                    None,
-                    z,
-                    &mut cst[q],
-                    &mut err[q],
-                );
-            } else {
-                z.copy_from_slice(v);
+        act.clear();
+        if maps[j - 1].1 {
+            // The layer's neurons by phase: off ones (`u <= 0`) give 0 in every row,
+            // so the next product skips them; on ones pass their coefficient; unstable
+            // ones are relaxed by its sign. `relax_relu`'s operations, in its order: it
+            // skips a coefficient `v == 0`, which here is `+0` (see the module's note),
+            // so copying it changes nothing.
+            let b = &pre[j - 1];
+            // (`!(u <= 0)` and `!(l >= 0)`, as `relax_relu` tests them, NaNs included.)
+            act.extend((0..k).filter(|&t| b[t].1 > 0.0 || b[t].1.is_nan()));
+            let on: Vec<usize> = act.iter().copied().filter(|&t| b[t].0 >= 0.0).collect();
+            let un: Vec<usize> = act
+                .iter()
+                .copied()
+                .filter(|&t| b[t].0 < 0.0 || b[t].0.is_nan())
+                .collect();
+            let sl = &slopes[j - 1];
+            for q in 0..r {
+                let v = &nu[q * k..(q + 1) * k];
+                let z = &mut mu[q * k..(q + 1) * k];
+                for &t in &on {
+                    z[t] = v[t];
+                }
+                let (c, e) = (&mut cst[q], &mut err[q]);
+                for &t in &un {
+                    let (l, u) = b[t];
+                    let v = v[t];
+                    if v == 0.0 {
+                        continue;
+                    }
+                    if v < 0.0 {
+                        let s = sl[t];
+                        z[t] = v * s;
+                        let cc = -(v * s) * l;
+                        *c += cc;
+                        *e += 2.0 * f64::EPSILON * (z[t].abs() * l.abs().max(u.abs()) + cc.abs())
+                            + f64::EPSILON * c.abs();
+                    } else if relu::default_lower_slope(l, u) == 1.0 {
+                        z[t] = v;
+                    }
+                }
             }
+        } else {
+            mu[..r * k].copy_from_slice(&nu[..r * k]);
+            act.extend(0..k);
         }
     }
     let inp = maps[0].0.inp;
