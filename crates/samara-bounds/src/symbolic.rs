@@ -1614,6 +1614,7 @@ const BATCH_NEURONS: usize = 16;
 fn crown_layer_batched(
     sub: &[(Affine, bool)],
     pre: &[Vec<(f64, f64)>],
+    live: &batch::Live,
     lo: &[f64],
     hi: &[f64],
     fwd: Option<&[Vec<(f64, f64)>]>,
@@ -1643,7 +1644,7 @@ fn crown_layer_batched(
             break;
         }
         let objs: Vec<(usize, f64)> = chunk.iter().flat_map(|&i| [(i, 1.0), (i, -1.0)]).collect();
-        let mut fs = batch::pull_units(sub, pre, &objs, rowmag, slopes).into_iter();
+        let mut fs = batch::pull_units(sub, pre, live, &objs, rowmag, slopes).into_iter();
         for &i in chunk {
             let (lf, uf) = (fs.next().expect("z_i"), fs.next().expect("-z_i"));
             let (fl, fu) = bounds[i];
@@ -1699,6 +1700,7 @@ fn crown_pre_core_with(
     };
     // The dense maps' pull-backs go in batches ([`batch`]); sparse ones row by row.
     let batched = batch_ok && sp.is_none() && batch::finite(&maps[..body]);
+    let mut live = batch::Live::default();
     for k in 0..body {
         if k < from {
             if let Some(f) = fwd {
@@ -1720,7 +1722,11 @@ fn crown_pre_core_with(
         }
         let want = lins.is_some();
         let (mut bounds, mut ls) = match batched {
-            true => crown_layer_batched(sub, &pre, lo, hi, fwd, k, want, &rowmag, &slopes, &late),
+            true => {
+                live.extend(maps, &pre);
+                let (p, l) = (&pre, &live);
+                crown_layer_batched(sub, p, l, lo, hi, fwd, k, want, &rowmag, &slopes, &late)
+            }
             false => (Vec::with_capacity(m.out), Vec::new()),
         };
         // One pull-back per objective (sparse maps, and the batches' reference).

@@ -30,19 +30,17 @@ pub(super) fn finite(maps: &[(Affine, bool)]) -> bool {
 }
 
 /// `n[.., tb..tb + B] = m w[.., tb..tb + B]` for the rows `rb..rb + 4` of `m` (row stride
-/// `k`) and the weights `w` of `a` (row stride `a.inp`, `n`'s too), over the inner
-/// indices `act`.
+/// `k`) and the weights `w` (`k` rows of stride `ld`, `n`'s stride too).
 #[inline(always)]
 fn block<const B: usize>(
     m: &[f64],
     k: usize,
     rb: usize,
-    act: &[usize],
-    a: &Affine,
+    w: &[f64],
+    ld: usize,
     tb: usize,
     n: &mut [f64],
 ) {
-    let (w, ld) = (&a.w[..], a.inp);
     let (m0, m1, m2, m3) = (
         &m[rb * k..(rb + 1) * k],
         &m[(rb + 1) * k..(rb + 2) * k],
@@ -50,7 +48,7 @@ fn block<const B: usize>(
         &m[(rb + 3) * k..(rb + 4) * k],
     );
     let mut acc = [[0.0f64; B]; BLOCK];
-    for &i in act {
+    for i in 0..k {
         let wi: &[f64; B] = w[i * ld + tb..i * ld + tb + B]
             .try_into()
             .expect("a block of the row");
@@ -67,22 +65,93 @@ fn block<const B: usize>(
 }
 
 /// `n = m w` for the first `rows` rows of `m` (row stride `k`, `rows` a multiple of
-/// [`BLOCK`]) and the weights of `a` (`n` has row stride `a.inp`), over the inner
-/// indices `act` only (ascending; every other column of `m` is 0 in every row).
-fn product(m: &[f64], k: usize, rows: usize, act: &[usize], a: &Affine, n: &mut [f64]) {
-    let ld = a.inp;
+/// [`BLOCK`]) and the weights `w` (`k` rows of stride `ld`; `n` has stride `ld`).
+fn product(m: &[f64], k: usize, rows: usize, w: &[f64], ld: usize, n: &mut [f64]) {
     for rb in (0..rows).step_by(BLOCK) {
         let mut tb = 0;
         while tb + BLOCK <= ld {
-            block::<BLOCK>(m, k, rb, act, a, tb, n);
+            block::<BLOCK>(m, k, rb, w, ld, tb, n);
             tb += BLOCK;
         }
         while tb + 2 <= ld {
-            block::<2>(m, k, rb, act, a, tb, n);
+            block::<2>(m, k, rb, w, ld, tb, n);
             tb += 2;
         }
         if tb < ld {
-            block::<1>(m, k, rb, act, a, tb, n);
+            block::<1>(m, k, rb, w, ld, tb, n);
+        }
+    }
+}
+
+/// One bounded layer of a chain as the batched pull-backs see it.
+struct LiveLayer {
+    /// The outputs of the map that can carry a coefficient below a ReLU: those not off
+    /// (`!(u <= 0)`, NaNs included, as [`super::relax_relu`] tests it), every output
+    /// when the map has no ReLU. A pull-back's coefficient on an off neuron is 0, so the
+    /// products run over these only (the module's note: adding the other terms, all
+    /// `+-0`, would change nothing).
+    idx: Vec<usize>,
+    /// Whether a ReLU follows the map.
+    relu: bool,
+    /// The positions in `idx` of the neurons that are on (`l >= 0`): their coefficients
+    /// pass; the others are unstable, relaxed by their coefficient's sign.
+    on: Vec<usize>,
+    /// The positions in `idx` of the unstable neurons.
+    un: Vec<usize>,
+    /// The map's weights restricted to the rows `idx` and the previous layer's `idx`
+    /// columns (every input for the first map), row-major.
+    w: Vec<f64>,
+}
+
+/// The layers of a chain bounded so far ([`Live::extend`]), in the packed form of
+/// [`LiveLayer`]: built once per layer for all the batches of [`pull_units`] through it.
+#[derive(Default)]
+pub(super) struct Live {
+    layers: Vec<LiveLayer>,
+}
+
+impl Live {
+    /// Add the layers of `pre` (bounds of the outputs of `maps[j]`, `j < pre.len()`) not
+    /// yet packed.
+    pub(super) fn extend(&mut self, maps: &[(Affine, bool)], pre: &[Vec<(f64, f64)>]) {
+        for j in self.layers.len()..pre.len() {
+            let (m, relu) = (&maps[j].0, maps[j].1);
+            let b = &pre[j];
+            let idx: Vec<usize> = match relu {
+                true => (0..m.out)
+                    .filter(|&t| b[t].1 > 0.0 || b[t].1.is_nan())
+                    .collect(),
+                false => (0..m.out).collect(),
+            };
+            let (mut on, mut un) = (Vec::new(), Vec::new());
+            if relu {
+                for (p, &t) in idx.iter().enumerate() {
+                    match b[t].0 >= 0.0 {
+                        true => on.push(p),
+                        false => un.push(p),
+                    }
+                }
+            }
+            let all: Vec<usize>;
+            let cols = match j {
+                0 => {
+                    all = (0..m.inp).collect();
+                    &all
+                }
+                _ => &self.layers[j - 1].idx,
+            };
+            let mut w = Vec::with_capacity(idx.len() * cols.len());
+            for &i in &idx {
+                let row = &m.w[i * m.inp..(i + 1) * m.inp];
+                w.extend(cols.iter().map(|&t| row[t]));
+            }
+            self.layers.push(LiveLayer {
+                idx,
+                relu,
+                on,
+                un,
+                w,
+            });
         }
     }
 }
@@ -92,10 +161,13 @@ fn product(m: &[f64], k: usize, rows: usize, act: &[usize], a: &Affine, n: &mut 
 /// of the bounds `pre` with the chord slopes `slopes`, with the row magnitudes `rowmag`
 /// for the rounding bound: for each objective the [`Linear`] that
 /// `backward_core(maps, pre, c, 0.0, None, None, Mags::Rows(rowmag), None, Some(slopes))`
-/// gives for `c = s e_i`, bit for bit, when the weights are [`finite`].
+/// gives for `c = s e_i`, bit for bit, when the weights are [`finite`]. `live` holds
+/// the layers of `pre` ([`Live::extend`]). The coefficients live on the layers' `idx`
+/// positions only.
 pub(super) fn pull_units(
     maps: &[(Affine, bool)],
     pre: &[Vec<(f64, f64)>],
+    live: &Live,
     objs: &[(usize, f64)],
     rowmag: &[Vec<f64>],
     slopes: &[Vec<f64>],
@@ -105,20 +177,26 @@ pub(super) fn pull_units(
     let last = maps.len() - 1;
     let mut cst = vec![0.0f64; r];
     let mut err = vec![0.0f64; r];
-    // The coefficients over the current map's outputs (stride `k`) and over its inputs
-    // (stride `m.inp`).
+    // The coefficients over the live outputs of map `j` (`mu`, stride `k`) and over the
+    // live outputs of map `j - 1` (`nu`, stride `n`; every input of map 0 at `j = 0`).
     let mut mu: Vec<f64> = Vec::new();
     let mut k = 0;
     let mut nu: Vec<f64> = Vec::new();
-    let mut act: Vec<usize> = Vec::new();
+    let all: Vec<usize> = (0..maps[0].0.inp).collect();
+    let mut n = 0;
     for j in (0..maps.len()).rev() {
         let m = &maps[j].0;
         let g = gamma(m.out + 1);
-        nu.clear();
-        nu.resize(rows * m.inp, 0.0);
+        let cols = match j {
+            0 => &all,
+            _ => &live.layers[j - 1].idx,
+        };
+        n = cols.len();
         if j == last {
             // mu = s e_i: the row loop's one term, `0 + s w_it` (so `-0` becomes `+0`
             // as there).
+            nu.clear();
+            nu.resize(rows * n, 0.0);
             for (q, &(i, s)) in objs.iter().enumerate() {
                 let p = s * m.b[i];
                 cst[q] += p;
@@ -126,17 +204,17 @@ pub(super) fn pull_units(
                 let wmag = 0.0 + s.abs() * rowmag[j][i];
                 err[q] += g * (cmag + wmag);
                 let w = &m.w[i * m.inp..(i + 1) * m.inp];
-                for (o, &wt) in nu[q * m.inp..(q + 1) * m.inp].iter_mut().zip(w) {
-                    *o += s * wt;
+                for (o, &t) in nu[q * n..(q + 1) * n].iter_mut().zip(cols) {
+                    *o += s * w[t];
                 }
             }
         } else {
+            let lay = &live.layers[j];
             for (q, c) in cst.iter_mut().enumerate() {
-                let row = &mu[q * k..q * k + m.out];
+                let row = &mu[q * k..(q + 1) * k];
                 let mut cmag = c.abs();
                 let mut wmag = 0.0;
-                for &i in &act {
-                    let mi = row[i];
+                for (&mi, &i) in row.iter().zip(&lay.idx) {
                     if mi == 0.0 {
                         continue;
                     }
@@ -147,65 +225,54 @@ pub(super) fn pull_units(
                 }
                 err[q] += g * (cmag + wmag);
             }
-            product(&mu, k, rows, &act, m, &mut nu);
+            nu.clear();
+            nu.resize(rows * n, 0.0);
+            product(&mu, k, rows, &lay.w, n, &mut nu);
         }
         if j == 0 {
             break;
         }
-        k = m.inp;
+        k = n;
         mu.clear();
         mu.resize(rows * k, 0.0);
-        act.clear();
-        if maps[j - 1].1 {
-            // The layer's neurons by phase: off ones (`u <= 0`) give 0 in every row,
-            // so the next product skips them; on ones pass their coefficient; unstable
-            // ones are relaxed by its sign. `relax_relu`'s operations, in its order: it
-            // skips a coefficient `v == 0`, which here is `+0` (see the module's note),
-            // so copying it changes nothing.
-            let b = &pre[j - 1];
-            // (`!(u <= 0)` and `!(l >= 0)`, as `relax_relu` tests them, NaNs included.)
-            act.extend((0..k).filter(|&t| b[t].1 > 0.0 || b[t].1.is_nan()));
-            let on: Vec<usize> = act.iter().copied().filter(|&t| b[t].0 >= 0.0).collect();
-            let un: Vec<usize> = act
-                .iter()
-                .copied()
-                .filter(|&t| b[t].0 < 0.0 || b[t].0.is_nan())
-                .collect();
-            let sl = &slopes[j - 1];
+        let lay = &live.layers[j - 1];
+        if lay.relu {
+            // `relax_relu`'s operations, in its order: it skips a coefficient `v == 0`,
+            // which here is `+0` (see the module's note), so copying it changes nothing.
+            let (b, sl) = (&pre[j - 1], &slopes[j - 1]);
             for q in 0..r {
                 let v = &nu[q * k..(q + 1) * k];
                 let z = &mut mu[q * k..(q + 1) * k];
-                for &t in &on {
-                    z[t] = v[t];
+                for &p in &lay.on {
+                    z[p] = v[p];
                 }
                 let (c, e) = (&mut cst[q], &mut err[q]);
-                for &t in &un {
+                for &p in &lay.un {
+                    let t = lay.idx[p];
                     let (l, u) = b[t];
-                    let v = v[t];
+                    let v = v[p];
                     if v == 0.0 {
                         continue;
                     }
                     if v < 0.0 {
                         let s = sl[t];
-                        z[t] = v * s;
+                        z[p] = v * s;
                         let cc = -(v * s) * l;
                         *c += cc;
-                        *e += 2.0 * f64::EPSILON * (z[t].abs() * l.abs().max(u.abs()) + cc.abs())
+                        *e += 2.0 * f64::EPSILON * (z[p].abs() * l.abs().max(u.abs()) + cc.abs())
                             + f64::EPSILON * c.abs();
                     } else if relu::default_lower_slope(l, u) == 1.0 {
-                        z[t] = v;
+                        z[p] = v;
                     }
                 }
             }
         } else {
             mu[..r * k].copy_from_slice(&nu[..r * k]);
-            act.extend(0..k);
         }
     }
-    let inp = maps[0].0.inp;
     (0..r)
         .map(|q| Linear {
-            coef: nu[q * inp..(q + 1) * inp].to_vec(),
+            coef: nu[q * n..(q + 1) * n].to_vec(),
             cst: cst[q],
             slack: inflate(err[q]),
         })
