@@ -195,8 +195,7 @@ pub(super) fn pull_units(
         if j == last {
             // mu = s e_i: the row loop's one term, `0 + s w_it` (so `-0` becomes `+0`
             // as there).
-            nu.clear();
-            nu.resize(rows * n, 0.0);
+            nu.resize(nu.len().max(rows * n), 0.0);
             for (q, &(i, s)) in objs.iter().enumerate() {
                 let p = s * m.b[i];
                 cst[q] += p;
@@ -205,7 +204,7 @@ pub(super) fn pull_units(
                 err[q] += g * (cmag + wmag);
                 let w = &m.w[i * m.inp..(i + 1) * m.inp];
                 for (o, &t) in nu[q * n..(q + 1) * n].iter_mut().zip(cols) {
-                    *o += s * w[t];
+                    *o = 0.0 + s * w[t];
                 }
             }
         } else {
@@ -225,16 +224,17 @@ pub(super) fn pull_units(
                 }
                 err[q] += g * (cmag + wmag);
             }
-            nu.clear();
-            nu.resize(rows * n, 0.0);
+            // Every entry is written by the product: no zeroing.
+            nu.resize(nu.len().max(rows * n), 0.0);
             product(&mu, k, rows, &lay.w, n, &mut nu);
         }
         if j == 0 {
             break;
         }
         k = n;
-        mu.clear();
-        mu.resize(rows * k, 0.0);
+        // Every entry of the objectives' rows is written below; the padding rows are 0.
+        mu.resize(mu.len().max(rows * k), 0.0);
+        mu[r * k..rows * k].fill(0.0);
         let lay = &live.layers[j - 1];
         if lay.relu {
             // `relax_relu`'s operations, in its order: it skips a coefficient `v == 0`,
@@ -251,6 +251,7 @@ pub(super) fn pull_units(
                     let t = lay.idx[p];
                     let (l, u) = b[t];
                     let v = v[p];
+                    z[p] = 0.0;
                     if v == 0.0 {
                         continue;
                     }
