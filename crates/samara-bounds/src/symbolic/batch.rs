@@ -22,6 +22,10 @@ use samara_nn::Affine;
 /// The rows of the kernel's blocks of `N`, and its columns.
 const BLOCK: usize = 4;
 
+/// Coefficient matrices with fewer than one non-zero entry in this many go row by row
+/// over their non-zero entries instead of through the blocks.
+const SPARSE_BELOW: usize = 4;
+
 /// Whether every weight of `maps` is finite: the batched pull-backs multiply the weights
 /// by zero coefficients that the row loop skips, which is harmless only then (`0 * inf`
 /// is a NaN).
@@ -226,7 +230,25 @@ pub(super) fn pull_units(
             }
             // Every entry is written by the product: no zeroing.
             nu.resize(nu.len().max(rows * n), 0.0);
-            product(&mu, k, rows, &lay.w, n, &mut nu);
+            let nnz = mu[..r * k].iter().filter(|v| **v != 0.0).count();
+            if nnz * SPARSE_BELOW < r * k {
+                // Mostly zero coefficients: the row loop's axpy over the non-zero ones
+                // does less work than the blocks (the same sums, see the module's note).
+                for q in 0..r {
+                    let out = &mut nu[q * n..(q + 1) * n];
+                    out.fill(0.0);
+                    for (p, &mi) in mu[q * k..(q + 1) * k].iter().enumerate() {
+                        if mi == 0.0 {
+                            continue;
+                        }
+                        for (o, &wt) in out.iter_mut().zip(&lay.w[p * n..(p + 1) * n]) {
+                            *o += mi * wt;
+                        }
+                    }
+                }
+            } else {
+                product(&mu, k, rows, &lay.w, n, &mut nu);
+            }
         }
         if j == 0 {
             break;
