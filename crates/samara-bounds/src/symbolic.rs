@@ -20,6 +20,8 @@
 use crate::rules::relu;
 use samara_nn::Affine;
 
+mod batch;
+
 /// One linear function of the inputs, `coef . x + cst`, with a slack.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Linear {
@@ -956,32 +958,15 @@ fn backward_core(
         mu.clear();
         mu.resize(nu.len(), 0.0);
         let z = &mut mu;
-        for (t, &v) in nu.iter().enumerate() {
-            let (l, u) = pre[j - 1][t];
-            if v == 0.0 || u <= 0.0 {
-                continue;
-            }
-            if l >= 0.0 {
-                z[t] = v;
-            } else if v < 0.0 {
-                let s = match slopes {
-                    Some(sl) => sl[j - 1][t],
-                    None => relu::chord_slope_up(l, u),
-                };
-                z[t] = v * s;
-                let c = -(v * s) * l;
-                cst += c;
-                // The products' rounding, and the addition's (at most one ulp of the sum).
-                err += 2.0 * f64::EPSILON * (z[t].abs() * l.abs().max(u.abs()) + c.abs())
-                    + f64::EPSILON * cst.abs();
-            } else if let Some(a) = alpha {
-                let al = relu::alpha_range(a[j - 1][t]);
-                z[t] = v * al;
-                err += f64::EPSILON * z[t].abs() * l.abs().max(u.abs());
-            } else if relu::default_lower_slope(l, u) == 1.0 {
-                z[t] = v;
-            }
-        }
+        relax_relu(
+            &nu,
+            &pre[j - 1],
+            slopes.map(|s| &s[j - 1][..]),
+            alpha.map(|a| &a[j - 1][..]),
+            z,
+            &mut cst,
+            &mut err,
+        );
         if let Some(b) = beta {
             for (t, &c) in b[j - 1].iter().enumerate() {
                 let (l, u) = pre[j - 1][t];
@@ -997,6 +982,52 @@ fn backward_core(
         coef: mu,
         cst,
         slack: inflate(err),
+    }
+}
+
+/// One pull-back's step through a ReLU layer (CROWN's relaxation, Zhang et al., NeurIPS
+/// 2018): the coefficients `nu` over the layer's outputs become `z` over its inputs
+/// (`z` zeroed by the caller), each neuron with bounds `pre` relaxed by the sign of its
+/// coefficient: the chord above (slope `slopes[t]` when given, else
+/// [`relu::chord_slope_up`]), a lower line below (slope `alpha[t]` when given, else
+/// CROWN's default). The chords' intercepts go into `cst`, the products' and sums'
+/// rounding into `err`. Shared by [`backward_core`] and the batched pull-backs
+/// ([`batch`]), which must give the same bits.
+#[inline]
+fn relax_relu(
+    nu: &[f64],
+    pre: &[(f64, f64)],
+    slopes: Option<&[f64]>,
+    alpha: Option<&[f64]>,
+    z: &mut [f64],
+    cst: &mut f64,
+    err: &mut f64,
+) {
+    for (t, &v) in nu.iter().enumerate() {
+        let (l, u) = pre[t];
+        if v == 0.0 || u <= 0.0 {
+            continue;
+        }
+        if l >= 0.0 {
+            z[t] = v;
+        } else if v < 0.0 {
+            let s = match slopes {
+                Some(sl) => sl[t],
+                None => relu::chord_slope_up(l, u),
+            };
+            z[t] = v * s;
+            let c = -(v * s) * l;
+            *cst += c;
+            // The products' rounding, and the addition's (at most one ulp of the sum).
+            *err += 2.0 * f64::EPSILON * (z[t].abs() * l.abs().max(u.abs()) + c.abs())
+                + f64::EPSILON * cst.abs();
+        } else if let Some(a) = alpha {
+            let al = relu::alpha_range(a[t]);
+            z[t] = v * al;
+            *err += f64::EPSILON * z[t].abs() * l.abs().max(u.abs());
+        } else if relu::default_lower_slope(l, u) == 1.0 {
+            z[t] = v;
+        }
     }
 }
 
@@ -1418,7 +1449,10 @@ pub fn crown_pre_until(
 /// The linear bounds behind [`crown_pre_lin_until`]'s concrete ones: for neuron `i` of
 /// map `k`, `Some((f, g))` when CROWN bounded it (`f(x) <= z_i(x) <= -g(x)` over the
 /// box, so over every box inside it), `None` when its forward bounds were kept.
-pub type PreLinear = Vec<Vec<Option<(Linear, Linear)>>>;
+pub type PreLinear = Vec<LayerLinear>;
+
+/// One layer's entry of [`PreLinear`].
+pub type LayerLinear = Vec<Option<(Linear, Linear)>>;
 
 /// [`crown_pre_until`] that also returns the linear functions whose minima are the
 /// bounds ([`PreLinear`]): on a sub-box their minima, [`reconcretise`], are sound bounds
@@ -1560,9 +1594,86 @@ fn crown_pre_core_rows(
     fwd: Option<&[Vec<(f64, f64)>]>,
     from: usize,
     deadline: Option<std::time::Instant>,
+    lins: Option<&mut PreLinear>,
+    sp: Option<&Sparse>,
+    rows: Option<&[Vec<f64>]>,
+) -> Vec<Vec<(f64, f64)>> {
+    crown_pre_core_with(maps, lo, hi, fwd, from, deadline, lins, sp, rows, true)
+}
+
+/// The neurons of one batch of [`crown_layer_batched`]: 16 (32 pull-backs, whose
+/// coefficients stay in the first-level cache for a layer of a few hundred neurons),
+/// with the clock checked between batches.
+const BATCH_NEURONS: usize = 16;
+
+/// One layer's bounds for [`crown_pre_core_with`], every neuron that needs CROWN pulled
+/// back in batches of [`BATCH_NEURONS`] ([`batch::pull_units`]): the same bounds and
+/// linear functions, bit for bit, as that function's loop of one pull-back per objective.
+/// Past the deadline (`late`), checked before each batch, neurons keep `fwd`'s bounds.
+#[allow(clippy::too_many_arguments)]
+fn crown_layer_batched(
+    sub: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    live: &batch::Live,
+    lo: &[f64],
+    hi: &[f64],
+    fwd: Option<&[Vec<(f64, f64)>]>,
+    k: usize,
+    want_lins: bool,
+    rowmag: &[Vec<f64>],
+    slopes: &[Vec<f64>],
+    late: &dyn Fn() -> bool,
+) -> (Vec<(f64, f64)>, LayerLinear) {
+    let m = &sub[k].0;
+    let lo_hi = |i: usize| {
+        fwd.map(|f| f[k][i])
+            .unwrap_or((f64::NEG_INFINITY, f64::INFINITY))
+    };
+    let mut bounds: Vec<(f64, f64)> = (0..m.out).map(lo_hi).collect();
+    let mut ls = vec![None; if want_lins { m.out } else { 0 }];
+    // Layer 0 is exact under interval arithmetic already (its linear functions, when
+    // asked for, are its rows); skip stable neurons.
+    let todo: Vec<usize> = (0..m.out)
+        .filter(|&i| {
+            let (fl, fu) = bounds[i];
+            !((k == 0 && !want_lins) || fl >= 0.0 || fu <= 0.0)
+        })
+        .collect();
+    for chunk in todo.chunks(BATCH_NEURONS) {
+        if late() {
+            break;
+        }
+        let objs: Vec<(usize, f64)> = chunk.iter().flat_map(|&i| [(i, 1.0), (i, -1.0)]).collect();
+        let mut fs = batch::pull_units(sub, pre, live, &objs, rowmag, slopes).into_iter();
+        for &i in chunk {
+            let (lf, uf) = (fs.next().expect("z_i"), fs.next().expect("-z_i"));
+            let (fl, fu) = bounds[i];
+            let l = lf.min_over(lo, hi);
+            let u = -uf.min_over(lo, hi);
+            bounds[i] = (l.max(fl), u.min(fu));
+            if want_lins {
+                ls[i] = Some((lf, uf));
+            }
+        }
+    }
+    (bounds, ls)
+}
+
+/// [`crown_pre_core_rows`] with the batched pull-backs ([`crown_layer_batched`]) allowed
+/// or not (`batch_ok`; the row-by-row loop is the reference the batches are tested
+/// against).
+#[allow(clippy::too_many_arguments)]
+fn crown_pre_core_with(
+    maps: &[(Affine, bool)],
+    lo: &[f64],
+    hi: &[f64],
+    fwd: Option<&[Vec<(f64, f64)>]>,
+    from: usize,
+    deadline: Option<std::time::Instant>,
     mut lins: Option<&mut PreLinear>,
     sp: Option<&Sparse>,
     rows: Option<&[Vec<f64>]>,
+    batch_ok: bool,
 ) -> Vec<Vec<(f64, f64)>> {
     // Past the deadline, neurons keep their forward bounds (only when those are given).
     let late = || fwd.is_some() && deadline.is_some_and(|d| std::time::Instant::now() >= d);
@@ -1587,6 +1698,9 @@ fn crown_pre_core_rows(
         Some(r) => r.to_vec(),
         None => Vec::with_capacity(body),
     };
+    // The dense maps' pull-backs go in batches ([`batch`]); sparse ones row by row.
+    let batched = batch_ok && sp.is_none() && batch::finite(&maps[..body]);
+    let mut live = batch::Live::default();
     for k in 0..body {
         if k < from {
             if let Some(f) = fwd {
@@ -1606,9 +1720,17 @@ fn crown_pre_core_rows(
                 rowmag.push(row_magnitude(&maps[j].0, Sparse::map(sp, j), im));
             }
         }
-        let mut bounds = Vec::with_capacity(m.out);
-        let mut ls = Vec::new();
-        for i in 0..m.out {
+        let want = lins.is_some();
+        let (mut bounds, mut ls) = match batched {
+            true => {
+                live.extend(maps, &pre);
+                let (p, l) = (&pre, &live);
+                crown_layer_batched(sub, p, l, lo, hi, fwd, k, want, &rowmag, &slopes, &late)
+            }
+            false => (Vec::with_capacity(m.out), Vec::new()),
+        };
+        // One pull-back per objective (sparse maps, and the batches' reference).
+        for i in (0..m.out).filter(|_| !batched) {
             let (fl, fu) = fwd
                 .map(|f| f[k][i])
                 .unwrap_or((f64::NEG_INFINITY, f64::INFINITY));
@@ -1713,6 +1835,103 @@ mod tests {
                 (Affine::new(inp, out, w, b), j + 1 < n)
             })
             .collect()
+    }
+
+    #[test]
+    fn batched_crown_pull_backs_give_the_row_loops_bits() {
+        // `crown_layer_batched` pulls a layer's objectives back together as matrix
+        // products; the row-by-row loop (`batch_ok = false`) is the reference. Bounds and
+        // linear functions must be bit for bit the same: chains with widths that are not
+        // multiples of the kernel's block (1 to 13 neurons), weights with exact zeros (a
+        // zero row, a zero column, a third of the entries), a map without a ReLU in the
+        // middle, three weight scales, narrow and wide boxes, from every layer `from`,
+        // with and without the linear functions, with the row magnitudes given.
+        use rand::{Rng, SeedableRng};
+        let mut compared = 0;
+        for seed in 0..60u64 {
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(1000 + seed);
+            let depth = rng.gen_range(2..6);
+            let mut sizes = vec![rng.gen_range(1..7)];
+            sizes.extend((0..depth).map(|_| rng.gen_range(1..14)));
+            sizes.push(rng.gen_range(1..4));
+            let scale = [0.3, 1.0, 3.0][seed as usize % 3];
+            let n = sizes.len() - 1;
+            let linear_mid = seed % 5 == 0 && n >= 3;
+            let maps: Vec<(Affine, bool)> = (0..n)
+                .map(|j| {
+                    let (inp, out) = (sizes[j], sizes[j + 1]);
+                    let zero_row = rng.gen_range(0..out + 2);
+                    let zero_col = rng.gen_range(0..inp + 2);
+                    let w = (0..inp * out)
+                        .map(|e| {
+                            let (i, t) = (e / inp, e % inp);
+                            if i == zero_row || t == zero_col || rng.gen_bool(0.3) {
+                                0.0
+                            } else {
+                                scale * rng.gen_range(-1.0..1.0)
+                            }
+                        })
+                        .collect();
+                    let b = (0..out).map(|_| rng.gen_range(-0.3..0.3)).collect();
+                    let relu = j + 1 < n && !(linear_mid && j == 1);
+                    (Affine::new(inp, out, w, b), relu)
+                })
+                .collect();
+            let width = [0.05, 0.5, 2.0][(seed / 3) as usize % 3];
+            let lo: Vec<f64> = (0..sizes[0]).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|v| v + width).collect();
+            let fwd = hidden_pre(&maps, &lo, &hi, None);
+            let bits = |a: &[Vec<(f64, f64)>], b: &[Vec<(f64, f64)>], what: &str| {
+                assert_eq!(a.len(), b.len());
+                for (k, (x, y)) in a.iter().zip(b).enumerate() {
+                    for (i, (p, q)) in x.iter().zip(y).enumerate() {
+                        let same = p.0.to_bits() == q.0.to_bits() && p.1.to_bits() == q.1.to_bits();
+                        assert!(same, "seed {seed} {what} layer {k} neuron {i}: {p:?} {q:?}");
+                    }
+                }
+            };
+            let lin_bits = |a: &Linear, b: &Linear| {
+                a.coef.len() == b.coef.len()
+                    && a.coef
+                        .iter()
+                        .zip(&b.coef)
+                        .all(|(x, y)| x.to_bits() == y.to_bits())
+                    && a.cst.to_bits() == b.cst.to_bits()
+                    && a.slack.to_bits() == b.slack.to_bits()
+            };
+            for from in 0..n {
+                let with_lins = from % 2 == 0;
+                let run = |batch_ok: bool, given: Option<&[Vec<f64>]>| {
+                    let mut lins = Vec::new();
+                    let lv = with_lins.then_some(&mut lins);
+                    let f = Some(&fwd[..]);
+                    let pre = crown_pre_core_with(
+                        &maps, &lo, &hi, f, from, None, lv, None, given, batch_ok,
+                    );
+                    (pre, lins)
+                };
+                let (a, la) = run(true, None);
+                let (b, lb) = run(false, None);
+                bits(&a, &b, "bounds");
+                assert_eq!(la.len(), lb.len());
+                for (x, y) in la.iter().flatten().zip(lb.iter().flatten()) {
+                    match (x, y) {
+                        (Some((p, q)), Some((r, t))) => {
+                            assert!(lin_bits(p, r) && lin_bits(q, t), "seed {seed} linear");
+                            compared += 1;
+                        }
+                        (None, None) => {}
+                        _ => panic!("seed {seed}: a neuron bounded by one loop only"),
+                    }
+                }
+                // The row magnitudes given (the phase nodes' composed chains).
+                let rm = row_magnitudes(&maps, &fwd, &lo, &hi);
+                let (a, _) = run(true, Some(&rm));
+                let (b, _) = run(false, Some(&rm));
+                bits(&a, &b, "given rows");
+            }
+        }
+        assert!(compared > 300, "only {compared} linear functions compared");
     }
 
     #[test]
