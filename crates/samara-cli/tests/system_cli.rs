@@ -299,7 +299,7 @@ fn simulate_system_reads_nnet_controllers_like_onnx() {
     for m in &maps {
         for r in 0..m.out {
             t += &list(
-                m.w[r * m.inp..(r + 1) * m.inp]
+                m.dense_row(r)
                     .iter()
                     .map(|v| format!("{v:?}"))
                     .collect(),
