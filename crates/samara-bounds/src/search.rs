@@ -680,8 +680,8 @@ fn combined_bound(
     let amax = symbolic::input_magnitudes(maps, pre, lo, hi, maps.len()).pop()?;
     let mut err = gam * dmag;
     for (o, ce) in cerr.iter().enumerate() {
-        let ymax = (last.b[o].abs() + last.row(o).abs_dot(&amax))
-            * (1.0 + gam * (last.inp as f64 + 2.0));
+        let ymax =
+            (last.b[o].abs() + last.row(o).abs_dot(&amax)) * (1.0 + gam * (last.inp as f64 + 2.0));
         err += ce * ymax;
     }
     if !err.is_finite() {

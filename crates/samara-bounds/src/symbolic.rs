@@ -222,16 +222,7 @@ fn affine_row(
 pub fn affine(m: &Affine, a: &LayerBounds, xmax: &[f64]) -> LayerBounds {
     let rows = |upper: bool| -> Vec<Linear> {
         (0..m.out)
-            .map(|i| {
-                affine_row(
-                    &m.dense_row(i),
-                    m.b[i],
-                    a,
-                    upper,
-                    None,
-                    xmax,
-                )
-            })
+            .map(|i| affine_row(&m.dense_row(i), m.b[i], a, upper, None, xmax))
             .collect()
     };
     LayerBounds {

@@ -338,7 +338,12 @@ impl Affine {
 
     /// The same map stored dense.
     pub fn densified(&self) -> Affine {
-        Affine::new(self.inp, self.out, self.to_dense().into_owned(), self.b.clone())
+        Affine::new(
+            self.inp,
+            self.out,
+            self.to_dense().into_owned(),
+            self.b.clone(),
+        )
     }
 
     /// The same map stored sparse (its non-zeros).
@@ -384,7 +389,8 @@ impl Affine {
         (0..self.out)
             .map(|i| {
                 let mut acc = S::cst(self.b[i]);
-                self.row(i).for_each_nonzero(|j, wij| acc += x[j].clone() * wij);
+                self.row(i)
+                    .for_each_nonzero(|j, wij| acc += x[j].clone() * wij);
                 acc
             })
             .collect()
@@ -798,7 +804,10 @@ impl Network {
                 let rows = (0..k)
                     .flat_map(|c| {
                         (0..a.out).map(move |i| {
-                            a.row(i).nonzeros().map(|(j, w)| (c * a.inp + j, w)).collect()
+                            a.row(i)
+                                .nonzeros()
+                                .map(|(j, w)| (c * a.inp + j, w))
+                                .collect()
                         })
                     })
                     .collect();

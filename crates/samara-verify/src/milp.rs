@@ -176,9 +176,7 @@ pub fn optimise_milp(q: &Query, nets: &HashMap<String, PwlNet>) -> Result<Option
                     }
                 }
                 let rows: Vec<Vec<(Col, f64)>> = (0..m.out)
-                    .map(|r| {
-                        m.row(r).nonzeros().map(|(j, w)| (prev[j], w)).collect()
-                    })
+                    .map(|r| m.row(r).nonzeros().map(|(j, w)| (prev[j], w)).collect())
                     .collect();
                 if *relu {
                     for r in 0..m.out {

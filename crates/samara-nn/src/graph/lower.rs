@@ -186,7 +186,12 @@ impl Lin {
     fn layer(&self, budget: &Budget) -> Result<Affine, String> {
         let zd = self.cols.len();
         if !self.sparse() {
-            return Ok(Affine::new(zd, self.rows(), self.matrix(budget)?, self.c.clone()));
+            return Ok(Affine::new(
+                zd,
+                self.rows(),
+                self.matrix(budget)?,
+                self.c.clone(),
+            ));
         }
         let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); self.rows()];
         for (j, col) in self.cols.iter().enumerate() {
