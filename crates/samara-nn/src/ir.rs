@@ -38,8 +38,8 @@ pub struct Affine {
 enum Weights {
     /// Row-major, `out * inp` entries: `w[i * inp + j]` maps input j to output i.
     Dense(Vec<f64>),
-    /// Compressed sparse rows.
-    Sparse(Csr),
+    /// Compressed sparse rows (boxed: an [`Affine`] stays the size of a dense one).
+    Sparse(Box<Csr>),
 }
 
 /// Compressed sparse rows: row `i`'s entries are `col[start[i]..start[i + 1]]` (strictly
@@ -196,7 +196,7 @@ impl Affine {
         Affine {
             inp,
             out,
-            w: Weights::Sparse(Csr { start, col, val }),
+            w: Weights::Sparse(Box::new(Csr { start, col, val })),
             b,
         }
     }
