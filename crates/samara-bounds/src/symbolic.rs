@@ -465,7 +465,7 @@ pub fn hidden_pre_until(
             let mut mag_c = m.b[o].abs();
             let mut wmag = 0.0;
             let mut slack = 0.0;
-            for (i, wi) in m.row(o).nonzeros() {
+            m.row(o).for_each_nonzero(|i, wi| {
                 let (src, srcm) = if (wi > 0.0) == upper {
                     (&au, &cmu)
                 } else {
@@ -489,7 +489,7 @@ pub fn hidden_pre_until(
                 mag_c += p.abs();
                 wmag += wi.abs() * srcm[i];
                 slack += wi.abs() * src.slack[i];
-            }
+            });
             let err = gamma(k) * mag_c + gamma(k) * wmag;
             (cst, inflate(slack + err))
         };
@@ -837,7 +837,7 @@ impl Rows {
 }
 
 /// `out += a * W[i, :]` of map `m` (its sparse rows `sp` when given).
-#[inline]
+#[inline(always)]
 fn axpy_row(m: &Affine, sp: Option<&Rows>, i: usize, a: f64, out: &mut [f64]) {
     match sp {
         Some(r) => {
@@ -858,7 +858,7 @@ fn axpy_row(m: &Affine, sp: Option<&Rows>, i: usize, a: f64, out: &mut [f64]) {
 }
 
 /// `sum_t |W[i, t]| * x[t]` of map `m` ([`coef_magnitude`] of the row).
-#[inline]
+#[inline(always)]
 fn row_coef_magnitude(m: &Affine, sp: Option<&Rows>, i: usize, x: &[f64]) -> f64 {
     match sp {
         Some(r) => {

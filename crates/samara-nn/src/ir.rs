@@ -70,20 +70,11 @@ pub enum Row<'a> {
 impl<'a> Row<'a> {
     /// The non-zero entries `(j, w)`, in increasing `j`.
     #[inline]
-    pub fn nonzeros(self) -> impl Iterator<Item = (usize, f64)> + 'a {
-        let (d, s) = match self {
-            Row::Dense(r) => (Some(r), None),
-            Row::Sparse { cols, vals } => (None, Some((cols, vals))),
-        };
-        let dense = d
-            .into_iter()
-            .flat_map(|r| r.iter().copied().enumerate())
-            .filter(|(_, w)| *w != 0.0);
-        let sparse = s
-            .into_iter()
-            .flat_map(|(c, v)| c.iter().map(|&j| j as usize).zip(v.iter().copied()))
-            .filter(|(_, w)| *w != 0.0);
-        dense.chain(sparse)
+    pub fn nonzeros(self) -> Nonzeros<'a> {
+        Nonzeros(match self {
+            Row::Dense(r) => NzInner::Dense(r.iter().enumerate()),
+            Row::Sparse { cols, vals } => NzInner::Sparse(cols.iter().zip(vals.iter())),
+        })
     }
 
     /// Call `f(j, w)` on each non-zero entry, in increasing `j` (a tight loop for
@@ -142,6 +133,28 @@ impl<'a> Row<'a> {
                 .zip(vals)
                 .map(|(&j, w)| w.abs() * x[j as usize])
                 .sum(),
+        }
+    }
+}
+
+/// The non-zero entries of a [`Row`] ([`Row::nonzeros`]).
+#[derive(Clone, Debug)]
+pub struct Nonzeros<'a>(NzInner<'a>);
+
+#[derive(Clone, Debug)]
+enum NzInner<'a> {
+    Dense(std::iter::Enumerate<std::slice::Iter<'a, f64>>),
+    Sparse(std::iter::Zip<std::slice::Iter<'a, u32>, std::slice::Iter<'a, f64>>),
+}
+
+impl Iterator for Nonzeros<'_> {
+    type Item = (usize, f64);
+
+    #[inline]
+    fn next(&mut self) -> Option<(usize, f64)> {
+        match &mut self.0 {
+            NzInner::Dense(it) => it.find(|(_, w)| **w != 0.0).map(|(j, &w)| (j, w)),
+            NzInner::Sparse(it) => it.find(|(_, w)| **w != 0.0).map(|(&j, &w)| (j as usize, w)),
         }
     }
 }
@@ -246,7 +259,7 @@ impl Affine {
     }
 
     /// Row `i` (the weights into output `i`), in its storage.
-    #[inline]
+    #[inline(always)]
     pub fn row(&self, i: usize) -> Row<'_> {
         match &self.w {
             Weights::Dense(w) => Row::Dense(&w[i * self.inp..(i + 1) * self.inp]),
@@ -402,7 +415,7 @@ impl Affine {
     /// zeros, so the same value for finite inputs, without a chain of dependent
     /// additions through every zero. A sparse map adds its non-zeros in the same order:
     /// the same bits as the dense form on rows of 256 inputs or more.
-    #[inline]
+    #[inline(always)]
     pub fn apply_f64(&self, x: &[f64], y: &mut [f64]) {
         let c = match &self.w {
             Weights::Dense(w) => return self.apply_dense_f64(w, x, y),
