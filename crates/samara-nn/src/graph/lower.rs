@@ -1,5 +1,5 @@
 //! Lowering a piecewise-linear [`Graph`] to the chain [`Network`] the verifier reads:
-//! dense affine maps each followed by ReLU.
+//! affine maps (dense or sparse) each followed by ReLU.
 //!
 //! The lowering walks the nodes in order keeping every live tensor as an affine
 //! function `A z + c` of the current chain state `z` (the network's input, then the
@@ -286,7 +286,7 @@ impl Lower<'_> {
             self.g,
             node,
             format!(
-                "lowering to dense layers: the maps of the live tensors store {stored} entries ({}), more than is left of the import's {} (used: {}); raise the limit with {}=<size> if the machine has the memory",
+                "lowering: the maps of the live tensors store {stored} entries ({}), more than is left of the import's {} (used: {}); raise the limit with {}=<size> if the machine has the memory",
                 show_bytes(stored as u64 * 16),
                 show_bytes(self.budget.allowed()),
                 show_bytes(self.budget.used()),
@@ -1051,7 +1051,7 @@ pub fn lower(g: &Graph) -> Result<Network, LowerError> {
     lower_within(g, &budget)
 }
 
-/// [`lower`], charging every dense layer to `budget` before it is allocated.
+/// [`lower`], charging every layer to `budget` before it is allocated.
 pub fn lower_within(g: &Graph, budget: &Budget) -> Result<Network, LowerError> {
     let n_in = g.n_inputs();
     let mut last_use = vec![0usize; g.values.len()];
