@@ -364,7 +364,7 @@ fn free_apart(nets: HashMap<String, Network>) {
         .values()
         .flat_map(|n| n.layers.iter())
         .map(|l| match l {
-            samara_nn::Layer::Affine(a) => a.w.len(),
+            samara_nn::Layer::Affine(a) => a.stored(),
             samara_nn::Layer::Act(_) => 0,
         })
         .sum();

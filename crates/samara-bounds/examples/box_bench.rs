@@ -51,7 +51,7 @@ fn run(path: &str) -> f64 {
         let (inp, out, r) = (h[0] as usize, h[1] as usize, h[2] != 0.0);
         let w = nums(lines.next().unwrap());
         let b = nums(lines.next().unwrap());
-        maps.push((Affine { inp, out, w, b }, r));
+        maps.push((Affine::new(inp, out, w, b), r));
     }
     let nc: usize = lines.next().unwrap().trim().parse().unwrap();
     let mut cases = Vec::new();

@@ -174,14 +174,13 @@ fn affine_until(m: &Affine, x: &[Iv], deadline: Option<Instant>) -> Option<Vec<I
         if late() {
             return None;
         }
-        let row = &m.w[i * m.inp..(i + 1) * m.inp];
-        Some(
-            row.iter()
-                .zip(x)
-                .fold(Iv::point(m.b[i]), |acc, (w, v)| acc.plus(v.scale(*w))),
-        )
+        // Zero weights skipped: their terms are the exact point 0.
+        let mut acc = Iv::point(m.b[i]);
+        m.row(i)
+            .for_each_nonzero(|j, w| acc = acc.plus(x[j].scale(w)));
+        Some(acc)
     };
-    if m.out * m.inp > PARALLEL_WEIGHTS {
+    if m.stored() > PARALLEL_WEIGHTS {
         use rayon::prelude::*;
         (0..m.out).into_par_iter().map(row).collect()
     } else {
@@ -248,9 +247,8 @@ pub fn constraint_interval(
             continue;
         }
         cst = cst.plus(Iv::point(last.b[o]).scale(*c));
-        for (j, r) in row.iter_mut().enumerate() {
-            *r = r.plus(Iv::point(last.w[o * last.inp + j]).scale(*c));
-        }
+        last.row(o)
+            .for_each_nonzero(|j, w| row[j] = row[j].plus(Iv::point(w).scale(*c)));
     }
     let via_row = row
         .iter()

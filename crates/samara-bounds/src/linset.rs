@@ -321,13 +321,11 @@ pub fn bound_over_linear_set(
 
 /// Outward-rounded interval of row `i` of `a` over the box `b` of its input.
 fn forward_interval(a: &Affine, i: usize, b: &[(f64, f64)]) -> Interval {
-    let row = &a.w[i * a.inp..(i + 1) * a.inp];
     let mut acc = Interval::point(a.b[i]);
-    for (&w, &(l, u)) in row.iter().zip(b) {
-        if w != 0.0 {
-            acc += Interval::new(l, u) * Interval::point(w);
-        }
-    }
+    a.row(i).for_each_nonzero(|j, w| {
+        let (l, u) = b[j];
+        acc += Interval::new(l, u) * Interval::point(w);
+    });
     acc
 }
 
@@ -414,14 +412,11 @@ impl State {
                         let p = li * a.b[i];
                         cst += p;
                         cmag += p.abs();
-                        let row = &a.w[i * a.inp..(i + 1) * a.inp];
-                        for ((nt, mt), &w) in nu.iter_mut().zip(mag.iter_mut()).zip(row) {
-                            if w != 0.0 {
-                                let p = li * w;
-                                *nt += p;
-                                *mt += p.abs();
-                            }
-                        }
+                        a.row(i).for_each_nonzero(|t, w| {
+                            let p = li * w;
+                            nu[t] += p;
+                            mag[t] += p.abs();
+                        });
                     }
                     let g = gamma(a.out + 1);
                     err += g * cmag;

@@ -237,7 +237,7 @@ impl Prefix {
     fn root(maps: &[(Affine, bool)]) -> Prefix {
         let m = &maps[0].0;
         let mut cols: Vec<Vec<f64>> = (0..m.inp)
-            .map(|t| (0..m.out).map(|i| m.w[i * m.inp + t]).collect())
+            .map(|t| (0..m.out).map(|i| m.weight(i, t)).collect())
             .collect();
         cols.push(m.b.clone());
         Prefix {
@@ -294,7 +294,8 @@ impl Prefix {
             let mut cols = vec![vec![0.0; m.out]; n + 1];
             let mut e = vec![0.0; m.out];
             for i in 0..m.out {
-                let row = &m.w[i * m.inp..(i + 1) * m.inp];
+                let row = m.dense_row(i);
+                let row = &row[..];
                 for (col, v) in cols.iter_mut().zip(&masked) {
                     col[i] = dot(row, v);
                 }
@@ -341,12 +342,7 @@ fn chain(t: &Tree, nb: &[Vec<(f64, f64)>], parent: &Arc<Chain>) -> Arc<Chain> {
             w[i * n + t] = *v;
         }
     }
-    let first = Affine {
-        inp: n,
-        out,
-        w,
-        b: p.cols[n].clone(),
-    };
+    let first = Affine::new(n, out, w, p.cols[n].clone());
     let mut rows = vec![symbolic::rows_with_error(&first, lo, hi, &p.e)];
     rows.extend(t.rows[at + 1..].iter().cloned());
     let mut cm = vec![(first, maps[at].1)];
@@ -723,7 +719,7 @@ mod tests {
                 let (inp, out) = (widths[k], widths[k + 1]);
                 let w = (0..inp * out).map(|_| rng.gen_range(-1.0..1.0)).collect();
                 let b = (0..out).map(|_| rng.gen_range(-0.5..0.5)).collect();
-                (Affine { inp, out, w, b }, k < last)
+                (Affine::new(inp, out, w, b), k < last)
             })
             .collect()
     }
@@ -816,7 +812,7 @@ mod tests {
             let scale = [1.0, 30.0, 1e-3][trial % 3];
             let mut maps = random_maps(&mut rng, &[n, 9, 8, 7, 6, 3]);
             for (m, _) in maps.iter_mut() {
-                m.w.iter_mut().for_each(|w| *w *= scale);
+                m.map_weights(|w| *w *= scale);
             }
             let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..0.0)).collect();
             let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.1..1.5)).collect();
@@ -849,7 +845,11 @@ mod tests {
                 let mid = chain(&t, &half, &root);
                 let again = chain(&t, &nb, &mid);
                 assert_eq!(again.at, ch.at);
-                assert_eq!(again.maps[0].0.w, ch.maps[0].0.w, "trial {trial}");
+                assert_eq!(
+                    again.maps[0].0.stored_weights(),
+                    ch.maps[0].0.stored_weights(),
+                    "trial {trial}"
+                );
                 assert_eq!(again.prefix.e, ch.prefix.e, "trial {trial}");
             }
             let (first, _) = &ch.maps[0];
@@ -894,7 +894,7 @@ mod tests {
                     .iter()
                     .take(ch.at + 1)
                     .map(|(m, _)| {
-                        m.w.iter().map(|w| w.abs()).sum::<f64>()
+                        m.stored_weights().iter().map(|w| w.abs()).sum::<f64>()
                             + m.b.iter().map(|b| b.abs()).sum::<f64>()
                     })
                     .product::<f64>()

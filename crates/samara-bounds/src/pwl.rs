@@ -139,15 +139,11 @@ pub fn affine_bounds(m: &Affine, alo: &[f64], ahi: &[f64]) -> (Vec<f64>, Vec<f64
     let mut hi = vec![0.0; m.out];
     for i in 0..m.out {
         let (mut l, mut h) = (m.b[i], m.b[i]);
-        for j in 0..m.inp {
-            let w = m.w[i * m.inp + j];
-            if w == 0.0 {
-                continue;
-            }
+        m.row(i).for_each_nonzero(|j, w| {
             let (p, q) = (w * alo[j], w * ahi[j]);
             l = down(l + down(p.min(q)));
             h = up(h + up(p.max(q)));
-        }
+        });
         lo[i] = l;
         hi[i] = h;
     }
@@ -270,15 +266,12 @@ pub fn back_substitute(
             }
             cst += c * m.b[row];
             mag += (c * m.b[row]).abs();
-            for (col, nx) in next.iter_mut().enumerate() {
-                let w = m.w[row * m.inp + col];
-                if w != 0.0 {
-                    *nx += c * w;
-                    if weights_in_mag {
-                        mag += (c * w).abs();
-                    }
+            m.row(row).for_each_nonzero(|col, w| {
+                next[col] += c * w;
+                if weights_in_mag {
+                    mag += (c * w).abs();
                 }
-            }
+            });
         }
         if j == 0 {
             coef = next;

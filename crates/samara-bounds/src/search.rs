@@ -208,8 +208,13 @@ fn gradient_masked(maps: &[(Affine, bool)], masks: &[Vec<bool>], c: &[f64]) -> V
         let mut next = vec![0.0; m.inp];
         for (i, gi) in g.iter().enumerate() {
             if *gi != 0.0 {
-                for (j, nx) in next.iter_mut().enumerate() {
-                    *nx += gi * m.w[i * m.inp + j];
+                match m.row(i) {
+                    samara_nn::ir::Row::Dense(w) => {
+                        for (nx, w) in next.iter_mut().zip(w) {
+                            *nx += gi * w;
+                        }
+                    }
+                    r => r.for_each_nonzero(|j, w| next[j] += gi * w),
                 }
             }
         }
@@ -675,9 +680,8 @@ fn combined_bound(
     let amax = symbolic::input_magnitudes(maps, pre, lo, hi, maps.len()).pop()?;
     let mut err = gam * dmag;
     for (o, ce) in cerr.iter().enumerate() {
-        let row = &last.w[o * last.inp..(o + 1) * last.inp];
-        let ymax = (last.b[o].abs() + row.iter().zip(&amax).map(|(w, a)| w.abs() * a).sum::<f64>())
-            * (1.0 + gam * (last.inp as f64 + 2.0));
+        let ymax =
+            (last.b[o].abs() + last.row(o).abs_dot(&amax)) * (1.0 + gam * (last.inp as f64 + 2.0));
         err += ce * ymax;
     }
     if !err.is_finite() {

@@ -18,7 +18,7 @@
 //! phase is passed exactly.
 
 use crate::rules::relu;
-use samara_nn::Affine;
+use samara_nn::{ir::Row, Affine};
 
 mod batch;
 
@@ -224,16 +224,7 @@ fn affine_row(
 pub fn affine(m: &Affine, a: &LayerBounds, xmax: &[f64]) -> LayerBounds {
     let rows = |upper: bool| -> Vec<Linear> {
         (0..m.out)
-            .map(|i| {
-                affine_row(
-                    &m.w[i * m.inp..(i + 1) * m.inp],
-                    m.b[i],
-                    a,
-                    upper,
-                    None,
-                    xmax,
-                )
-            })
+            .map(|i| affine_row(&m.dense_row(i), m.b[i], a, upper, None, xmax))
             .collect()
     };
     LayerBounds {
@@ -425,7 +416,7 @@ pub fn hidden_pre_until(
             // constant 0, slack 0). An `n x n` identity times the map would cost
             // `out * n * n` (a quarter of a second per pass at 784 inputs).
             for o in 0..m.out {
-                let w = &m.w[o * m.inp..(o + 1) * m.inp];
+                let w = &m.dense_row(o)[..];
                 let wmag: f64 = w.iter().zip(&xmax).map(|(wi, x)| wi.abs() * x).sum();
                 let err = gamma(k) * m.b[o].abs() + gamma(k) * wmag;
                 for z in [&mut zl, &mut zu] {
@@ -472,15 +463,11 @@ pub fn hidden_pre_until(
         // Output row `o` of the lower (`upper` false) or upper function: its
         // coefficients into `out`, its constant and slack returned.
         let row = |upper: bool, o: usize, out: &mut [f64]| -> (f64, f64) {
-            let w = &m.w[o * m.inp..(o + 1) * m.inp];
             let mut cst = m.b[o];
             let mut mag_c = m.b[o].abs();
             let mut wmag = 0.0;
             let mut slack = 0.0;
-            for (i, &wi) in w.iter().enumerate() {
-                if wi == 0.0 {
-                    continue;
-                }
+            m.row(o).for_each_nonzero(|i, wi| {
                 let (src, srcm) = if (wi > 0.0) == upper {
                     (&au, &cmu)
                 } else {
@@ -504,7 +491,7 @@ pub fn hidden_pre_until(
                 mag_c += p.abs();
                 wmag += wi.abs() * srcm[i];
                 slack += wi.abs() * src.slack[i];
-            }
+            });
             let err = gamma(k) * mag_c + gamma(k) * wmag;
             (cst, inflate(slack + err))
         };
@@ -812,8 +799,8 @@ impl Sparse {
         let rows: Vec<Option<Rows>> = maps
             .iter()
             .map(|(m, _)| {
-                let nnz = m.w.iter().filter(|w| **w != 0.0).count();
-                if nnz * 4 > m.w.len() || m.inp > u32::MAX as usize {
+                let nnz = m.nonzeros();
+                if nnz * 4 > m.out * m.inp || m.inp > u32::MAX as usize {
                     return None;
                 }
                 let mut start = Vec::with_capacity(m.out + 1);
@@ -821,12 +808,10 @@ impl Sparse {
                 let mut val = Vec::with_capacity(nnz);
                 start.push(0);
                 for i in 0..m.out {
-                    for (t, &w) in m.w[i * m.inp..(i + 1) * m.inp].iter().enumerate() {
-                        if w != 0.0 {
-                            col.push(t as u32);
-                            val.push(w);
-                        }
-                    }
+                    m.row(i).for_each_nonzero(|t, w| {
+                        col.push(t as u32);
+                        val.push(w);
+                    });
                     start.push(col.len());
                 }
                 Some(Rows { start, col, val })
@@ -854,7 +839,7 @@ impl Rows {
 }
 
 /// `out += a * W[i, :]` of map `m` (its sparse rows `sp` when given).
-#[inline]
+#[inline(always)]
 fn axpy_row(m: &Affine, sp: Option<&Rows>, i: usize, a: f64, out: &mut [f64]) {
     match sp {
         Some(r) => {
@@ -863,23 +848,29 @@ fn axpy_row(m: &Affine, sp: Option<&Rows>, i: usize, a: f64, out: &mut [f64]) {
                 out[t as usize] += a * w;
             }
         }
-        None => {
-            for (o, &w) in out.iter_mut().zip(&m.w[i * m.inp..(i + 1) * m.inp]) {
-                *o += a * w;
+        None => match m.row(i) {
+            Row::Dense(w) => {
+                for (o, &w) in out.iter_mut().zip(w) {
+                    *o += a * w;
+                }
             }
-        }
+            r => r.for_each_nonzero(|t, w| out[t] += a * w),
+        },
     }
 }
 
 /// `sum_t |W[i, t]| * x[t]` of map `m` ([`coef_magnitude`] of the row).
-#[inline]
+#[inline(always)]
 fn row_coef_magnitude(m: &Affine, sp: Option<&Rows>, i: usize, x: &[f64]) -> f64 {
     match sp {
         Some(r) => {
             let (c, v) = r.row(i);
             c.iter().zip(v).map(|(&t, w)| w.abs() * x[t as usize]).sum()
         }
-        None => coef_magnitude(&m.w[i * m.inp..(i + 1) * m.inp], x),
+        None => match m.row(i) {
+            Row::Dense(w) => coef_magnitude(w, x),
+            r => r.abs_dot(x),
+        },
     }
 }
 
@@ -934,16 +925,15 @@ fn backward_core(
                     (None, Mags::Inputs(x)) => row_coef_magnitude(m, rows, i, &x[j]),
                     (None, Mags::Rows(r)) => r[j][i],
                 };
-            match rows {
+            match (rows, m.row(i)) {
                 // The dense row inline (the pull-backs of CROWN's intermediate bounds
                 // spend most of their time here): `axpy_row`'s operations, in its order.
-                None => {
-                    let w = &m.w[i * m.inp..(i + 1) * m.inp];
+                (None, Row::Dense(w)) => {
                     for (o, &wt) in nu.iter_mut().zip(w) {
                         *o += mi * wt;
                     }
                 }
-                Some(_) => axpy_row(m, rows, i, mi, &mut nu),
+                _ => axpy_row(m, rows, i, mi, &mut nu),
             }
         }
         err += gamma(k) * (cmag + wmag);
@@ -1130,11 +1120,10 @@ pub(crate) fn value_grad(
                         .map(|(&t, w)| w * g[t as usize])
                         .sum::<f64>()
                 } else {
-                    let row = &m.w[i * m.inp..(i + 1) * m.inp];
-                    if fast {
-                        dot(row, &g)
-                    } else {
-                        row.iter().zip(&g).map(|(w, x)| w * x).sum::<f64>()
+                    match m.row(i) {
+                        Row::Dense(row) if fast => dot(row, &g),
+                        Row::Dense(row) => row.iter().zip(&g).map(|(w, x)| w * x).sum::<f64>(),
+                        r => r.nonzeros().map(|(t, w)| w * g[t]).sum::<f64>(),
                     }
                 };
         }
@@ -1786,7 +1775,7 @@ pub fn objective_lower(
         let mut s = 0.0;
         let mut mag = 0.0;
         for o in 0..last.out {
-            let p = obj.c[o] * last.w[o * m + i];
+            let p = obj.c[o] * last.weight(o, i);
             s += p;
             mag += p.abs();
         }

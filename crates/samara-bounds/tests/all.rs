@@ -6,6 +6,7 @@
 mod linset;
 mod rounding;
 mod soundness;
+mod sparse_storage;
 
 /// See [`samara_testkit::assert_every_test_file_is_built`].
 #[test]

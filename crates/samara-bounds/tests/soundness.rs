@@ -588,7 +588,7 @@ fn margin_gradient(maps: &[(Affine, bool)], x: &[f64]) -> Vec<f64> {
         let mut next = vec![0.0; m.inp];
         for (i, gi) in gz.iter().enumerate() {
             for (j, nx) in next.iter_mut().enumerate() {
-                *nx += gi * m.w[i * m.inp + j];
+                *nx += gi * m.weight(i, j);
             }
         }
         g = next;
@@ -626,7 +626,7 @@ fn relu_splitting_trials(seed: u64, dims: &[usize], keep: Option<f64>) {
             let last = net.layers.len() - 1;
             for (k, l) in net.layers.iter_mut().enumerate() {
                 if let (Layer::Affine(a), true) = (l, k < last) {
-                    a.w.iter_mut().for_each(|w| {
+                    a.map_weights(|w| {
                         if !rng.gen_bool(p) {
                             *w = 0.0;
                         }

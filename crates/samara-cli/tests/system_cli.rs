@@ -298,12 +298,7 @@ fn simulate_system_reads_nnet_controllers_like_onnx() {
     t += &list(vec!["1.0".into(); n_in + 1]);
     for m in &maps {
         for r in 0..m.out {
-            t += &list(
-                m.w[r * m.inp..(r + 1) * m.inp]
-                    .iter()
-                    .map(|v| format!("{v:?}"))
-                    .collect(),
-            );
+            t += &list(m.dense_row(r).iter().map(|v| format!("{v:?}")).collect());
         }
         for b in &m.b {
             t += &format!("{b:?},\n");

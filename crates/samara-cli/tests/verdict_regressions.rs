@@ -216,7 +216,7 @@ fn forward_ex(w: &serde_json::Value) -> f64 {
         match l {
             samara_nn::ir::Layer::Affine(m) => {
                 a = (0..m.out)
-                    .map(|i| m.b[i] + (0..m.inp).map(|j| m.w[i * m.inp + j] * a[j]).sum::<f64>())
+                    .map(|i| m.b[i] + (0..m.inp).map(|j| m.weight(i, j) * a[j]).sum::<f64>())
                     .collect();
             }
             samara_nn::ir::Layer::Act(_) => a.iter_mut().for_each(|v| *v = v.max(0.0)),

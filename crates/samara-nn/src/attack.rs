@@ -74,9 +74,7 @@ pub fn outputs_and_gradient(
                 let mut gi = vec![0.0; a.inp];
                 for (i, gv) in g.iter().enumerate() {
                     if *gv != 0.0 {
-                        for (j, w) in a.w[i * a.inp..(i + 1) * a.inp].iter().enumerate() {
-                            gi[j] += gv * w;
-                        }
+                        a.row(i).for_each_nonzero(|j, w| gi[j] += gv * w);
                     }
                 }
                 gi

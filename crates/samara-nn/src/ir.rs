@@ -9,24 +9,209 @@
 
 use samara_num::Scalar;
 
-/// A dense affine map `y = W x + b`, `W` stored row-major (`out x inp`).
-#[derive(Clone, Debug, PartialEq)]
+/// An affine map `y = W x + b`, `W` (`out x inp`) stored dense (row-major) or sparse
+/// (compressed sparse rows: for each output the (input, weight) pairs of its non-zeros).
+///
+/// The storage is private: every reader goes through a row accessor ([`Affine::row`],
+/// which yields the non-zeros of either form, [`Affine::weight`], [`Affine::apply`]) or
+/// asks for the dense matrix explicitly ([`Affine::to_dense`], [`Affine::to_dense_within`],
+/// which charges an import [`Budget`](crate::limits::Budget)), so a sparse layer cannot
+/// be misread as a dense one. The lowering of convolutions, pooling and ConvTranspose
+/// ([`crate::graph::lower`]) emits sparse maps (a kernel's patch of non-zeros per row
+/// among an image's inputs: dense, a 30x30 traffic-sign network's layer took 2.3 GB);
+/// fully connected layers stay dense. Equality ([`PartialEq`]) compares the maps, not
+/// their storage.
+#[derive(Clone, Debug)]
 pub struct Affine {
     /// Number of inputs.
     pub inp: usize,
     /// Number of outputs.
     pub out: usize,
-    /// Row-major weights, `out * inp` entries: `w[i * inp + j]` maps input j to output i.
-    pub w: Vec<f64>,
+    /// The weights (private: see the type's documentation).
+    w: Weights,
     /// Biases, `out` entries.
     pub b: Vec<f64>,
 }
 
+/// The storage of an [`Affine`]'s weights.
+#[derive(Clone, Debug)]
+enum Weights {
+    /// Row-major, `out * inp` entries: `w[i * inp + j]` maps input j to output i.
+    Dense(Vec<f64>),
+    /// Compressed sparse rows (boxed: an [`Affine`] stays the size of a dense one).
+    Sparse(Box<Csr>),
+}
+
+/// Compressed sparse rows: row `i`'s entries are `col[start[i]..start[i + 1]]` (strictly
+/// increasing columns) with weights `val[..]` (the same range), no stored zero.
+#[derive(Clone, Debug)]
+struct Csr {
+    start: Vec<usize>,
+    col: Vec<u32>,
+    val: Vec<f64>,
+}
+
+/// One row of an [`Affine`]'s weights, in its storage: match on it, or read its non-zeros
+/// with [`Row::nonzeros`] / [`Row::for_each_nonzero`] (the same entries, in increasing
+/// column order, for either form).
+#[derive(Clone, Copy, Debug)]
+pub enum Row<'a> {
+    /// The whole row, `inp` entries (zeros included).
+    Dense(&'a [f64]),
+    /// The non-zero entries: `cols[k]` has weight `vals[k]`, columns increasing.
+    Sparse {
+        /// Columns.
+        cols: &'a [u32],
+        /// Weights.
+        vals: &'a [f64],
+    },
+}
+
+impl<'a> Row<'a> {
+    /// The non-zero entries `(j, w)`, in increasing `j`.
+    #[inline]
+    pub fn nonzeros(self) -> Nonzeros<'a> {
+        Nonzeros(match self {
+            Row::Dense(r) => NzInner::Dense(r.iter().enumerate()),
+            Row::Sparse { cols, vals } => NzInner::Sparse(cols.iter().zip(vals.iter())),
+        })
+    }
+
+    /// Call `f(j, w)` on each non-zero entry, in increasing `j` (a tight loop for
+    /// either form: what the hot paths use).
+    #[inline]
+    pub fn for_each_nonzero(self, mut f: impl FnMut(usize, f64)) {
+        match self {
+            Row::Dense(r) => {
+                for (j, &w) in r.iter().enumerate() {
+                    if w != 0.0 {
+                        f(j, w);
+                    }
+                }
+            }
+            Row::Sparse { cols, vals } => {
+                for (&j, &w) in cols.iter().zip(vals) {
+                    if w != 0.0 {
+                        f(j as usize, w);
+                    }
+                }
+            }
+        }
+    }
+
+    /// The dense slice, when stored dense.
+    #[inline]
+    pub fn as_dense(self) -> Option<&'a [f64]> {
+        match self {
+            Row::Dense(r) => Some(r),
+            Row::Sparse { .. } => None,
+        }
+    }
+
+    /// The row as `n` dense entries (borrowed when stored dense; `n` is the map's
+    /// [`Affine::inp`]).
+    pub fn to_dense(self, n: usize) -> std::borrow::Cow<'a, [f64]> {
+        match self {
+            Row::Dense(r) => std::borrow::Cow::Borrowed(r),
+            Row::Sparse { cols, vals } => {
+                let mut v = vec![0.0; n];
+                for (&j, &w) in cols.iter().zip(vals) {
+                    v[j as usize] = w;
+                }
+                std::borrow::Cow::Owned(v)
+            }
+        }
+    }
+
+    /// `sum_j |w_j| * x_j` over the non-zeros.
+    #[inline]
+    pub fn abs_dot(self, x: &[f64]) -> f64 {
+        match self {
+            Row::Dense(r) => r.iter().zip(x).map(|(w, x)| w.abs() * x).sum(),
+            Row::Sparse { cols, vals } => cols
+                .iter()
+                .zip(vals)
+                .map(|(&j, w)| w.abs() * x[j as usize])
+                .sum(),
+        }
+    }
+}
+
+/// The non-zero entries of a [`Row`] ([`Row::nonzeros`]).
+#[derive(Clone, Debug)]
+pub struct Nonzeros<'a>(NzInner<'a>);
+
+#[derive(Clone, Debug)]
+enum NzInner<'a> {
+    Dense(std::iter::Enumerate<std::slice::Iter<'a, f64>>),
+    Sparse(std::iter::Zip<std::slice::Iter<'a, u32>, std::slice::Iter<'a, f64>>),
+}
+
+impl Iterator for Nonzeros<'_> {
+    type Item = (usize, f64);
+
+    #[inline]
+    fn next(&mut self) -> Option<(usize, f64)> {
+        match &mut self.0 {
+            NzInner::Dense(it) => it.find(|(_, w)| **w != 0.0).map(|(j, &w)| (j, w)),
+            NzInner::Sparse(it) => it.find(|(_, w)| **w != 0.0).map(|(&j, &w)| (j as usize, w)),
+        }
+    }
+}
+
+/// Below this fraction of non-zeros the lowering stores a map sparse
+/// ([`Affine::compact`]): a sparse entry takes 12 bytes (a u32 column and an f64) against
+/// a dense one's 8, so past about half sparse storage would not save memory, and a
+/// dense row's loop is faster; 10 % keeps the fully connected layers (ACAS Xu, MNIST
+/// MLPs) dense.
+pub const SPARSE_DENSITY: f64 = 0.1;
+
 impl Affine {
-    /// A new affine map; `w.len() == out * inp` and `b.len() == out` are checked by
+    /// A new dense affine map; `w.len() == out * inp` and `b.len() == out` are checked by
     /// [`Network::validate`].
     pub fn new(inp: usize, out: usize, w: Vec<f64>, b: Vec<f64>) -> Self {
-        Affine { inp, out, w, b }
+        Affine {
+            inp,
+            out,
+            w: Weights::Dense(w),
+            b,
+        }
+    }
+
+    /// A new sparse affine map from its rows: `rows[i]` holds the `(j, w)` entries of
+    /// output `i` in any order; entries of the same column add up, zero sums are dropped.
+    /// `j < inp`, `rows.len() == out` and `b.len() == out` are checked by
+    /// [`Network::validate`] (an entry past `inp` is kept there to be reported).
+    pub fn from_rows(inp: usize, rows: Vec<Vec<(usize, f64)>>, b: Vec<f64>) -> Self {
+        let out = rows.len();
+        let mut start = Vec::with_capacity(out + 1);
+        let nnz: usize = rows.iter().map(Vec::len).sum();
+        let mut col = Vec::with_capacity(nnz);
+        let mut val = Vec::with_capacity(nnz);
+        start.push(0);
+        for mut r in rows {
+            r.sort_by_key(|e| e.0);
+            let mut k = 0;
+            while k < r.len() {
+                let j = r[k].0;
+                let mut v = 0.0;
+                while k < r.len() && r[k].0 == j {
+                    v += r[k].1;
+                    k += 1;
+                }
+                if v != 0.0 {
+                    col.push(u32::try_from(j).unwrap_or(u32::MAX));
+                    val.push(v);
+                }
+            }
+            start.push(col.len());
+        }
+        Affine {
+            inp,
+            out,
+            w: Weights::Sparse(Box::new(Csr { start, col, val })),
+            b,
+        }
     }
 
     /// The diagonal map `y_i = (x_i - c_i) / s_i` (min-max normalisation).
@@ -51,10 +236,164 @@ impl Affine {
         Affine::new(n, n, w, c.to_vec())
     }
 
-    /// Weight from input `j` to output `i`.
+    /// Whether the weights are stored sparse.
+    pub fn is_sparse(&self) -> bool {
+        matches!(self.w, Weights::Sparse(_))
+    }
+
+    /// The number of weights stored: `out * inp` when dense, the non-zeros when sparse
+    /// (what the map costs in memory, in f64s, and a pass over it in multiplications).
+    pub fn stored(&self) -> usize {
+        match &self.w {
+            Weights::Dense(w) => w.len(),
+            Weights::Sparse(c) => c.val.len(),
+        }
+    }
+
+    /// The number of non-zero weights.
+    pub fn nonzeros(&self) -> usize {
+        match &self.w {
+            Weights::Dense(w) => w.iter().filter(|w| **w != 0.0).count(),
+            Weights::Sparse(c) => c.val.iter().filter(|w| **w != 0.0).count(),
+        }
+    }
+
+    /// Row `i` (the weights into output `i`), in its storage.
+    #[inline(always)]
+    pub fn row(&self, i: usize) -> Row<'_> {
+        match &self.w {
+            Weights::Dense(w) => Row::Dense(&w[i * self.inp..(i + 1) * self.inp]),
+            Weights::Sparse(c) => {
+                let r = c.start[i]..c.start[i + 1];
+                Row::Sparse {
+                    cols: &c.col[r.clone()],
+                    vals: &c.val[r],
+                }
+            }
+        }
+    }
+
+    /// Row `i` as `inp` dense entries: borrowed when stored dense, a new vector of `inp`
+    /// entries when sparse (for readers whose loops need a slice).
+    #[inline]
+    pub fn dense_row(&self, i: usize) -> std::borrow::Cow<'_, [f64]> {
+        self.row(i).to_dense(self.inp)
+    }
+
+    /// The stored weights of row `i`, to change in place (all `inp` when dense, the
+    /// non-zeros when sparse): scaling them or setting them to zero is the same map
+    /// change for either form.
+    pub fn row_values_mut(&mut self, i: usize) -> &mut [f64] {
+        match &mut self.w {
+            Weights::Dense(w) => &mut w[i * self.inp..(i + 1) * self.inp],
+            Weights::Sparse(c) => &mut c.val[c.start[i]..c.start[i + 1]],
+        }
+    }
+
+    /// Every stored weight, to change in place by a map with `f(0) = 0` (e.g. a scaling;
+    /// a sparse map's absent zeros are not visited).
+    pub fn map_weights(&mut self, f: impl FnMut(&mut f64)) {
+        match &mut self.w {
+            Weights::Dense(w) => w.iter_mut().for_each(f),
+            Weights::Sparse(c) => c.val.iter_mut().for_each(f),
+        }
+    }
+
+    /// The stored weights, in row order (all `out * inp` when dense, the non-zeros when
+    /// sparse): for checks over every weight (finiteness, magnitude).
+    pub fn stored_weights(&self) -> &[f64] {
+        match &self.w {
+            Weights::Dense(w) => w,
+            Weights::Sparse(c) => &c.val,
+        }
+    }
+
+    /// The row-major dense weights, when stored dense.
+    pub fn as_dense(&self) -> Option<&[f64]> {
+        match &self.w {
+            Weights::Dense(w) => Some(w),
+            Weights::Sparse(_) => None,
+        }
+    }
+
+    /// The row-major dense weights (`out * inp` entries): borrowed when stored dense,
+    /// allocated when sparse (for a lowered convolution, gigabytes: charge a budget
+    /// first with [`Affine::to_dense_within`]).
+    pub fn to_dense(&self) -> std::borrow::Cow<'_, [f64]> {
+        match &self.w {
+            Weights::Dense(w) => std::borrow::Cow::Borrowed(w),
+            Weights::Sparse(c) => {
+                let mut w = vec![0.0; self.out * self.inp];
+                for i in 0..self.out {
+                    for k in c.start[i]..c.start[i + 1] {
+                        w[i * self.inp + c.col[k] as usize] = c.val[k];
+                    }
+                }
+                std::borrow::Cow::Owned(w)
+            }
+        }
+    }
+
+    /// [`Affine::to_dense`], charging a sparse map's `out * inp` dense entries to
+    /// `budget` first (`Err`: the budget's message, nothing allocated).
+    pub fn to_dense_within(
+        &self,
+        budget: &crate::limits::Budget,
+    ) -> Result<std::borrow::Cow<'_, [f64]>, String> {
+        if self.is_sparse() {
+            let (o, i) = (self.out, self.inp);
+            budget.charge(o.saturating_mul(i), &|| {
+                format!("the dense form of a sparse {i} -> {o} map")
+            })?;
+        }
+        Ok(self.to_dense())
+    }
+
+    /// The same map stored dense.
+    pub fn densified(&self) -> Affine {
+        Affine::new(
+            self.inp,
+            self.out,
+            self.to_dense().into_owned(),
+            self.b.clone(),
+        )
+    }
+
+    /// The same map stored sparse (its non-zeros).
+    pub fn sparsified(&self) -> Affine {
+        let rows = (0..self.out)
+            .map(|i| self.row(i).nonzeros().collect())
+            .collect();
+        Affine::from_rows(self.inp, rows, self.b.clone())
+    }
+
+    /// The same map in the storage its density calls for: sparse below
+    /// [`SPARSE_DENSITY`] non-zeros (and at least 64 inputs), dense otherwise.
+    pub fn compact(self) -> Affine {
+        let dense_size = self.out.saturating_mul(self.inp);
+        let want_sparse = self.inp >= 64
+            && self.inp <= u32::MAX as usize
+            && (self.nonzeros() as f64) < SPARSE_DENSITY * dense_size as f64;
+        match (want_sparse, self.is_sparse()) {
+            (true, false) => self.sparsified(),
+            (false, true) => self.densified(),
+            _ => self,
+        }
+    }
+
+    /// Weight from input `j` to output `i` (a binary search in the row when sparse).
     #[inline]
     pub fn weight(&self, i: usize, j: usize) -> f64 {
-        self.w[i * self.inp + j]
+        match &self.w {
+            Weights::Dense(w) => w[i * self.inp + j],
+            Weights::Sparse(c) => {
+                let r = c.start[i]..c.start[i + 1];
+                match c.col[r.clone()].binary_search(&(j as u32)) {
+                    Ok(k) => c.val[r.start + k],
+                    Err(_) => 0.0,
+                }
+            }
+        }
     }
 
     /// Apply to a vector of any scalar type. Zero weights are skipped, so a diagonal
@@ -62,13 +401,9 @@ impl Affine {
     pub fn apply<S: Scalar>(&self, x: &[S]) -> Vec<S> {
         (0..self.out)
             .map(|i| {
-                let row = &self.w[i * self.inp..(i + 1) * self.inp];
                 let mut acc = S::cst(self.b[i]);
-                for (wij, xj) in row.iter().zip(x) {
-                    if *wij != 0.0 {
-                        acc += xj.clone() * *wij;
-                    }
-                }
+                self.row(i)
+                    .for_each_nonzero(|j, wij| acc += x[j].clone() * wij);
                 acc
             })
             .collect()
@@ -78,11 +413,28 @@ impl Affine {
     /// convolution's: a kernel's patch of non-zeros among thousands of inputs) the zero
     /// weights are skipped: the same additions in the same order without those of exact
     /// zeros, so the same value for finite inputs, without a chain of dependent
-    /// additions through every zero.
-    #[inline]
+    /// additions through every zero. A sparse map adds its non-zeros in the same order:
+    /// the same bits as the dense form on rows of 256 inputs or more.
+    #[inline(always)]
     pub fn apply_f64(&self, x: &[f64], y: &mut [f64]) {
+        let c = match &self.w {
+            Weights::Dense(w) => return self.apply_dense_f64(w, x, y),
+            Weights::Sparse(c) => c,
+        };
+        for (i, (yi, bi)) in y.iter_mut().zip(&self.b).enumerate() {
+            let r = c.start[i]..c.start[i + 1];
+            let mut acc = *bi;
+            for (&j, &w) in c.col[r.clone()].iter().zip(&c.val[r]) {
+                acc += w * x[j as usize];
+            }
+            *yi = acc;
+        }
+    }
+
+    #[inline]
+    fn apply_dense_f64(&self, w: &[f64], x: &[f64], y: &mut [f64]) {
         let skip = self.inp >= 256;
-        for ((yi, row), bi) in y.iter_mut().zip(self.w.chunks_exact(self.inp)).zip(&self.b) {
+        for ((yi, row), bi) in y.iter_mut().zip(w.chunks_exact(self.inp)).zip(&self.b) {
             let mut acc = *bi;
             if skip {
                 for (wij, xj) in row.iter().zip(x) {
@@ -97,6 +449,58 @@ impl Affine {
             }
             *yi = acc;
         }
+    }
+
+    /// Structural check: `Err(index)` of the first non-finite weight or bias (index into
+    /// the stored weights then the biases), `Err(usize::MAX)` on a shape mismatch.
+    fn check(&self) -> Result<(), Option<usize>> {
+        if self.b.len() != self.out {
+            return Err(None);
+        }
+        match &self.w {
+            Weights::Dense(w) => {
+                if w.len() != self.inp.checked_mul(self.out).ok_or(None)? {
+                    return Err(None);
+                }
+            }
+            Weights::Sparse(c) => {
+                let ok = c.start.len() == self.out + 1
+                    && c.start[0] == 0
+                    && c.start.windows(2).all(|p| p[0] <= p[1])
+                    && c.start[self.out] == c.col.len()
+                    && c.col.len() == c.val.len()
+                    && c.start.windows(2).all(|p| {
+                        let r = &c.col[p[0]..p[1]];
+                        r.windows(2).all(|q| q[0] < q[1])
+                            && r.last().is_none_or(|&j| (j as usize) < self.inp)
+                    });
+                if !ok {
+                    return Err(None);
+                }
+            }
+        }
+        match self
+            .stored_weights()
+            .iter()
+            .chain(&self.b)
+            .position(|v| !v.is_finite())
+        {
+            Some(p) => Err(Some(p)),
+            None => Ok(()),
+        }
+    }
+}
+
+impl PartialEq for Affine {
+    /// The same map: dimensions, biases and every row's non-zeros (whatever the storage).
+    fn eq(&self, o: &Affine) -> bool {
+        self.inp == o.inp
+            && self.out == o.out
+            && self.b == o.b
+            && match (&self.w, &o.w) {
+                (Weights::Dense(a), Weights::Dense(b)) => a == b,
+                _ => (0..self.out).all(|i| self.row(i).nonzeros().eq(o.row(i).nonzeros())),
+            }
     }
 }
 
@@ -338,11 +742,10 @@ impl Network {
                         found: a.inp,
                     });
                 }
-                if a.w.len() != a.inp * a.out || a.b.len() != a.out {
-                    return Err(IrError::Shape { layer: k });
-                }
-                if let Some(p) = a.w.iter().chain(&a.b).position(|v| !v.is_finite()) {
-                    return Err(IrError::NonFinite { layer: k, index: p });
+                match a.check() {
+                    Ok(()) => {}
+                    Err(None) => return Err(IrError::Shape { layer: k }),
+                    Err(Some(p)) => return Err(IrError::NonFinite { layer: k, index: p }),
                 }
                 dim = a.out;
             }
@@ -406,15 +809,29 @@ impl Network {
     pub fn stacked(&self, k: usize) -> Network {
         let block = |a: &Affine| {
             let (inp, out) = (a.inp * k, a.out * k);
-            let mut w = vec![0.0; inp * out];
             let mut b = Vec::with_capacity(out);
+            for _ in 0..k {
+                b.extend_from_slice(&a.b);
+            }
+            if a.is_sparse() {
+                let rows = (0..k)
+                    .flat_map(|c| {
+                        (0..a.out).map(move |i| {
+                            a.row(i)
+                                .nonzeros()
+                                .map(|(j, w)| (c * a.inp + j, w))
+                                .collect()
+                        })
+                    })
+                    .collect();
+                return Affine::from_rows(inp, rows, b);
+            }
+            let mut w = vec![0.0; inp * out];
             for c in 0..k {
                 for i in 0..a.out {
-                    for j in 0..a.inp {
-                        w[(c * a.out + i) * inp + c * a.inp + j] = a.weight(i, j);
-                    }
+                    a.row(i)
+                        .for_each_nonzero(|j, v| w[(c * a.out + i) * inp + c * a.inp + j] = v);
                 }
-                b.extend_from_slice(&a.b);
             }
             Affine::new(inp, out, w, b)
         };

@@ -11,6 +11,7 @@ mod nnet;
 mod onnx_legacy_conv;
 mod onnx_reference;
 mod onnx_roundtrip;
+mod sparse_layers;
 mod vnncomp_networks;
 
 /// See [`samara_testkit::assert_every_test_file_is_built`].

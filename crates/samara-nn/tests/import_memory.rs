@@ -45,7 +45,7 @@ fn f64_bytes(n: &Network) -> Vec<u8> {
 /// `W x + b` by the definition, row by row.
 fn apply(a: &Affine, x: &[f64]) -> Vec<f64> {
     (0..a.out)
-        .map(|i| a.b[i] + (0..a.inp).map(|j| a.w[i * a.inp + j] * x[j]).sum::<f64>())
+        .map(|i| a.b[i] + (0..a.inp).map(|j| a.weight(i, j) * x[j]).sum::<f64>())
         .collect()
 }
 

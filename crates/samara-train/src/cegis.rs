@@ -395,7 +395,7 @@ fn mlp_of(net: &Network, arch: &[usize], relu_output: bool) -> Mlp {
         .layers
         .iter()
         .filter_map(|l| match l {
-            Layer::Affine(a) => Some(a.w.iter().chain(&a.b).copied()),
+            Layer::Affine(a) => Some(a.to_dense().into_owned().into_iter().chain(a.b.clone())),
             _ => None,
         })
         .flatten()

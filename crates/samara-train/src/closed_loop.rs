@@ -255,7 +255,9 @@ mod tests {
             .layers
             .iter()
             .filter_map(|l| match l {
-                samara_nn::Layer::Affine(a) => Some(a.w.iter().chain(&a.b).copied()),
+                samara_nn::Layer::Affine(a) => {
+                    Some(a.to_dense().into_owned().into_iter().chain(a.b.clone()))
+                }
                 _ => None,
             })
             .flatten()

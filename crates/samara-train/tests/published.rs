@@ -164,7 +164,7 @@ fn published_constants_file_is_understood() {
     )
     .unwrap();
     let den = out.network.output_denorm.as_ref().unwrap();
-    assert_eq!((den.b[0], den.w[0]), (0.181, 0.012));
+    assert_eq!((den.b[0], den.weight(0, 0)), (0.181, 0.012));
 }
 
 #[test]

@@ -21,11 +21,8 @@ pub fn exact_outputs(net: &PwlNet, x: &[f64]) -> Option<Vec<BigRational>> {
         let mut z = Vec::with_capacity(m.out);
         for i in 0..m.out {
             let mut acc = q(m.b[i])?;
-            for j in 0..m.inp {
-                let w = m.w[i * m.inp + j];
-                if w != 0.0 {
-                    acc += q(w)? * &a[j];
-                }
+            for (j, w) in m.row(i).nonzeros() {
+                acc += q(w)? * &a[j];
             }
             if *relu && acc.is_negative() {
                 acc = BigRational::zero();

@@ -299,7 +299,7 @@ impl Drop for Prepared<'_> {
             .pwl
             .values()
             .flatten()
-            .flat_map(|p| p.maps.iter().map(|(a, _)| a.w.len()))
+            .flat_map(|p| p.maps.iter().map(|(a, _)| a.stored()))
             .sum();
         if weights > FREE_APART_WEIGHTS {
             let pwl = std::mem::take(&mut self.pwl);

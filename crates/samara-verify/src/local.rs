@@ -197,11 +197,8 @@ fn jacobian(net: &PwlNet, phases: &[Vec<bool>]) -> Option<Vec<Vec<BigRational>>>
             let active = !*relu || phases.get(r).and_then(|ph| ph.get(i)).copied()?;
             let mut row = vec![BigRational::zero(); n];
             if active {
-                for (k, jk) in j.iter().enumerate() {
-                    let w = m.w[i * m.inp + k];
-                    if w == 0.0 {
-                        continue;
-                    }
+                for (k, w) in m.row(i).nonzeros() {
+                    let jk = &j[k];
                     let w = q(w)?;
                     for (c, v) in jk.iter().enumerate() {
                         if !v.is_zero() {

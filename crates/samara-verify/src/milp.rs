@@ -176,12 +176,7 @@ pub fn optimise_milp(q: &Query, nets: &HashMap<String, PwlNet>) -> Result<Option
                     }
                 }
                 let rows: Vec<Vec<(Col, f64)>> = (0..m.out)
-                    .map(|r| {
-                        (0..m.inp)
-                            .filter(|&j| m.w[r * m.inp + j] != 0.0)
-                            .map(|j| (prev[j], m.w[r * m.inp + j]))
-                            .collect()
-                    })
+                    .map(|r| m.row(r).nonzeros().map(|(j, w)| (prev[j], w)).collect())
                     .collect();
                 if *relu {
                     for r in 0..m.out {

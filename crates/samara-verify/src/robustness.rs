@@ -124,12 +124,9 @@ fn gradient_bounds(
         for (m, relu) in &net.maps {
             let mut next = vec![vec![0.0; n0]; m.out];
             for i in 0..m.out {
-                for j in 0..m.inp {
-                    let w = m.w[i * m.inp + j];
-                    if w != 0.0 {
-                        for c in 0..n0 {
-                            next[i][c] += w * jac[j][c];
-                        }
+                for (j, w) in m.row(i).nonzeros() {
+                    for c in 0..n0 {
+                        next[i][c] += w * jac[j][c];
                     }
                 }
             }
@@ -208,11 +205,8 @@ fn pattern_meets_box(net: &PwlNet, lo: &[f64], hi: &[f64], ph: &[Vec<i8>]) -> bo
         lp.hi.extend_from_slice(&zh);
         for i in 0..m.out {
             let mut row = vec![(zs[i], 1.0)];
-            for j in 0..m.inp {
-                let w = m.w[i * m.inp + j];
-                if w != 0.0 {
-                    row.push((prev[j], -w));
-                }
+            for (j, w) in m.row(i).nonzeros() {
+                row.push((prev[j], -w));
             }
             lp.eq.push((row, m.b[i]));
         }

@@ -56,13 +56,12 @@ pub fn product(nets: &[&PwlNet]) -> Vec<(Affine, bool)> {
             let cols = if split { 2 * m.inp } else { m.inp };
             let mut rows = vec![0.0; m.out * cols];
             for i in 0..m.out {
-                for j in 0..m.inp {
-                    let c = m.w[i * m.inp + j];
+                m.row(i).for_each_nonzero(|j, c| {
                     rows[i * cols + j] = c;
                     if split {
                         rows[i * cols + m.inp + j] = -c;
                     }
-                }
+                });
             }
             let carry = relu && !own_relu;
             if carry {
@@ -115,8 +114,8 @@ fn block_diagonal(blocks: &[(Affine, bool)]) -> Affine {
     let (mut r0, mut c0) = (0, 0);
     for (m, _) in blocks {
         for i in 0..m.out {
-            w[(r0 + i) * inp + c0..(r0 + i) * inp + c0 + m.inp]
-                .copy_from_slice(&m.w[i * m.inp..(i + 1) * m.inp]);
+            let wi = &mut w[(r0 + i) * inp + c0..(r0 + i) * inp + c0 + m.inp];
+            m.row(i).for_each_nonzero(|j, v| wi[j] = v);
         }
         b.extend_from_slice(&m.b);
         r0 += m.out;

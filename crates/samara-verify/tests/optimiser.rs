@@ -187,7 +187,7 @@ fn enumerate(c: &Case, pwl: &[PwlNet]) -> (Option<f64>, f64, usize) {
                         let mut f = vec![0.0; n];
                         let mut d = m.b[i];
                         for (j, (aj, dj)) in a.iter().enumerate() {
-                            let w = m.w[i * m.inp + j];
+                            let w = m.weight(i, j);
                             for (fk, ak) in f.iter_mut().zip(aj) {
                                 *fk += w * ak;
                             }

@@ -1,5 +1,5 @@
 //! Lowering a piecewise-linear [`Graph`] to the chain [`Network`] the verifier reads:
-//! dense affine maps each followed by ReLU.
+//! affine maps (dense or sparse) each followed by ReLU.
 //!
 //! The lowering walks the nodes in order keeping every live tensor as an affine
 //! function `A z + c` of the current chain state `z` (the network's input, then the
@@ -19,16 +19,18 @@
 //! - `Sigmoid`/`Tanh`/`Sign`: a layer of that activation, only when no other tensor is
 //!   live (`Sign`, a step, has its own bound rule in `samara-bounds`).
 //!
-//! While lowering, the maps are kept by sparse columns; the layers emitted are dense (the
-//! chain IR's [`Affine`]): a layer of `m` neurons over a state of `n` takes `m n` f64.
-//! Every layer emitted is charged to the import's memory [`Budget`] before it is
-//! allocated, and the live tensors' sparse maps must fit in what is left of it; past
-//! it, lowering refuses naming the node, the bytes needed and allowed and the
-//! environment variable that raises the limit (e.g. a 16x32x32 convolution over a
-//! 16x32x32 state, CIFAR ResNets, needs 2 GiB per layer).
+//! While lowering, the maps are kept by sparse columns; a layer emitted (the chain IR's
+//! [`Affine`]) is stored by sparse rows when fewer than [`SPARSE_DENSITY`] of its
+//! entries are non-zero (a convolution's neuron reads a kernel's patch of the image:
+//! 12 bytes per non-zero), dense otherwise (a layer of `m` neurons over a state of `n`
+//! takes `m n` f64; fully connected layers). Every layer emitted is charged to the
+//! import's memory [`Budget`] before it is allocated (its non-zeros when sparse), and
+//! the live tensors' sparse maps must fit in what is left of it; past it, lowering
+//! refuses naming the node, the bytes needed and allowed and the environment variable
+//! that raises the limit.
 
 use super::Graph;
-use crate::ir::{Activation, Affine, Layer, Network};
+use crate::ir::{Activation, Affine, Layer, Network, SPARSE_DENSITY};
 use crate::limits::{show_bytes, Budget};
 use crate::ops::elementwise::{BinOp, UnOp};
 use crate::ops::{pool, Op, Tensor};
@@ -156,6 +158,54 @@ impl Lin {
     }
 }
 
+impl Lin {
+    /// Whether the layer of `A` is stored sparse: fewer than [`SPARSE_DENSITY`] of its
+    /// entries stored (duplicates counted: an upper bound on the non-zeros), and at
+    /// least 64 columns ([`Affine::compact`]'s rule).
+    fn sparse(&self) -> bool {
+        let (m, zd) = (self.rows(), self.cols.len());
+        zd >= 64
+            && zd <= u32::MAX as usize
+            && (self.stored() as f64) < SPARSE_DENSITY * m as f64 * zd as f64
+    }
+
+    /// The f64s the layer of `A` takes: `rows x zdim` dense; sparse, 12 bytes (a u32
+    /// column and an f64) per stored entry and a row start per row.
+    fn layer_values(&self) -> usize {
+        if self.sparse() {
+            let s = self.stored();
+            s.saturating_add(s / 2).saturating_add(self.rows() + 1)
+        } else {
+            self.rows().saturating_mul(self.cols.len())
+        }
+    }
+
+    /// The layer `A z + c` ([`Lin::sparse`] decides the storage), to be charged first
+    /// ([`Lin::layer_values`]); `Err` ([`crate::limits::TIMED_OUT`]) once `budget`'s
+    /// deadline has passed.
+    fn layer(&self, budget: &Budget) -> Result<Affine, String> {
+        let zd = self.cols.len();
+        if !self.sparse() {
+            return Ok(Affine::new(
+                zd,
+                self.rows(),
+                self.matrix(budget)?,
+                self.c.clone(),
+            ));
+        }
+        let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); self.rows()];
+        for (j, col) in self.cols.iter().enumerate() {
+            if j % CHECK_EVERY == 0 {
+                budget.check_time()?;
+            }
+            for &(i, v) in col.iter().flatten() {
+                rows[i as usize].push((j, v));
+            }
+        }
+        Ok(Affine::from_rows(zd, rows, self.c.clone()))
+    }
+}
+
 /// How many columns (or rows) a long loop of the lowering goes through between two
 /// looks at the clock ([`Budget::check_time`]).
 const CHECK_EVERY: usize = 1024;
@@ -209,13 +259,20 @@ fn graph_err(message: String) -> LowerError {
 }
 
 impl Lower<'_> {
-    /// Charge a dense `rows x cols` layer the node emits to the budget.
-    fn charge(&self, node: usize, rows: usize, cols: usize) -> Result<(), LowerError> {
+    /// Charge the layer `l` the node emits to the budget ([`Lin::layer_values`]), then
+    /// build it.
+    fn emit(&self, node: usize, l: &Lin) -> Result<Affine, LowerError> {
+        let (rows, cols) = (l.rows(), l.cols.len());
         self.budget
-            .charge(rows.saturating_mul(cols), &|| {
-                format!("lowering to dense layers: its {rows} x {cols} map")
+            .charge(l.layer_values(), &|| match l.sparse() {
+                true => format!(
+                    "lowering to sparse layers: its {rows} x {cols} map ({} non-zeros)",
+                    l.stored()
+                ),
+                false => format!("lowering to dense layers: its {rows} x {cols} map"),
             })
-            .map_err(|m| err(self.g, node, m))
+            .map_err(|m| err(self.g, node, m))?;
+        l.layer(self.budget).map_err(|m| err(self.g, node, m))
     }
 
     /// Whether a live tensor's map of `stored` entries fits in what is left of the
@@ -229,7 +286,7 @@ impl Lower<'_> {
             self.g,
             node,
             format!(
-                "lowering to dense layers: the maps of the live tensors store {stored} entries ({}), more than is left of the import's {} (used: {}); raise the limit with {}=<size> if the machine has the memory",
+                "lowering: the maps of the live tensors store {stored} entries ({}), more than is left of the import's {} (used: {}); raise the limit with {}=<size> if the machine has the memory",
                 show_bytes(stored as u64 * 16),
                 show_bytes(self.budget.allowed()),
                 show_bytes(self.budget.used()),
@@ -652,13 +709,11 @@ impl Lower<'_> {
             srcs.push(l.clone());
         }
         let m = all_rows.len();
-        self.charge(ni, m, self.zdim)?;
         let refs: Vec<&Lin> = srcs.iter().collect();
         let pre =
             Lin::combine(&refs, &all_rows, false, self.budget).map_err(|m| err(self.g, ni, m))?;
-        let w = pre.matrix(self.budget).map_err(|m| err(self.g, ni, m))?;
-        self.layers
-            .push(Layer::Affine(Affine::new(self.zdim, m, w, pre.c.clone())));
+        let layer = self.emit(ni, &pre)?;
+        self.layers.push(Layer::Affine(layer));
         self.layers.push(Layer::Act(Activation::Relu));
         self.zdim = m;
         let _ = own;
@@ -963,10 +1018,8 @@ impl Lower<'_> {
                     return refuse("a smooth or step activation while another branch is live");
                 }
                 let n = x.rows();
-                self.charge(ni, n, self.zdim)?;
-                let w = x.matrix(self.budget).map_err(|m| err(g, ni, m))?;
-                self.layers
-                    .push(Layer::Affine(Affine::new(self.zdim, n, w, x.c.clone())));
+                let layer = self.emit(ni, &x)?;
+                self.layers.push(Layer::Affine(layer));
                 self.layers.push(Layer::Act(match u {
                     UnOp::Sigmoid => Activation::Sigmoid,
                     UnOp::Sign => Activation::Sign,
@@ -998,7 +1051,7 @@ pub fn lower(g: &Graph) -> Result<Network, LowerError> {
     lower_within(g, &budget)
 }
 
-/// [`lower`], charging every dense layer to `budget` before it is allocated.
+/// [`lower`], charging every layer to `budget` before it is allocated.
 pub fn lower_within(g: &Graph, budget: &Budget) -> Result<Network, LowerError> {
     let n_in = g.n_inputs();
     let mut last_use = vec![0usize; g.values.len()];
@@ -1038,12 +1091,13 @@ pub fn lower_within(g: &Graph, budget: &Budget) -> Result<Network, LowerError> {
     let m = out.rows();
     let zd = lw.zdim;
     budget
-        .charge(m.saturating_mul(zd), &|| {
-            format!("lowering to dense layers: the output's {m} x {zd} map")
+        .charge(out.layer_values(), &|| {
+            let form = if out.sparse() { "sparse" } else { "dense" };
+            format!("lowering to {form} layers: the output's {m} x {zd} map")
         })
         .map_err(graph_err)?;
-    let w = out.matrix(budget).map_err(graph_err)?;
-    lw.layers.push(Layer::Affine(Affine::new(zd, m, w, out.c)));
+    lw.layers
+        .push(Layer::Affine(out.layer(budget).map_err(graph_err)?));
     let iname = &g.values[g.input].name;
     let oname = &g.values[g.output].name;
     let net = Network {

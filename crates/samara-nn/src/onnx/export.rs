@@ -95,7 +95,7 @@ fn node(
 }
 
 fn is_diagonal(a: &Affine) -> bool {
-    a.inp == a.out && (0..a.out).all(|i| (0..a.inp).all(|j| i == j || a.w[i * a.inp + j] == 0.0))
+    a.inp == a.out && (0..a.out).all(|i| a.row(i).nonzeros().all(|(j, _)| i == j))
 }
 
 /// Build the ONNX model of a network: `Gemm` per dense layer (`transB = 1`), `Relu`,
@@ -132,7 +132,7 @@ pub fn export(net: &Network, o: &ExportOptions) -> ModelProto {
         let out = format!("t{k}");
         match layer {
             Layer::Affine(a) if norm && is_diagonal(&a) => {
-                let d: Vec<f64> = (0..a.out).map(|i| a.w[i * a.inp + i]).collect();
+                let d: Vec<f64> = (0..a.out).map(|i| a.weight(i, i)).collect();
                 let (sn, bn, mid) = (format!("scale{k}"), format!("shift{k}"), format!("t{k}m"));
                 inits.push(tensor(&sn, &[a.out], &d, o));
                 inits.push(tensor(&bn, &[a.out], &a.b, o));
@@ -154,7 +154,9 @@ pub fn export(net: &Network, o: &ExportOptions) -> ModelProto {
             }
             Layer::Affine(a) => {
                 let (wn, bn) = (format!("W{k}"), format!("b{k}"));
-                inits.push(tensor(&wn, &[a.out, a.inp], &a.w, o));
+                // ONNX `Gemm` takes a dense matrix: a sparse (lowered convolution's)
+                // map is written dense.
+                inits.push(tensor(&wn, &[a.out, a.inp], &a.to_dense(), o));
                 inits.push(tensor(&bn, &[a.out], &a.b, o));
                 let tb = AttributeProto {
                     name: "transB".into(),

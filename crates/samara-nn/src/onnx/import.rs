@@ -303,10 +303,9 @@ impl Builder<'_> {
     /// row by row (no allocation), else a new diagonal map (`n x n` dense, charged).
     fn push_diag(&mut self, scale: &[f64], bias: &[f64], node: &str) -> Result<(), OnnxError> {
         if let Some(Seg::Affine { a: prev, .. }) = self.segs.last_mut() {
-            let n = prev.inp;
             for (i, (&s, &c)) in scale.iter().zip(bias).enumerate() {
                 // As `compose` with a diagonal map: a zero scale clears the row.
-                let row = &mut prev.w[i * n..(i + 1) * n];
+                let row = prev.row_values_mut(i);
                 if s == 0.0 {
                     row.fill(0.0);
                 } else {
@@ -326,19 +325,15 @@ impl Builder<'_> {
 
 /// `second ∘ first`.
 fn compose(first: &Affine, second: &Affine) -> Affine {
-    let (n, k, m) = (first.inp, first.out, second.out);
+    let (n, m) = (first.inp, second.out);
     let mut w = vec![0.0; m * n];
     let mut b = second.b.clone();
     for i in 0..m {
-        for j in 0..k {
-            let s = second.w[i * k + j];
-            if s != 0.0 {
-                for l in 0..n {
-                    w[i * n + l] += s * first.w[j * n + l];
-                }
-                b[i] += s * first.b[j];
-            }
-        }
+        second.row(i).for_each_nonzero(|j, s| {
+            let wi = &mut w[i * n..(i + 1) * n];
+            first.row(j).for_each_nonzero(|l, f| wi[l] += s * f);
+            b[i] += s * first.b[j];
+        });
     }
     Affine::new(n, m, w, b)
 }
@@ -681,7 +676,7 @@ pub(crate) fn chain_from_bytes(
             )
             .and_then(|(a, s)| {
                 // The map is a copy of the kernel (itself charged as a constant).
-                b.charge(a.w.len(), &nname, &|| {
+                b.charge(a.stored(), &nname, &|| {
                     format!("its {} -> {} map", a.inp, a.out)
                 })?;
                 b.push_affine(a, false, &nname)?;
