@@ -26,11 +26,15 @@ const BLOCK: usize = 4;
 /// over their non-zero entries instead of through the blocks.
 const SPARSE_BELOW: usize = 4;
 
-/// Whether every weight of `maps` is finite: the batched pull-backs multiply the weights
-/// by zero coefficients that the row loop skips, which is harmless only then (`0 * inf`
-/// is a NaN).
+/// Whether every map of `maps` is stored dense with finite weights: the batched
+/// pull-backs multiply the weights by zero coefficients that the row loop skips, which
+/// is harmless only then (`0 * inf` is a NaN); a sparse map (a lowered convolution) goes
+/// by the row loop over its non-zeros.
 pub(super) fn finite(maps: &[(Affine, bool)]) -> bool {
-    maps.iter().all(|(m, _)| m.w.iter().all(|w| w.is_finite()))
+    maps.iter().all(|(m, _)| {
+        m.as_dense()
+            .is_some_and(|w| w.iter().all(|w| w.is_finite()))
+    })
 }
 
 /// `n[.., tb..tb + B] = m w[.., tb..tb + B]` for the rows `rb..rb + 4` of `m` (row stride
@@ -146,7 +150,7 @@ impl Live {
             };
             let mut w = Vec::with_capacity(idx.len() * cols.len());
             for &i in &idx {
-                let row = &m.w[i * m.inp..(i + 1) * m.inp];
+                let row = m.dense_row(i);
                 w.extend(cols.iter().map(|&t| row[t]));
             }
             self.layers.push(LiveLayer {
@@ -206,7 +210,7 @@ pub(super) fn pull_units(
                 let cmag = 0.0f64.abs() + p.abs();
                 let wmag = 0.0 + s.abs() * rowmag[j][i];
                 err[q] += g * (cmag + wmag);
-                let w = &m.w[i * m.inp..(i + 1) * m.inp];
+                let w = m.dense_row(i);
                 for (o, &t) in nu[q * n..(q + 1) * n].iter_mut().zip(cols) {
                     *o = 0.0 + s * w[t];
                 }
