@@ -1,6 +1,6 @@
 //! P1-P4 critical values of raw-unit 6-input networks by samara's exact engine and by the
 //! HiGHS big-M MILP (`samara_verify::milp`), with times (bench/verify/wide.sh).
-//! Usage: cargo run --release -p samara-verify --features highs --example wide_milp -- [--timeout S] [--only pK] [--no-sweep] NET.onnx...
+//! Usage: cargo run --release -p samara-verify --features highs --example wide_milp -- [--timeout S] [--only pK] [--fix C] [--no-sweep] [--tol T] NET.onnx...
 //! `--timeout S` (default 600) bounds each property's samara search and, separately, its
 //! whole HiGHS computation (LP bounds and MILP: an error row then). CSV columns: network,
 //! property, samara's value, bound, completeness and wall seconds, HiGHS's value and wall
@@ -48,9 +48,20 @@ fn main() {
     // `--no-sweep` (anywhere) leaves out the output-constrained bound sweep.
     let sweep = !args.iter().any(|a| a == "--no-sweep");
     args.retain(|a| a != "--no-sweep");
+    // `--tol T` (anywhere): HiGHS's MIP and primal feasibility tolerances.
+    let mut tol = None;
+    if let Some(i) = args.iter().position(|a| a == "--tol") {
+        tol = Some(
+            args.get(i + 1)
+                .and_then(|t| t.parse::<f64>().ok())
+                .expect("--tol T: a number"),
+        );
+        args.drain(i..i + 2);
+    }
     let mut milp = MilpOptions {
         time_limit: 600.0,
         sweep,
+        feasibility_tolerance: tol,
     };
     if args.first().map(String::as_str) == Some("--timeout") && args.len() >= 2 {
         let secs: f64 = args[1].parse().expect("--timeout S: a number of seconds");
@@ -62,6 +73,16 @@ fn main() {
     let mut only: Option<String> = None;
     if args.first().map(String::as_str) == Some("--only") && args.len() >= 2 {
         only = Some(args[1].clone());
+        args.drain(..2);
+    }
+    // `--fix C` (next) pins the free parameter (ystar) to C in both engines: HiGHS's
+    // MILP is then a feasibility question on a sliver of the box (value C: a
+    // counterexample exists at ystar = C; empty: none), which its LP bounds handle far
+    // better than the optimisation over every ystar. Bracketing samara's critical value
+    // v with C = v -+ d checks it to d.
+    let mut fix: Option<f64> = None;
+    if args.first().map(String::as_str) == Some("--fix") && args.len() >= 2 {
+        fix = Some(args[1].parse().expect("--fix C: a number"));
         args.drain(..2);
     }
     for path in args {
@@ -83,9 +104,14 @@ fn main() {
         // file (normalised inputs and output, like the published ones), in the spec's
         // normalised units.
         let raw = !name.ends_with("_norm");
-        for q in p1_to_p4(raw) {
+        for mut q in p1_to_p4(raw) {
             if only.as_ref().is_some_and(|o| *o != q.name) {
                 continue;
+            }
+            if let Some(c) = fix {
+                for f in &mut q.free_vars {
+                    (f.1, f.2) = (c, c);
+                }
             }
             let (t, c) = (Instant::now(), cpu_seconds());
             let ours = optimise(

@@ -56,6 +56,11 @@ pub struct MilpOptions {
     /// whole relaxation with the region's output constraints (see `sweep`), then
     /// encode the MILP with those bounds.
     pub sweep: bool,
+    /// HiGHS's MIP and primal feasibility tolerances (`None`: its defaults, 1e-6 and
+    /// 1e-7). An indicator within 1e-6 of 0 or 1 times a big-M of tens leaves a ReLU
+    /// 1e-5 of slack, so a point "feasible" by the defaults may miss the property's
+    /// output constraint by that much: a cross-check at 1e-5 needs them tighter.
+    pub feasibility_tolerance: Option<f64>,
 }
 
 impl Default for MilpOptions {
@@ -63,6 +68,7 @@ impl Default for MilpOptions {
         Self {
             time_limit: TIME_LIMIT_S,
             sweep: true,
+            feasibility_tolerance: None,
         }
     }
 }
@@ -667,6 +673,10 @@ pub fn optimise_milp_with(
         model.set_option("time_limit", left.min(1e20));
         model.set_option("mip_rel_gap", MIP_GAP);
         model.set_option("mip_abs_gap", MIP_GAP);
+        if let Some(t) = opts.feasibility_tolerance {
+            model.set_option("mip_feasibility_tolerance", t);
+            model.set_option("primal_feasibility_tolerance", t);
+        }
         let solved = model.try_solve();
         stats.milp_seconds += t_milp.elapsed().as_secs_f64();
         let mut solved = solved.map_err(|e| MilpError::Solver(format!("MILP: {e:?}")))?;

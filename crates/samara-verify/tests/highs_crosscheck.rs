@@ -85,13 +85,15 @@ fn random_networks_agree_with_highs() {
                 label: "y".into(),
             },
         };
-        // With and without the second (output-constrained) bound sweep.
-        for sweep in [true, false] {
+        // With and without the second (output-constrained) bound sweep, and with
+        // HiGHS's feasibility tolerances tightened to 1e-9.
+        for (sweep, tol) in [(true, None), (false, None), (true, Some(1e-9))] {
             check(
                 &q,
                 &nets,
                 &MilpOptions {
                     sweep,
+                    feasibility_tolerance: tol,
                     ..Default::default()
                 },
             );
