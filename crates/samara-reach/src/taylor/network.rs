@@ -420,7 +420,7 @@ mod tests {
         use samara_nn::{Activation, Affine, Layer};
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(23);
         let mut rnd = |s: f64| s * rng.gen_range(-1.0..1.0);
-        let mut dense = |inp: usize, out: usize, rnd: &mut dyn FnMut(f64) -> f64| {
+        let dense = |inp: usize, out: usize, rnd: &mut dyn FnMut(f64) -> f64| {
             let w = (0..inp * out).map(|_| rnd(0.8)).collect();
             let b = (0..out).map(|_| rnd(0.3)).collect();
             Affine::new(inp, out, w, b)
