@@ -100,21 +100,24 @@ def main() -> int:
         owner += [i] * len(pts)
     x = np.array(starts)
     owner = np.array(owner)
-    # Per leaf, its instants as arrays: leaf -> (K, 4, 2).
-    sets = [np.array(leaf["instants"]) for leaf in leaves]
+    # Every leaf's sets as one array (leaf, instant, state, lo/hi); the instants after a
+    # sub-box stopped are NaN and not checked.
+    k_max = max(len(leaf["instants"]) for leaf in leaves)
+    sets = np.full((len(leaves), k_max, 4, 2), np.nan)
+    for i, leaf in enumerate(leaves):
+        sets[i, : len(leaf["instants"])] = np.array(leaf["instants"])
     worst, checked, margin = -np.inf, 0, np.inf
 
     def check(x, k):
         nonlocal worst, checked
-        for i in np.unique(owner):
-            s = sets[i]
-            if k >= len(s):
-                continue  # the sub-box stopped before this instant
-            sel = owner == i
-            lo, hi = s[k][:, 0], s[k][:, 1]
-            ex = np.maximum(lo - x[sel], x[sel] - hi).max()
-            worst = max(worst, ex)
-            checked += int(sel.sum())
+        if k >= k_max:
+            return
+        s = sets[owner, k]
+        ok = ~np.isnan(s[:, 0, 0])
+        ex = np.maximum(s[ok, :, 0] - x[ok], x[ok] - s[ok, :, 1])
+        if ok.any():
+            worst = max(worst, ex.max())
+        checked += int(ok.sum())
 
     check(x, 0)
     h = 0.01
