@@ -197,7 +197,7 @@ fn affine_tm(a: &Affine, x: &[Tm]) -> Vec<Tm> {
     let mut mag = vec![0.0; k];
     (0..a.out)
         .map(|i| {
-            let row = &a.w[i * a.inp..(i + 1) * a.inp];
+            let row = a.dense_row(i);
             s.iter_mut().for_each(|v| *v = 0.0);
             mag.iter_mut().for_each(|v| *v = 0.0);
             s[0] = a.b[i];
