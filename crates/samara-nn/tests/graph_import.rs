@@ -336,23 +336,7 @@ fn operators_match_hand_computed_values() {
 }
 
 fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
-    proto::ValueInfoProto {
-        name: name.into(),
-        r#type: Some(proto::TypeProto {
-            tensor_type: Some(proto::TypeProtoTensor {
-                elem_type: proto::FLOAT,
-                shape: Some(proto::TensorShapeProto {
-                    dim: dims
-                        .iter()
-                        .map(|&d| proto::Dimension {
-                            dim_value: Some(d),
-                            dim_param: None,
-                        })
-                        .collect(),
-                }),
-            }),
-        }),
-    }
+    proto::ValueInfoProto::tensor(name, proto::FLOAT, dims)
 }
 
 fn op(op_type: &str, inputs: &[&str], out: &str, axis: Option<i64>) -> proto::NodeProto {

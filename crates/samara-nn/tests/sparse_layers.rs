@@ -24,12 +24,7 @@ fn tensor(name: &str, dims: &[i64], rng: &mut ChaCha8Rng) -> proto::TensorProto 
 }
 
 fn ints(name: &str, v: &[i64]) -> proto::AttributeProto {
-    proto::AttributeProto {
-        name: name.into(),
-        ints: v.to_vec(),
-        r#type: 7,
-        ..Default::default()
-    }
+    proto::AttributeProto::ints(name, v)
 }
 
 fn node(
@@ -38,34 +33,11 @@ fn node(
     out: &str,
     attribute: Vec<proto::AttributeProto>,
 ) -> proto::NodeProto {
-    proto::NodeProto {
-        input: inputs.iter().map(|s| s.to_string()).collect(),
-        output: vec![out.into()],
-        name: format!("{op}_{out}"),
-        op_type: op.into(),
-        attribute,
-        ..Default::default()
-    }
+    proto::NodeProto::op(op, inputs, out, attribute)
 }
 
 fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
-    proto::ValueInfoProto {
-        name: name.into(),
-        r#type: Some(proto::TypeProto {
-            tensor_type: Some(proto::TypeProtoTensor {
-                elem_type: proto::FLOAT,
-                shape: Some(proto::TensorShapeProto {
-                    dim: dims
-                        .iter()
-                        .map(|&d| proto::Dimension {
-                            dim_value: Some(d),
-                            dim_param: None,
-                        })
-                        .collect(),
-                }),
-            }),
-        }),
-    }
+    proto::ValueInfoProto::tensor(name, proto::FLOAT, dims)
 }
 
 /// A random graph on a `c x 16 x 16` image: Conv (3x3, stride 1 or 2, padded) + Relu, a

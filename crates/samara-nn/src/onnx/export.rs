@@ -1,7 +1,5 @@
-use super::proto::{
-    self, AttributeProto, Dimension, GraphProto, ModelProto, NodeProto, OperatorSetIdProto,
-};
-use super::proto::{TensorProto, TensorShapeProto, TypeProto, TypeProtoTensor, ValueInfoProto};
+use super::proto::{self, AttributeProto, GraphProto, ModelProto, NodeProto, OperatorSetIdProto};
+use super::proto::{TensorProto, ValueInfoProto};
 use crate::ir::{Activation, Affine, Layer, Network};
 use prost::Message;
 use std::path::Path;
@@ -55,26 +53,7 @@ fn tensor(name: &str, dims: &[usize], data: &[f64], o: &ExportOptions) -> Tensor
 }
 
 fn value_info(name: &str, dim: usize, o: &ExportOptions) -> ValueInfoProto {
-    ValueInfoProto {
-        name: name.into(),
-        r#type: Some(TypeProto {
-            tensor_type: Some(TypeProtoTensor {
-                elem_type: elem_type(o),
-                shape: Some(TensorShapeProto {
-                    dim: vec![
-                        Dimension {
-                            dim_value: Some(1),
-                            dim_param: None,
-                        },
-                        Dimension {
-                            dim_value: Some(dim as i64),
-                            dim_param: None,
-                        },
-                    ],
-                }),
-            }),
-        }),
-    }
+    ValueInfoProto::tensor(name, elem_type(o), &[1, dim as i64])
 }
 
 fn node(

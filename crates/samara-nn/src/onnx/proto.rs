@@ -164,3 +164,54 @@ pub const INT32: i32 = 6;
 pub const INT64: i32 = 7;
 /// ONNX DataType DOUBLE.
 pub const DOUBLE: i32 = 11;
+
+impl ValueInfoProto {
+    /// A tensor input or output `name` of element type `elem_type` (e.g. [`FLOAT`]) and
+    /// fixed shape `dims`: what an exporter or a test writing a graph by hand declares.
+    pub fn tensor(name: &str, elem_type: i32, dims: &[i64]) -> Self {
+        ValueInfoProto {
+            name: name.into(),
+            r#type: Some(TypeProto {
+                tensor_type: Some(TypeProtoTensor {
+                    elem_type,
+                    shape: Some(TensorShapeProto {
+                        dim: dims
+                            .iter()
+                            .map(|&d| Dimension {
+                                dim_value: Some(d),
+                                dim_param: None,
+                            })
+                            .collect(),
+                    }),
+                }),
+            }),
+        }
+    }
+}
+
+impl AttributeProto {
+    /// An `INTS` attribute (type 7): strides, pads, kernel shapes, axes.
+    pub fn ints(name: &str, v: &[i64]) -> Self {
+        AttributeProto {
+            name: name.into(),
+            ints: v.to_vec(),
+            r#type: 7,
+            ..Default::default()
+        }
+    }
+}
+
+impl NodeProto {
+    /// A node of operator `op` reading `inputs` and writing the one output `out`, named
+    /// `{op}_{out}` (unique as long as the outputs are).
+    pub fn op(op: &str, inputs: &[&str], out: &str, attribute: Vec<AttributeProto>) -> Self {
+        NodeProto {
+            input: inputs.iter().map(|s| s.to_string()).collect(),
+            output: vec![out.into()],
+            name: format!("{op}_{out}"),
+            op_type: op.into(),
+            attribute,
+            ..Default::default()
+        }
+    }
+}
