@@ -80,6 +80,15 @@ def rhs(x, u):
     )
 
 
+def rk4(x, u, h):
+    """One classic RK4 step of length h of dynamics.m, the control u held."""
+    k1 = rhs(x, u)
+    k2 = rhs(x + h / 2 * k1, u)
+    k3 = rhs(x + h / 2 * k2, u)
+    k4 = rhs(x + h * k3, u)
+    return x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+
+
 def main() -> int:
     ap = argparse.ArgumentParser()
     ap.add_argument("model")
@@ -124,11 +133,7 @@ def main() -> int:
     for k in range(40):
         u = net(x)
         for _ in range(100):
-            k1 = rhs(x, u)
-            k2 = rhs(x + h / 2 * k1, u)
-            k3 = rhs(x + h / 2 * k2, u)
-            k4 = rhs(x + h * k3, u)
-            x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+            x = rk4(x, u, h)
             g = 0.2 + 2 * N * np.hypot(x[:, 0], x[:, 1]) - np.hypot(x[:, 2], x[:, 3])
             margin = min(margin, g.min())
         check(x, k + 1)

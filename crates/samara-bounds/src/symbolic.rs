@@ -1542,7 +1542,7 @@ fn crown_pre_core(
     lins: Option<&mut PreLinear>,
     sp: Option<&Sparse>,
 ) -> Vec<Vec<(f64, f64)>> {
-    crown_pre_core_rows(maps, lo, hi, fwd, from, deadline, lins, sp, None)
+    crown_pre_core_with(maps, lo, hi, fwd, from, deadline, lins, sp, None, true)
 }
 
 /// [`crown_pre_from`] with the row magnitudes of every map given (`rows`, as for
@@ -1556,7 +1556,18 @@ pub(crate) fn crown_pre_from_rows(
     from: usize,
     rows: &[Vec<f64>],
 ) -> Vec<Vec<(f64, f64)>> {
-    crown_pre_core_rows(maps, lo, hi, Some(fwd), from, None, None, None, Some(rows))
+    crown_pre_core_with(
+        maps,
+        lo,
+        hi,
+        Some(fwd),
+        from,
+        None,
+        None,
+        None,
+        Some(rows),
+        true,
+    )
 }
 
 /// The row magnitudes of a map `m` applied to the box `[lo, hi]` whose outputs are
@@ -1573,21 +1584,6 @@ pub(crate) fn rows_with_error(m: &Affine, lo: &[f64], hi: &[f64], err: &[f64]) -
         .zip(err)
         .map(|(r, e)| inflate(r + inflate(e / g)))
         .collect()
-}
-
-#[allow(clippy::too_many_arguments)]
-fn crown_pre_core_rows(
-    maps: &[(Affine, bool)],
-    lo: &[f64],
-    hi: &[f64],
-    fwd: Option<&[Vec<(f64, f64)>]>,
-    from: usize,
-    deadline: Option<std::time::Instant>,
-    lins: Option<&mut PreLinear>,
-    sp: Option<&Sparse>,
-    rows: Option<&[Vec<f64>]>,
-) -> Vec<Vec<(f64, f64)>> {
-    crown_pre_core_with(maps, lo, hi, fwd, from, deadline, lins, sp, rows, true)
 }
 
 /// The neurons of one batch of [`crown_layer_batched`]: 16 (32 pull-backs, whose
@@ -1648,9 +1644,11 @@ fn crown_layer_batched(
     (bounds, ls)
 }
 
-/// [`crown_pre_core_rows`] with the batched pull-backs ([`crown_layer_batched`]) allowed
-/// or not (`batch_ok`; the row-by-row loop is the reference the batches are tested
-/// against).
+/// CROWN's intermediate bounds of `maps` over `[lo, hi]` from layer `from` on (the
+/// common core of [`crown_pre_from`] and [`crown_pre_from_rows`]): `rows` the maps' row
+/// magnitudes when given (else computed from the bounds), and the batched pull-backs
+/// ([`crown_layer_batched`]) allowed or not (`batch_ok`; the row-by-row loop is the
+/// reference the batches are tested against).
 #[allow(clippy::too_many_arguments)]
 fn crown_pre_core_with(
     maps: &[(Affine, bool)],
@@ -1925,7 +1923,7 @@ mod tests {
 
     #[test]
     fn crown_bounds_with_slopes_once_per_layer_equal_slopes_per_pull_back() {
-        // `crown_pre_core_rows` computes each layer's chord slopes once and passes them
+        // `crown_pre_core_with` computes each layer's chord slopes once and passes them
         // to every pull-back; the reference below is the per-neuron loop it replaced,
         // each pull-back computing its slopes itself. Bounds and linear functions must
         // be bit for bit the same, on dense chains at three weight scales, wide and

@@ -35,39 +35,21 @@ fn weights(n: usize, scale: f64, seed: u64) -> Vec<f32> {
 fn tensor(name: &str, dims: &[i64], seed: u64) -> proto::TensorProto {
     let n = dims.iter().product::<i64>() as usize;
     let fan_in = (n as f64 / dims[0] as f64).max(1.0);
-    proto::TensorProto {
-        dims: dims.to_vec(),
-        data_type: proto::FLOAT,
-        float_data: weights(n, (3.0 / fan_in).sqrt(), seed),
-        name: name.into(),
-        ..Default::default()
-    }
-}
-
-fn ints(name: &str, v: &[i64]) -> proto::AttributeProto {
-    proto::AttributeProto::ints(name, v)
-}
-
-fn node(
-    op: &str,
-    inputs: &[&str],
-    out: &str,
-    attribute: Vec<proto::AttributeProto>,
-) -> proto::NodeProto {
-    proto::NodeProto::op(op, inputs, out, attribute)
-}
-
-fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
-    proto::ValueInfoProto::tensor(name, proto::FLOAT, dims)
+    proto::TensorProto::float(name, dims, weights(n, (3.0 / fan_in).sqrt(), seed))
 }
 
 /// The generator and discriminator (see the module documentation) as ONNX bytes.
 fn generator() -> Vec<u8> {
-    let k4 = || vec![ints("strides", &[2, 2]), ints("pads", &[1, 1, 1, 1])];
+    let k4 = || {
+        vec![
+            proto::AttributeProto::ints("strides", &[2, 2]),
+            proto::AttributeProto::ints("pads", &[1, 1, 1, 1]),
+        ]
+    };
     let mut nodes = vec![
-        node("Gemm", &["x", "w0", "b0"], "h0", vec![]),
-        node("Reshape", &["h0", "shape"], "r0", vec![]),
-        node("Relu", &["r0"], "a0", vec![]),
+        proto::NodeProto::op("Gemm", &["x", "w0", "b0"], "h0", vec![]),
+        proto::NodeProto::op("Reshape", &["h0", "shape"], "r0", vec![]),
+        proto::NodeProto::op("Relu", &["r0"], "a0", vec![]),
     ];
     let mut init = vec![
         tensor("w0", &[5, 4096], 1),
@@ -87,8 +69,13 @@ fn generator() -> Vec<u8> {
     for (k, &(ci, co)) in up.iter().enumerate() {
         let (w, y, a) = (format!("wu{k}"), format!("u{k}"), format!("au{k}"));
         init.push(tensor(&w, &[ci, co, 4, 4], 10 + k as u64));
-        nodes.push(node("ConvTranspose", &[&prev, &w], &y, k4()));
-        nodes.push(node("Relu", &[&y], &a, vec![]));
+        nodes.push(proto::NodeProto::op(
+            "ConvTranspose",
+            &[&prev, &w],
+            &y,
+            k4(),
+        ));
+        nodes.push(proto::NodeProto::op("Relu", &[&y], &a, vec![]));
         prev = a;
     }
     // Down: 4x64x64 -> 8x32x32 -> 16x16x16 -> 32x8x8, then one score.
@@ -96,13 +83,13 @@ fn generator() -> Vec<u8> {
     for (k, &(ci, co)) in down.iter().enumerate() {
         let (w, y, a) = (format!("wd{k}"), format!("d{k}"), format!("ad{k}"));
         init.push(tensor(&w, &[co, ci, 4, 4], 20 + k as u64));
-        nodes.push(node("Conv", &[&prev, &w], &y, k4()));
-        nodes.push(node("Relu", &[&y], &a, vec![]));
+        nodes.push(proto::NodeProto::op("Conv", &[&prev, &w], &y, k4()));
+        nodes.push(proto::NodeProto::op("Relu", &[&y], &a, vec![]));
         prev = a;
     }
     init.push(tensor("wout", &[1, 32, 8, 8], 30));
-    nodes.push(node("Conv", &[&prev, "wout"], "y4", vec![]));
-    nodes.push(node("Flatten", &["y4"], "y", vec![]));
+    nodes.push(proto::NodeProto::op("Conv", &[&prev, "wout"], "y4", vec![]));
+    nodes.push(proto::NodeProto::op("Flatten", &["y4"], "y", vec![]));
     proto::ModelProto {
         ir_version: 8,
         opset_import: vec![proto::OperatorSetIdProto {
@@ -112,8 +99,8 @@ fn generator() -> Vec<u8> {
         graph: Some(proto::GraphProto {
             node: nodes,
             initializer: init,
-            input: vec![vinfo("x", &[1, 5])],
-            output: vec![vinfo("y", &[1, 1])],
+            input: vec![proto::ValueInfoProto::tensor("x", proto::FLOAT, &[1, 5])],
+            output: vec![proto::ValueInfoProto::tensor("y", proto::FLOAT, &[1, 1])],
             ..Default::default()
         }),
         ..Default::default()

@@ -335,10 +335,6 @@ fn operators_match_hand_computed_values() {
     );
 }
 
-fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
-    proto::ValueInfoProto::tensor(name, proto::FLOAT, dims)
-}
-
 fn op(op_type: &str, inputs: &[&str], out: &str, axis: Option<i64>) -> proto::NodeProto {
     proto::NodeProto {
         input: inputs.iter().map(|s| s.to_string()).collect(),
@@ -385,8 +381,8 @@ fn concat_with_a_negative_constant_is_carried_with_its_sign() {
                 name: "k".into(),
                 ..Default::default()
             }],
-            input: vec![vinfo("x", &[2])],
-            output: vec![vinfo("y", &[5])],
+            input: vec![proto::ValueInfoProto::tensor("x", proto::FLOAT, &[2])],
+            output: vec![proto::ValueInfoProto::tensor("y", proto::FLOAT, &[5])],
             ..Default::default()
         }),
         ..Default::default()
@@ -430,8 +426,8 @@ fn clip_lowering_matches_its_evaluation() {
             graph: Some(proto::GraphProto {
                 node: vec![op("Clip", &["x", "lo", "hi"], "y", None)],
                 initializer: vec![scalar("lo", lo), scalar("hi", hi)],
-                input: vec![vinfo("x", &[3])],
-                output: vec![vinfo("y", &[3])],
+                input: vec![proto::ValueInfoProto::tensor("x", proto::FLOAT, &[3])],
+                output: vec![proto::ValueInfoProto::tensor("y", proto::FLOAT, &[3])],
                 ..Default::default()
             }),
             ..Default::default()

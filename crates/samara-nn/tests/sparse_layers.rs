@@ -14,30 +14,11 @@ use samara_nn::{Affine, Layer, Network};
 
 fn tensor(name: &str, dims: &[i64], rng: &mut ChaCha8Rng) -> proto::TensorProto {
     let n = dims.iter().product::<i64>() as usize;
-    proto::TensorProto {
-        dims: dims.to_vec(),
-        data_type: proto::FLOAT,
-        float_data: (0..n).map(|_| rng.gen_range(-0.6f32..0.6)).collect(),
-        name: name.into(),
-        ..Default::default()
-    }
-}
-
-fn ints(name: &str, v: &[i64]) -> proto::AttributeProto {
-    proto::AttributeProto::ints(name, v)
-}
-
-fn node(
-    op: &str,
-    inputs: &[&str],
-    out: &str,
-    attribute: Vec<proto::AttributeProto>,
-) -> proto::NodeProto {
-    proto::NodeProto::op(op, inputs, out, attribute)
-}
-
-fn vinfo(name: &str, dims: &[i64]) -> proto::ValueInfoProto {
-    proto::ValueInfoProto::tensor(name, proto::FLOAT, dims)
+    proto::TensorProto::float(
+        name,
+        dims,
+        (0..n).map(|_| rng.gen_range(-0.6f32..0.6)).collect(),
+    )
 }
 
 /// A random graph on a `c x 16 x 16` image: Conv (3x3, stride 1 or 2, padded) + Relu, a
@@ -57,32 +38,38 @@ fn random_graph(rng: &mut ChaCha8Rng) -> Vec<u8> {
     };
     let flat = c2 * h3 * h3;
     let nodes = vec![
-        node(
+        proto::NodeProto::op(
             "Conv",
             &["x", "w1", "b1"],
             "y1",
             vec![
-                ints("kernel_shape", &[3, 3]),
-                ints("strides", &[s1, s1]),
-                ints("pads", &[1, 1, 1, 1]),
+                proto::AttributeProto::ints("kernel_shape", &[3, 3]),
+                proto::AttributeProto::ints("strides", &[s1, s1]),
+                proto::AttributeProto::ints("pads", &[1, 1, 1, 1]),
             ],
         ),
-        node("Relu", &["y1"], "a1", vec![]),
-        node(
+        proto::NodeProto::op("Relu", &["y1"], "a1", vec![]),
+        proto::NodeProto::op(
             pool,
             &["a1"],
             "p1",
-            vec![ints("kernel_shape", &[2, 2]), ints("strides", &[2, 2])],
+            vec![
+                proto::AttributeProto::ints("kernel_shape", &[2, 2]),
+                proto::AttributeProto::ints("strides", &[2, 2]),
+            ],
         ),
-        node(
+        proto::NodeProto::op(
             "ConvTranspose",
             &["p1", "w2", "b2"],
             "y2",
-            vec![ints("kernel_shape", &[2, 2]), ints("strides", &[2, 2])],
+            vec![
+                proto::AttributeProto::ints("kernel_shape", &[2, 2]),
+                proto::AttributeProto::ints("strides", &[2, 2]),
+            ],
         ),
-        node("Relu", &["y2"], "a2", vec![]),
-        node("Flatten", &["a2"], "f", vec![]),
-        node(
+        proto::NodeProto::op("Relu", &["y2"], "a2", vec![]),
+        proto::NodeProto::op("Flatten", &["a2"], "f", vec![]),
+        proto::NodeProto::op(
             "Gemm",
             &["f", "w3", "b3"],
             "y",
@@ -111,8 +98,12 @@ fn random_graph(rng: &mut ChaCha8Rng) -> Vec<u8> {
         graph: Some(proto::GraphProto {
             node: nodes,
             initializer: init,
-            input: vec![vinfo("x", &[1, c, 16, 16])],
-            output: vec![vinfo("y", &[1, 5])],
+            input: vec![proto::ValueInfoProto::tensor(
+                "x",
+                proto::FLOAT,
+                &[1, c, 16, 16],
+            )],
+            output: vec![proto::ValueInfoProto::tensor("y", proto::FLOAT, &[1, 5])],
             ..Default::default()
         }),
         ..Default::default()

@@ -62,29 +62,12 @@ fn random_networks_agree_with_highs() {
         let net = Network::random_mlp(&[4, 10, 8, 1], Activation::Relu, 1.0, 0.3, &mut r);
         let mut nets = HashMap::new();
         nets.insert("f".to_string(), net);
-        let q = Query {
-            name: format!("r{case}"),
-            applications: vec![Application {
-                network: "f".into(),
-                n_inputs: 4,
-                n_outputs: 1,
-                input_box: vec![(-1.0, 1.0); 4],
-            }],
-            free_vars: vec![],
-            region: vec![vec![]],
-            goal: Goal::Optimise {
-                objective: LinExpr {
-                    terms: vec![(Var::Output { app: 0, index: 0 }, 1.0)],
-                    constant: 0.0,
-                },
-                sense: if case % 2 == 0 {
-                    Sense::Max
-                } else {
-                    Sense::Min
-                },
-                label: "y".into(),
-            },
+        let sense = if case % 2 == 0 {
+            Sense::Max
+        } else {
+            Sense::Min
         };
+        let q = box_query(&format!("r{case}"), 4, sense);
         // With and without the second (output-constrained) bound sweep, and with
         // HiGHS's feasibility tolerances tightened to 1e-9.
         for (sweep, tol) in [(true, None), (false, None), (true, Some(1e-9))] {
@@ -101,8 +84,9 @@ fn random_networks_agree_with_highs() {
     }
 }
 
-/// `max f(x)` over `[-1, 1]^n` for `net` (input width `n`).
-fn max_query(name: &str, n: usize) -> Query {
+/// `max f(x)` or `min f(x)` (`sense`) over `[-1, 1]^n` for the one-output network `f`
+/// of input width `n`.
+fn box_query(name: &str, n: usize, sense: Sense) -> Query {
     Query {
         name: name.into(),
         applications: vec![Application {
@@ -118,7 +102,7 @@ fn max_query(name: &str, n: usize) -> Query {
                 terms: vec![(Var::Output { app: 0, index: 0 }, 1.0)],
                 constant: 0.0,
             },
-            sense: Sense::Max,
+            sense,
             label: "y".into(),
         },
     }
@@ -134,7 +118,7 @@ fn the_time_limit_bounds_the_lp_bound_phase() {
     let net = Network::random_mlp(&[8, 400, 400, 400, 1], Activation::Relu, 1.0, 0.3, &mut r);
     let pwl: HashMap<String, PwlNet> =
         HashMap::from([("f".to_string(), PwlNet::from_network(&net).unwrap())]);
-    let q = max_query("big", 8);
+    let q = box_query("big", 8, Sense::Max);
     for limit in [0.0, 0.5, 2.0] {
         let t = Instant::now();
         let got = optimise_milp_with(
@@ -172,7 +156,7 @@ fn time_limit_options_are_checked() {
     let net = Network::random_mlp(&[3, 6, 1], Activation::Relu, 1.0, 0.3, &mut r);
     let pwl: HashMap<String, PwlNet> =
         HashMap::from([("f".to_string(), PwlNet::from_network(&net).unwrap())]);
-    let q = max_query("small", 3);
+    let q = box_query("small", 3, Sense::Max);
     for bad in [-1.0, f64::NAN] {
         let got = optimise_milp_with(
             &q,

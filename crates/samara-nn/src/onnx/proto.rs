@@ -165,6 +165,20 @@ pub const INT64: i32 = 7;
 /// ONNX DataType DOUBLE.
 pub const DOUBLE: i32 = 11;
 
+impl TensorProto {
+    /// A `FLOAT` tensor `name` of shape `dims` holding `data` (row-major; its length is
+    /// the product of `dims`, checked by the importer, not here).
+    pub fn float(name: &str, dims: &[i64], data: Vec<f32>) -> Self {
+        TensorProto {
+            dims: dims.to_vec(),
+            data_type: FLOAT,
+            float_data: data,
+            name: name.into(),
+            ..Default::default()
+        }
+    }
+}
+
 impl ValueInfoProto {
     /// A tensor input or output `name` of element type `elem_type` (e.g. [`FLOAT`]) and
     /// fixed shape `dims`: what an exporter or a test writing a graph by hand declares.
