@@ -8,13 +8,15 @@ pub use samara_app::args::{
 use samara_app::bind::timeout_flag;
 use samara_app::robustness::{self, SweepDone};
 use samara_app::vnncomp::{
-    decide, load_instance_logits, result_text, softmax, timed_out_loading, InstanceVerdict,
+    decide, load_instance_logits, result_text, softmax, timed_out_loading, Decided, InstanceVerdict,
 };
 use samara_app::{Holds, VerdictRow};
-use samara_verify::{Settings, Verdict};
-use std::path::Path;
+use samara_verify::route::Engine;
+use samara_verify::{Settings, UnknownReason, Verdict};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::Instant;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::{Duration, Instant};
 
 /// A spec with its networks, parameters and data sets bound (owned by the run).
 pub type Loaded = samara_app::Loaded<'static>;
@@ -159,6 +161,11 @@ fn print_table(r: &robustness::SweepReport, json: bool) -> Result<()> {
 /// Run `samara verify-vnnlib`: prints `unsat` (proved), `sat` (violated, with the
 /// counterexample) or `unknown`, as VNN-COMP tools do. Box-shaped properties go to the
 /// input-split engine, the rest to the exact optimiser ([`samara_verify::route`]).
+///
+/// `--timeout` is a promise: the load and the search look at the clock between steps,
+/// and a backstop ([`start_backstop`]) reports `unknown` and ends the process
+/// [`BACKSTOP_GRACE`] after the limit if they have not returned by then (a step of a
+/// search on an image-sized network, or freeing its gigabytes, can outlast the limit).
 pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
     let start = std::time::Instant::now();
     let timeout = timeout_flag(a.timeout)?;
@@ -168,6 +175,9 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
             r,
             &[("--network", &a.network), ("--property", &a.property)],
         )?;
+    }
+    if let Some(deadline) = timeout.deadline_from(start) {
+        start_backstop(deadline, start, a.json, a.result.clone());
     }
     // `--timeout` counts from the start: loading a wide network (a CIFAR convolution
     // lowered to dense maps) takes seconds of it, minutes for an image-sized generator,
@@ -192,19 +202,92 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
         None => timed_out_loading(start.elapsed().as_secs_f64()),
     };
     d.seconds = start.elapsed().as_secs_f64();
+    if !take_report() {
+        // The backstop is reporting the timeout and ends the process.
+        loop {
+            std::thread::park();
+        }
+    }
+    report_vnnlib(&d, a.json, a.result.as_deref())
+}
+
+/// How long after `--timeout` the backstop of `verify-vnnlib` ([`start_backstop`])
+/// reports `unknown (timeout)` and ends the process, when the run has not reported by
+/// then: half the second the limit promises, the other half for the process's exit.
+pub const BACKSTOP_GRACE: Duration = Duration::from_millis(500);
+
+/// Set by the first of the run and its backstop to report a verdict ([`take_report`]).
+static REPORTED: AtomicBool = AtomicBool::new(false);
+
+/// Whether the caller is the first to report (the run or its backstop): only one of
+/// them prints and writes `--result`.
+fn take_report() -> bool {
+    !REPORTED.swap(true, Ordering::SeqCst)
+}
+
+/// The backstop of `verify-vnnlib --timeout`: a thread that sleeps until
+/// [`BACKSTOP_GRACE`] after `deadline` and then, unless the run has reported, reports
+/// `unknown (timeout)` (stdout, `--json`, `--result` as the run would) and ends the
+/// process with exit 1, without waiting for the step the run is in or for its memory to
+/// be freed. `unknown` is never wrong, so ending the search this way is sound.
+fn start_backstop(deadline: Instant, start: Instant, json: bool, result: Option<PathBuf>) {
+    let at = deadline + BACKSTOP_GRACE;
+    let spawned = std::thread::Builder::new()
+        .name("timeout-backstop".into())
+        .spawn(move || {
+            loop {
+                let now = Instant::now();
+                if now >= at {
+                    break;
+                }
+                std::thread::sleep(at - now);
+            }
+            if !take_report() {
+                return;
+            }
+            let d = Decided {
+                verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
+                engine: Engine::InputSplit,
+                seconds: start.elapsed().as_secs_f64(),
+                outputs: None,
+                note: Some(format!(
+                    "the run had not stopped {} s after the time limit: ended there",
+                    BACKSTOP_GRACE.as_secs_f64()
+                )),
+            };
+            let code = match report_vnnlib(&d, json, result.as_deref()) {
+                Ok(_) => 1,
+                Err(e) => {
+                    eprintln!("error: {}", samara_app::error_text(&e));
+                    2
+                }
+            };
+            use std::io::Write;
+            let _ = std::io::stdout().flush();
+            std::process::exit(code);
+        });
+    if let Err(e) = spawned {
+        // Without the thread the limit rests on the run's own clock checks.
+        eprintln!("warning: no time-limit backstop thread: {e}");
+    }
+}
+
+/// Print a `verify-vnnlib` verdict (text or `--json`), its note and reason on stderr,
+/// and write `--result`; the exit code (0 for `unsat`, 1 otherwise).
+fn report_vnnlib(d: &Decided, json: bool, result: Option<&Path>) -> Result<ExitCode> {
     if let Some(n) = &d.note {
         eprintln!("note: {n}");
     }
-    if let Some(r) = &a.result {
-        samara_report::write_atomic(r, result_text(&d).as_bytes())
+    if let Some(r) = result {
+        samara_report::write_atomic(r, result_text(d).as_bytes())
             .map_err(|e| anyhow!("--result {}: {e}", r.display()))?;
     }
-    let doc = InstanceVerdict::of(&d);
-    if a.json {
+    let doc = InstanceVerdict::of(d);
+    if json {
         println!("{}", serde_json::to_value(&doc)?);
     } else {
         match &d.verdict {
-            Verdict::Violated(_) => print!("{}", result_text(&d)),
+            Verdict::Violated(_) => print!("{}", result_text(d)),
             _ => println!("{}", doc.result),
         }
         if let Verdict::Unknown(r) = &d.verdict {

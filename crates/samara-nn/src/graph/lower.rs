@@ -66,7 +66,8 @@ impl Lin {
     /// Rows as sparse combinations of rows of `srcs`: row `i` is
     /// `sum coef * srcs[s].row(r)` over `spec[i]`.
     /// `Err` ([`crate::limits::TIMED_OUT`]) once `budget`'s deadline has passed (checked
-    /// every [`CHECK_EVERY`] columns).
+    /// every [`CHECK_WORK`] multiply-adds: a column of a wide convolution's combination
+    /// can take a million).
     fn combine(
         srcs: &[&Lin],
         spec: &[Vec<(usize, usize, f64)>],
@@ -79,10 +80,13 @@ impl Lin {
             .iter()
             .map(|row| row.iter().map(|&(s, r, k)| k * srcs[s].c[r]).sum())
             .collect();
-        // Per source row, the new rows it enters and with which coefficient.
+        let mut clock = Clock::new(budget);
+        // Per source row, the new rows it enters and with which coefficient (tens of
+        // millions of entries for a wide convolution: counted too).
         let mut inv: Vec<Vec<Vec<(u32, f64)>>> =
             srcs.iter().map(|l| vec![Vec::new(); l.rows()]).collect();
         for (i, row) in spec.iter().enumerate() {
+            clock.work(row.len().max(1))?;
             for &(s, r, k) in row {
                 inv[s][r].push((i as u32, k));
             }
@@ -91,12 +95,11 @@ impl Lin {
         let mut touched: Vec<u32> = Vec::new();
         let cols = (0..zdim)
             .map(|j| {
-                if j % CHECK_EVERY == 0 {
-                    budget.check_time()?;
-                }
                 for (s, l) in srcs.iter().enumerate() {
                     for &(r, v) in l.cols[j].iter().flatten() {
-                        for &(i, k) in &inv[s][r as usize] {
+                        let fan = &inv[s][r as usize];
+                        clock.work(fan.len())?;
+                        for &(i, k) in fan {
                             if acc[i as usize] == 0.0 {
                                 touched.push(i);
                             }
@@ -142,14 +145,13 @@ impl Lin {
 
     /// The dense row-major matrix `out x zdim` of `A`; `Err` ([`crate::limits::TIMED_OUT`])
     /// once `budget`'s deadline has passed (filling gigabytes takes seconds: checked
-    /// every [`CHECK_EVERY`] columns).
+    /// every [`CHECK_WORK`] entries).
     fn matrix(&self, budget: &Budget) -> Result<Vec<f64>, String> {
         let (m, zd) = (self.rows(), self.cols.len());
         let mut w = vec![0.0; m * zd];
+        let mut clock = Clock::new(budget);
         for (j, col) in self.cols.iter().enumerate() {
-            if j % CHECK_EVERY == 0 {
-                budget.check_time()?;
-            }
+            clock.work(col.as_ref().map_or(1, Vec::len))?;
             for &(i, v) in col.iter().flatten() {
                 w[i as usize * zd + j] += v;
             }
@@ -194,10 +196,9 @@ impl Lin {
             ));
         }
         let mut rows: Vec<Vec<(usize, f64)>> = vec![Vec::new(); self.rows()];
+        let mut clock = Clock::new(budget);
         for (j, col) in self.cols.iter().enumerate() {
-            if j % CHECK_EVERY == 0 {
-                budget.check_time()?;
-            }
+            clock.work(col.as_ref().map_or(1, Vec::len))?;
             for &(i, v) in col.iter().flatten() {
                 rows[i as usize].push((j, v));
             }
@@ -206,9 +207,37 @@ impl Lin {
     }
 }
 
-/// How many columns (or rows) a long loop of the lowering goes through between two
-/// looks at the clock ([`Budget::check_time`]).
-const CHECK_EVERY: usize = 1024;
+/// How many multiply-adds (or stored entries) a loop of the lowering does between two
+/// looks at the clock ([`Clock`]): about a millisecond. Counting columns instead let
+/// one check cover seconds on a wide convolution (1024 columns of a 128-channel layer's
+/// combination, about 350 million multiply-adds: 7 s past a 6 s limit on a loaded
+/// machine).
+const CHECK_WORK: usize = 1 << 20;
+
+/// A deadline check by work done: [`Clock::work`] counts, and looks at the clock
+/// ([`Budget::check_time`]) once [`CHECK_WORK`] units have passed since the last look.
+struct Clock<'b> {
+    budget: &'b Budget,
+    done: usize,
+}
+
+impl<'b> Clock<'b> {
+    fn new(budget: &'b Budget) -> Self {
+        Clock { budget, done: 0 }
+    }
+
+    /// Count `units` of work; `Err` ([`crate::limits::TIMED_OUT`]) once the deadline
+    /// has passed.
+    #[inline]
+    fn work(&mut self, units: usize) -> Result<(), String> {
+        self.done += units;
+        if self.done >= CHECK_WORK {
+            self.done = 0;
+            self.budget.check_time()?;
+        }
+        Ok(())
+    }
+}
 
 /// A pre-activation row: `sum coef * block[s].row(r)`.
 type Row = Vec<(usize, usize, f64)>;
@@ -343,17 +372,17 @@ impl Lower<'_> {
             // the matrix's columns weighted by column j's entries.
             let l = dyn_in.iter().flatten().next().expect("one dynamic input");
             let m = outc[0].numel();
+            let mut clock = Clock::new(self.budget);
             let cols: Vec<Option<Col>> = l
                 .cols
                 .iter()
-                .enumerate()
-                .map(|(j, col)| {
-                    if j % CHECK_EVERY == 0 {
-                        self.budget.check_time().map_err(|m| err(g, ni, m))?;
-                    }
+                .map(|col| {
                     let Some(col) = col.as_ref() else {
                         return Ok(None);
                     };
+                    clock
+                        .work(col.len().saturating_mul(m).max(1))
+                        .map_err(|m| err(g, ni, m))?;
                     let mut acc = vec![0.0; m];
                     for &(r, v) in col {
                         for (a, w) in acc.iter_mut().zip(&wd[r as usize]) {
