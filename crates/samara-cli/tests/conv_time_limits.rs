@@ -247,7 +247,7 @@ fn wide_conv() -> Vec<u8> {
 /// the limit, whichever step the limit falls in: the lowering (which looked at the
 /// clock every 1,024 columns, seconds apart here: 12.1 s for a 6 s limit on a loaded
 /// machine), the bounds or the search; past all of them, the backstop of
-/// `verify-vnnlib` reports at the limit plus 0.5 s. The `--result` file says `timeout`.
+/// `verify-vnnlib` reports at the limit plus 0.25 s. The `--result` file says `timeout`.
 #[test]
 fn verify_vnnlib_on_a_wide_convolution_returns_within_a_second_of_its_timeout() {
     let dir = tempfile::tempdir().unwrap();
