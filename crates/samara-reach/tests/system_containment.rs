@@ -636,9 +636,13 @@ fn alsomitra_six_state_cell_on_long_steps_contains_2000_flights() {
 /// adaptive runs' settings, 2,000 flights each lie inside every instant's and period's
 /// box, and 2,000 more inside x + y.
 #[test]
-#[ignore = "about two minutes in release; run with --ignored"]
+#[ignore = "two to seven minutes in release; run with --ignored"]
 fn alsomitra_six_state_quarter_of_y_cells_contain_2000_flights() {
-    six_state_cell("base_model_denorm.onnx", QUARTER_Y_BASE, long_step_settings());
+    six_state_cell(
+        "base_model_denorm.onnx",
+        QUARTER_Y_BASE,
+        long_step_settings(),
+    );
     six_state_cell(
         "adversarial_model_denorm.onnx",
         QUARTER_Y_ADVERSARIAL,
