@@ -629,6 +629,47 @@ fn alsomitra_six_state_cell_on_long_steps_contains_2000_flights() {
     );
 }
 
+/// Cells a quarter of y0 high instead of an eighth (bench/reach/cell_cost.md, round
+/// 47: the cell's cost is the same, so the set needs half the cells): the base network's
+/// top quarter, whose x + y at the horizon is the widest measured (14.16, in the
+/// band), and an adversarial one with a third of theta at the bottom quarter. With the
+/// adaptive runs' settings, 2,000 flights each lie inside every instant's and period's
+/// box, and 2,000 more inside x + y.
+#[test]
+#[ignore = "two to seven minutes in release; run with --ignored"]
+fn alsomitra_six_state_quarter_of_y_cells_contain_2000_flights() {
+    six_state_cell(
+        "base_model_denorm.onnx",
+        QUARTER_Y_BASE,
+        long_step_settings(),
+    );
+    six_state_cell(
+        "adversarial_model_denorm.onnx",
+        QUARTER_Y_ADVERSARIAL,
+        long_step_settings(),
+    );
+}
+
+/// The base network's cell of a 3,3,3,6,1,4 grid at the top of y0.
+const QUARTER_Y_BASE: [[f64; 2]; 6] = [
+    [0.9966666666666667, 1.0033333333333334],
+    [-0.01, -0.003333333333333334],
+    [-0.003333333333333334, 0.0033333333333333322],
+    [-0.003333333333333334, 0.0],
+    [-0.05, 0.05],
+    [3.5714285714285716, 4.285714285714286],
+];
+
+/// The adversarial network's cell of a 3,2,3,3,1,4 grid at the bottom of y0.
+const QUARTER_Y_ADVERSARIAL: [[f64; 2]; 6] = [
+    [0.9966666666666667, 1.0033333333333334],
+    [-0.01, 0.0],
+    [-0.003333333333333334, 0.0033333333333333322],
+    [-0.003333333333333334, 0.0033333333333333322],
+    [-0.05, 0.05],
+    [1.4285714285714286, 2.142857142857143],
+];
+
 /// The glider's adaptive default (`--target-ratio`, `/tmp/cell.sh`-style runs): order 4,
 /// `symbolic:40`, lifted weight 2, lifting at 0.1 %, order 8 in time at `--step-tol 1e-5`.
 fn long_step_settings() -> SystemReachSettings {

@@ -47,6 +47,22 @@ pub const GLIDER_TIME_ORDER: usize = 8;
 /// into parameters at [`GLIDER_LIFT_AT`] of the width anyway).
 pub const GLIDER_STEP_TOL: f64 = 1e-5;
 
+/// The built-in glider's largest starting cell in adaptive runs (`--target-ratio`
+/// without `--grid`), per state: a third of the six-state set's v_xp, v_yp and omega
+/// (+-0.01), a sixth of its theta, a quarter of the published y0 interval, x whole. On
+/// the reduced model with the adaptive settings, cells of that size reach t = 20 inside
+/// the band for both published networks (bench/reach/cell_cost.md, round 47: a quarter of
+/// y0 costs what an eighth does, 12-16 CPU-s, so the set takes 648 starting cells where
+/// the hand grid 3,3,3,6,1,8 took 1,296); a whole-set start instead flies
+/// parents that are all lost (docs/notes/2026-11-reach-journal.md).
+pub const GLIDER_CELL: [(&str, f64); 5] = [
+    ("v_xp", 0.02 / 3.0),
+    ("v_yp", 0.02 / 3.0),
+    ("omega", 0.02 / 3.0),
+    ("theta", 0.02 / 6.0),
+    ("y", (0.3 / 0.07 - 0.1 / 0.07) / 4.0),
+];
+
 /// The published initial heights: y0 in [0.1/0.07, 0.3/0.07].
 pub const Y0_DEFAULT: (f64, f64) = (0.1 / 0.07, 0.3 / 0.07);
 
@@ -497,8 +513,70 @@ impl ReachArgs {
         if self.target_ratio.is_some() {
             t.time_order = self.time_order.or(Some(GLIDER_TIME_ORDER as i64));
             t.step_tol = self.step_tol.or(Some(GLIDER_STEP_TOL));
+            if self.order.is_none() && self.network_error.is_none() {
+                t.grid = self.glider_start_grid();
+            }
         }
         t
+    }
+
+    /// The starting grid of a built-in glider adaptive run without `--grid`: each state
+    /// of the reduced model cut into the fewest equal pieces no wider than
+    /// [`GLIDER_CELL`]. Empty (a whole-set start, as before) with `--grid` or `--shard`
+    /// (whose cells the flags name), on another model, when no state but y needs a cut, when
+    /// the grid would have more cells than `--max-leaves` (default 256) allows, or when
+    /// an interval does not parse (the run's own check then says why).
+    fn glider_start_grid(&self) -> Vec<String> {
+        if !self.grid.is_empty() || self.shard.is_some() || self.model != "reduced" {
+            return self.grid.clone();
+        }
+        let width = |name: &str| -> Option<f64> {
+            let text = if name == "y" {
+                match &self.y0 {
+                    Some(y0) => Some(y0.clone()),
+                    None => self
+                        .init
+                        .iter()
+                        .find_map(|s| s.strip_prefix("y=").map(str::to_string)),
+                }
+            } else {
+                let key = format!("{name}=");
+                self.init
+                    .iter()
+                    .find_map(|s| s.trim().strip_prefix(&key).map(str::to_string))
+            };
+            match text {
+                Some(v) => parse_interval(&v, name).ok().map(|(a, b)| b - a),
+                None if name == "y" => Some(Y0_DEFAULT.1 - Y0_DEFAULT.0),
+                None => Some(0.0),
+            }
+        };
+        let mut grid = Vec::new();
+        let mut cells = 1usize;
+        for (name, size) in GLIDER_CELL {
+            let Some(w) = width(name) else {
+                return Vec::new();
+            };
+            // The fewest pieces no wider than `size` (a hair of slack so that a width of
+            // exactly K cells gives K).
+            let k = (w / size - 1e-9).ceil().max(1.0);
+            if k > 1.0 {
+                let k = k.min(1e6) as usize;
+                cells = cells.saturating_mul(k);
+                grid.push(format!("{name}={k}"));
+            }
+        }
+        let budget = self
+            .max_leaves
+            .unwrap_or(SystemReachSettings::default().max_boxes);
+        // Only sets wide in the glider's velocity or rotation (the six-state set's kind,
+        // where the cells were measured): a set wide in y alone (the published setting)
+        // keeps its whole-set start.
+        let rotational = grid.iter().any(|g| !g.starts_with("y="));
+        if cells > budget || !rotational {
+            return Vec::new();
+        }
+        grid
     }
 
     /// The Taylor-model settings the flags give (`--order`, `--timeout`,
@@ -806,8 +884,48 @@ mod tests {
             (t.time_order, t.step_tol),
             (Some(GLIDER_TIME_ORDER as i64), Some(GLIDER_STEP_TOL))
         );
+        assert!(t.grid.is_empty(), "{:?}", t.grid);
         let t = args(&["--target-ratio", "2", "--time-order", "6"]).glider_tuned();
         assert_eq!((t.time_order, t.step_tol), (Some(6), Some(GLIDER_STEP_TOL)));
+        let six = [
+            "--target-ratio",
+            "2",
+            "--init",
+            "v_xp=0.99:1.01",
+            "--init",
+            "v_yp=-0.01:0.01",
+            "--init",
+            "omega=-0.01:0.01",
+            "--init",
+            "theta=-0.01:0.01",
+            "--init",
+            "x=-0.05:0.05",
+        ];
+        let t = args(&[&six[..], &["--max-leaves", "4096"]].concat()).glider_tuned();
+        assert_eq!(
+            t.grid,
+            ["v_xp=3", "v_yp=3", "omega=3", "theta=6", "y=4"].map(String::from)
+        );
+        // Past the budget (default 256 cells), with a grid or shard of its own, with
+        // settings of its own: no default grid.
+        assert!(args(&six).glider_tuned().grid.is_empty());
+        let t = args(&[&six[..], &["--max-leaves", "4096", "--grid", "theta=2"]].concat())
+            .glider_tuned();
+        assert_eq!(t.grid, ["theta=2"]);
+        let t =
+            args(&[&six[..], &["--max-leaves", "4096", "--order", "3"]].concat()).glider_tuned();
+        assert!(t.grid.is_empty());
+        // A narrower set: fewer pieces, none where a state fits one cell.
+        let t = args(&[
+            "--target-ratio",
+            "2",
+            "--init",
+            "theta=-0.004:0.004",
+            "--y0",
+            "2.0:2.5",
+        ])
+        .glider_tuned();
+        assert_eq!(t.grid, ["theta=3"]);
         let t = args(&["--order", "3", "--lift-at", "0.05"]).glider_tuned();
         assert_eq!(
             (t.order, t.network_error, t.lift_at),
