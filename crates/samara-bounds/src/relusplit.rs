@@ -486,14 +486,14 @@ pub(crate) fn examine(
 /// from its parent's slopes and multipliers `w` and the parent's pull-back coefficients
 /// `nu`: the new phase's multiplier is the one that passes the neuron exactly as the
 /// parent's lower line did. With coefficient `v = nu[j + 1][t] > 0` on the neuron's
-/// output, the parent's pull-back takes `v * alpha_t * z_t`; the child passes the fixed
-/// neuron as `0` (inactive) or `v * z_t` (active), and the multiplier `beta_t = v *
-/// alpha_t >= 0` (inactive) or `-v * (1 - alpha_t) <= 0` (active) gives back `v * alpha_t
-/// * z_t`, so the child's optimisation starts from its parent's bound (over the same
-/// intermediate bounds; the child's are tighter) instead of below it, as with `beta_t =
-/// 0` (beta-CROWN's bound is a valid bound for every multiplier of the phase's sign;
-/// the choice only sets where the Adam steps begin). With `v <= 0` the parent's chord
-/// is above the fixed neuron's pass on `[l, u]` and the multiplier stays 0.
+/// output, the parent's pull-back takes `v alpha_t z_t`; the child passes the fixed
+/// neuron as `0` (inactive) or `v z_t` (active), and the multiplier `beta_t = v alpha_t
+/// >= 0` (inactive) or `-v (1 - alpha_t) <= 0` (active) gives back `v alpha_t z_t`, so
+/// the child's optimisation starts from its parent's bound (over the same intermediate
+/// bounds; the child's are tighter) instead of below it, as with `beta_t = 0`
+/// (beta-CROWN's bound, Wang et al. 2021, is valid for every multiplier of the phase's
+/// sign; the choice only sets where the Adam steps begin). With `v <= 0` the parent's
+/// chord is above the fixed neuron's pass on `[l, u]` and the multiplier stays 0.
 fn split_warm(w: &Warm, nu: &[Vec<f64>], j: usize, t: usize, on: bool) -> Warm {
     let mut w = w.clone();
     let v = nu.get(j + 1).and_then(|n| n.get(t)).copied().unwrap_or(0.0);
