@@ -22,12 +22,14 @@
 //! 2021) for the case closest to holding: of the [`FSB_CANDIDATES`] unstable neurons with
 //! the largest relaxation gap weighted by the bound's sensitivity, `|nu_t| * u (-l) /
 //! (u - l)` (BaBSR's intercept score, Bunel et al., JMLR 2020), the one whose worse
-//! child has the highest f64 bound with the node's slopes and multipliers (the choice
-//! only steers the search; every child is bounded rigorously). Nodes go depth first
-//! (the frontier stays small), in parallel batches, every pull-back over the sparse rows
-//! of the lowered convolutions ([`symbolic::Sparse`], built once per batch). A node
-//! with every unstable neuron fixed that is still open cannot be split: the search
-//! reports that as unknown, not as a proof.
+//! child has the highest f64 bound with the node's slopes and multipliers and the new
+//! phase's multiplier a child starts from (the choice only steers the search; every
+//! child is bounded rigorously). A child's new multiplier starts where its parent's
+//! lower relaxation of the neuron was, so its bound starts at its parent's. Nodes go
+//! depth first (the frontier stays small), in parallel batches, every pull-back over
+//! the sparse rows of the lowered convolutions ([`symbolic::Sparse`], built once per
+//! batch). A node with every unstable neuron fixed that is still open cannot be split:
+//! the search reports that as unknown, not as a proof.
 
 use crate::query::{forward, satisfies, Case};
 use crate::rules::relu;
@@ -313,6 +315,9 @@ pub(crate) fn examine(
     };
     let mut still = Vec::new();
     let mut warm = Vec::new();
+    // The pull-back's ReLU-output coefficients of each entry of `warm`, for the
+    // children's multipliers of the new split.
+    let mut nus: Vec<Vec<Vec<f64>>> = Vec::new();
     // The case closest to holding, with its bound's coefficients, constraint and
     // slopes and multipliers.
     let mut driver: Option<Driver> = None;
@@ -352,8 +357,9 @@ pub(crate) fn examine(
             warm.push((ci, k, wk.clone()));
             if lb > case_lb || case_nu.is_none() {
                 case_lb = lb;
-                case_nu = Some((nu, k, wk));
+                case_nu = Some((nu.clone(), k, wk));
             }
+            nus.push(nu);
         }
         if closed {
             continue;
@@ -401,8 +407,12 @@ pub(crate) fn examine(
     };
     // Filtered smart branching (De Palma et al., ICLR 2021): of the best-scored
     // neurons, the one whose worse child has the highest bound, each child's bound the
-    // driving constraint's pull-back (its slopes and multipliers as they are) with the
-    // neuron's phase fixed.
+    // driving constraint's pull-back with the neuron's phase fixed, from the slopes and
+    // multipliers the child will start from (the parent's, and the new phase's of
+    // [`split_beta`]). A neuron passed by the parent's lower line then scores exactly
+    // the parent's bound (its split alone gains nothing before the multipliers move):
+    // on oval21 base img5303 (x0.05) the tree closed 79 nodes instead of 179 when the
+    // children's multipliers were scored as 0.
     let fsb = FSB_CANDIDATES;
     if fsb > 1 {
         let mut cands: Vec<(f64, usize, usize)> = Vec::new();
@@ -424,12 +434,14 @@ pub(crate) fn examine(
         if cands.len() > 1 {
             let obj = &cases[dci].constraints[dk].obj;
             let mut scratch = pre.clone();
+            let mut beta = dwarm.beta.clone();
             let mut best: Option<(f64, usize, usize)> = None;
             for &(_, j, t) in &cands {
                 let (l, u) = pre[j][t];
                 let mut worse = f64::INFINITY;
-                for b in [(l, 0.0), (0.0, u)] {
-                    scratch[j][t] = b;
+                for on in [false, true] {
+                    scratch[j][t] = if on { (0.0, u) } else { (l, 0.0) };
+                    beta[j][t] = split_beta(&dwarm.alpha, &nu, j, t, on);
                     let v = symbolic::value_only(
                         maps,
                         &scratch,
@@ -437,12 +449,13 @@ pub(crate) fn examine(
                         lo,
                         hi,
                         &dwarm.alpha,
-                        Some(&dwarm.beta),
+                        Some(&beta),
                         sp,
                     );
                     worse = worse.min(v);
                 }
                 scratch[j][t] = (l, u);
+                beta[j][t] = dwarm.beta[j][t];
                 if best.is_none_or(|b| worse > b.0) {
                     best = Some((worse, j, t));
                 }
@@ -459,10 +472,16 @@ pub(crate) fn examine(
         .map(|on| {
             let mut splits = node.splits.clone();
             splits.push((j, t, on));
+            let warm = warm
+                .iter()
+                .zip(&nus)
+                .filter(|(w, _)| still.contains(&w.0))
+                .map(|((ci, k, w), nu)| (*ci, *k, Arc::new(split_warm(w, nu, j, t, on))))
+                .collect();
             Node {
                 splits,
                 open: still.clone(),
-                warm: warm.clone(),
+                warm,
                 pre: Some(pre.clone()),
                 key,
                 depth: node.depth + 1,
@@ -470,6 +489,37 @@ pub(crate) fn examine(
         })
         .collect();
     NodeOut::Split(children)
+}
+
+/// The warm start of a child that fixes neuron `t` of ReLU map `j` (active when `on`)
+/// from its parent's slopes and multipliers `w` and the parent's pull-back coefficients
+/// `nu`: the new phase's multiplier is the one that passes the neuron exactly as the
+/// parent's lower line did. With coefficient `v = nu[j + 1][t] > 0` on the neuron's
+/// output, the parent's pull-back takes `v alpha_t z_t`; the child passes the fixed
+/// neuron as `0` (inactive) or `v z_t` (active), and the multiplier `beta_t = v alpha_t
+/// >= 0` (inactive) or `-v (1 - alpha_t) <= 0` (active) gives back `v alpha_t z_t`, so
+/// the child's optimisation starts from its parent's bound (over the same intermediate
+/// bounds; the child's are tighter) instead of below it, as with `beta_t = 0`
+/// (beta-CROWN's bound, Wang et al. 2021, is valid for every multiplier of the phase's
+/// sign; the choice only sets where the Adam steps begin). With `v <= 0` the parent's
+/// chord is above the fixed neuron's pass on `[l, u]` and the multiplier stays 0.
+fn split_warm(w: &Warm, nu: &[Vec<f64>], j: usize, t: usize, on: bool) -> Warm {
+    let mut w = w.clone();
+    if j < w.beta.len() {
+        w.beta[j][t] = split_beta(&w.alpha, nu, j, t, on);
+    }
+    w
+}
+
+/// The multiplier of [`split_warm`] for the new phase of neuron `t` of ReLU map `j`.
+fn split_beta(alpha: &[Vec<f64>], nu: &[Vec<f64>], j: usize, t: usize, on: bool) -> f64 {
+    let v = nu.get(j + 1).and_then(|n| n.get(t)).copied().unwrap_or(0.0);
+    let a = alpha.get(j).map_or(0.0, |a| relu::alpha_range(a[t]));
+    match (v > 0.0, on) {
+        (false, _) => 0.0,
+        (true, false) => v * a,
+        (true, true) => -v * (1.0 - a),
+    }
 }
 
 /// How many of the best-scored neurons filtered smart branching compares (each costs
@@ -505,4 +555,166 @@ pub(crate) fn examine_batch(
         );
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    fn random_maps(rng: &mut rand_chacha::ChaCha8Rng, widths: &[usize]) -> Vec<(Affine, bool)> {
+        let last = widths.len() - 2;
+        (0..widths.len() - 1)
+            .map(|k| {
+                let (inp, out) = (widths[k], widths[k + 1]);
+                let w = (0..inp * out).map(|_| rng.gen_range(-1.0..1.0)).collect();
+                let b = (0..out).map(|_| rng.gen_range(-0.5..0.5)).collect();
+                (Affine::new(inp, out, w, b), k < last)
+            })
+            .collect()
+    }
+
+    /// Every map's output at `x` (before its ReLU), in f64.
+    fn pre_activations(maps: &[(Affine, bool)], x: &[f64]) -> Vec<Vec<f64>> {
+        let mut z = x.to_vec();
+        let mut out = Vec::new();
+        for (m, r) in maps {
+            let mut o = vec![0.0; m.out];
+            m.apply_f64(&z, &mut o);
+            out.push(o.clone());
+            if *r {
+                o.iter_mut().for_each(|v| *v = v.max(0.0));
+            }
+            z = o;
+        }
+        out
+    }
+
+    /// The children's warm start of a split ([`split_warm`]) starts where the parent
+    /// ended: with the parent's slopes and multipliers, the new phase's multiplier and
+    /// the parent's intermediate bounds clamped by the phase, the child's f64 value
+    /// equals the parent's (within rounding), and its rigorous bound is at least the
+    /// parent's rigorous bound (less the rounding slack) where the old start (multiplier
+    /// 0) is below it; both bounds stay below the objective at 10,000 sampled points of
+    /// the child's set (the box's points where the phase holds), on random networks.
+    #[test]
+    fn a_childs_warm_start_keeps_its_parents_bound_and_stays_sound() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(47);
+        let (mut checked, mut better) = (0, 0);
+        for trial in 0..40 {
+            let n = 2 + trial % 4;
+            let maps = random_maps(&mut rng, &[n, 10, 10, 8, 2]);
+            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..0.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.2..1.5)).collect();
+            let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
+            let pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
+            let obj = Objective {
+                c: vec![1.0, -1.0],
+                d: rng.gen_range(-1.0..1.0),
+            };
+            let points: Vec<Vec<f64>> = (0..10_000)
+                .map(|_| {
+                    lo.iter()
+                        .zip(&hi)
+                        .map(|(a, b)| rng.gen_range(*a..=*b))
+                        .collect()
+                })
+                .collect();
+            let evals: Vec<(Vec<Vec<f64>>, f64)> = points
+                .iter()
+                .map(|x| {
+                    let z = pre_activations(&maps, x);
+                    let y = z.last().unwrap();
+                    let v = obj.d + obj.c.iter().zip(y).map(|(c, v)| c * v).sum::<f64>();
+                    (z, v)
+                })
+                .collect();
+            let (pf, pw, nu) = optimise(&maps, &pre, &obj, &lo, &hi, &[], None, 8, None, None);
+            let parent_lb = pf.min_over(&lo, &hi);
+            let parent_v =
+                symbolic::value_only(&maps, &pre, &obj, &lo, &hi, &pw.alpha, Some(&pw.beta), None);
+            for (j, layer) in pre.iter().enumerate().take(maps.len() - 1) {
+                for (t, &(l, u)) in layer.iter().enumerate() {
+                    if !relu::unstable(l, u) || nu[j + 1][t] <= 0.0 {
+                        continue;
+                    }
+                    for on in [false, true] {
+                        let mut cpre = pre.clone();
+                        cpre[j][t] = if on { (0.0, u) } else { (l, 0.0) };
+                        let splits = [(j, t, on)];
+                        let cw = split_warm(&pw, &nu, j, t, on);
+                        let v = symbolic::value_only(
+                            &maps,
+                            &cpre,
+                            &obj,
+                            &lo,
+                            &hi,
+                            &cw.alpha,
+                            Some(&cw.beta),
+                            None,
+                        );
+                        assert!(
+                            (v - parent_v).abs() <= 1e-9 * (1.0 + parent_v.abs()),
+                            "trial {trial}: child value {v} parent {parent_v}"
+                        );
+                        let f = symbolic::backward_lower_sp(
+                            &maps,
+                            &cpre,
+                            &obj,
+                            &lo,
+                            &hi,
+                            Some(&cw.alpha),
+                            Some(&cw.beta),
+                            None,
+                        );
+                        let lb = f.min_over(&lo, &hi);
+                        assert!(lb >= parent_lb - 1e-9 * (1.0 + parent_lb.abs()));
+                        let mut zero = pw.clone();
+                        zero.beta[j][t] = 0.0;
+                        let old = symbolic::backward_lower_sp(
+                            &maps,
+                            &cpre,
+                            &obj,
+                            &lo,
+                            &hi,
+                            Some(&zero.alpha),
+                            Some(&zero.beta),
+                            None,
+                        )
+                        .min_over(&lo, &hi);
+                        if lb > old + 1e-9 {
+                            better += 1;
+                        }
+                        // The rigorous child bound (and the optimised one) below every
+                        // sampled point of the child's set.
+                        let (cf, _, _) = optimise(
+                            &maps,
+                            &cpre,
+                            &obj,
+                            &lo,
+                            &hi,
+                            &splits,
+                            Some(&cw),
+                            8,
+                            None,
+                            None,
+                        );
+                        let clb = cf.min_over(&lo, &hi);
+                        for (z, val) in &evals {
+                            if (z[j][t] >= 0.0) != on {
+                                continue;
+                            }
+                            assert!(
+                                lb <= *val && clb <= *val,
+                                "trial {trial}: {lb} {clb} > {val}"
+                            );
+                            checked += 1;
+                        }
+                    }
+                }
+            }
+        }
+        assert!(checked > 100_000, "{checked}");
+        assert!(better > 10, "{better}");
+    }
 }

@@ -1341,7 +1341,16 @@ pub fn alpha_pre_until(
     use rayon::prelude::*;
     let sp = Sparse::of(maps, lo.len());
     let sp = sp.as_ref();
+    let profile = std::env::var_os("SAMARA_SEARCH_PROFILE").is_some();
+    let t0 = std::time::Instant::now();
     for k in 1..pre.len() {
+        if profile {
+            let un = pre[k].iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count();
+            eprintln!(
+                "alpha pre: layer {k}, {un} unstable, at {:.2} s",
+                t0.elapsed().as_secs_f64()
+            );
+        }
         if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
             return;
         }
