@@ -51,4 +51,5 @@ mod query;
 mod relusplit;
 pub mod rules;
 pub mod search;
+pub mod smooth;
 pub mod symbolic;

@@ -1,0 +1,712 @@
+//! Input-domain branch and bound for networks with any of the IR's activations (sigmoid
+//! and tanh as well as ReLU and clamp), on box-shaped queries ([`Case`]s) whose inputs
+//! are partly fixed: VNN-COMP 2023's `dist_shift` fixes 784 of its 792 inputs (the
+//! image) and leaves 8 free (a generator's latent code).
+//!
+//! - **Folding** ([`Folded`]): the inputs fixed to the same value in every case
+//!   (`lo = hi`) are folded into the first affine map's bias, `b' = b + W_fixed x_fixed`,
+//!   which leaves a network of the free inputs only, so that bounds cost and splitting
+//!   work on those few dimensions. The rewrite is exact in real arithmetic; the f64
+//!   rounding of `b'` is bounded per row (Higham's `gamma_k` times the sum of the
+//!   magnitudes of the terms, [`samara_num::round::gamma`]) and carried as a radius of
+//!   the bias that every bound adds, so the folded bounds hold for the original network
+//!   over the original box. Points are re-expanded to every input ([`Folded::expand`])
+//!   and evaluated on the original network.
+//! - **Bounds**: CROWN (Zhang et al., "Efficient Neural Network Robustness Certification
+//!   with General Activation Functions", NeurIPS 2018) by back-substitution over the
+//!   folded chain, every intermediate neuron bounded by its own back-substitution and
+//!   intersected with interval propagation and with the parent piece's bounds (all
+//!   sound), each activation's lines from [`crate::rules`] (sigmoid and tanh:
+//!   [`crate::rules::sigmoid_tanh`]). Rounding is that of [`crate::linset`]: every f64
+//!   dot product's error is bounded by `gamma_k` times the sum of the magnitudes of its
+//!   terms times a bound of the variable it multiplies, so a bound holds in exact
+//!   arithmetic over the stored weights.
+//! - **Search**: an attack first (signed-gradient descent from the centre and random
+//!   starts, on the conjunction nearest to holding), then best-first splitting of the
+//!   free inputs (the input with the largest smear `|coef_t| (hi_t - lo_t)` in the open
+//!   constraints' linear bounds, as ReluVal, Wang et al., USENIX Security 2018), each
+//!   piece closed when a constraint's lower bound is positive or a non-negative
+//!   combination of the conjunction's bounds is ([`crate::query`]), its candidate
+//!   points (the linear bound's minimising corner, the centre) checked on the original
+//!   network.
+
+use crate::query::{combination_certifies, satisfies, Case};
+use crate::rules::{self, Relax};
+use crate::search::{CasePoint, Outcome, Settings, Stats, StopReason};
+use crate::symbolic::Linear;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use samara_nn::{Activation, Affine, Layer, Network};
+use samara_num::round::{gamma, inflate};
+use samara_num::Interval;
+use std::time::Instant;
+
+/// One operation of the folded chain.
+enum Op {
+    Aff(Affine),
+    Act(Activation),
+}
+
+/// A network with the inputs fixed in every case folded into its first affine map (see
+/// the module documentation).
+pub struct Folded {
+    /// Indices of the free inputs in the original network.
+    pub free: Vec<usize>,
+    /// The original input with the fixed values (free entries are overwritten).
+    base: Vec<f64>,
+    ops: Vec<Op>,
+    /// Radius of the first map's bias: the bound of the fold's rounding, per row.
+    rad: Vec<f64>,
+}
+
+/// Intermediate bounds of one piece: per op but the last, the bounds of its output.
+type Bounds = Vec<Vec<(f64, f64)>>;
+
+impl Folded {
+    /// Fold the inputs that every case fixes to one value (`lo = hi`, the same in every
+    /// case). A network whose first raw layer is not affine gets an identity map first.
+    pub fn new(net: &Network, cases: &[Case]) -> Folded {
+        let n = net.n_inputs();
+        let fixed: Vec<bool> = (0..n)
+            .map(|i| {
+                let v = cases.first().map(|c| c.lo[i]);
+                cases
+                    .iter()
+                    .all(|c| c.lo[i] == c.hi[i] && Some(c.lo[i]) == v && c.lo[i].is_finite())
+            })
+            .collect();
+        let base: Vec<f64> = (0..n)
+            .map(|i| if fixed[i] { cases[0].lo[i] } else { 0.0 })
+            .collect();
+        let free: Vec<usize> = (0..n).filter(|i| !fixed[*i]).collect();
+        let mut layers: Vec<Layer> = net.raw_layers();
+        if !matches!(layers.first(), Some(Layer::Affine(_))) {
+            let mut w = vec![0.0; n * n];
+            (0..n).for_each(|i| w[i * n + i] = 1.0);
+            layers.insert(0, Layer::Affine(Affine::new(n, n, w, vec![0.0; n])));
+        }
+        let mut ops = Vec::with_capacity(layers.len());
+        let mut rad = Vec::new();
+        for (k, l) in layers.into_iter().enumerate() {
+            match l {
+                Layer::Affine(a) if k == 0 => {
+                    let p = free.len();
+                    let mut w = vec![0.0; a.out * p];
+                    let mut b = Vec::with_capacity(a.out);
+                    rad = Vec::with_capacity(a.out);
+                    for i in 0..a.out {
+                        let row = a.dense_row(i);
+                        let mut s = a.b[i];
+                        let mut mag = s.abs();
+                        let mut terms = 1;
+                        for (j, &wij) in row.iter().enumerate() {
+                            if fixed[j] {
+                                let t = wij * base[j];
+                                if t != 0.0 {
+                                    s += t;
+                                    mag += t.abs();
+                                    terms += 1;
+                                }
+                            }
+                        }
+                        for (t, &j) in free.iter().enumerate() {
+                            w[i * p + t] = row[j];
+                        }
+                        b.push(s);
+                        // The exact b + W_fixed x_fixed is within gamma_k * mag of s
+                        // (products and sums rounded: k + 1 roundings per term at most).
+                        rad.push(if terms > 1 {
+                            inflate(gamma(2 * terms) * mag)
+                        } else {
+                            0.0
+                        });
+                    }
+                    ops.push(Op::Aff(Affine::new(p, a.out, w, b)));
+                }
+                Layer::Affine(a) => ops.push(Op::Aff(a)),
+                Layer::Act(act) => ops.push(Op::Act(act)),
+            }
+        }
+        Folded {
+            free,
+            base,
+            ops,
+            rad,
+        }
+    }
+
+    /// Number of free inputs.
+    pub fn n_free(&self) -> usize {
+        self.free.len()
+    }
+
+    /// The original input of the free values `xf`.
+    pub fn expand(&self, xf: &[f64]) -> Vec<f64> {
+        let mut x = self.base.clone();
+        for (t, &i) in self.free.iter().enumerate() {
+            x[i] = xf[t];
+        }
+        x
+    }
+
+    /// The free part of an original input.
+    pub fn restrict(&self, x: &[f64]) -> Vec<f64> {
+        self.free.iter().map(|&i| x[i]).collect()
+    }
+
+    /// CROWN's intermediate bounds over the box of the free inputs, intersected with
+    /// `parent` (bounds over a box containing this one) when given. `None` when a bound
+    /// is not finite (overflow).
+    fn bounds(&self, lo: &[f64], hi: &[f64], parent: Option<&Bounds>) -> Option<Pass> {
+        let last = self.ops.len() - 1;
+        let mut pass = Pass {
+            inmag: Vec::with_capacity(self.ops.len()),
+            rel: Vec::with_capacity(self.ops.len()),
+            bounds: Vec::with_capacity(last),
+        };
+        for k in 0..self.ops.len() {
+            let inmag: Vec<f64> = if k == 0 {
+                lo.iter()
+                    .zip(hi)
+                    .map(|(a, b)| a.abs().max(b.abs()))
+                    .collect()
+            } else {
+                pass.bounds[k - 1]
+                    .iter()
+                    .map(|&(l, u)| l.abs().max(u.abs()))
+                    .collect()
+            };
+            pass.inmag.push(inmag);
+            let rel = match &self.ops[k] {
+                Op::Act(act) => pass.bounds[k - 1]
+                    .par_iter()
+                    .map(|&(l, u)| rules::relax(*act, l, u))
+                    .collect(),
+                Op::Aff(_) => Vec::new(),
+            };
+            pass.rel.push(rel);
+            if k == last {
+                break;
+            }
+            let mut b: Vec<(f64, f64)> = match &self.ops[k] {
+                Op::Act(act) => pass.bounds[k - 1]
+                    .iter()
+                    .map(|&(l, u)| rules::interval(*act, l, u))
+                    .collect(),
+                Op::Aff(a) => (0..a.out)
+                    .into_par_iter()
+                    .map(|i| {
+                        let mut e = vec![0.0; a.out];
+                        e[i] = 1.0;
+                        let l = self.pull(&pass, k, e.clone()).min_over(lo, hi);
+                        e[i] = -1.0;
+                        let u = -self.pull(&pass, k, e).min_over(lo, hi);
+                        match k.checked_sub(1) {
+                            Some(q) => {
+                                let f = forward_interval(a, i, &pass.bounds[q]);
+                                (l.max(f.lo), u.min(f.hi))
+                            }
+                            None => (l, u),
+                        }
+                    })
+                    .collect(),
+            };
+            if let Some(p) = parent {
+                for (x, y) in b.iter_mut().zip(&p[k]) {
+                    *x = (x.0.max(y.0), x.1.min(y.1));
+                }
+            }
+            if b.iter().any(|&(l, u)| !l.is_finite() || !u.is_finite()) {
+                return None;
+            }
+            pass.bounds.push(b);
+        }
+        Some(pass)
+    }
+
+    /// A lower bound of `lam . (output of op top)` linear in the free inputs, its slack
+    /// covering every rounding (the discipline of [`crate::linset`]) and the fold's
+    /// bias radius.
+    fn pull(&self, pass: &Pass, top: usize, mut lam: Vec<f64>) -> Linear {
+        let mut cst = 0.0f64;
+        let mut err = 0.0f64;
+        for j in (0..=top).rev() {
+            let inmag = &pass.inmag[j];
+            match &self.ops[j] {
+                Op::Aff(a) => {
+                    let mut nu = vec![0.0; a.inp];
+                    let mut mag = vec![0.0; a.inp];
+                    let mut cmag = cst.abs();
+                    for (i, &li) in lam.iter().enumerate() {
+                        if li == 0.0 {
+                            continue;
+                        }
+                        let p = li * a.b[i];
+                        cst += p;
+                        cmag += p.abs();
+                        if j == 0 && self.rad[i] > 0.0 {
+                            err += li.abs() * self.rad[i];
+                        }
+                        match a.row(i) {
+                            samara_nn::ir::Row::Dense(w) => {
+                                for ((n, m), w) in nu.iter_mut().zip(mag.iter_mut()).zip(w) {
+                                    let p = li * w;
+                                    *n += p;
+                                    *m += p.abs();
+                                }
+                            }
+                            r => r.for_each_nonzero(|t, w| {
+                                let p = li * w;
+                                nu[t] += p;
+                                mag[t] += p.abs();
+                            }),
+                        }
+                    }
+                    let g = gamma(a.out + 1);
+                    err += g * cmag;
+                    for (mt, im) in mag.iter().zip(inmag) {
+                        if *mt > 0.0 {
+                            err += g * mt * im;
+                        }
+                    }
+                    lam = nu;
+                }
+                Op::Act(_) => {
+                    let rel = &pass.rel[j];
+                    let mut cmag = cst.abs();
+                    for ((lt, r), im) in lam.iter_mut().zip(rel).zip(inmag) {
+                        let l = *lt;
+                        if l == 0.0 {
+                            continue;
+                        }
+                        let (a, b) = if l > 0.0 { (r.al, r.bl) } else { (r.au, r.bu) };
+                        let nl = l * a;
+                        if nl != 0.0 {
+                            err += f64::EPSILON * nl.abs() * im;
+                        }
+                        if b != 0.0 {
+                            let p = l * b;
+                            cst += p;
+                            cmag += p.abs();
+                        }
+                        *lt = nl;
+                    }
+                    err += gamma(lam.len() + 1) * cmag;
+                }
+            }
+        }
+        Linear {
+            coef: lam,
+            cst,
+            slack: inflate(err),
+        }
+    }
+
+    /// Lower bounds `L_k(x) <= c_k . f(x) + d_k` of a conjunction's constraints over
+    /// the piece, linear in the free inputs.
+    fn constraint_bounds(&self, pass: &Pass, cs: &[crate::query::OutputConstraint]) -> Vec<Linear> {
+        let top = self.ops.len() - 1;
+        cs.iter()
+            .map(|k| {
+                let mut f = self.pull(pass, top, k.obj.c.clone());
+                let c = f.cst + k.obj.d;
+                f.slack = inflate(f.slack + gamma(1) * (f.cst.abs() + k.obj.d.abs()));
+                f.cst = c;
+                f
+            })
+            .collect()
+    }
+}
+
+/// The per-piece state of a CROWN pass.
+struct Pass {
+    /// Per op, bounds of `|input|`.
+    inmag: Vec<Vec<f64>>,
+    /// Per op, the activation's lines (empty for affine ops).
+    rel: Vec<Vec<Relax>>,
+    /// Per op but the last, bounds of its output.
+    bounds: Bounds,
+}
+
+/// Outward-rounded interval of row `i` of `a` over the box `b` of its input.
+fn forward_interval(a: &Affine, i: usize, b: &[(f64, f64)]) -> Interval {
+    let mut acc = Interval::point(a.b[i]);
+    a.row(i).for_each_nonzero(|j, w| {
+        let (l, u) = b[j];
+        acc += Interval::new(l, u) * Interval::point(w);
+    });
+    acc
+}
+
+/// Sound lower bounds of every case's constraints over the box `[lo, hi]` of all the
+/// network's inputs, from one CROWN pass of the folded network (for tests and callers
+/// that check the folding): per case, per constraint, the bound of `c . f(x) + d`.
+pub fn constraint_lower_bounds(net: &Network, cases: &[Case]) -> Option<Vec<Vec<f64>>> {
+    let f = Folded::new(net, cases);
+    cases
+        .iter()
+        .map(|c| {
+            let (lo, hi) = (f.restrict(&c.lo), f.restrict(&c.hi));
+            let pass = f.bounds(&lo, &hi, None)?;
+            Some(
+                f.constraint_bounds(&pass, &c.constraints)
+                    .iter()
+                    .map(|l| l.min_over(&lo, &hi))
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
+/// A piece: a box of the free inputs, the cases still open on it, the bounds of its
+/// parent.
+struct Work {
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    open: Vec<usize>,
+    parent: Option<std::sync::Arc<Bounds>>,
+    /// The most negative constraint bound of the parent (smaller: examined first).
+    key: f64,
+    depth: u32,
+}
+
+impl PartialEq for Work {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == std::cmp::Ordering::Equal
+    }
+}
+impl Eq for Work {}
+impl PartialOrd for Work {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Work {
+    /// Deepest first (bounded memory), then the least bound.
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.depth.cmp(&o.depth).then(o.key.total_cmp(&self.key))
+    }
+}
+
+/// What examining a piece gave.
+enum Piece {
+    Closed,
+    Found(usize, Vec<f64>),
+    Split(Vec<Work>),
+    Stuck,
+}
+
+/// The value of every constraint of `cs` at outputs `y`.
+fn values(cs: &[crate::query::OutputConstraint], y: &[f64]) -> Vec<f64> {
+    cs.iter()
+        .map(|k| k.obj.d + k.obj.c.iter().zip(y).map(|(c, v)| c * v).sum::<f64>())
+        .collect()
+}
+
+/// Bound, check and split one piece.
+fn examine(net: &Network, f: &Folded, cases: &[Case], w: Work) -> Piece {
+    let Some(pass) = f.bounds(&w.lo, &w.hi, w.parent.as_deref()) else {
+        return Piece::Stuck;
+    };
+    let mut open = Vec::new();
+    let mut smear = vec![0.0f64; w.lo.len()];
+    let mut worst = f64::INFINITY;
+    for &ci in &w.open {
+        let cs = &cases[ci].constraints;
+        if cs.is_empty() {
+            // Holds everywhere: the centre is a point.
+            let xf: Vec<f64> = w.lo.iter().zip(&w.hi).map(|(a, b)| 0.5 * (a + b)).collect();
+            return Piece::Found(ci, f.expand(&xf));
+        }
+        let fs = f.constraint_bounds(&pass, cs);
+        let mins: Vec<f64> = fs.iter().map(|l| l.min_over(&w.lo, &w.hi)).collect();
+        if cs
+            .iter()
+            .zip(&mins)
+            .any(|(k, m)| *m > 0.0 || (k.strict && *m >= 0.0))
+        {
+            continue;
+        }
+        if fs.len() > 1 && combination_certifies(&fs, &w.lo, &w.hi).0 {
+            continue;
+        }
+        // Candidate points: the minimising corner of the weakest bound, the centre.
+        let (kw, _) = mins
+            .iter()
+            .enumerate()
+            .fold(
+                (0, f64::NEG_INFINITY),
+                |a, (k, m)| if *m > a.1 { (k, *m) } else { a },
+            );
+        let centre: Vec<f64> = w.lo.iter().zip(&w.hi).map(|(a, b)| 0.5 * (a + b)).collect();
+        for xf in [fs[kw].argmin_corner(&w.lo, &w.hi), centre] {
+            let x = f.expand(&xf);
+            let y = net.eval_f64(&x);
+            if satisfies(cs, &y) {
+                return Piece::Found(ci, x);
+            }
+        }
+        let m = mins.iter().fold(f64::INFINITY, |a, b| a.min(*b));
+        worst = worst.min(mins.iter().fold(f64::NEG_INFINITY, |a, b| a.max(*b)));
+        let _ = m;
+        for (l, mn) in fs.iter().zip(&mins) {
+            if *mn <= 0.0 {
+                for (t, s) in smear.iter_mut().enumerate() {
+                    *s += l.coef[t].abs() * (w.hi[t] - w.lo[t]);
+                }
+            }
+        }
+        open.push(ci);
+    }
+    if open.is_empty() {
+        return Piece::Closed;
+    }
+    // Split the input of the largest smear that can still be halved.
+    let mut best: Option<(usize, f64)> = None;
+    for (t, s) in smear.iter().enumerate() {
+        let mid = 0.5 * w.lo[t] + 0.5 * w.hi[t];
+        if !(mid > w.lo[t] && mid < w.hi[t]) {
+            continue;
+        }
+        let s = if *s > 0.0 {
+            *s
+        } else {
+            1e-300 * (w.hi[t] - w.lo[t])
+        };
+        if best.is_none_or(|b| s > b.1) {
+            best = Some((t, s));
+        }
+    }
+    let Some((t, _)) = best else {
+        return Piece::Stuck;
+    };
+    let mid = 0.5 * w.lo[t] + 0.5 * w.hi[t];
+    let parent = Some(std::sync::Arc::new(pass.bounds));
+    let mut a = Work {
+        lo: w.lo.clone(),
+        hi: w.hi.clone(),
+        open: open.clone(),
+        parent: parent.clone(),
+        key: worst,
+        depth: w.depth + 1,
+    };
+    a.hi[t] = mid;
+    let mut b = Work {
+        lo: w.lo,
+        hi: w.hi,
+        open,
+        parent,
+        key: worst,
+        depth: w.depth + 1,
+    };
+    b.lo[t] = mid;
+    Piece::Split(vec![a, b])
+}
+
+/// Signed-gradient descent on the free inputs from `xf` for the conjunction of `cases`
+/// nearest to holding; the case and the (original) point when one holds.
+fn descend(
+    net: &Network,
+    f: &Folded,
+    cases: &[Case],
+    group: &[usize],
+    lo: &[f64],
+    hi: &[f64],
+    mut xf: Vec<f64>,
+    steps: usize,
+) -> Option<(usize, Vec<f64>)> {
+    for step in 0..=steps {
+        let x = f.expand(&xf);
+        let (y, g) = samara_nn::attack::outputs_and_gradient(net, &x, |y| {
+            // The case nearest to holding (least summed violation): the gradient of its
+            // violated constraints.
+            let mut best: Option<(f64, usize)> = None;
+            for &ci in group {
+                let v: f64 = values(&cases[ci].constraints, y)
+                    .iter()
+                    .map(|v| v.max(0.0))
+                    .sum();
+                if best.is_none_or(|b| v < b.0) {
+                    best = Some((v, ci));
+                }
+            }
+            let mut c = vec![0.0; y.len()];
+            if let Some((_, ci)) = best {
+                let cs = &cases[ci].constraints;
+                for (k, v) in cs.iter().zip(values(cs, y)) {
+                    if v >= -1e-7 * (1.0 + v.abs()) {
+                        c.iter_mut().zip(&k.obj.c).for_each(|(a, b)| *a += b);
+                    }
+                }
+            }
+            c
+        });
+        if let Some(&ci) = group
+            .iter()
+            .find(|&&ci| satisfies(&cases[ci].constraints, &y))
+        {
+            return Some((ci, x));
+        }
+        if step == steps {
+            break;
+        }
+        let eta = 0.5 * (1.0 - step as f64 / steps as f64) + 0.02;
+        let mut moved = false;
+        for (t, &i) in f.free.iter().enumerate() {
+            let d = g[i].signum() * f64::from(u8::from(g[i] != 0.0));
+            moved |= d != 0.0;
+            xf[t] = (xf[t] - eta * 0.5 * (hi[t] - lo[t]) * d).clamp(lo[t], hi[t]);
+        }
+        if !moved {
+            break;
+        }
+    }
+    None
+}
+
+/// The attack on the cases sharing the box `[lo, hi]` of the free inputs: descents from
+/// the centre (first round) and seeded random starts, for `seconds`.
+#[allow(clippy::too_many_arguments)]
+fn attack(
+    net: &Network,
+    f: &Folded,
+    cases: &[Case],
+    group: &[usize],
+    lo: &[f64],
+    hi: &[f64],
+    s: &Settings,
+    round: u64,
+    seconds: f64,
+    deadline: Option<Instant>,
+) -> Option<(usize, Vec<f64>)> {
+    let t0 = Instant::now();
+    let workers = rayon::current_num_threads().max(1) as u64;
+    (0..workers).into_par_iter().find_map_any(|wk| {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+            s.seed ^ (round * workers + wk).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        );
+        for r in 0.. {
+            if (r > 0 && t0.elapsed().as_secs_f64() > seconds)
+                || deadline.is_some_and(|d| Instant::now() >= d)
+            {
+                return None;
+            }
+            let xf: Vec<f64> = (0..lo.len())
+                .map(|t| {
+                    if r == 0 && round == 0 && wk == 0 {
+                        0.5 * (lo[t] + hi[t])
+                    } else {
+                        rng.gen_range(lo[t]..=hi[t])
+                    }
+                })
+                .collect();
+            if let Some(found) = descend(net, f, cases, group, lo, hi, xf, s.steps.min(30)) {
+                return Some(found);
+            }
+        }
+        None
+    })
+}
+
+/// Decide the query on `net` (any activations): is there a case with a point? The
+/// inputs fixed in every case are folded first ([`Folded`]). `Proved` only when every
+/// piece of every case is closed by the sound bounds; a point is returned with the
+/// network's f64 outputs there (the caller re-checks it).
+pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
+    let t0 = Instant::now();
+    let mut stats = Stats::default();
+    let deadline = s.timeout.deadline_from(t0);
+    let out_of_time = || s.timeout.expired(t0, Instant::now());
+    let found = |ci: usize, x: Vec<f64>| {
+        let y = net.eval_f64(&x);
+        Outcome::Violated(CasePoint { case: ci, x, y })
+    };
+    if cases.is_empty() {
+        return (Outcome::Proved, stats);
+    }
+    let f = Folded::new(net, cases);
+    // Cases over the same box (after folding) share their pieces.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, c) in cases.iter().enumerate() {
+        match groups
+            .iter_mut()
+            .find(|g| cases[g[0]].lo == c.lo && cases[g[0]].hi == c.hi)
+        {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    let boxes: Vec<(Vec<f64>, Vec<f64>)> = groups
+        .iter()
+        .map(|g| (f.restrict(&cases[g[0]].lo), f.restrict(&cases[g[0]].hi)))
+        .collect();
+    for (g, (lo, hi)) in groups.iter().zip(&boxes) {
+        if let Some((ci, x)) = attack(net, &f, cases, g, lo, hi, s, 0, s.attack_seconds, deadline) {
+            return (found(ci, x), stats);
+        }
+    }
+    let mut heap: std::collections::BinaryHeap<Work> = groups
+        .iter()
+        .zip(&boxes)
+        .map(|(g, (lo, hi))| Work {
+            lo: lo.clone(),
+            hi: hi.clone(),
+            open: g.clone(),
+            parent: None,
+            key: f64::NEG_INFINITY,
+            depth: 0,
+        })
+        .collect();
+    let mut stuck = false;
+    let mut last_burst = Instant::now();
+    let mut round = 0u64;
+    let batch = (2 * rayon::current_num_threads()).max(2);
+    while !heap.is_empty() {
+        if out_of_time() {
+            return (Outcome::Unknown(StopReason::Timeout), stats);
+        }
+        if s.max_pieces > 0 && stats.pieces >= s.max_pieces {
+            return (Outcome::Unknown(StopReason::PieceLimit), stats);
+        }
+        // Attack bursts, about 10% of the time.
+        let interval = (0.25 * t0.elapsed().as_secs_f64()).max(1.0);
+        if last_burst.elapsed().as_secs_f64() > interval {
+            round += 1;
+            for (g, (lo, hi)) in groups.iter().zip(&boxes) {
+                let secs = 0.1 * interval / groups.len() as f64;
+                if let Some((ci, x)) = attack(net, &f, cases, g, lo, hi, s, round, secs, deadline) {
+                    return (found(ci, x), stats);
+                }
+            }
+            last_burst = Instant::now();
+        }
+        let take = batch.min(heap.len());
+        let ws: Vec<Work> = (0..take).filter_map(|_| heap.pop()).collect();
+        stats.pieces += ws.len() as u64;
+        let res: Vec<Piece> = ws
+            .into_par_iter()
+            .map(|w| examine(net, &f, cases, w))
+            .collect();
+        for r in res {
+            match r {
+                Piece::Closed => {}
+                Piece::Found(ci, x) => return (found(ci, x), stats),
+                Piece::Split(ws) => heap.extend(ws),
+                Piece::Stuck => stuck = true,
+            }
+        }
+    }
+    if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+        eprintln!(
+            "smooth search: {} free inputs, {} pieces, {:.2} s",
+            f.n_free(),
+            stats.pieces,
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    if stuck {
+        (Outcome::Unknown(StopReason::Unsplittable), stats)
+    } else {
+        (Outcome::Proved, stats)
+    }
+}
