@@ -710,3 +710,73 @@ pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
         (Outcome::Proved, stats)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The folded bias with its radius contains the exact `b + W_fixed x_fixed`,
+    /// enclosed independently by outward-rounded interval arithmetic, on rows built to
+    /// round (cancelling large terms, thirds).
+    #[test]
+    fn fold_radius_covers_the_exact_bias() {
+        let w = vec![
+            1e17,
+            -1e17,
+            3.0,
+            0.1, // row 0: cancellation
+            1.0 / 3.0,
+            2.0 / 3.0,
+            1e-3,
+            -7.25, // row 1: inexact products
+            0.0,
+            0.0,
+            0.0,
+            1.0, // row 2: only the free input
+        ];
+        let b = vec![1.0, 0.1, -2.0];
+        let net = Network {
+            input_names: (0..4).map(|i| format!("x{i}")).collect(),
+            output_names: (0..3).map(|i| format!("y{i}")).collect(),
+            input_norm: None,
+            layers: vec![
+                Layer::Affine(Affine::new(4, 3, w.clone(), b.clone())),
+                Layer::Act(Activation::Sigmoid),
+            ],
+            output_denorm: None,
+        };
+        let fixed = [1.0, 1.0 + f64::EPSILON, 0.1];
+        let mut lo = fixed.to_vec();
+        let mut hi = fixed.to_vec();
+        lo.push(-1.0);
+        hi.push(1.0);
+        let case = Case {
+            lo,
+            hi,
+            constraints: vec![],
+        };
+        let f = Folded::new(&net, &[case]);
+        assert_eq!(f.free, vec![3]);
+        let Op::Aff(a) = &f.ops[0] else {
+            panic!("the first op is the folded map")
+        };
+        assert_eq!((a.inp, a.out), (1, 3));
+        // Row 2 has no fixed term: its bias is kept exactly, with no radius.
+        assert!(a.b[2] == -2.0 && f.rad[2] == 0.0);
+        for i in 0..2 {
+            let mut exact = Interval::point(b[i]);
+            for (j, x) in fixed.iter().enumerate() {
+                exact += Interval::point(w[i * 4 + j]) * Interval::point(*x);
+            }
+            let (l, u) = (a.b[i] - f.rad[i], a.b[i] + f.rad[i]);
+            assert!(
+                l <= exact.lo && exact.hi <= u,
+                "row {i}: [{l}, {u}] misses [{}, {}]",
+                exact.lo,
+                exact.hi
+            );
+            assert_eq!(a.weight(i, 0), w[i * 4 + 3]);
+        }
+        assert_eq!(f.expand(&[0.5]), vec![1.0, 1.0 + f64::EPSILON, 0.1, 0.5]);
+    }
+}
