@@ -59,6 +59,9 @@ pub struct Folded {
     rad: Vec<f64>,
 }
 
+/// Neurons whose two pulls share one pass over the weights ([`Folded::pull_block`]).
+const PULL_BLOCK: usize = 8;
+
 /// Intermediate bounds of one piece: per op but the last, the bounds of its output.
 type Bounds = Vec<Vec<(f64, f64)>>;
 
@@ -161,6 +164,7 @@ impl Folded {
         let last = self.ops.len() - 1;
         let mut pass = Pass {
             inmag: Vec::with_capacity(self.ops.len()),
+            rowmag: Vec::with_capacity(self.ops.len()),
             rel: Vec::with_capacity(self.ops.len()),
             bounds: Vec::with_capacity(last),
         };
@@ -176,6 +180,14 @@ impl Folded {
                     .map(|&(l, u)| l.abs().max(u.abs()))
                     .collect()
             };
+            // Per row of an affine op, sum_t |w_it| |input_t| (the pulls' rounding).
+            pass.rowmag.push(match &self.ops[k] {
+                Op::Aff(a) => (0..a.out)
+                    .into_par_iter()
+                    .map(|i| a.row(i).abs_dot(&inmag))
+                    .collect(),
+                Op::Act(_) => Vec::new(),
+            });
             pass.inmag.push(inmag);
             let rel = match &self.ops[k] {
                 Op::Act(act) => pass.bounds[k - 1]
@@ -193,23 +205,57 @@ impl Folded {
                     .iter()
                     .map(|&(l, u)| rules::interval(*act, l, u))
                     .collect(),
-                Op::Aff(a) => (0..a.out)
-                    .into_par_iter()
-                    .map(|i| {
-                        let mut e = vec![0.0; a.out];
-                        e[i] = 1.0;
-                        let l = self.pull(&pass, k, e.clone()).min_over(lo, hi);
-                        e[i] = -1.0;
-                        let u = -self.pull(&pass, k, e).min_over(lo, hi);
-                        match k.checked_sub(1) {
-                            Some(q) => {
-                                let f = forward_interval(a, i, &pass.bounds[q]);
-                                (l.max(f.lo), u.min(f.hi))
-                            }
-                            None => (l, u),
-                        }
-                    })
-                    .collect(),
+                Op::Aff(a) => {
+                    // A neuron followed by a ReLU that the parent's bounds show stable
+                    // keeps them (sound here, the piece lying in the parent's box): its
+                    // relaxation is exact either way.
+                    let relu_next = matches!(self.ops.get(k + 1), Some(Op::Act(Activation::Relu)));
+                    let keep = |i: usize| {
+                        relu_next && parent.is_some_and(|p| p[k][i].0 >= 0.0 || p[k][i].1 <= 0.0)
+                    };
+                    let todo: Vec<usize> = (0..a.out).filter(|i| !keep(*i)).collect();
+                    let chunks: Vec<&[usize]> = todo.chunks(PULL_BLOCK).collect();
+                    let pass = &pass;
+                    let mut b: Vec<(f64, f64)> = match parent {
+                        Some(p) => p[k].clone(),
+                        None => vec![(f64::NEG_INFINITY, f64::INFINITY); a.out],
+                    };
+                    let got: Vec<(usize, (f64, f64))> = chunks
+                        .into_par_iter()
+                        .flat_map_iter(|idx| {
+                            let lams: Vec<Vec<f64>> = idx
+                                .iter()
+                                .flat_map(|&i| {
+                                    [1.0, -1.0].map(|s| {
+                                        let mut e = vec![0.0; a.out];
+                                        e[i] = s;
+                                        e
+                                    })
+                                })
+                                .collect();
+                            let fs = self.pull_block(pass, k, lams);
+                            idx.iter()
+                                .enumerate()
+                                .map(|(r, &i)| {
+                                    let l = fs[2 * r].min_over(lo, hi);
+                                    let u = -fs[2 * r + 1].min_over(lo, hi);
+                                    let lu = match k.checked_sub(1) {
+                                        Some(q) => {
+                                            let f = forward_interval(a, i, &pass.bounds[q]);
+                                            (l.max(f.lo), u.min(f.hi))
+                                        }
+                                        None => (l, u),
+                                    };
+                                    (i, lu)
+                                })
+                                .collect::<Vec<_>>()
+                        })
+                        .collect();
+                    for (i, lu) in got {
+                        b[i] = lu;
+                    }
+                    b
+                }
             };
             if let Some(p) = parent {
                 for (x, y) in b.iter_mut().zip(&p[k]) {
@@ -227,79 +273,97 @@ impl Folded {
     /// A lower bound of `lam . (output of op top)` linear in the free inputs, its slack
     /// covering every rounding (the discipline of [`crate::linset`]) and the fold's
     /// bias radius.
-    fn pull(&self, pass: &Pass, top: usize, mut lam: Vec<f64>) -> Linear {
-        let mut cst = 0.0f64;
-        let mut err = 0.0f64;
+    fn pull(&self, pass: &Pass, top: usize, lam: Vec<f64>) -> Linear {
+        self.pull_block(pass, top, vec![lam]).remove(0)
+    }
+
+    /// [`Folded::pull`] of several `lam`s at once: each affine row is read once for the
+    /// whole block (the pulls of a layer's neurons stream its weights block by block
+    /// instead of once per neuron). Every pull's arithmetic is the one of a lone pull.
+    fn pull_block(&self, pass: &Pass, top: usize, mut lams: Vec<Vec<f64>>) -> Vec<Linear> {
+        let nb = lams.len();
+        let mut cst = vec![0.0f64; nb];
+        let mut err = vec![0.0f64; nb];
         for j in (0..=top).rev() {
             let inmag = &pass.inmag[j];
             match &self.ops[j] {
                 Op::Aff(a) => {
-                    let mut nu = vec![0.0; a.inp];
-                    let mut mag = vec![0.0; a.inp];
-                    let mut cmag = cst.abs();
-                    for (i, &li) in lam.iter().enumerate() {
-                        if li == 0.0 {
-                            continue;
-                        }
-                        let p = li * a.b[i];
-                        cst += p;
-                        cmag += p.abs();
-                        if j == 0 && self.rad[i] > 0.0 {
-                            err += li.abs() * self.rad[i];
-                        }
-                        match a.row(i) {
-                            samara_nn::ir::Row::Dense(w) => {
-                                for ((n, m), w) in nu.iter_mut().zip(mag.iter_mut()).zip(w) {
-                                    let p = li * w;
-                                    *n += p;
-                                    *m += p.abs();
-                                }
+                    let mut nus = vec![vec![0.0; a.inp]; nb];
+                    let mut cmag: Vec<f64> = cst.iter().map(|c| c.abs()).collect();
+                    // sum_t |input_t| sum_i |lam_i w_it| = sum_i |lam_i| rowmag_i.
+                    let mut tmag = vec![0.0; nb];
+                    let rowmag = &pass.rowmag[j];
+                    for i in 0..a.out {
+                        let row = a.row(i);
+                        for r in 0..nb {
+                            let li = lams[r][i];
+                            if li == 0.0 {
+                                continue;
                             }
-                            r => r.for_each_nonzero(|t, w| {
-                                let p = li * w;
-                                nu[t] += p;
-                                mag[t] += p.abs();
-                            }),
+                            let p = li * a.b[i];
+                            cst[r] += p;
+                            cmag[r] += p.abs();
+                            tmag[r] += li.abs() * rowmag[i];
+                            if j == 0 && self.rad[i] > 0.0 {
+                                err[r] += li.abs() * self.rad[i];
+                            }
+                            let nu = &mut nus[r];
+                            match row {
+                                samara_nn::ir::Row::Dense(w) => {
+                                    for (n, w) in nu.iter_mut().zip(w) {
+                                        *n += li * w;
+                                    }
+                                }
+                                row => row.for_each_nonzero(|t, w| nu[t] += li * w),
+                            }
                         }
                     }
                     let g = gamma(a.out + 1);
-                    err += g * cmag;
-                    for (mt, im) in mag.iter().zip(inmag) {
-                        if *mt > 0.0 {
-                            err += g * mt * im;
-                        }
+                    for r in 0..nb {
+                        err[r] += g * (cmag[r] + tmag[r]);
                     }
-                    lam = nu;
+                    lams = nus;
                 }
                 Op::Act(_) => {
                     let rel = &pass.rel[j];
-                    let mut cmag = cst.abs();
-                    for ((lt, r), im) in lam.iter_mut().zip(rel).zip(inmag) {
-                        let l = *lt;
-                        if l == 0.0 {
-                            continue;
+                    for r in 0..nb {
+                        let lam = &mut lams[r];
+                        let mut cmag = cst[r].abs();
+                        for ((lt, rl), im) in lam.iter_mut().zip(rel).zip(inmag) {
+                            let l = *lt;
+                            if l == 0.0 {
+                                continue;
+                            }
+                            let (a, b) = if l > 0.0 {
+                                (rl.al, rl.bl)
+                            } else {
+                                (rl.au, rl.bu)
+                            };
+                            let nl = l * a;
+                            if nl != 0.0 {
+                                err[r] += f64::EPSILON * nl.abs() * im;
+                            }
+                            if b != 0.0 {
+                                let p = l * b;
+                                cst[r] += p;
+                                cmag += p.abs();
+                            }
+                            *lt = nl;
                         }
-                        let (a, b) = if l > 0.0 { (r.al, r.bl) } else { (r.au, r.bu) };
-                        let nl = l * a;
-                        if nl != 0.0 {
-                            err += f64::EPSILON * nl.abs() * im;
-                        }
-                        if b != 0.0 {
-                            let p = l * b;
-                            cst += p;
-                            cmag += p.abs();
-                        }
-                        *lt = nl;
+                        err[r] += gamma(lam.len() + 1) * cmag;
                     }
-                    err += gamma(lam.len() + 1) * cmag;
                 }
             }
         }
-        Linear {
-            coef: lam,
-            cst,
-            slack: inflate(err),
-        }
+        lams.into_iter()
+            .zip(cst)
+            .zip(err)
+            .map(|((coef, cst), err)| Linear {
+                coef,
+                cst,
+                slack: inflate(err),
+            })
+            .collect()
     }
 
     /// Lower bounds `L_k(x) <= c_k . f(x) + d_k` of a conjunction's constraints over
@@ -322,6 +386,8 @@ impl Folded {
 struct Pass {
     /// Per op, bounds of `|input|`.
     inmag: Vec<Vec<f64>>,
+    /// Per affine op, per row, `sum_t |w_it|` times the bound of `|input_t|`.
+    rowmag: Vec<Vec<f64>>,
     /// Per op, the activation's lines (empty for affine ops).
     rel: Vec<Vec<Relax>>,
     /// Per op but the last, bounds of its output.
