@@ -38,6 +38,7 @@ use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_num::round::{gamma, inflate};
+use samara_num::Interval;
 use std::time::Instant;
 
 /// One operation of the folded chain.
@@ -366,6 +367,34 @@ impl Folded {
             .collect()
     }
 
+    /// A lower bound of `c . f(x) + d` from interval bounds of the outputs (the last
+    /// op's interval rule over the bounds before it: a sigmoid output is at most 1
+    /// exactly, which the linear bounds only reach up to their slack), in outward-rounded
+    /// interval arithmetic.
+    fn interval_lower(&self, pass: &Pass, k: &crate::query::OutputConstraint) -> f64 {
+        let last = self.ops.len() - 1;
+        let Some(before) = last.checked_sub(1).map(|q| &pass.bounds[q]) else {
+            return f64::NEG_INFINITY;
+        };
+        let out: Vec<(f64, f64)> = match &self.ops[last] {
+            Op::Act(act) => before
+                .iter()
+                .map(|&(l, u)| rules::interval(*act, l, u))
+                .collect(),
+            Op::Aff(a) => {
+                let (m, r) = mid_rad(before);
+                (0..a.out).map(|i| forward_interval(a, i, &m, &r)).collect()
+            }
+        };
+        let mut acc = Interval::point(k.obj.d);
+        for (c, &(l, u)) in k.obj.c.iter().zip(&out) {
+            if *c != 0.0 {
+                acc += Interval::point(*c) * Interval::new(l, u);
+            }
+        }
+        acc.lo
+    }
+
     /// Lower bounds `L_k(x) <= c_k . f(x) + d_k` of a conjunction's constraints over
     /// the piece, linear in the free inputs.
     fn constraint_bounds(&self, pass: &Pass, cs: &[crate::query::OutputConstraint]) -> Vec<Linear> {
@@ -516,7 +545,11 @@ fn examine(net: &Network, f: &Folded, cases: &[Case], w: Work) -> Piece {
             return Piece::Found(ci, f.expand(&xf));
         }
         let fs = f.constraint_bounds(&pass, cs);
-        let mins: Vec<f64> = fs.iter().map(|l| l.min_over(&w.lo, &w.hi)).collect();
+        let mins: Vec<f64> = fs
+            .iter()
+            .zip(cs)
+            .map(|(l, k)| l.min_over(&w.lo, &w.hi).max(f.interval_lower(&pass, k)))
+            .collect();
         if cs
             .iter()
             .zip(&mins)
@@ -810,7 +843,6 @@ pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use samara_num::Interval;
 
     /// The folded bias with its radius contains the exact `b + W_fixed x_fixed`,
     /// enclosed independently by outward-rounded interval arithmetic, on rows built to

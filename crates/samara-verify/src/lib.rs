@@ -655,6 +655,15 @@ fn smooth_boxes(q: &Query, prep: &Prepared, s: &Settings, t0: Instant) -> Option
         return None;
     }
     let net = *prep.plain.get(&a.network)?;
+    // Step networks (`Sign`) keep the sign-gradient attack and the interval prover: a
+    // jump's lines are no tighter than its interval, and the prover decides more there.
+    if net
+        .layers
+        .iter()
+        .any(|l| matches!(l, samara_nn::Layer::Act(samara_nn::Activation::Sign)))
+    {
+        return None;
+    }
     let cases = boxq::to_cases(q)?;
     let plain: Vec<search::Case> = cases.iter().map(|c| c.1.clone()).collect();
     let settings = search::Settings {
