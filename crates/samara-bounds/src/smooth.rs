@@ -26,7 +26,7 @@
 //!   free inputs (the input with the largest smear `|coef_t| (hi_t - lo_t)` in the open
 //!   constraints' linear bounds, as ReluVal, Wang et al., USENIX Security 2018), each
 //!   piece closed when a constraint's lower bound is positive or a non-negative
-//!   combination of the conjunction's bounds is ([`crate::query`]), its candidate
+//!   combination of the conjunction's bounds is (the `query` module's), its candidate
 //!   points (the linear bound's minimising corner, the centre) checked on the original
 //!   network.
 
