@@ -24,6 +24,10 @@
 //!   Boxes with 64 or more inputs (images) are decided by ReLU splitting instead
 //!   (`relusplit`): beta-CROWN bounds (Wang et al., NeurIPS 2021) per phase set, after
 //!   the same checks of the whole box.
+//! - [`smooth`]: the same input-split search for networks with any activation (sigmoid,
+//!   tanh), CROWN over the free inputs after the inputs fixed in every case are folded
+//!   into the first layer's bias (the fold's rounding carried as a bias radius); VNN-COMP
+//!   2023's `dist_shift` (8 free inputs of 792) is its shape.
 //! - [`constant`]: interval bounds rounded only where an operation was inexact, which
 //!   decide degenerate constraints (an output exactly 0 on the box, two outputs of the
 //!   same expression compared) that the widened bounds of the search never close.
@@ -51,4 +55,5 @@ mod query;
 mod relusplit;
 pub mod rules;
 pub mod search;
+pub mod smooth;
 pub mod symbolic;

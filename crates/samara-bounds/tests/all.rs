@@ -5,6 +5,7 @@
 
 mod linset;
 mod rounding;
+mod smooth_fold;
 mod soundness;
 mod sparse_storage;
 

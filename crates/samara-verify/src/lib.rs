@@ -640,10 +640,72 @@ fn step_attack(q: &Query, prep: &Prepared, s: &Settings, t0: Instant) -> Option<
     }))
 }
 
+/// Box-shaped queries ([`boxq::to_cases`]) on one network that is not piecewise linear
+/// (sigmoid, tanh): the input-split search of [`samara_bounds::smooth`] (CROWN bounds,
+/// the inputs fixed in every disjunct folded into the first layer's bias). `None` when
+/// the query is not of that shape, or when that search stopped with time left for
+/// another reason than the time limit (the interval prover below then tries). A point
+/// counts only when its f64 outputs satisfy the disjunct beyond rounding.
+fn smooth_boxes(q: &Query, prep: &Prepared, s: &Settings, t0: Instant) -> Option<Verdict> {
+    use samara_bounds::search::{self, CasePoint, Outcome, StopReason};
+    let [a] = q.applications.as_slice() else {
+        return None;
+    };
+    if prep.pwl.get(&a.network).is_none_or(|p| p.is_ok()) {
+        return None;
+    }
+    let net = *prep.plain.get(&a.network)?;
+    // Step networks (`Sign`) keep the sign-gradient attack and the interval prover: a
+    // jump's lines are no tighter than its interval, and the prover decides more there.
+    if net
+        .layers
+        .iter()
+        .any(|l| matches!(l, samara_nn::Layer::Act(samara_nn::Activation::Sign)))
+    {
+        return None;
+    }
+    let cases = boxq::to_cases(q)?;
+    let plain: Vec<search::Case> = cases.iter().map(|c| c.1.clone()).collect();
+    let settings = search::Settings {
+        timeout: s.timeout.left(t0),
+        ..Default::default()
+    };
+    let (outcome, stats) = samara_bounds::smooth::solve(net, &plain, &settings);
+    Some(match outcome {
+        Outcome::Proved => Verdict::Proved,
+        Outcome::Violated(CasePoint { case, x, .. }) => {
+            let d = cases[case].0;
+            let pt = Point {
+                outputs: vec![net.eval_f64(&x)],
+                inputs: vec![x],
+                free: vec![],
+            };
+            match pt.robustly_satisfies(&q.region[d]) {
+                Ok(()) => Verdict::Violated(Counterexample {
+                    margin: pt.margin(&q.region[d]),
+                    point: pt,
+                    exact: None,
+                    disjunct: d,
+                }),
+                Err((margin, tolerance)) => {
+                    Verdict::Unknown(UnknownReason::Rounding { margin, tolerance })
+                }
+            }
+        }
+        Outcome::Unknown(StopReason::Timeout) => Verdict::Unknown(UnknownReason::Timeout {
+            nodes: stats.pieces as usize,
+        }),
+        Outcome::Unknown(_) => return None,
+    })
+}
+
 fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, VerifyError> {
     let t0 = Instant::now();
     let mut unknown = None;
     if let Some(v) = step_attack(q, prep, s, t0) {
+        return Ok(v);
+    }
+    if let Some(v) = smooth_boxes(q, prep, s, t0) {
         return Ok(v);
     }
     for d in 0..q.region.len() {

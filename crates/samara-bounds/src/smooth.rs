@@ -1,0 +1,911 @@
+//! Input-domain branch and bound for networks with any of the IR's activations (sigmoid
+//! and tanh as well as ReLU and clamp), on box-shaped queries ([`Case`]s) whose inputs
+//! are partly fixed: VNN-COMP 2023's `dist_shift` fixes 784 of its 792 inputs (the
+//! image) and leaves 8 free (a generator's latent code).
+//!
+//! - **Folding** ([`Folded`]): the inputs fixed to the same value in every case
+//!   (`lo = hi`) are folded into the first affine map's bias, `b' = b + W_fixed x_fixed`,
+//!   which leaves a network of the free inputs only, so that bounds cost and splitting
+//!   work on those few dimensions. The rewrite is exact in real arithmetic; the f64
+//!   rounding of `b'` is bounded per row (Higham's `gamma_k` times the sum of the
+//!   magnitudes of the terms, [`samara_num::round::gamma`]) and carried as a radius of
+//!   the bias that every bound adds, so the folded bounds hold for the original network
+//!   over the original box. Points are re-expanded to every input ([`Folded::expand`])
+//!   and evaluated on the original network.
+//! - **Bounds**: CROWN (Zhang et al., "Efficient Neural Network Robustness Certification
+//!   with General Activation Functions", NeurIPS 2018) by back-substitution over the
+//!   folded chain, every intermediate neuron bounded by its own back-substitution and
+//!   intersected with interval propagation and with the parent piece's bounds (all
+//!   sound), each activation's lines from [`crate::rules`] (sigmoid and tanh:
+//!   [`crate::rules::sigmoid_tanh`]). Rounding is that of [`crate::linset`]: every f64
+//!   dot product's error is bounded by `gamma_k` times the sum of the magnitudes of its
+//!   terms times a bound of the variable it multiplies, so a bound holds in exact
+//!   arithmetic over the stored weights.
+//! - **Search**: an attack first (signed-gradient descent from the centre and random
+//!   starts, on the conjunction nearest to holding), then best-first splitting of the
+//!   free inputs (the input with the largest smear `|coef_t| (hi_t - lo_t)` in the open
+//!   constraints' linear bounds, as ReluVal, Wang et al., USENIX Security 2018), each
+//!   piece closed when a constraint's lower bound is positive or a non-negative
+//!   combination of the conjunction's bounds is (the `query` module's), its candidate
+//!   points (the linear bound's minimising corner, the centre) checked on the original
+//!   network.
+
+use crate::query::{combination_certifies, satisfies, Case};
+use crate::rules::{self, Relax};
+use crate::search::{CasePoint, Outcome, Settings, Stats, StopReason};
+use crate::symbolic::Linear;
+use rand::{Rng, SeedableRng};
+use rayon::prelude::*;
+use samara_nn::{Activation, Affine, Layer, Network};
+use samara_num::round::{gamma, inflate};
+use samara_num::Interval;
+use std::time::Instant;
+
+/// One operation of the folded chain.
+enum Op {
+    Aff(Affine),
+    Act(Activation),
+}
+
+/// A network with the inputs fixed in every case folded into its first affine map (see
+/// the module documentation).
+pub struct Folded {
+    /// Indices of the free inputs in the original network.
+    pub free: Vec<usize>,
+    /// The original input with the fixed values (free entries are overwritten).
+    base: Vec<f64>,
+    ops: Vec<Op>,
+    /// Radius of the first map's bias: the bound of the fold's rounding, per row.
+    rad: Vec<f64>,
+}
+
+/// Neurons whose two pulls share one pass over the weights ([`Folded::pull_block`]).
+const PULL_BLOCK: usize = 8;
+
+/// Intermediate bounds of one piece: per op but the last, the bounds of its output.
+type Bounds = Vec<Vec<(f64, f64)>>;
+
+impl Folded {
+    /// Fold the inputs that every case fixes to one value (`lo = hi`, the same in every
+    /// case). A network whose first raw layer is not affine gets an identity map first.
+    pub fn new(net: &Network, cases: &[Case]) -> Folded {
+        let n = net.n_inputs();
+        let fixed: Vec<bool> = (0..n)
+            .map(|i| {
+                let v = cases.first().map(|c| c.lo[i]);
+                cases
+                    .iter()
+                    .all(|c| c.lo[i] == c.hi[i] && Some(c.lo[i]) == v && c.lo[i].is_finite())
+            })
+            .collect();
+        let base: Vec<f64> = (0..n)
+            .map(|i| if fixed[i] { cases[0].lo[i] } else { 0.0 })
+            .collect();
+        let free: Vec<usize> = (0..n).filter(|i| !fixed[*i]).collect();
+        let mut layers: Vec<Layer> = net.raw_layers();
+        if !matches!(layers.first(), Some(Layer::Affine(_))) {
+            let mut w = vec![0.0; n * n];
+            (0..n).for_each(|i| w[i * n + i] = 1.0);
+            layers.insert(0, Layer::Affine(Affine::new(n, n, w, vec![0.0; n])));
+        }
+        let mut ops = Vec::with_capacity(layers.len());
+        let mut rad = Vec::new();
+        for (k, l) in layers.into_iter().enumerate() {
+            match l {
+                Layer::Affine(a) if k == 0 => {
+                    let p = free.len();
+                    let mut w = vec![0.0; a.out * p];
+                    let mut b = Vec::with_capacity(a.out);
+                    rad = Vec::with_capacity(a.out);
+                    for i in 0..a.out {
+                        let row = a.dense_row(i);
+                        let mut s = a.b[i];
+                        let mut mag = s.abs();
+                        let mut terms = 1;
+                        for (j, &wij) in row.iter().enumerate() {
+                            if fixed[j] {
+                                let t = wij * base[j];
+                                if t != 0.0 {
+                                    s += t;
+                                    mag += t.abs();
+                                    terms += 1;
+                                }
+                            }
+                        }
+                        for (t, &j) in free.iter().enumerate() {
+                            w[i * p + t] = row[j];
+                        }
+                        b.push(s);
+                        // The exact b + W_fixed x_fixed is within gamma_k * mag of s
+                        // (products and sums rounded: k + 1 roundings per term at most).
+                        rad.push(if terms > 1 {
+                            inflate(gamma(2 * terms) * mag)
+                        } else {
+                            0.0
+                        });
+                    }
+                    ops.push(Op::Aff(Affine::new(p, a.out, w, b)));
+                }
+                Layer::Affine(a) => ops.push(Op::Aff(a)),
+                Layer::Act(act) => ops.push(Op::Act(act)),
+            }
+        }
+        Folded {
+            free,
+            base,
+            ops,
+            rad,
+        }
+    }
+
+    /// Number of free inputs.
+    pub fn n_free(&self) -> usize {
+        self.free.len()
+    }
+
+    /// The original input of the free values `xf`.
+    pub fn expand(&self, xf: &[f64]) -> Vec<f64> {
+        let mut x = self.base.clone();
+        for (t, &i) in self.free.iter().enumerate() {
+            x[i] = xf[t];
+        }
+        x
+    }
+
+    /// The free part of an original input.
+    pub fn restrict(&self, x: &[f64]) -> Vec<f64> {
+        self.free.iter().map(|&i| x[i]).collect()
+    }
+
+    /// CROWN's intermediate bounds over the box of the free inputs, intersected with
+    /// `parent` (bounds over a box containing this one) when given. `None` when a bound
+    /// is not finite (overflow).
+    fn bounds(&self, lo: &[f64], hi: &[f64], parent: Option<&Bounds>) -> Option<Pass> {
+        let last = self.ops.len() - 1;
+        let mut pass = Pass {
+            inmag: Vec::with_capacity(self.ops.len()),
+            rowmag: Vec::with_capacity(self.ops.len()),
+            rel: Vec::with_capacity(self.ops.len()),
+            bounds: Vec::with_capacity(last),
+        };
+        for k in 0..self.ops.len() {
+            let inmag: Vec<f64> = if k == 0 {
+                lo.iter()
+                    .zip(hi)
+                    .map(|(a, b)| a.abs().max(b.abs()))
+                    .collect()
+            } else {
+                pass.bounds[k - 1]
+                    .iter()
+                    .map(|&(l, u)| l.abs().max(u.abs()))
+                    .collect()
+            };
+            // Per row of an affine op, sum_t |w_it| |input_t| (the pulls' rounding).
+            pass.rowmag.push(match &self.ops[k] {
+                Op::Aff(a) => (0..a.out)
+                    .into_par_iter()
+                    .map(|i| a.row(i).abs_dot(&inmag))
+                    .collect(),
+                Op::Act(_) => Vec::new(),
+            });
+            pass.inmag.push(inmag);
+            let rel = match &self.ops[k] {
+                Op::Act(act) => pass.bounds[k - 1]
+                    .par_iter()
+                    .map(|&(l, u)| rules::relax(*act, l, u))
+                    .collect(),
+                Op::Aff(_) => Vec::new(),
+            };
+            pass.rel.push(rel);
+            if k == last {
+                break;
+            }
+            let mut b: Vec<(f64, f64)> = match &self.ops[k] {
+                Op::Act(act) => pass.bounds[k - 1]
+                    .iter()
+                    .map(|&(l, u)| rules::interval(*act, l, u))
+                    .collect(),
+                Op::Aff(a) => {
+                    // A neuron followed by a ReLU that the parent's bounds show stable
+                    // keeps them (sound here, the piece lying in the parent's box): its
+                    // relaxation is exact either way.
+                    let relu_next = matches!(self.ops.get(k + 1), Some(Op::Act(Activation::Relu)));
+                    let keep = |i: usize| {
+                        relu_next && parent.is_some_and(|p| p[k][i].0 >= 0.0 || p[k][i].1 <= 0.0)
+                    };
+                    let todo: Vec<usize> = (0..a.out).filter(|i| !keep(*i)).collect();
+                    let chunks: Vec<&[usize]> = todo.chunks(PULL_BLOCK).collect();
+                    let pass = &pass;
+                    let mr = k.checked_sub(1).map(|q| mid_rad(&pass.bounds[q]));
+                    let mut b: Vec<(f64, f64)> = match parent {
+                        Some(p) => p[k].clone(),
+                        None => vec![(f64::NEG_INFINITY, f64::INFINITY); a.out],
+                    };
+                    let got: Vec<(usize, (f64, f64))> = chunks
+                        .into_par_iter()
+                        .flat_map_iter(|idx| {
+                            let lams: Vec<Vec<f64>> = idx
+                                .iter()
+                                .flat_map(|&i| {
+                                    [1.0, -1.0].map(|s| {
+                                        let mut e = vec![0.0; a.out];
+                                        e[i] = s;
+                                        e
+                                    })
+                                })
+                                .collect();
+                            let fs = self.pull_block(pass, k, lams);
+                            idx.iter()
+                                .enumerate()
+                                .map(|(r, &i)| {
+                                    let l = fs[2 * r].min_over(lo, hi);
+                                    let u = -fs[2 * r + 1].min_over(lo, hi);
+                                    let lu = match &mr {
+                                        Some((m, r)) => {
+                                            let f = forward_interval(a, i, m, r);
+                                            (l.max(f.0), u.min(f.1))
+                                        }
+                                        None => (l, u),
+                                    };
+                                    (i, lu)
+                                })
+                                .collect::<Vec<_>>()
+                        })
+                        .collect();
+                    for (i, lu) in got {
+                        b[i] = lu;
+                    }
+                    b
+                }
+            };
+            if let Some(p) = parent {
+                for (x, y) in b.iter_mut().zip(&p[k]) {
+                    *x = (x.0.max(y.0), x.1.min(y.1));
+                }
+            }
+            if b.iter().any(|&(l, u)| !l.is_finite() || !u.is_finite()) {
+                return None;
+            }
+            pass.bounds.push(b);
+        }
+        Some(pass)
+    }
+
+    /// A lower bound of `lam . (output of op top)` linear in the free inputs, its slack
+    /// covering every rounding (the discipline of [`crate::linset`]) and the fold's
+    /// bias radius.
+    fn pull(&self, pass: &Pass, top: usize, lam: Vec<f64>) -> Linear {
+        self.pull_block(pass, top, vec![lam]).remove(0)
+    }
+
+    /// [`Folded::pull`] of several `lam`s at once: each affine row is read once for the
+    /// whole block (the pulls of a layer's neurons stream its weights block by block
+    /// instead of once per neuron). Every pull's arithmetic is the one of a lone pull.
+    fn pull_block(&self, pass: &Pass, top: usize, mut lams: Vec<Vec<f64>>) -> Vec<Linear> {
+        let nb = lams.len();
+        let mut cst = vec![0.0f64; nb];
+        let mut err = vec![0.0f64; nb];
+        for j in (0..=top).rev() {
+            let inmag = &pass.inmag[j];
+            match &self.ops[j] {
+                Op::Aff(a) => {
+                    let mut nus = vec![vec![0.0; a.inp]; nb];
+                    let mut cmag: Vec<f64> = cst.iter().map(|c| c.abs()).collect();
+                    // sum_t |input_t| sum_i |lam_i w_it| = sum_i |lam_i| rowmag_i.
+                    let mut tmag = vec![0.0; nb];
+                    let rowmag = &pass.rowmag[j];
+                    for i in 0..a.out {
+                        let row = a.row(i);
+                        for r in 0..nb {
+                            let li = lams[r][i];
+                            if li == 0.0 {
+                                continue;
+                            }
+                            let p = li * a.b[i];
+                            cst[r] += p;
+                            cmag[r] += p.abs();
+                            tmag[r] += li.abs() * rowmag[i];
+                            if j == 0 && self.rad[i] > 0.0 {
+                                err[r] += li.abs() * self.rad[i];
+                            }
+                            let nu = &mut nus[r];
+                            match row {
+                                samara_nn::ir::Row::Dense(w) => {
+                                    for (n, w) in nu.iter_mut().zip(w) {
+                                        *n += li * w;
+                                    }
+                                }
+                                row => row.for_each_nonzero(|t, w| nu[t] += li * w),
+                            }
+                        }
+                    }
+                    let g = gamma(a.out + 1);
+                    for r in 0..nb {
+                        err[r] += g * (cmag[r] + tmag[r]);
+                    }
+                    lams = nus;
+                }
+                Op::Act(_) => {
+                    let rel = &pass.rel[j];
+                    for r in 0..nb {
+                        let lam = &mut lams[r];
+                        let mut cmag = cst[r].abs();
+                        for ((lt, rl), im) in lam.iter_mut().zip(rel).zip(inmag) {
+                            let l = *lt;
+                            if l == 0.0 {
+                                continue;
+                            }
+                            let (a, b) = if l > 0.0 {
+                                (rl.al, rl.bl)
+                            } else {
+                                (rl.au, rl.bu)
+                            };
+                            let nl = l * a;
+                            if nl != 0.0 {
+                                err[r] += f64::EPSILON * nl.abs() * im;
+                            }
+                            if b != 0.0 {
+                                let p = l * b;
+                                cst[r] += p;
+                                cmag += p.abs();
+                            }
+                            *lt = nl;
+                        }
+                        err[r] += gamma(lam.len() + 1) * cmag;
+                    }
+                }
+            }
+        }
+        lams.into_iter()
+            .zip(cst)
+            .zip(err)
+            .map(|((coef, cst), err)| Linear {
+                coef,
+                cst,
+                slack: inflate(err),
+            })
+            .collect()
+    }
+
+    /// A lower bound of `c . f(x) + d` from interval bounds of the outputs (the last
+    /// op's interval rule over the bounds before it: a sigmoid output is at most 1
+    /// exactly, which the linear bounds only reach up to their slack), in outward-rounded
+    /// interval arithmetic.
+    fn interval_lower(&self, pass: &Pass, k: &crate::query::OutputConstraint) -> f64 {
+        let last = self.ops.len() - 1;
+        let Some(before) = last.checked_sub(1).map(|q| &pass.bounds[q]) else {
+            return f64::NEG_INFINITY;
+        };
+        let out: Vec<(f64, f64)> = match &self.ops[last] {
+            Op::Act(act) => before
+                .iter()
+                .map(|&(l, u)| rules::interval(*act, l, u))
+                .collect(),
+            Op::Aff(a) => {
+                let (m, r) = mid_rad(before);
+                (0..a.out).map(|i| forward_interval(a, i, &m, &r)).collect()
+            }
+        };
+        let mut acc = Interval::point(k.obj.d);
+        for (c, &(l, u)) in k.obj.c.iter().zip(&out) {
+            if *c != 0.0 {
+                acc += Interval::point(*c) * Interval::new(l, u);
+            }
+        }
+        acc.lo
+    }
+
+    /// Lower bounds `L_k(x) <= c_k . f(x) + d_k` of a conjunction's constraints over
+    /// the piece, linear in the free inputs.
+    fn constraint_bounds(&self, pass: &Pass, cs: &[crate::query::OutputConstraint]) -> Vec<Linear> {
+        let top = self.ops.len() - 1;
+        cs.iter()
+            .map(|k| {
+                let mut f = self.pull(pass, top, k.obj.c.clone());
+                let c = f.cst + k.obj.d;
+                f.slack = inflate(f.slack + gamma(1) * (f.cst.abs() + k.obj.d.abs()));
+                f.cst = c;
+                f
+            })
+            .collect()
+    }
+}
+
+/// The per-piece state of a CROWN pass.
+struct Pass {
+    /// Per op, bounds of `|input|`.
+    inmag: Vec<Vec<f64>>,
+    /// Per affine op, per row, `sum_t |w_it|` times the bound of `|input_t|`.
+    rowmag: Vec<Vec<f64>>,
+    /// Per op, the activation's lines (empty for affine ops).
+    rel: Vec<Vec<Relax>>,
+    /// Per op but the last, bounds of its output.
+    bounds: Bounds,
+}
+
+/// A sound range of row `i` of `a` over the box `b` of its input, in midpoint-radius
+/// form: the box is enclosed by `m +- r` (`m` the rounded midpoint, `r` rounded up to
+/// cover both ends), the row's value is `w . m + b_i +- |w| . r`, and the f64 rounding of
+/// both sums is bounded by `gamma_(n+1)` times the sums of the magnitudes of their terms
+/// (Higham), inflated and rounded outward. Plain f64 arithmetic, about a tenth of the
+/// cost of interval products.
+fn forward_interval(a: &Affine, i: usize, mid: &[f64], rad: &[f64]) -> (f64, f64) {
+    let mut s = a.b[i];
+    let mut mag = s.abs();
+    let mut r = 0.0;
+    match a.row(i) {
+        samara_nn::ir::Row::Dense(w) => {
+            for ((w, m), q) in w.iter().zip(mid).zip(rad) {
+                let p = w * m;
+                s += p;
+                mag += p.abs();
+                r += w.abs() * q;
+            }
+        }
+        row => row.for_each_nonzero(|j, w| {
+            let p = w * mid[j];
+            s += p;
+            mag += p.abs();
+            r += w.abs() * rad[j];
+        }),
+    }
+    let g = gamma(a.inp + 2);
+    let e = inflate(g * (mag + r) + r);
+    ((s - e).next_down(), (s + e).next_up())
+}
+
+/// Midpoints and covering radii of a box ([`forward_interval`]'s form).
+fn mid_rad(b: &[(f64, f64)]) -> (Vec<f64>, Vec<f64>) {
+    b.iter()
+        .map(|&(l, u)| {
+            let m = 0.5 * l + 0.5 * u;
+            (m, (u - m).next_up().max((m - l).next_up()))
+        })
+        .unzip()
+}
+
+/// Sound lower bounds of every case's constraints over the box `[lo, hi]` of all the
+/// network's inputs, from one CROWN pass of the folded network (for tests and callers
+/// that check the folding): per case, per constraint, the bound of `c . f(x) + d`.
+pub fn constraint_lower_bounds(net: &Network, cases: &[Case]) -> Option<Vec<Vec<f64>>> {
+    let f = Folded::new(net, cases);
+    cases
+        .iter()
+        .map(|c| {
+            let (lo, hi) = (f.restrict(&c.lo), f.restrict(&c.hi));
+            let pass = f.bounds(&lo, &hi, None)?;
+            Some(
+                f.constraint_bounds(&pass, &c.constraints)
+                    .iter()
+                    .map(|l| l.min_over(&lo, &hi))
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
+/// A piece: a box of the free inputs, the cases still open on it, the bounds of its
+/// parent.
+struct Work {
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+    open: Vec<usize>,
+    parent: Option<std::sync::Arc<Bounds>>,
+    /// The most negative constraint bound of the parent (smaller: examined first).
+    key: f64,
+    depth: u32,
+}
+
+impl PartialEq for Work {
+    fn eq(&self, o: &Self) -> bool {
+        self.cmp(o) == std::cmp::Ordering::Equal
+    }
+}
+impl Eq for Work {}
+impl PartialOrd for Work {
+    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(o))
+    }
+}
+impl Ord for Work {
+    /// Deepest first (bounded memory), then the least bound.
+    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+        self.depth.cmp(&o.depth).then(o.key.total_cmp(&self.key))
+    }
+}
+
+/// What examining a piece gave.
+enum Piece {
+    Closed,
+    Found(usize, Vec<f64>),
+    Split(Vec<Work>),
+    Stuck,
+}
+
+/// The value of every constraint of `cs` at outputs `y`.
+fn values(cs: &[crate::query::OutputConstraint], y: &[f64]) -> Vec<f64> {
+    cs.iter()
+        .map(|k| k.obj.d + k.obj.c.iter().zip(y).map(|(c, v)| c * v).sum::<f64>())
+        .collect()
+}
+
+/// Bound, check and split one piece.
+fn examine(net: &Network, f: &Folded, cases: &[Case], w: Work) -> Piece {
+    let Some(pass) = f.bounds(&w.lo, &w.hi, w.parent.as_deref()) else {
+        return Piece::Stuck;
+    };
+    let mut open = Vec::new();
+    let mut smear = vec![0.0f64; w.lo.len()];
+    let mut worst = f64::INFINITY;
+    for &ci in &w.open {
+        let cs = &cases[ci].constraints;
+        if cs.is_empty() {
+            // Holds everywhere: the centre is a point.
+            let xf: Vec<f64> = w.lo.iter().zip(&w.hi).map(|(a, b)| 0.5 * (a + b)).collect();
+            return Piece::Found(ci, f.expand(&xf));
+        }
+        let fs = f.constraint_bounds(&pass, cs);
+        let mins: Vec<f64> = fs
+            .iter()
+            .zip(cs)
+            .map(|(l, k)| l.min_over(&w.lo, &w.hi).max(f.interval_lower(&pass, k)))
+            .collect();
+        if cs
+            .iter()
+            .zip(&mins)
+            .any(|(k, m)| *m > 0.0 || (k.strict && *m >= 0.0))
+        {
+            continue;
+        }
+        if fs.len() > 1 && combination_certifies(&fs, &w.lo, &w.hi).0 {
+            continue;
+        }
+        // Candidate points: the minimising corner of the weakest bound, the centre.
+        let (kw, _) = mins
+            .iter()
+            .enumerate()
+            .fold(
+                (0, f64::NEG_INFINITY),
+                |a, (k, m)| if *m > a.1 { (k, *m) } else { a },
+            );
+        let centre: Vec<f64> = w.lo.iter().zip(&w.hi).map(|(a, b)| 0.5 * (a + b)).collect();
+        for xf in [fs[kw].argmin_corner(&w.lo, &w.hi), centre] {
+            let x = f.expand(&xf);
+            let y = net.eval_f64(&x);
+            if satisfies(cs, &y) {
+                return Piece::Found(ci, x);
+            }
+        }
+        worst = worst.min(mins.iter().fold(f64::NEG_INFINITY, |a, b| a.max(*b)));
+        for (l, mn) in fs.iter().zip(&mins) {
+            if *mn <= 0.0 {
+                for (t, s) in smear.iter_mut().enumerate() {
+                    *s += l.coef[t].abs() * (w.hi[t] - w.lo[t]);
+                }
+            }
+        }
+        open.push(ci);
+    }
+    if open.is_empty() {
+        return Piece::Closed;
+    }
+    // Split the input of the largest smear that can still be halved.
+    let mut best: Option<(usize, f64)> = None;
+    for (t, s) in smear.iter().enumerate() {
+        let mid = 0.5 * w.lo[t] + 0.5 * w.hi[t];
+        if !(mid > w.lo[t] && mid < w.hi[t]) {
+            continue;
+        }
+        let s = if *s > 0.0 {
+            *s
+        } else {
+            1e-300 * (w.hi[t] - w.lo[t])
+        };
+        if best.is_none_or(|b| s > b.1) {
+            best = Some((t, s));
+        }
+    }
+    let Some((t, _)) = best else {
+        return Piece::Stuck;
+    };
+    let mid = 0.5 * w.lo[t] + 0.5 * w.hi[t];
+    let parent = Some(std::sync::Arc::new(pass.bounds));
+    let mut a = Work {
+        lo: w.lo.clone(),
+        hi: w.hi.clone(),
+        open: open.clone(),
+        parent: parent.clone(),
+        key: worst,
+        depth: w.depth + 1,
+    };
+    a.hi[t] = mid;
+    let mut b = Work {
+        lo: w.lo,
+        hi: w.hi,
+        open,
+        parent,
+        key: worst,
+        depth: w.depth + 1,
+    };
+    b.lo[t] = mid;
+    Piece::Split(vec![a, b])
+}
+
+/// Signed-gradient descent on the free inputs from `xf` for the conjunction of `cases`
+/// nearest to holding; the case and the (original) point when one holds.
+#[allow(clippy::too_many_arguments)]
+fn descend(
+    net: &Network,
+    f: &Folded,
+    cases: &[Case],
+    group: &[usize],
+    lo: &[f64],
+    hi: &[f64],
+    mut xf: Vec<f64>,
+    steps: usize,
+) -> Option<(usize, Vec<f64>)> {
+    for step in 0..=steps {
+        let x = f.expand(&xf);
+        let (y, g) = samara_nn::attack::outputs_and_gradient(net, &x, |y| {
+            // The case nearest to holding (least summed violation): the gradient of its
+            // violated constraints.
+            let mut best: Option<(f64, usize)> = None;
+            for &ci in group {
+                let v: f64 = values(&cases[ci].constraints, y)
+                    .iter()
+                    .map(|v| v.max(0.0))
+                    .sum();
+                if best.is_none_or(|b| v < b.0) {
+                    best = Some((v, ci));
+                }
+            }
+            let mut c = vec![0.0; y.len()];
+            if let Some((_, ci)) = best {
+                let cs = &cases[ci].constraints;
+                for (k, v) in cs.iter().zip(values(cs, y)) {
+                    if v >= -1e-7 * (1.0 + v.abs()) {
+                        c.iter_mut().zip(&k.obj.c).for_each(|(a, b)| *a += b);
+                    }
+                }
+            }
+            c
+        });
+        if let Some(&ci) = group
+            .iter()
+            .find(|&&ci| satisfies(&cases[ci].constraints, &y))
+        {
+            return Some((ci, x));
+        }
+        if step == steps {
+            break;
+        }
+        let eta = 0.5 * (1.0 - step as f64 / steps as f64) + 0.02;
+        let mut moved = false;
+        for (t, &i) in f.free.iter().enumerate() {
+            let d = g[i].signum() * f64::from(u8::from(g[i] != 0.0));
+            moved |= d != 0.0;
+            xf[t] = (xf[t] - eta * 0.5 * (hi[t] - lo[t]) * d).clamp(lo[t], hi[t]);
+        }
+        if !moved {
+            break;
+        }
+    }
+    None
+}
+
+/// The attack on the cases sharing the box `[lo, hi]` of the free inputs: descents from
+/// the centre (first round) and seeded random starts, for `seconds`.
+#[allow(clippy::too_many_arguments)]
+fn attack(
+    net: &Network,
+    f: &Folded,
+    cases: &[Case],
+    group: &[usize],
+    lo: &[f64],
+    hi: &[f64],
+    s: &Settings,
+    round: u64,
+    seconds: f64,
+    deadline: Option<Instant>,
+) -> Option<(usize, Vec<f64>)> {
+    let t0 = Instant::now();
+    let workers = rayon::current_num_threads().max(1) as u64;
+    (0..workers).into_par_iter().find_map_any(|wk| {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
+            s.seed ^ (round * workers + wk).wrapping_mul(0x9E37_79B9_7F4A_7C15),
+        );
+        for r in 0.. {
+            if (r > 0 && t0.elapsed().as_secs_f64() > seconds)
+                || deadline.is_some_and(|d| Instant::now() >= d)
+            {
+                return None;
+            }
+            let xf: Vec<f64> = (0..lo.len())
+                .map(|t| {
+                    if r == 0 && round == 0 && wk == 0 {
+                        0.5 * (lo[t] + hi[t])
+                    } else {
+                        rng.gen_range(lo[t]..=hi[t])
+                    }
+                })
+                .collect();
+            if let Some(found) = descend(net, f, cases, group, lo, hi, xf, s.steps.min(30)) {
+                return Some(found);
+            }
+        }
+        None
+    })
+}
+
+/// Decide the query on `net` (any activations): is there a case with a point? The
+/// inputs fixed in every case are folded first ([`Folded`]). `Proved` only when every
+/// piece of every case is closed by the sound bounds; a point is returned with the
+/// network's f64 outputs there (the caller re-checks it).
+pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
+    let t0 = Instant::now();
+    let mut stats = Stats::default();
+    let deadline = s.timeout.deadline_from(t0);
+    let out_of_time = || s.timeout.expired(t0, Instant::now());
+    let found = |ci: usize, x: Vec<f64>| {
+        let y = net.eval_f64(&x);
+        Outcome::Violated(CasePoint { case: ci, x, y })
+    };
+    if cases.is_empty() {
+        return (Outcome::Proved, stats);
+    }
+    let f = Folded::new(net, cases);
+    // Cases over the same box (after folding) share their pieces.
+    let mut groups: Vec<Vec<usize>> = Vec::new();
+    for (i, c) in cases.iter().enumerate() {
+        match groups
+            .iter_mut()
+            .find(|g| cases[g[0]].lo == c.lo && cases[g[0]].hi == c.hi)
+        {
+            Some(g) => g.push(i),
+            None => groups.push(vec![i]),
+        }
+    }
+    let boxes: Vec<(Vec<f64>, Vec<f64>)> = groups
+        .iter()
+        .map(|g| (f.restrict(&cases[g[0]].lo), f.restrict(&cases[g[0]].hi)))
+        .collect();
+    for (g, (lo, hi)) in groups.iter().zip(&boxes) {
+        if let Some((ci, x)) = attack(net, &f, cases, g, lo, hi, s, 0, s.attack_seconds, deadline) {
+            return (found(ci, x), stats);
+        }
+    }
+    let mut heap: std::collections::BinaryHeap<Work> = groups
+        .iter()
+        .zip(&boxes)
+        .map(|(g, (lo, hi))| Work {
+            lo: lo.clone(),
+            hi: hi.clone(),
+            open: g.clone(),
+            parent: None,
+            key: f64::NEG_INFINITY,
+            depth: 0,
+        })
+        .collect();
+    let mut stuck = false;
+    let mut last_burst = Instant::now();
+    let mut round = 0u64;
+    let batch = (2 * rayon::current_num_threads()).max(2);
+    while !heap.is_empty() {
+        if out_of_time() {
+            return (Outcome::Unknown(StopReason::Timeout), stats);
+        }
+        if s.max_pieces > 0 && stats.pieces >= s.max_pieces {
+            return (Outcome::Unknown(StopReason::PieceLimit), stats);
+        }
+        // Attack bursts, about 10% of the time.
+        let interval = (0.25 * t0.elapsed().as_secs_f64()).max(1.0);
+        if last_burst.elapsed().as_secs_f64() > interval {
+            round += 1;
+            for (g, (lo, hi)) in groups.iter().zip(&boxes) {
+                let secs = 0.1 * interval / groups.len() as f64;
+                if let Some((ci, x)) = attack(net, &f, cases, g, lo, hi, s, round, secs, deadline) {
+                    return (found(ci, x), stats);
+                }
+            }
+            last_burst = Instant::now();
+        }
+        let take = batch.min(heap.len());
+        let ws: Vec<Work> = (0..take).filter_map(|_| heap.pop()).collect();
+        stats.pieces += ws.len() as u64;
+        let res: Vec<Piece> = ws
+            .into_par_iter()
+            .map(|w| examine(net, &f, cases, w))
+            .collect();
+        for r in res {
+            match r {
+                Piece::Closed => {}
+                Piece::Found(ci, x) => return (found(ci, x), stats),
+                Piece::Split(ws) => heap.extend(ws),
+                Piece::Stuck => stuck = true,
+            }
+        }
+    }
+    if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+        eprintln!(
+            "smooth search: {} free inputs, {} pieces, {:.2} s",
+            f.n_free(),
+            stats.pieces,
+            t0.elapsed().as_secs_f64()
+        );
+    }
+    if stuck {
+        (Outcome::Unknown(StopReason::Unsplittable), stats)
+    } else {
+        (Outcome::Proved, stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The folded bias with its radius contains the exact `b + W_fixed x_fixed`,
+    /// enclosed independently by outward-rounded interval arithmetic, on rows built to
+    /// round (cancelling large terms, thirds).
+    #[test]
+    fn fold_radius_covers_the_exact_bias() {
+        let w = vec![
+            1e17,
+            -1e17,
+            3.0,
+            0.1, // row 0: cancellation
+            1.0 / 3.0,
+            2.0 / 3.0,
+            1e-3,
+            -7.25, // row 1: inexact products
+            0.0,
+            0.0,
+            0.0,
+            1.0, // row 2: only the free input
+        ];
+        let b = vec![1.0, 0.1, -2.0];
+        let net = Network {
+            input_names: (0..4).map(|i| format!("x{i}")).collect(),
+            output_names: (0..3).map(|i| format!("y{i}")).collect(),
+            input_norm: None,
+            layers: vec![
+                Layer::Affine(Affine::new(4, 3, w.clone(), b.clone())),
+                Layer::Act(Activation::Sigmoid),
+            ],
+            output_denorm: None,
+        };
+        let fixed = [1.0, 1.0 + f64::EPSILON, 0.1];
+        let mut lo = fixed.to_vec();
+        let mut hi = fixed.to_vec();
+        lo.push(-1.0);
+        hi.push(1.0);
+        let case = Case {
+            lo,
+            hi,
+            constraints: vec![],
+        };
+        let f = Folded::new(&net, &[case]);
+        assert_eq!(f.free, vec![3]);
+        let Op::Aff(a) = &f.ops[0] else {
+            panic!("the first op is the folded map")
+        };
+        assert_eq!((a.inp, a.out), (1, 3));
+        // Row 2 has no fixed term: its bias is kept exactly, with no radius.
+        assert!(a.b[2] == -2.0 && f.rad[2] == 0.0);
+        for i in 0..2 {
+            let mut exact = Interval::point(b[i]);
+            for (j, x) in fixed.iter().enumerate() {
+                exact += Interval::point(w[i * 4 + j]) * Interval::point(*x);
+            }
+            let (l, u) = (a.b[i] - f.rad[i], a.b[i] + f.rad[i]);
+            assert!(
+                l <= exact.lo && exact.hi <= u,
+                "row {i}: [{l}, {u}] misses [{}, {}]",
+                exact.lo,
+                exact.hi
+            );
+            assert_eq!(a.weight(i, 0), w[i * 4 + 3]);
+        }
+        assert_eq!(f.expand(&[0.5]), vec![1.0, 1.0 + f64::EPSILON, 0.1, 0.5]);
+    }
+}
