@@ -57,3 +57,5 @@ pub mod rules;
 pub mod search;
 pub mod smooth;
 pub mod symbolic;
+#[cfg(test)]
+mod testnet;

@@ -560,35 +560,8 @@ pub(crate) fn examine_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::testnet::{pre_activations, random_maps};
     use rand::{Rng, SeedableRng};
-
-    fn random_maps(rng: &mut rand_chacha::ChaCha8Rng, widths: &[usize]) -> Vec<(Affine, bool)> {
-        let last = widths.len() - 2;
-        (0..widths.len() - 1)
-            .map(|k| {
-                let (inp, out) = (widths[k], widths[k + 1]);
-                let w = (0..inp * out).map(|_| rng.gen_range(-1.0..1.0)).collect();
-                let b = (0..out).map(|_| rng.gen_range(-0.5..0.5)).collect();
-                (Affine::new(inp, out, w, b), k < last)
-            })
-            .collect()
-    }
-
-    /// Every map's output at `x` (before its ReLU), in f64.
-    fn pre_activations(maps: &[(Affine, bool)], x: &[f64]) -> Vec<Vec<f64>> {
-        let mut z = x.to_vec();
-        let mut out = Vec::new();
-        for (m, r) in maps {
-            let mut o = vec![0.0; m.out];
-            m.apply_f64(&z, &mut o);
-            out.push(o.clone());
-            if *r {
-                o.iter_mut().for_each(|v| *v = v.max(0.0));
-            }
-            z = o;
-        }
-        out
-    }
 
     /// The children's warm start of a split ([`split_warm`]) starts where the parent
     /// ended: with the parent's slopes and multipliers, the new phase's multiplier and

@@ -134,6 +134,8 @@ fn write_instance(dir: &Path) -> (String, String) {
 
 /// `verify-vnnlib --timeout 1` stops loading the generator at the limit: `unknown
 /// (timeout)`, exit 1, within 2 s (the load alone takes far longer; it was not counted before).
+/// The load's own clock check says so; in a debug build on a loaded machine the
+/// backstop of `verify-vnnlib` (0.25 s after the limit) can report first, and says so.
 #[test]
 fn verify_vnnlib_counts_a_generators_load_against_its_timeout() {
     let dir = tempfile::tempdir().unwrap();
@@ -156,7 +158,10 @@ fn verify_vnnlib_counts_a_generators_load_against_its_timeout() {
         assert_eq!(code, Some(1), "{out}{err}");
         assert_eq!(out.trim(), "unknown", "{out}{err}");
         assert!(err.contains("unknown (timeout)"), "{err}");
-        assert!(err.contains("while loading the network"), "{err}");
+        assert!(
+            err.contains("while loading the network") || err.contains("ended there"),
+            "{err}"
+        );
     }
 }
 
