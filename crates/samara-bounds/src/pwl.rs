@@ -23,7 +23,8 @@ pub enum EncodeError {
     Unsupported(String),
 }
 
-fn identity(n: usize) -> Affine {
+/// The `n x n` identity map.
+pub(crate) fn identity(n: usize) -> Affine {
     let mut w = vec![0.0; n * n];
     for i in 0..n {
         w[i * n + i] = 1.0;

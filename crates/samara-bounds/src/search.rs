@@ -329,7 +329,7 @@ fn pgd_any(
 
 /// The cases grouped by their box (indices in order; groups in order of their first
 /// case): the search's pieces and, on many inputs, the attack are shared by a group.
-fn box_groups(cases: &[Case]) -> Vec<Vec<usize>> {
+pub(crate) fn box_groups(cases: &[Case]) -> Vec<Vec<usize>> {
     let mut groups: Vec<Vec<usize>> = Vec::new();
     for (i, c) in cases.iter().enumerate() {
         match groups

@@ -84,9 +84,7 @@ impl Folded {
         let free: Vec<usize> = (0..n).filter(|i| !fixed[*i]).collect();
         let mut layers: Vec<Layer> = net.raw_layers();
         if !matches!(layers.first(), Some(Layer::Affine(_))) {
-            let mut w = vec![0.0; n * n];
-            (0..n).for_each(|i| w[i * n + i] = 1.0);
-            layers.insert(0, Layer::Affine(Affine::new(n, n, w, vec![0.0; n])));
+            layers.insert(0, Layer::Affine(crate::pwl::identity(n)));
         }
         let mut ops = Vec::with_capacity(layers.len());
         let mut rad = Vec::new();
@@ -170,10 +168,7 @@ impl Folded {
         };
         for k in 0..self.ops.len() {
             let inmag: Vec<f64> = if k == 0 {
-                lo.iter()
-                    .zip(hi)
-                    .map(|(a, b)| a.abs().max(b.abs()))
-                    .collect()
+                crate::symbolic::magnitudes(lo, hi)
             } else {
                 pass.bounds[k - 1]
                     .iter()
@@ -755,16 +750,7 @@ pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
     }
     let f = Folded::new(net, cases);
     // Cases over the same box (after folding) share their pieces.
-    let mut groups: Vec<Vec<usize>> = Vec::new();
-    for (i, c) in cases.iter().enumerate() {
-        match groups
-            .iter_mut()
-            .find(|g| cases[g[0]].lo == c.lo && cases[g[0]].hi == c.hi)
-        {
-            Some(g) => g.push(i),
-            None => groups.push(vec![i]),
-        }
-    }
+    let groups = crate::search::box_groups(cases);
     let boxes: Vec<(Vec<f64>, Vec<f64>)> = groups
         .iter()
         .map(|g| (f.restrict(&cases[g[0]].lo), f.restrict(&cases[g[0]].hi)))

@@ -121,7 +121,7 @@ impl Linear {
 
 /// `max(|lo_t|, |hi_t|)` per input: the bound on `|x_t|` that turns a coefficient's
 /// rounding error into an error of the function's value.
-fn magnitudes(lo: &[f64], hi: &[f64]) -> Vec<f64> {
+pub(crate) fn magnitudes(lo: &[f64], hi: &[f64]) -> Vec<f64> {
     lo.iter()
         .zip(hi)
         .map(|(a, b)| a.abs().max(b.abs()))

@@ -341,20 +341,13 @@ impl ReachArgs {
         self.system.is_some() || self.sets == "taylor" || self.target_ratio.is_some()
     }
 
-    /// The built-in glider setting the flags give (`--model`, `--y0`, `--init`,
-    /// `--horizon`, `--period`, clip, goal, budgets), every limit checked.
-    pub fn builtin_settings(&self) -> Result<ReachSettings> {
+    /// The initial intervals `--y0` and `--init` give, by state name, parsed here (with
+    /// messages naming the flag and its text); the rest is checked by
+    /// `ReachRequest::settings`, the check Python's `samara.reach` makes. The run and its
+    /// starting grid ([`Self::glider_start_grid`]) read the same intervals.
+    fn builtin_init(&self, model: Model) -> Result<BTreeMap<String, (f64, f64)>> {
         let a = self;
-        let model = Model::from_name(&a.model).ok_or_else(|| {
-            AppError::Input(format!(
-                "--model {:?}: unknown model; choose one of reduced, plate6, full",
-                a.model
-            ))
-        })?;
-        // The intervals as text, parsed here (with messages naming the flag and its
-        // text); the rest is checked by `ReachRequest::settings`, the check Python's
-        // `samara.reach` makes.
-        let mut init = std::collections::BTreeMap::new();
+        let mut init = BTreeMap::new();
         if let Some(y0) = &a.y0 {
             init.insert(
                 "y".to_string(),
@@ -395,6 +388,20 @@ impl ReachArgs {
                 parse_interval(iv, &format!("--init {spec:?}"))?,
             );
         }
+        Ok(init)
+    }
+
+    /// The built-in glider setting the flags give (`--model`, `--y0`, `--init`,
+    /// `--horizon`, `--period`, clip, goal, budgets), every limit checked.
+    pub fn builtin_settings(&self) -> Result<ReachSettings> {
+        let a = self;
+        let model = Model::from_name(&a.model).ok_or_else(|| {
+            AppError::Input(format!(
+                "--model {:?}: unknown model; choose one of reduced, plate6, full",
+                a.model
+            ))
+        })?;
+        let init = a.builtin_init(model)?;
         let s = ReachRequest {
             model: a.model.clone(),
             init,
@@ -530,33 +537,21 @@ impl ReachArgs {
         if !self.grid.is_empty() || self.shard.is_some() || self.model != "reduced" {
             return self.grid.clone();
         }
-        let width = |name: &str| -> Option<f64> {
-            let text = if name == "y" {
-                match &self.y0 {
-                    Some(y0) => Some(y0.clone()),
-                    None => self
-                        .init
-                        .iter()
-                        .find_map(|s| s.strip_prefix("y=").map(str::to_string)),
-                }
-            } else {
-                let key = format!("{name}=");
-                self.init
-                    .iter()
-                    .find_map(|s| s.trim().strip_prefix(&key).map(str::to_string))
-            };
-            match text {
-                Some(v) => parse_interval(&v, name).ok().map(|(a, b)| b - a),
-                None if name == "y" => Some(Y0_DEFAULT.1 - Y0_DEFAULT.0),
-                None => Some(0.0),
-            }
+        let Some(model) = Model::from_name(&self.model) else {
+            return Vec::new();
+        };
+        let Ok(init) = self.builtin_init(model) else {
+            return Vec::new();
+        };
+        let width = |name: &str| match init.get(name) {
+            Some((a, b)) => b - a,
+            None if name == "y" => Y0_DEFAULT.1 - Y0_DEFAULT.0,
+            None => 0.0,
         };
         let mut grid = Vec::new();
         let mut cells = 1usize;
         for (name, size) in GLIDER_CELL {
-            let Some(w) = width(name) else {
-                return Vec::new();
-            };
+            let w = width(name);
             // The fewest pieces no wider than `size` (a hair of slack so that a width of
             // exactly K cells gives K).
             let k = (w / size - 1e-9).ceil().max(1.0);
