@@ -21,6 +21,7 @@ use crate::rules::relu;
 use samara_nn::{ir::Row, Affine};
 
 mod batch;
+mod sparse_pull;
 
 /// One linear function of the inputs, `coef . x + cst`, with a slack.
 #[derive(Clone, Debug, PartialEq)]
@@ -1697,6 +1698,7 @@ fn crown_pre_core_with(
     // The dense maps' pull-backs go in batches ([`batch`]); sparse ones row by row.
     let batched = batch_ok && sp.is_none() && batch::finite(&maps[..body]);
     let mut live = batch::Live::default();
+    let mut scratch = sparse_pull::Scratch::default();
     for k in 0..body {
         if k < from {
             if let Some(f) = fwd {
@@ -1739,14 +1741,23 @@ fn crown_pre_core_with(
                 }
                 continue;
             }
-            c.clear();
-            c.resize(m.out, 0.0);
-            c[i] = 1.0;
-            let rm = Mags::Rows(&rowmag);
-            let lf = backward_core(sub, &pre, &c, 0.0, None, None, rm, sp, Some(&slopes));
+            let (lf, uf) = if sp.is_none() {
+                // The same pull-backs over the coefficients' non-zeros only (sparse maps
+                // of few inputs: a neuron reaches few neurons of each earlier layer).
+                let (r, sl, sc) = (&rowmag[..], &slopes[..], &mut scratch);
+                let lf = sparse_pull::pull_unit(sub, &pre, i, 1.0, r, sl, sc);
+                (lf, sparse_pull::pull_unit(sub, &pre, i, -1.0, r, sl, sc))
+            } else {
+                c.clear();
+                c.resize(m.out, 0.0);
+                c[i] = 1.0;
+                let rm = Mags::Rows(&rowmag);
+                let lf = backward_core(sub, &pre, &c, 0.0, None, None, rm, sp, Some(&slopes));
+                c[i] = -1.0;
+                let uf = backward_core(sub, &pre, &c, 0.0, None, None, rm, sp, Some(&slopes));
+                (lf, uf)
+            };
             let l = lf.min_over(lo, hi);
-            c[i] = -1.0;
-            let uf = backward_core(sub, &pre, &c, 0.0, None, None, rm, sp, Some(&slopes));
             let u = -uf.min_over(lo, hi);
             bounds.push((l.max(fl), u.min(fu)));
             if lins.is_some() {
