@@ -476,6 +476,7 @@ fn node(
             lo,
             hi,
             None,
+            None,
         ) else {
             return;
         };
@@ -600,7 +601,9 @@ fn min_over_set(
 /// Tighten the bounds `layer` of the unstable neurons of the last map of `pull` (a
 /// chain whose earlier layers are all stable or fixed on `S`, with bounds `pre` and row
 /// magnitudes `rows`) to their minimum and maximum over `S` by [`min_over_set`] with the
-/// phase constraints `fs`. `Some(changed)`, or `None` when a bound crosses (`S` empty).
+/// phase constraints `fs`; with `only`, just the neurons it marks; from `deadline` on,
+/// none (the bounds left are sound). `Some(changed)`, or `None` when a bound crosses
+/// (`S` empty).
 #[allow(clippy::too_many_arguments)]
 fn lp_layer(
     pull: &[(Affine, bool)],
@@ -611,6 +614,7 @@ fn lp_layer(
     lo: &[f64],
     hi: &[f64],
     only: Option<&[bool]>,
+    deadline: Option<Instant>,
 ) -> Option<bool> {
     let mut changed = false;
     // One LP tableau per direction over the phase rows, each solve warm-started from
@@ -620,6 +624,9 @@ fn lp_layer(
         let b = &mut layer[i];
         if !(b.0 < 0.0 && b.1 > 0.0) || only.is_some_and(|o| !o.get(i).copied().unwrap_or(true)) {
             continue;
+        }
+        if deadline.is_some_and(|d| Instant::now() >= d) {
+            break;
         }
         if lps.is_none() && !fs.is_empty() {
             let a: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
@@ -671,7 +678,8 @@ pub(crate) fn tighten(
 /// [`tighten`] for a set whose earliest layer with unstable neurons is the last ReLU
 /// layer (no later bounds to recompute): only its neurons `t` with `only[t]` are bounded
 /// over `S` (the others keep their bounds, which stay sound); `None` when the bounds
-/// show `S` empty. For ReLU splitting on networks with one hidden layer, where only the
+/// show `S` empty; from `deadline` on it bounds no more neurons (a time limit holds on
+/// wide layers). For ReLU splitting on networks with one hidden layer, where only the
 /// neurons a bound passes by their chord gain from tighter bounds.
 pub(crate) fn tighten_last(
     maps: &[(Affine, bool)],
@@ -680,6 +688,7 @@ pub(crate) fn tighten_last(
     lo: &[f64],
     hi: &[f64],
     only: &[bool],
+    deadline: Option<Instant>,
 ) -> Option<()> {
     let Some(&(lj, _)) = unstable(maps, nb).first() else {
         return Some(());
@@ -698,6 +707,7 @@ pub(crate) fn tighten_last(
         lo,
         hi,
         Some(only),
+        deadline,
     )
     .map(|_| ())
 }
@@ -734,7 +744,17 @@ fn tighten_rows(
             return Some(recomputed);
         };
         let (before, rest) = nb.split_at_mut(lj);
-        let changed = lp_layer(&maps[..=lj], before, rows, &mut rest[0], fs, lo, hi, None)?;
+        let changed = lp_layer(
+            &maps[..=lj],
+            before,
+            rows,
+            &mut rest[0],
+            fs,
+            lo,
+            hi,
+            None,
+            None,
+        )?;
         if !changed {
             return Some(recomputed);
         }

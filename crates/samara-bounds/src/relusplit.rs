@@ -340,7 +340,9 @@ pub(crate) fn examine(
         // lower line whose best slope the multipliers find for any bounds.
         let only = chord_neurons(maps, cases, &node.open);
         let empty = match &only {
-            Some(o) => crate::phases::tighten_last(maps, &mut pre, &fs, lo, hi, o).is_none(),
+            Some(o) => {
+                crate::phases::tighten_last(maps, &mut pre, &fs, lo, hi, o, deadline).is_none()
+            }
             None => crate::phases::tighten(maps, &mut pre, &fs, lo, hi).is_none(),
         };
         if empty {
@@ -719,7 +721,8 @@ mod tests {
             chords += only.iter().filter(|o| **o).count();
             let mut nb = clamped.clone();
             let fs = phase_rows(&maps, &clamped, &splits, &lo, &hi);
-            let empty = crate::phases::tighten_last(&maps, &mut nb, &fs, &lo, &hi, &only).is_none();
+            let empty =
+                crate::phases::tighten_last(&maps, &mut nb, &fs, &lo, &hi, &only, None).is_none();
             let points: Vec<Vec<Vec<f64>>> = (0..10_000)
                 .map(|_| {
                     let x: Vec<f64> = lo
