@@ -467,8 +467,17 @@ fn node(
     let ch = loop {
         ch = chain(t, &nb, &ch);
         let at = ch.at;
-        let Some(changed) = lp_layer(&ch.maps[..1], &[], &ch.rows, &mut nb[at], &phase_fs, lo, hi)
-        else {
+        let Some(changed) = lp_layer(
+            &ch.maps[..1],
+            &[],
+            &ch.rows,
+            &mut nb[at],
+            &phase_fs,
+            lo,
+            hi,
+            None,
+            None,
+        ) else {
             return;
         };
         if !(changed || stale) || at + 2 >= maps.len() {
@@ -592,7 +601,10 @@ fn min_over_set(
 /// Tighten the bounds `layer` of the unstable neurons of the last map of `pull` (a
 /// chain whose earlier layers are all stable or fixed on `S`, with bounds `pre` and row
 /// magnitudes `rows`) to their minimum and maximum over `S` by [`min_over_set`] with the
-/// phase constraints `fs`. `Some(changed)`, or `None` when a bound crosses (`S` empty).
+/// phase constraints `fs`; with `only`, just the neurons it marks; from `deadline` on,
+/// none (the bounds left are sound). `Some(changed)`, or `None` when a bound crosses
+/// (`S` empty).
+#[allow(clippy::too_many_arguments)]
 fn lp_layer(
     pull: &[(Affine, bool)],
     pre: &[Vec<(f64, f64)>],
@@ -601,6 +613,8 @@ fn lp_layer(
     fs: &[Linear],
     lo: &[f64],
     hi: &[f64],
+    only: Option<&[bool]>,
+    deadline: Option<Instant>,
 ) -> Option<bool> {
     let mut changed = false;
     // One LP tableau per direction over the phase rows, each solve warm-started from
@@ -608,8 +622,11 @@ fn lp_layer(
     let mut lps: Option<[crate::lp::MinLinearSolver; 2]> = None;
     for i in 0..layer.len() {
         let b = &mut layer[i];
-        if !(b.0 < 0.0 && b.1 > 0.0) {
+        if !(b.0 < 0.0 && b.1 > 0.0) || only.is_some_and(|o| !o.get(i).copied().unwrap_or(true)) {
             continue;
+        }
+        if deadline.is_some_and(|d| Instant::now() >= d) {
+            break;
         }
         if lps.is_none() && !fs.is_empty() {
             let a: Vec<&[f64]> = fs.iter().map(|f| &f.coef[..]).collect();
@@ -658,6 +675,57 @@ pub(crate) fn tighten(
     tighten_rows(maps, nb, fs, lo, hi, &rows).map(|_| ())
 }
 
+/// [`tighten`] for a set whose earliest layer with unstable neurons is the last ReLU
+/// layer (no later bounds to recompute): only its neurons `t` with `only[t]` are bounded
+/// over `S` (the others keep their bounds, which stay sound); `None` when the bounds
+/// show `S` empty; from `deadline` on it bounds no more neurons (a time limit holds on
+/// wide layers). For ReLU splitting on networks with one hidden layer, where only the
+/// neurons a bound passes by their chord gain from tighter bounds.
+pub(crate) fn tighten_last(
+    maps: &[(Affine, bool)],
+    nb: &mut [Vec<(f64, f64)>],
+    fs: &[Linear],
+    lo: &[f64],
+    hi: &[f64],
+    only: &[bool],
+    deadline: Option<Instant>,
+) -> Option<()> {
+    let Some(&(lj, _)) = unstable(maps, nb).first() else {
+        return Some(());
+    };
+    if lj + 1 != nb.len() {
+        return tighten_vec(maps, nb, fs, lo, hi);
+    }
+    let rows = symbolic::row_magnitudes(maps, nb, lo, hi);
+    let (before, rest) = nb.split_at_mut(lj);
+    lp_layer(
+        &maps[..=lj],
+        before,
+        &rows,
+        &mut rest[0],
+        fs,
+        lo,
+        hi,
+        Some(only),
+        deadline,
+    )
+    .map(|_| ())
+}
+
+/// [`tighten`] on a slice of bounds.
+fn tighten_vec(
+    maps: &[(Affine, bool)],
+    nb: &mut [Vec<(f64, f64)>],
+    fs: &[Linear],
+    lo: &[f64],
+    hi: &[f64],
+) -> Option<()> {
+    let mut v = nb.to_vec();
+    tighten(maps, &mut v, fs, lo, hi)?;
+    nb.clone_from_slice(&v);
+    Some(())
+}
+
 /// [`tighten`] with the row magnitudes of its pull-backs given (`rows`:
 /// [`symbolic::row_magnitudes`] of bounds containing `nb`); `Some(true)` when it
 /// recomputed the later layers (so that the caller need not).
@@ -676,7 +744,17 @@ fn tighten_rows(
             return Some(recomputed);
         };
         let (before, rest) = nb.split_at_mut(lj);
-        let changed = lp_layer(&maps[..=lj], before, rows, &mut rest[0], fs, lo, hi)?;
+        let changed = lp_layer(
+            &maps[..=lj],
+            before,
+            rows,
+            &mut rest[0],
+            fs,
+            lo,
+            hi,
+            None,
+            None,
+        )?;
         if !changed {
             return Some(recomputed);
         }

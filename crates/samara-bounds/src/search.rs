@@ -1202,6 +1202,25 @@ impl Bursts {
 /// more than the whole bound.
 const RELU_SPLIT_INPUTS: usize = SIGN_STEP_INPUTS;
 
+/// From this many inputs on, a network with a single ReLU layer is decided by ReLU
+/// splitting, with the phases as LP constraints ([`crate::relusplit::Tree::lp_bounds`]).
+/// On VNN-COMP 2024 safenlp (30 inputs, 128 ReLUs), input splitting left 9 of 54
+/// instances (every 20th) open at 20 s, halving boxes to depth 50; ReLU splitting with
+/// LP bounds proves all 9 in 0.4-7 CPU seconds each (bench/vnncomp/results_safenlp_2024_x1.md).
+/// Below 16 inputs input splitting keeps them (not measured there).
+const ONE_LAYER_RELU_INPUTS: usize = 16;
+
+/// Whether [`solve_inner`] decides the boxes of `cases` by ReLU splitting
+/// ([`solve_relu`]) rather than input splitting: on [`RELU_SPLIT_INPUTS`] inputs or
+/// more, and on [`ONE_LAYER_RELU_INPUTS`] or more when the network has a single ReLU
+/// layer (there every pre-activation bound over a box is exact, and what is left to
+/// gain is in the output layer's relaxation, which ReLU splitting removes).
+fn relu_split_route(maps: &[(Affine, bool)], cases: &[Case]) -> bool {
+    let n = cases.first().map_or(0, |c| c.lo.len());
+    let one_layer = maps.iter().filter(|m| m.1).count() == 1;
+    n >= RELU_SPLIT_INPUTS || (one_layer && n >= ONE_LAYER_RELU_INPUTS)
+}
+
 /// The search of [`solve_inner`] for boxes with many inputs: per box, the checks of
 /// [`settle`] on the whole box, then ReLU splitting of the cases left open, in parallel
 /// batches, with the same attack bursts.
@@ -1263,6 +1282,7 @@ fn solve_relu(
             hi: &st.hi,
             root_iters: RELU_ROOT_ITERS,
             iters: RELU_NODE_ITERS,
+            lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
         };
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
         if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
@@ -1363,10 +1383,7 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     if out_of_time(&t0) {
         return (Outcome::Unknown(StopReason::Timeout), stats);
     }
-    if cases
-        .first()
-        .is_some_and(|c| c.lo.len() >= RELU_SPLIT_INPUTS)
-    {
+    if relu_split_route(maps, cases) {
         return solve_relu(maps, cases, s, t0, stats);
     }
     // Cases with the same box share its pieces.

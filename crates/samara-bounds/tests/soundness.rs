@@ -609,6 +609,13 @@ fn relu_splitting_proofs_on_sparse_conv_like_layers_survive_sampling_and_pgd() {
     relu_splitting_trials(4343, &[96, 48, 24, 3], Some(1.0 / 6.0));
 }
 
+#[test]
+fn relu_splitting_proofs_on_one_hidden_layer_survive_sampling_and_pgd() {
+    // 30 inputs and one ReLU layer: ReLU splitting with the phases as LP constraints
+    // (relusplit's `lp_bounds`, the route of VNN-COMP 2024 safenlp's networks).
+    relu_splitting_trials(4848, &[30, 48, 3], None);
+}
+
 /// 16 trials of ReLU splitting on random networks of `dims` (weights kept with
 /// probability `keep` in the hidden maps when given): every proof survives 10,000
 /// samples and 20 sign-gradient descents, every point found satisfies its constraint,
