@@ -144,23 +144,21 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         let key = (onnx.clone(), wants_logits(&onnx, &q));
         let k = match index.get(&key) {
             Some(&k) => Some(k),
-            None => match {
+            None => {
                 let (path, logits) = (onnx.clone(), key.1);
                 let deadline = limit.deadline_from(start);
-                within(give_up_at(deadline), move || {
+                let net = within(give_up_at(deadline), move || {
                     load_network_as(&path, "onnx", logits, deadline)
                 })
                 .transpose()
                 .map_err(line_err)?
-                .flatten()
-            } {
-                Some((net, _)) => {
+                .flatten();
+                net.map(|(net, _)| {
                     networks.push(Arc::new(net));
                     index.insert(key, networks.len() - 1);
-                    Some(networks.len() - 1)
-                }
-                None => None,
-            },
+                    networks.len() - 1
+                })
+            }
         };
         let q = q.map_err(line_err)?;
         let inst = match k {
