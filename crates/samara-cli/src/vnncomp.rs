@@ -304,3 +304,40 @@ pub fn merge_vnncomp(
     println!("{}", tally.summary(total, out, json_out)?);
     Ok(ExitCode::SUCCESS)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    /// The run stops waiting at `until` whatever the work does (a step that never looks
+    /// at the clock), returns the work's value when it is in time, waits for ever
+    /// without a limit, and a panic of the work is the caller's.
+    #[test]
+    fn within_stops_waiting_at_its_limit() {
+        let t = Instant::now();
+        let r = within(Some(t + Duration::from_millis(100)), || {
+            std::thread::sleep(Duration::from_secs(3));
+            1
+        });
+        assert_eq!(r, None);
+        let waited = t.elapsed();
+        assert!(
+            (Duration::from_millis(100)..Duration::from_secs(1)).contains(&waited),
+            "{waited:?}"
+        );
+        assert_eq!(
+            within(Some(Instant::now() + Duration::from_secs(30)), || 2),
+            Some(2)
+        );
+        assert_eq!(
+            within(None, || {
+                std::thread::sleep(Duration::from_millis(50));
+                3
+            }),
+            Some(3)
+        );
+        let p = std::panic::catch_unwind(|| within(None, || -> u8 { panic!("in the worker") }));
+        assert!(p.is_err());
+    }
+}
