@@ -412,7 +412,9 @@ pub struct VnncompArgs {
     /// detail); rewritten atomically after each instance.
     #[arg(long)]
     pub out: PathBuf,
-    /// Multiply every instance's timeout by this (> 0).
+    /// Multiply every instance's timeout by this (> 0). Each instance, its network's load
+    /// included, ends within a second of its scaled timeout (`timeout` in its result)
+    /// and the run goes on to the next.
     #[arg(long, default_value_t = 1.0)]
     pub timeout_scale: f64,
     /// Node limit per search of the exact optimiser (used for queries that are not

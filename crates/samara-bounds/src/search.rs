@@ -347,10 +347,10 @@ pub(crate) fn box_groups(cases: &[Case]) -> Vec<Vec<usize>> {
 type Attacked = (Option<(usize, Vec<f64>)>, u64);
 
 /// The attack: [`pgd_any`] on the cases `group` (indices into `cases`, all over one box)
-/// from the centre and from seeded random starts, until `s.restarts` starts or `seconds`
-/// are spent (the first start runs its steps in full), and never past `deadline`.
-/// `round` varies the seed. Returns the case and point found and the gradient steps
-/// taken.
+/// from the centre and from seeded random starts, `steps` gradient steps each, until
+/// `s.restarts` starts or `seconds` are spent (the first start runs its steps in full),
+/// and never past `deadline`. `round` varies the seed. Returns the case and point found
+/// and the gradient steps taken.
 #[allow(clippy::too_many_arguments)]
 fn attack(
     maps: &[(Affine, bool)],
@@ -359,6 +359,7 @@ fn attack(
     s: &Settings,
     round: u64,
     seconds: f64,
+    steps_per_start: usize,
     stop: &std::sync::atomic::AtomicBool,
     deadline: Option<Instant>,
 ) -> Attacked {
@@ -387,7 +388,7 @@ fn attack(
                 }
             })
             .collect();
-        steps += s.steps as u64;
+        steps += steps_per_start as u64;
         // Even restarts descend on whichever case is nearest (image properties: one
         // class beats the label, whichever it is); odd ones on one case at a time in
         // turn (ACAS Xu properties 7 and 8, whose nearest case is often a trap).
@@ -396,7 +397,15 @@ fn attack(
             Some(k) => &conj[k..k + 1],
             None => &conj[..],
         };
-        if let Some((k, x)) = pgd_any(maps, target, &case.lo, &case.hi, x, s.steps, deadline) {
+        if let Some((k, x)) = pgd_any(
+            maps,
+            target,
+            &case.lo,
+            &case.hi,
+            x,
+            steps_per_start,
+            deadline,
+        ) {
             stop.store(true, AtOrd::Relaxed);
             return (Some((group[one.unwrap_or(k)], x)), steps);
         }
@@ -404,19 +413,25 @@ fn attack(
     (None, steps)
 }
 
-/// [`attack`] on every case, in parallel, `seconds` each; the point of the first case
-/// (in order) that has one. On many inputs (images) cases over the same box are
-/// attacked together, and a box gets as many workers (seeds) as there are threads per
-/// box, so that a single image property keeps every core on its one joint attack.
+/// [`attack`] on every case, in parallel, `seconds` each and `steps` gradient steps per
+/// start; the point of the first case (in order) that has one, and the wall seconds a
+/// gradient step of one job took (the wall time over the steps per job; `None` when no
+/// step was taken). On many inputs (images)
+/// cases over the same box are attacked together, and a box gets as many workers
+/// (seeds) as there are threads per box, so that a single image property keeps every
+/// core on its one joint attack.
+#[allow(clippy::too_many_arguments)]
 fn attack_all(
     maps: &[(Affine, bool)],
     cases: &[Case],
     s: &Settings,
     round: u64,
     seconds: f64,
+    steps: usize,
     stats: &mut Stats,
     deadline: Option<Instant>,
-) -> Option<(usize, Vec<f64>)> {
+) -> (Option<(usize, Vec<f64>)>, Option<f64>) {
+    let t0 = Instant::now();
     // On few inputs (ACAS Xu) a separate attack per case is cheap and finds points a
     // joint one can miss (property 8): cases are grouped on many inputs only.
     let joint = cases
@@ -439,13 +454,36 @@ fn attack_all(
         .par_iter()
         .map(|(g, w)| {
             let salt = round * workers + w;
-            attack(maps, cases, &groups[*g], s, salt, seconds, &stop, deadline)
+            attack(
+                maps,
+                cases,
+                &groups[*g],
+                s,
+                salt,
+                seconds,
+                steps,
+                &stop,
+                deadline,
+            )
         })
         .collect();
-    stats.attack_steps += res.iter().map(|r| r.1).sum::<u64>();
-    res.into_iter()
+    let taken = res.iter().map(|r| r.1).sum::<u64>();
+    stats.attack_steps += taken;
+    let wall = t0.elapsed().as_secs_f64();
+    let cost = (taken > 0).then(|| wall * jobs.len() as f64 / taken as f64);
+    if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+        eprintln!(
+            "attack {round}: {} jobs, {steps} steps a start, {seconds:.3} s each, {taken} steps in {:.3} s{}",
+            jobs.len(),
+            wall,
+            if stop.load(AtOrd::Relaxed) { ", found" } else { "" }
+        );
+    }
+    let found = res
+        .into_iter()
         .filter_map(|r| r.0)
-        .min_by_key(|(ci, _)| *ci)
+        .min_by_key(|(ci, _)| *ci);
+    (found, cost)
 }
 
 struct ProfGuard(Instant);
@@ -1138,10 +1176,16 @@ pub fn solve(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcome,
     (o, st)
 }
 
+/// Fewest gradient steps of a start of an attack burst on many inputs
+/// ([`Bursts::steps`]).
+const BURST_MIN_STEPS: usize = 10;
+
 /// The attack bursts during a search (see [`Settings::attack_seconds`]).
 struct Bursts {
     last: Instant,
     count: u64,
+    /// Wall seconds of one gradient step of one attack job in the last burst.
+    step_cost: Option<f64>,
 }
 
 impl Bursts {
@@ -1149,6 +1193,28 @@ impl Bursts {
         Bursts {
             last: Instant::now(),
             count: 0,
+            step_cost: None,
+        }
+    }
+
+    /// Gradient steps of each start of a burst of `per_case` seconds. On many inputs
+    /// (images, [`SIGN_STEP_INPUTS`]) what the budget buys at the wall time of a step that
+    /// the last burst took, between [`BURST_MIN_STEPS`] and `s.steps`: a start runs its
+    /// steps in full whatever the budget ([`attack`]), so on a CIFAR convolution
+    /// (oval21's deep network, 2-6 ms a step on a loaded machine) every burst's 60 steps
+    /// took 5-7 times its 0.044 s. The first burst, and every burst on small networks
+    /// (microseconds a step: collins_rul_cnn's `if_then` point is found by the first
+    /// burst's 8,000 steps) or few inputs, keep `s.steps`, as does the first attack
+    /// before the search, which finds the points of the `sat` instances of verivital and
+    /// oval21. PGD given fewer steps takes longer ones (its step shrinks over the steps
+    /// given; Madry et al., ICLR 2018).
+    fn steps(&self, cases: &[Case], s: &Settings, per_case: f64) -> usize {
+        match (cases.first(), self.step_cost) {
+            (Some(c), Some(cost)) if c.lo.len() >= SIGN_STEP_INPUTS && cost > 0.0 => {
+                let buys = (per_case / cost).min(s.steps as f64) as usize;
+                buys.clamp(BURST_MIN_STEPS.min(s.steps), s.steps.max(1))
+            }
+            _ => s.steps,
         }
     }
 
@@ -1186,7 +1252,9 @@ impl Bursts {
             per_case *= 0.5;
         }
         self.count += 1;
-        let found = attack_all(maps, cases, s, round, per_case, stats, deadline);
+        let steps = self.steps(cases, s, per_case);
+        let (found, cost) = attack_all(maps, cases, s, round, per_case, steps, stats, deadline);
+        self.step_cost = cost.or(self.step_cost);
         self.last = Instant::now();
         found.map(|(ci, x)| {
             let y = forward(maps, &x, None);
@@ -1375,7 +1443,8 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
         true => s.attack_seconds.min(FEW_INPUTS_FIRST_ATTACK),
         false => s.attack_seconds,
     };
-    if let Some((ci, x)) = attack_all(maps, cases, s, 0, first, &mut stats, deadline) {
+    if let (Some((ci, x)), _) = attack_all(maps, cases, s, 0, first, s.steps, &mut stats, deadline)
+    {
         let y = forward(maps, &x, None);
         FOUND_BY.store(1, AtOrd::Relaxed);
         return (Outcome::Violated(CasePoint { case: ci, x, y }), stats);

@@ -247,16 +247,7 @@ fn start_backstop(deadline: Instant, start: Instant, json: bool, result: Option<
             if !take_report() {
                 return;
             }
-            let d = Decided {
-                verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
-                engine: Engine::InputSplit,
-                seconds: start.elapsed().as_secs_f64(),
-                outputs: None,
-                note: Some(format!(
-                    "the run had not stopped {} s after the time limit: ended there",
-                    BACKSTOP_GRACE.as_secs_f64()
-                )),
-            };
+            let d = ended_at_limit(start.elapsed().as_secs_f64(), "the run");
             let code = match report_vnnlib(&d, json, result.as_deref()) {
                 Ok(_) => 1,
                 Err(e) => {
@@ -271,6 +262,23 @@ fn start_backstop(deadline: Instant, start: Instant, json: bool, result: Option<
     if let Err(e) = spawned {
         // Without the thread the limit rests on the run's own clock checks.
         eprintln!("warning: no time-limit backstop thread: {e}");
+    }
+}
+
+/// The verdict of a run (`what`) that had not stopped [`BACKSTOP_GRACE`] after its time
+/// limit and was ended there, after `seconds`: `unknown (timeout)`, no engine having
+/// answered (the engine named is the router's first). The backstop of `verify-vnnlib` and
+/// the per-instance limit of `samara vnncomp` report it.
+pub(crate) fn ended_at_limit(seconds: f64, what: &str) -> Decided {
+    Decided {
+        verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
+        engine: Engine::InputSplit,
+        seconds,
+        outputs: None,
+        note: Some(format!(
+            "{what} had not stopped {} s after the time limit: ended there",
+            BACKSTOP_GRACE.as_secs_f64()
+        )),
     }
 }
 
