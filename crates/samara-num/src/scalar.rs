@@ -119,6 +119,19 @@ pub trait Scalar:
     fn mul_by_ref(&self, o: &Self) -> Self {
         self.clone() * o.clone()
     }
+    /// The order past which this value's products are truncated (Taylor models:
+    /// their order; `u32::MAX` for types that keep everything).
+    fn trunc_order(&self) -> u32 {
+        u32::MAX
+    }
+    /// `self * o` truncated at order `cap` at the latest (an enclosure of the product,
+    /// as [`Scalar::mul_by_ref`]): a sum of products that ends at order `cap` (the
+    /// smallest of its terms' [`Scalar::trunc_order`]) need not compute its terms
+    /// past it. Types without orders multiply as [`Scalar::mul_by_ref`].
+    fn mul_capped(&self, o: &Self, cap: u32) -> Self {
+        let _ = cap;
+        self.mul_by_ref(o)
+    }
     /// Square, `x * x` (types may do better, e.g. intervals).
     fn sqr(&self) -> Self {
         self.clone() * self.clone()

@@ -89,26 +89,44 @@ impl<S: Scalar, const K: usize> Series<S, K> {
     }
 }
 
+/// The order at which the sum `sum_{j in lo..=i} a_j b_{i-j}` ends: the smallest
+/// [`Scalar::trunc_order`] of its operands (a sum of Taylor models keeps the smallest
+/// order of its terms, and so does a product).
+#[inline]
+fn conv_cap<S: Scalar>(a: &[S], b: &[S], lo: usize, i: usize) -> u32 {
+    (lo..=i)
+        .map(|j| a[j].trunc_order().min(b[i - j].trunc_order()))
+        .min()
+        .unwrap_or(u32::MAX)
+}
+
 /// `sum_{j=1}^{i} (j / i) a_j b_{i-j}`, the convolution of the recurrences of
 /// `exp`, `sin`/`cos` and `tanh` (coefficient `i >= 1`). Shared with the incremental
-/// expansion (`samara_system::taylor`) so that both sum in the same order.
+/// expansion (`samara_system::taylor`) so that both sum in the same order. Each product
+/// is truncated at the order the sum ends at ([`Scalar::mul_capped`]): under the joint
+/// degree of (parameters, time) the later coefficients have lower orders, and a product
+/// of two early ones at their full order would be computed only to be truncated by the
+/// sum (Flow*'s truncation of the products themselves; Chen, Abraham &
+/// Sankaranarayanan, CAV 2013).
 #[inline]
 pub fn dconv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
-    let mut acc = a[1].mul_by_ref(&b[i - 1]) * (1.0 / i as f64);
+    let cap = conv_cap(a, b, 1, i);
+    let mut acc = a[1].mul_capped(&b[i - 1], cap) * (1.0 / i as f64);
     for j in 2..=i {
-        acc += a[j].mul_by_ref(&b[i - j]) * (j as f64 / i as f64);
+        acc += a[j].mul_capped(&b[i - j], cap) * (j as f64 / i as f64);
     }
     acc
 }
 
 /// Coefficient `i` of the product of the series `a` and `b`,
 /// `a_0 b_i + sum_{j=1}^{i} a_j b_{i-j}`, in the order shared with the incremental
-/// expansion.
+/// expansion, each product truncated at the order the sum ends at (as [`dconv`]).
 #[inline]
 pub fn conv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
-    let mut acc = a[0].mul_by_ref(&b[i]);
+    let cap = conv_cap(a, b, 0, i);
+    let mut acc = a[0].mul_capped(&b[i], cap);
     for j in 1..=i {
-        acc += a[j].mul_by_ref(&b[i - j]);
+        acc += a[j].mul_capped(&b[i - j], cap);
     }
     acc
 }

@@ -351,6 +351,19 @@ impl Table {
             }
         }
         row.push(mul.len());
+        // What `Tm::mul_on` relies on: row 0 pairs the constant with every monomial at
+        // its own index, and every row's first pair is `m_i * 1` at index `i`.
+        assert!(row[1] - row[0] == len, "Tm table: row 0 is not complete");
+        for i in 0..len {
+            let j0 = if mixed { part[row[i]] as usize } else { 0 };
+            assert!(
+                row[i + 1] > row[i] && j0 == 0 && mul[row[i]] as usize == i,
+                "Tm table: row {i} does not start with the constant"
+            );
+            if i == 0 {
+                assert!((0..len).all(|j| mul[j] as usize == j && (!mixed || part[j] as usize == j)));
+            }
+        }
         let m = count.iter().copied().max().unwrap_or(1).max(1) as f64;
         let gamma = up(up(m * U) / dn(1.0 - m * U));
         let exps = mons.concat();
@@ -447,6 +460,9 @@ pub struct Tm {
     /// not yet computed): a product reads each operand's range where the other has a
     /// remainder, and a series convolution multiplies each coefficient many times.
     ext: Ext,
+    /// The same kind of kept bounds for the terms a conversion to a lower order drops
+    /// ([`Drops`]), reset together with `ext`.
+    drops: Drops,
 }
 
 /// [`Tm::ext`] not yet computed.
@@ -482,6 +498,57 @@ impl Ext {
 impl Clone for Ext {
     fn clone(&self) -> Ext {
         Ext::new(self.get())
+    }
+}
+
+/// Target orders `1..=DROP_SLOTS` whose dropped extents [`Drops`] keeps.
+const DROP_SLOTS: usize = 6;
+
+/// A model's kept bounds `[sn, sp]` of the terms that [`Tm::convert`] bounds into the
+/// remainder when it lowers the model to order `k` on the same parameters and weights,
+/// and the kept extents ([`Tm::ext`]) of the lowered model's own terms (slot `k - 1`;
+/// NaN: not computed). Series products under the joint degree of (parameters, time)
+/// lower the same time coefficient to the same order once for every product that reads
+/// it (`series::conv` multiplies coefficient 0 by every later one, each of a lower
+/// order), and the sum over the dropped terms, nearly the whole model at order 4 with
+/// lifted parameters, cost as much as the products themselves
+/// (`bench/reach/cell_cost.md`, i48-r). Both depend on the non-constant coefficients
+/// only, so they are reset exactly where [`Tm::ext`] is. Allocated on the first
+/// lowering; a clone copies them.
+#[derive(Default)]
+struct Drops(OnceLock<Box<[[Ext; 2]; DROP_SLOTS]>>);
+
+impl Drops {
+    /// The kept bounds for target order `k` (dropped terms, lowered model's extents),
+    /// if computed.
+    fn get(&self, k: u32) -> Option<([f64; 2], [f64; 2])> {
+        let slots = self.0.get()?;
+        let [d, e] = &slots[k as usize - 1];
+        let (d, e) = (d.get(), e.get());
+        (!d[0].is_nan()).then_some((d, e))
+    }
+    fn set(&self, k: u32, dropped: [f64; 2], lowered: [f64; 2]) {
+        let slots = self.0.get_or_init(|| {
+            Box::new(std::array::from_fn(|_| {
+                [Ext::new(NO_EXT), Ext::new(NO_EXT)]
+            }))
+        });
+        let [d, e] = &slots[k as usize - 1];
+        // The lowered extents first: a reader that sees the dropped ones sees them.
+        e.set(lowered);
+        d.set(dropped);
+    }
+}
+
+impl Clone for Drops {
+    fn clone(&self) -> Drops {
+        let d = Drops::default();
+        if let Some(slots) = self.0.get() {
+            let _ = d.0.set(Box::new(std::array::from_fn(|k| {
+                [slots[k][0].clone(), slots[k][1].clone()]
+            })));
+        }
+        d
     }
 }
 
@@ -612,6 +679,25 @@ impl Tm {
             rem,
             lo: f64::NEG_INFINITY,
             ext: Ext::new(NO_EXT),
+            drops: Drops::default(),
+        }
+    }
+
+    /// Forgets the kept ranges ([`Tm::ext`], [`Tm::drops`]): to be called before any
+    /// non-constant coefficient changes.
+    fn touch(&mut self) {
+        self.ext.set(NO_EXT);
+        self.drops = Drops::default();
+    }
+
+    /// [`Tm::finish`] for a model whose coefficients are known finite (copies of a
+    /// valid model's, or sums whose magnitudes summed to a finite number): only the
+    /// remainder can break the invariant.
+    fn finish_rem(self) -> Tm {
+        if has_nan(&self.rem) {
+            Tm::entire_on(self.t, self.fixed)
+        } else {
+            self
         }
     }
 
@@ -769,7 +855,8 @@ impl Tm {
     pub fn with_rem(mut self, r: Interval) -> Tm {
         self.rem = iadd(self.rem, r);
         self.lo = sum_dn(self.lo, r.lo);
-        self.finish()
+        // The coefficients are unchanged (finite, by the invariant).
+        self.finish_rem()
     }
 
     /// The model split into its polynomial part (remainder zero) and its remainder:
@@ -1194,9 +1281,50 @@ impl Tm {
         for &(i, j) in &map.kept {
             c[j as usize] = self.c[i as usize];
         }
-        // Terms past the new (weighted) order are not in `t`: their range, summed in
-        // round-to-nearest and raised by the a-priori bound of recursive summation of
-        // nonnegative terms (as in `poly_range_from`; a NaN makes the model entire).
+        // Kept for lowerings on the same parameters and weights (`Drops`).
+        let slot = (t.n == self.t.n
+            && t.full == self.t.full
+            && t.lw == self.t.lw
+            && t.order < self.t.order
+            && (1..=DROP_SLOTS as u32).contains(&t.order))
+        .then_some(t.order);
+        let kept = slot.and_then(|k| self.drops.get(k));
+        let [sn, sp] = match kept {
+            Some((dropped, _)) => {
+                #[cfg(debug_assertions)]
+                self.check_kept_drops(dropped, &map);
+                dropped
+            }
+            None => Tm::dropped_extent(self, &map),
+        };
+        let mut rem = self.rem;
+        if sn != 0.0 || sp != 0.0 {
+            rem = rem + Interval { lo: -sn, hi: sp };
+        }
+        // The coefficients are copies of this (valid) model's: only the remainder can
+        // break the invariant.
+        let mut out = Tm::raw(t, fixed, c, rem).finish_rem();
+        out.lo = self.lo;
+        match (slot, kept) {
+            // The lowered model's range, as its own `extent_from` gave it the first time
+            // (a lowered operand's range is read by every product where the other
+            // operand has a remainder).
+            (Some(_), Some((_, lowered))) => out.ext.set(lowered),
+            (Some(k), None) => {
+                let lowered = out.extent_from(1);
+                out.ext.set(lowered);
+                self.drops.set(k, [sn, sp], lowered);
+            }
+            _ => {}
+        }
+        Cow::Owned(out)
+    }
+
+    /// Upward bounds `[sn, sp]` of the downward and upward extent of the terms a
+    /// conversion `map` drops (past the target's weighted order): summed in
+    /// round-to-nearest and raised by the a-priori bound of recursive summation of
+    /// nonnegative terms (as in `poly_range_from`; a NaN gives `+inf`).
+    fn dropped_extent(&self, map: &Conversion) -> [f64; 2] {
         let (mut odd, mut pos, mut neg) = (0.0f64, 0.0f64, 0.0f64);
         for &i in &map.dropped {
             let v = self.c[i as usize];
@@ -1214,13 +1342,28 @@ impl Tm {
         let (odd, pos, neg) = (lift(odd), lift(pos), lift(neg));
         let sp = if pos == 0.0 { odd } else { up(odd + pos) };
         let sn = if neg == 0.0 { odd } else { up(odd + neg) };
-        let mut rem = self.rem;
-        if sn != 0.0 || sp != 0.0 {
-            rem = rem + Interval { lo: -sn, hi: sp };
+        [sn, sp]
+    }
+
+    /// Debug builds: one kept dropped extent in 16 used is recomputed and must agree
+    /// bit for bit (as [`Tm::check_kept_extent`] for the polynomial's range).
+    #[cfg(debug_assertions)]
+    fn check_kept_drops(&self, kept: [f64; 2], map: &Conversion) {
+        thread_local! {
+            static USES: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
         }
-        let mut out = Tm::raw(t, fixed, c, rem).finish();
-        out.lo = self.lo;
-        Cow::Owned(out)
+        let n = USES.with(|r| {
+            let n = r.get().wrapping_add(1);
+            r.set(n);
+            n
+        });
+        if n.is_multiple_of(16) {
+            let fresh = self.dropped_extent(map);
+            assert!(
+                fresh[0].to_bits() == kept[0].to_bits() && fresh[1].to_bits() == kept[1].to_bits(),
+                "a Taylor model's kept dropped extent {kept:?} is stale (its coefficients give {fresh:?}): an operation changed a coefficient without Tm::touch"
+            );
+        }
     }
 
     fn into_table(self, t: &'static Table, fixed: bool) -> Tm {
@@ -1239,7 +1382,7 @@ impl Tm {
         // Each inexact sum is off by at most u |z| (Higham (2.5)); their magnitudes are
         // summed plainly and bounded once ([`nonneg_sum_bound`]).
         let (mut sa, mut cnt) = (0.0, 0usize);
-        a.ext.set(NO_EXT);
+        a.touch();
         for (x, &y) in a.c.iter_mut().zip(&b.c) {
             if y != 0.0 {
                 let z = *x + s * y;
@@ -1250,6 +1393,10 @@ impl Tm {
                 *x = z;
             }
         }
+        // Every coefficient is finite when the magnitudes of the changed ones summed to
+        // a finite number (the others are an operand's), so only the remainder needs
+        // the invariant's check then.
+        let finite = sa.is_finite();
         let sa = nonneg_sum_bound(sa, cnt);
         let br = if s > 0.0 { b.rem } else { -b.rem };
         a.rem = iadd(a.rem, br);
@@ -1262,7 +1409,11 @@ impl Tm {
         } else {
             f64::NEG_INFINITY
         };
-        a.finish()
+        if finite {
+            a.finish_rem()
+        } else {
+            a.finish()
+        }
     }
 
     /// `s * self` for a float `s`.
@@ -1271,7 +1422,7 @@ impl Tm {
             return self;
         }
         let (mut sa, mut cnt) = (0.0, 0usize);
-        self.ext.set(NO_EXT);
+        self.touch();
         for v in self.c.iter_mut() {
             if *v != 0.0 {
                 *v *= s;
@@ -1279,6 +1430,8 @@ impl Tm {
                 cnt += 1;
             }
         }
+        // Finite magnitudes: every (nonzero) coefficient is finite.
+        let finite = sa.is_finite();
         let sa = nonneg_sum_bound(sa, cnt);
         self.rem = self.rem * s;
         if cnt > 0 && (s.abs() != 1.0 && s != 0.0) {
@@ -1289,13 +1442,17 @@ impl Tm {
         } else {
             f64::NEG_INFINITY
         };
-        self.finish()
+        if finite {
+            self.finish_rem()
+        } else {
+            self.finish()
+        }
     }
 
     /// `self / s` for a float `s`.
     fn div_f64(mut self, s: f64) -> Tm {
         let (mut sa, mut cnt) = (0.0, 0usize);
-        self.ext.set(NO_EXT);
+        self.touch();
         for v in self.c.iter_mut() {
             if *v != 0.0 {
                 *v /= s;
@@ -1303,6 +1460,8 @@ impl Tm {
                 cnt += 1;
             }
         }
+        // Finite magnitudes: every (nonzero) coefficient is finite.
+        let finite = sa.is_finite();
         let sa = nonneg_sum_bound(sa, cnt);
         self.rem = self.rem / s;
         if cnt > 0 && s.abs() != 1.0 {
@@ -1313,7 +1472,11 @@ impl Tm {
         } else {
             f64::NEG_INFINITY
         };
-        self.finish()
+        if finite {
+            self.finish_rem()
+        } else {
+            self.finish()
+        }
     }
 
     /// `self + s` for a float `s`.
@@ -1331,6 +1494,13 @@ impl Tm {
     /// The product of two models (references; the result on the common table).
     fn mul_ref(a: &Tm, b: &Tm) -> Tm {
         let (t, fixed) = common(a, b);
+        Tm::mul_on(a, b, t, fixed)
+    }
+
+    /// The product of two models on table `t` (the common table, or one of the same
+    /// parameters and weights and a lower order: the operands are lowered to it first,
+    /// their dropped terms bounded into their remainders).
+    fn mul_on(a: &Tm, b: &Tm, t: &'static Table, fixed: bool) -> Tm {
         if a.t.len() == 1 {
             return Tm::mul_const(b.convert(t, fixed).into_owned(), a.c[0], a.rem);
         }
@@ -1380,24 +1550,39 @@ impl Tm {
         let (mul, part, rowv) = (&t.mul[..], &t.part[..], &t.row[..]);
         // Plain sums of |a_i| le[keep_i] and |a_i| ge[keep_i + 1], bounded once below.
         let (mut kept, mut trunc, mut pairs, mut rows) = (0.0f64, 0.0f64, 0usize, 0usize);
+        // Two kinds of pairs are taken out of the scatter, in the same order of
+        // additions into every coefficient (so the same numbers): row 0 (`a_0` times
+        // every `b_j`, at index `j`: the first addition into each coefficient) as one
+        // contiguous pass, and the first pair of every other row (`a_i b_0`, at index
+        // `i`, [`Table::build`] checks both) after all rows, where it is the last
+        // addition into coefficient `i`, since every other pair landing there has a
+        // divisor of `m_i`, of a lower degree, so an earlier row. At order 4 with 36
+        // lifted parameters they are 3,400 of the 11,000 pairs, and at order 2 (the
+        // later time coefficients under the joint degree) most of them.
+        let b0 = bc[0];
         for (i, &ai) in ac.iter().enumerate() {
             if ai == 0.0 {
                 continue;
             }
             let keep = ord - wd[i] as usize;
-            let m = if part.is_empty() {
+            let m = if i == 0 {
+                for (x, &bj) in rr.iter_mut().zip(bc) {
+                    *x += ai * bj;
+                }
+                len
+            } else if part.is_empty() {
                 let m = t.pre[keep];
-                let row = &mul[rowv[i]..rowv[i] + m];
-                for (&bj, &k) in bc[..m].iter().zip(row) {
+                let row = &mul[rowv[i] + 1..rowv[i] + m];
+                for (&bj, &k) in bc[1..m].iter().zip(row) {
                     rr[k as usize] += ai * bj;
                 }
                 m
             } else {
-                let (s, e) = (rowv[i], rowv[i + 1]);
+                let (s, e) = (rowv[i] + 1, rowv[i + 1]);
                 for (&j, &k) in part[s..e].iter().zip(&mul[s..e]) {
                     rr[k as usize] += ai * bc[j as usize];
                 }
-                e - s
+                e + 1 - s
             };
             let aa = ai.abs();
             kept += aa * le[keep];
@@ -1406,6 +1591,11 @@ impl Tm {
             }
             pairs += m;
             rows += 1;
+        }
+        for (x, &ai) in rr.iter_mut().zip(ac).skip(1) {
+            if ai != 0.0 {
+                *x += ai * b0;
+            }
         }
         let kept = nonneg_dot_bound(kept, rows);
         let trunc = nonneg_dot_bound(trunc, rows);
@@ -1577,8 +1767,9 @@ impl Neg for Tm {
         for v in self.c.iter_mut() {
             *v = -*v;
         }
-        // The extents trade places.
+        // The extents trade places (the dropped ones are recomputed when needed).
         let [sn, sp] = self.ext.get();
+        self.drops = Drops::default();
         self.ext.set([sp, sn]);
         self.rem = -self.rem;
         self.lo = f64::NEG_INFINITY;
@@ -1685,6 +1876,27 @@ impl Scalar for Tm {
     }
     fn mul_by_ref(&self, o: &Self) -> Self {
         Tm::mul_ref(self, o)
+    }
+    /// The order of a model with an explicit one (`u32::MAX` otherwise: constants
+    /// adopt their partner's).
+    fn trunc_order(&self) -> u32 {
+        if self.fixed {
+            self.t.order
+        } else {
+            u32::MAX
+        }
+    }
+    /// The product on the common table at order `cap` at most: the operands are
+    /// lowered to `cap` first (as a sum with a model of order `cap` would lower their
+    /// product), so that a product whose sum ends at a lower order does not compute
+    /// its terms past it.
+    fn mul_capped(&self, o: &Self, cap: u32) -> Self {
+        let (t, fixed) = common(self, o);
+        if fixed && cap < t.order {
+            Tm::mul_on(self, o, table_mixed(t.n, cap, t.full, t.lw), fixed)
+        } else {
+            Tm::mul_on(self, o, t, fixed)
+        }
     }
     fn sqr(&self) -> Self {
         let mut r = Tm::mul_ref(self, self);

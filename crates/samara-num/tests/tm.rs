@@ -1136,3 +1136,102 @@ fn order_changes_keep_every_value() {
     assert!(finite > 1500, "only {finite} finite");
     eprintln!("order changes: {checked} point checks, {lowered} lowered, {finite} finite");
 }
+
+/// The model rebuilt from its coefficients and remainder: the same numbers, with
+/// nothing kept from earlier operations (no kept ranges).
+fn fresh(t: &Tm) -> Tm {
+    if t.trunc_order() == u32::MAX {
+        // No order of its own (a constant): nothing kept, and `from_terms` would fix one.
+        return t.clone();
+    }
+    let terms: Vec<(usize, f64)> = (1..t.n_terms())
+        .filter(|&i| t.coef(i) != 0.0)
+        .map(|i| (i, t.coef(i)))
+        .collect();
+    t.from_terms(t.value(), &terms).with_rem(t.rem())
+}
+
+/// The same numbers: table, coefficients and remainder (as floats: bit for bit but for
+/// the sign of a zero, which a negation gives and a rebuilt model does not keep).
+fn same_bits(a: &Tm, b: &Tm) -> bool {
+    a.same_basis(b)
+        && a.rem().lo == b.rem().lo
+        && a.rem().hi == b.rem().hi
+        && (0..a.n_terms()).all(|i| a.coef(i) == b.coef(i))
+}
+
+/// Products truncated at a lower order (`Scalar::mul_capped`, what the series
+/// convolutions use under the joint degree) enclose the exact rational product at
+/// random points and end at that order; and the dropped-term bounds a model keeps
+/// from its lowerings (`Tm`'s `drops`) give bit for bit the products of a model rebuilt
+/// from its coefficients, also after the operations that change the coefficients of a
+/// model that had kept them (sums, differences, scalings, quotients by a float,
+/// negation), so a stale kept bound would show here.
+#[test]
+fn capped_products_and_kept_lowerings_hold() {
+    let mut rng = Rng(0x5EED_CA9D);
+    let (mut capped, mut finite) = (0usize, 0usize);
+    for case in 0..1500 {
+        let n = 2 + rng.below(4) as usize;
+        let order = 2 + rng.below(4) as u32;
+        let (da, db) = (1 + rng.below(3) as u32, 1 + rng.below(3) as u32);
+        let mut ea = rand_expr(&mut rng, n, order, da);
+        let mut eb = rand_expr(&mut rng, n, order, db);
+        if rng.below(2) == 0 {
+            ea = mixed(ea, &mut rng, n);
+            eb = mixed(eb, &mut rng, n);
+        }
+        let (a, b) = (ea.tm(), eb.tm());
+        let cap = rng.below(order as u64 + 1) as u32;
+        let p = a.mul_capped(&b, cap);
+        if a.trunc_order() != u32::MAX || b.trunc_order() != u32::MAX {
+            assert!(
+                p.order() <= cap,
+                "case {case}: order {} past {cap}",
+                p.order()
+            );
+            capped += usize::from(p.order() < a.order().max(b.order()));
+        }
+        let prod = Expr::Mul(Box::new(ea.clone()), Box::new(eb.clone()));
+        finite += usize::from(encloses_at_points(&prod, &p, &mut rng, n, case));
+        // Again (the kept bounds now used): the same numbers, and those of fresh copies.
+        let again = a.mul_capped(&b, cap);
+        assert!(
+            same_bits(&p, &again),
+            "case {case}: a kept lowering changed a product"
+        );
+        let cold = fresh(&a).mul_capped(&fresh(&b), cap);
+        assert!(same_bits(&p, &cold), "case {case}: kept against fresh");
+        // Operations that change the coefficients of a model with kept bounds.
+        let f = 1.0 + rng.unit();
+        let changed = [
+            a.clone() + b.clone(),
+            a.clone() - b.clone(),
+            a.clone() * f,
+            a.clone() / f,
+            -a.clone(),
+            {
+                let mut s = a.clone();
+                s += b.clone();
+                s
+            },
+        ];
+        for (k, m) in changed.iter().enumerate() {
+            let warm = m.mul_capped(&b, cap);
+            let cold = fresh(m).mul_capped(&fresh(&b), cap);
+            assert!(
+                same_bits(&warm, &cold),
+                "case {case}: operation {k} left a stale bound"
+            );
+            let low = cap.min(m.order());
+            let kept = m.clone().with_order(low);
+            assert!(
+                same_bits(&kept, &fresh(m).with_order(low)),
+                "case {case}: lowering {k}"
+            );
+        }
+    }
+    assert!(capped > 300, "only {capped} capped products");
+    assert!(finite > 1000, "only {finite} finite");
+    eprintln!("capped products: {capped} capped, {finite} finite");
+}

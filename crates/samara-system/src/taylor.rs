@@ -34,6 +34,14 @@ pub fn solution_series<S: Scalar, const K: usize>(
     solution_series_trimmed::<S, K>(g, x0, u, upto, &|_, v| v)
 }
 
+/// The order at which `acc - sum_{j in js} p_j q_{i-j}` ends (the smallest
+/// [`Scalar::trunc_order`] of its terms): what [`Scalar::mul_capped`] truncates the products of a quotient's or
+/// root's recurrence at, as `samara_num::conv` does.
+fn quot_cap<S: Scalar>(acc: &S, p: &[S], q: &[S], i: usize, js: std::ops::Range<usize>) -> u32 {
+    js.map(|j| p[j].trunc_order().min(q[i - j].trunc_order()))
+        .fold(acc.trunc_order(), u32::min)
+}
+
 /// [`solution_series`] with each state's time coefficient `k >= 1` passed through
 /// `trim(k, x_k)` before the later orders read it. `trim` must return an enclosure of
 /// its argument (for Taylor models: the same function with terms past a lower order
@@ -160,9 +168,10 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
                             S::cst(v) / r(a)[0].clone()
                         } else {
                             let num = if i == 0 { S::cst(v) } else { zero.clone() };
+                            let cap = quot_cap(&num, r(a), &c[k * m..(k + 1) * m], i, 1..i + 1);
                             let mut acc = num;
                             for j in 1..=i {
-                                acc -= r(a)[j].mul_by_ref(&c[k * m + i - j]);
+                                acc -= r(a)[j].mul_capped(&c[k * m + i - j], cap);
                             }
                             acc / r(a)[0].clone()
                         }
@@ -184,8 +193,9 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
                                 r(a)[i].clone() / r(b)[0].clone()
                             } else {
                                 let mut acc = r(a)[i].clone();
+                                let cap = quot_cap(&acc, r(b), &c[k * m..(k + 1) * m], i, 1..i + 1);
                                 for j in 1..=i {
-                                    acc -= r(b)[j].mul_by_ref(&c[k * m + i - j]);
+                                    acc -= r(b)[j].mul_capped(&c[k * m + i - j], cap);
                                 }
                                 acc / r(b)[0].clone()
                             }
@@ -207,8 +217,10 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
                                 r(a)[0].sqrt()
                             } else {
                                 let mut acc = r(a)[i].clone();
+                                let row = &c[k * m..(k + 1) * m];
+                                let cap = quot_cap(&acc, row, row, i, 1..i);
                                 for j in 1..i {
-                                    acc -= c[k * m + j].mul_by_ref(&c[k * m + i - j]);
+                                    acc -= c[k * m + j].mul_capped(&c[k * m + i - j], cap);
                                 }
                                 acc / (c[k * m].clone() * 2.0)
                             }
