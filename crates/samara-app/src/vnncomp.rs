@@ -243,6 +243,22 @@ pub struct Decided {
     pub note: Option<String>,
 }
 
+impl Decided {
+    /// `unknown (timeout)` after `seconds` with no engine having answered (the engine
+    /// named is the router's first, the input-split one), and `note` saying where the
+    /// limit struck: the load ([`timed_out_loading`]) or a step that overran it (the
+    /// backstops of `verify-vnnlib` and `samara vnncomp`).
+    pub fn timed_out(seconds: f64, note: String) -> Decided {
+        Decided {
+            verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
+            engine: Engine::InputSplit,
+            seconds,
+            outputs: None,
+            note: Some(note),
+        }
+    }
+}
+
 /// A counterexample re-checked concretely ([`recheck`]).
 pub enum Recheck {
     /// The network's f64 outputs at the point satisfy the disjunct.
@@ -377,16 +393,13 @@ fn free_apart(nets: HashMap<String, Network>) {
 /// ([`load_instance_until`]): `unknown (timeout)` after `seconds`, no engine having run
 /// (the engine named is the router's first, the input-split one).
 pub fn timed_out_loading(seconds: f64) -> Decided {
-    Decided {
-        verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
-        engine: Engine::InputSplit,
+    Decided::timed_out(
         seconds,
-        outputs: None,
-        note: Some(format!(
+        format!(
             "{}: no verification was started",
             samara_nn::limits::TIMED_OUT
-        )),
-    }
+        ),
+    )
 }
 
 /// A result word of the competition, typed.

@@ -11,8 +11,7 @@ use samara_app::vnncomp::{
     decide, load_instance_logits, result_text, softmax, timed_out_loading, Decided, InstanceVerdict,
 };
 use samara_app::{Holds, VerdictRow};
-use samara_verify::route::Engine;
-use samara_verify::{Settings, UnknownReason, Verdict};
+use samara_verify::{Settings, Verdict};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -270,16 +269,13 @@ fn start_backstop(deadline: Instant, start: Instant, json: bool, result: Option<
 /// answered (the engine named is the router's first). The backstop of `verify-vnnlib` and
 /// the per-instance limit of `samara vnncomp` report it.
 pub(crate) fn ended_at_limit(seconds: f64, what: &str) -> Decided {
-    Decided {
-        verdict: Verdict::Unknown(UnknownReason::Timeout { nodes: 0 }),
-        engine: Engine::InputSplit,
+    Decided::timed_out(
         seconds,
-        outputs: None,
-        note: Some(format!(
+        format!(
             "{what} had not stopped {} s after the time limit: ended there",
             BACKSTOP_GRACE.as_secs_f64()
-        )),
-    }
+        ),
+    )
 }
 
 /// Print a `verify-vnnlib` verdict (text or `--json`), its note and reason on stderr,
