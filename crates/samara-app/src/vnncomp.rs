@@ -309,24 +309,24 @@ pub fn recheck(net: &Network, q: &Query, x: &[f64], disjunct: usize) -> Result<R
     })
 }
 
-/// Decide one instance (network `f` of `q`) within `timeout`. A counterexample
+/// Decide one instance (network `f` of `q`) within `timeout`. The network is borrowed:
+/// `samara vnncomp` shares one load among the lines that use it, and a copy of an
+/// image-sized network costs seconds and gigabytes. A counterexample
 /// is re-checked ([`recheck`]) before it is reported: a point that the f64
 /// re-evaluation or exact rational arithmetic confirms stays `sat` (its f64 outputs are
 /// the ones written; a disagreement is said in [`Decided::note`]); any other becomes
 /// `unknown` (rounding).
 pub fn decide(
-    net: Network,
+    net: &Network,
     q: &Query,
     timeout: Timeout,
     max_nodes: usize,
 ) -> Result<Decided, AppError> {
     let t0 = Instant::now();
-    let mut nets = HashMap::new();
-    nets.insert("f".to_string(), net);
+    let nets = HashMap::from([("f".to_string(), net)]);
     // Preparing the network (its piecewise-linear form) counts against the time limit,
     // and stops at it (a copy of a lowered generator's layers takes many seconds).
-    let Some(prep) = Prepared::new_until(&nets, timeout.deadline_from(t0)) else {
-        free_apart(nets);
+    let Some(prep) = Prepared::borrowing_until(nets, timeout.deadline_from(t0)) else {
         let mut d = timed_out_loading(t0.elapsed().as_secs_f64());
         d.note = Some(
             "the time limit ran out while the network's piecewise-linear form was prepared: no verification was started".into(),
@@ -345,7 +345,7 @@ pub fn decide(
     let mut outputs = None;
     let mut note = None;
     if let Verdict::Violated(c) = &verdict {
-        match recheck(&nets["f"], q, &c.point.inputs[0], c.disjunct)? {
+        match recheck(net, q, &c.point.inputs[0], c.disjunct)? {
             Recheck::Holds(y) => outputs = Some(y),
             Recheck::ExactOnly(y, margin) => {
                 note = Some(format!(
@@ -362,7 +362,6 @@ pub fn decide(
         }
     }
     drop(prep);
-    free_apart(nets);
     Ok(Decided {
         verdict,
         engine,
@@ -372,20 +371,20 @@ pub fn decide(
     })
 }
 
-/// Drop the networks, on a thread of their own when they are large
+/// Drop a network, on a thread of its own when it is large
 /// ([`samara_verify::FREE_APART_WEIGHTS`]): freeing a lowered generator's gigabytes
 /// took seconds past the instance's time limit.
-fn free_apart(nets: HashMap<String, Network>) {
-    let weights: usize = nets
-        .values()
-        .flat_map(|n| n.layers.iter())
+pub fn free_apart(net: Network) {
+    let weights: usize = net
+        .layers
+        .iter()
         .map(|l| match l {
             samara_nn::Layer::Affine(a) => a.stored(),
             samara_nn::Layer::Act(_) => 0,
         })
         .sum();
     if weights > samara_verify::FREE_APART_WEIGHTS {
-        std::thread::spawn(move || drop(nets));
+        std::thread::spawn(move || drop(net));
     }
 }
 

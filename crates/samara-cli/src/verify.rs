@@ -190,7 +190,8 @@ pub fn run_verify_vnnlib(a: &VerifyVnnlibArgs) -> Result<ExitCode> {
     )?;
     let mut d = match loaded {
         Some((net, q, logits)) => {
-            let mut d = decide(net, &q, timeout.left(start), a.max_nodes)?;
+            let mut d = decide(&net, &q, timeout.left(start), a.max_nodes)?;
+            samara_app::vnncomp::free_apart(net);
             if logits {
                 // The file's network ends in the softmax that was left out: show its
                 // outputs.

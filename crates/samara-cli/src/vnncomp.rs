@@ -18,7 +18,8 @@
 //! `tests/conv_time_limits.rs`) main's run overran by 1.3 s in the lowering and by
 //! 1.6 s before the first search step (measured on a loaded machine, `--timeout 12` and
 //! `5`), each step within its own clock checks. The cost: an abandoned step shares the
-//! cores and holds its copy of the network until it ends.
+//! cores and holds its share of the network (and the network's piecewise-linear form)
+//! until it ends.
 
 use anyhow::{anyhow, Result};
 pub use samara_app::args::VnncompArgs;
@@ -122,7 +123,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
     };
     // Load everything first: a bad instance is an input error before any computation.
     // A network used by several lines is loaded once (an image-sized one takes seconds
-    // and gigabytes); each instance gets a copy when it runs. The load counts against
+    // and gigabytes); each instance borrows it (no copy) when it runs. The load counts against
     // the limit of the instance that needs it first (a generator's lowering takes
     // minutes): it stops there, that instance is a timeout, and the next line that
     // uses the network tries again within its own limit.
@@ -201,7 +202,7 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
         let start = Instant::now();
         let mut d = match inst {
             // What the load took is taken from the instance's limit and added to its time.
-            // The decision (with its copy of the network) runs on a worker that the run
+            // The decision (with a share of the network) runs on a worker that the run
             // waits for until just after the limit.
             Some((k, q)) => {
                 let net = Arc::clone(&networks[k]);
@@ -210,15 +211,13 @@ pub fn run_vnncomp(a: &VnncompArgs) -> Result<ExitCode> {
                     .map(|d| d.checked_sub(load).unwrap_or(start));
                 let max_nodes = a.max_nodes;
                 let work = move || {
-                    let copy = Network::clone(&net);
-                    drop(net);
                     let left = match deadline {
                         Some(d) => samara_num::Timeout::from_duration(
                             d.saturating_duration_since(Instant::now()),
                         ),
                         None => samara_num::Timeout::none(),
                     };
-                    decide(copy, &q, left, max_nodes)
+                    decide(&net, &q, left, max_nodes)
                 };
                 match within(give_up_at(deadline), work) {
                     Some(d) => d?,

@@ -320,8 +320,18 @@ impl<'a> Prepared<'a> {
         nets: &'a HashMap<String, Network>,
         deadline: Option<std::time::Instant>,
     ) -> Option<Self> {
+        Self::borrowing_until(nets.iter().map(|(k, v)| (k.clone(), v)).collect(), deadline)
+    }
+
+    /// [`Prepared::new_until`] over networks the caller holds elsewhere (shared by
+    /// several instances, as `samara vnncomp` does), so no copy of an image-sized
+    /// network is made to prepare it.
+    pub fn borrowing_until(
+        plain: HashMap<String, &'a Network>,
+        deadline: Option<std::time::Instant>,
+    ) -> Option<Self> {
         let mut pwl = HashMap::new();
-        for (k, v) in nets {
+        for (k, v) in &plain {
             let p = match PwlNet::from_network_until(v, deadline) {
                 Ok(Some(p)) => Ok(p),
                 Ok(None) => return None,
@@ -329,10 +339,7 @@ impl<'a> Prepared<'a> {
             };
             pwl.insert(k.clone(), p);
         }
-        Some(Prepared {
-            plain: nets.iter().map(|(k, v)| (k.clone(), v)).collect(),
-            pwl,
-        })
+        Some(Prepared { plain, pwl })
     }
 
     fn check(&self, q: &Query) -> Result<(), VerifyError> {
