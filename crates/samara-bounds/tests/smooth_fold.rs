@@ -7,12 +7,13 @@
 //! survives 10,000 samples and a point found satisfies its case on the original network,
 //! with every fixed input at its value.
 
+use crate::support::{self, chain};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_bounds::search::{self, Case, CasePoint, Outcome, OutputConstraint, Settings};
 use samara_bounds::smooth;
 use samara_bounds::symbolic::Objective;
-use samara_nn::{Activation, Affine, Layer, Network};
+use samara_nn::{Activation, Layer, Network};
 use samara_num::Timeout;
 
 /// A random network `dims` with the activation of each hidden layer drawn from `acts`.
@@ -51,14 +52,7 @@ fn random_box(rng: &mut ChaCha8Rng, n: usize, fixed: usize) -> (Vec<f64>, Vec<f6
 }
 
 fn sample(rng: &mut ChaCha8Rng, lo: &[f64], hi: &[f64], k: usize) -> Vec<f64> {
-    lo.iter()
-        .zip(hi)
-        .map(|(a, b)| match k % 5 {
-            0 => *a,
-            1 => *b,
-            _ => rng.gen_range(*a..=*b),
-        })
-        .collect()
+    support::sample(rng, lo, hi, k, 5)
 }
 
 fn value(k: &OutputConstraint, y: &[f64]) -> f64 {
@@ -116,18 +110,6 @@ fn folded_bounds_contain_the_original_network() {
     }
 }
 
-fn chain(net: &Network) -> Vec<(Affine, bool)> {
-    let mut maps: Vec<(Affine, bool)> = Vec::new();
-    for l in net.raw_layers() {
-        match l {
-            Layer::Affine(a) => maps.push((a, false)),
-            Layer::Act(Activation::Relu) => maps.last_mut().unwrap().1 = true,
-            other => panic!("unexpected {other:?}"),
-        }
-    }
-    maps
-}
-
 /// The sampled range of `c . f(x)` over the box.
 fn sampled_range(
     rng: &mut ChaCha8Rng,
@@ -178,17 +160,7 @@ fn folded_search_agrees_with_the_relu_search() {
         // Thresholds around the sampled range: some queries with points, some without.
         let (a, b) = sampled_range(&mut rng, &net, &lo, &hi, &c);
         let t = a + (b - a) * [-0.3, -0.05, 0.02, 0.3][trial % 4];
-        let cases = vec![Case {
-            lo: lo.clone(),
-            hi: hi.clone(),
-            constraints: vec![OutputConstraint {
-                obj: Objective {
-                    c: c.clone(),
-                    d: -t,
-                },
-                strict: false,
-            }],
-        }];
+        let cases = support::threshold_case(&lo, &hi, &c, t);
         let (folded, _) = smooth::solve(&net, &cases, &settings());
         let (plain, _) = search::solve(&chain(&net), &cases, &settings());
         match (&folded, &plain) {
@@ -217,17 +189,7 @@ fn smooth_verdicts_survive_sampling() {
         let c: Vec<f64> = vec![1.0, -0.5, -0.5];
         let (a, b) = sampled_range(&mut rng, &net, &lo, &hi, &c);
         let t = a + (b - a) * [-0.2, -0.02, 0.05, 0.5][trial % 4];
-        let cases = vec![Case {
-            lo: lo.clone(),
-            hi: hi.clone(),
-            constraints: vec![OutputConstraint {
-                obj: Objective {
-                    c: c.clone(),
-                    d: -t,
-                },
-                strict: false,
-            }],
-        }];
+        let cases = support::threshold_case(&lo, &hi, &c, t);
         match smooth::solve(&net, &cases, &settings()).0 {
             Outcome::Proved => {
                 proved += 1;
