@@ -45,6 +45,7 @@
 //!   and reachability's network step take their relaxations from.
 #![warn(missing_docs)]
 
+mod attack;
 pub mod constant;
 pub mod linset;
 pub mod lp;
@@ -59,3 +60,4 @@ pub mod smooth;
 pub mod symbolic;
 #[cfg(test)]
 mod testnet;
+mod work;

@@ -34,7 +34,6 @@ use crate::query::{combination_certifies, satisfies, Case};
 use crate::rules::{self, Relax};
 use crate::search::{CasePoint, Outcome, Settings, Stats, StopReason};
 use crate::symbolic::Linear;
-use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_num::round::{gamma, inflate};
@@ -491,23 +490,7 @@ struct Work {
     depth: u32,
 }
 
-impl PartialEq for Work {
-    fn eq(&self, o: &Self) -> bool {
-        self.cmp(o) == std::cmp::Ordering::Equal
-    }
-}
-impl Eq for Work {}
-impl PartialOrd for Work {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Work {
-    /// Deepest first (bounded memory), then the least bound.
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.depth.cmp(&o.depth).then(o.key.total_cmp(&self.key))
-    }
-}
+crate::work::deepest_then_least_key!(Work);
 
 /// What examining a piece gave.
 enum Piece {
@@ -515,13 +498,6 @@ enum Piece {
     Found(usize, Vec<f64>),
     Split(Vec<Work>),
     Stuck,
-}
-
-/// The value of every constraint of `cs` at outputs `y`.
-fn values(cs: &[crate::query::OutputConstraint], y: &[f64]) -> Vec<f64> {
-    cs.iter()
-        .map(|k| k.obj.d + k.obj.c.iter().zip(y).map(|(c, v)| c * v).sum::<f64>())
-        .collect()
 }
 
 /// Bound, check and split one piece.
@@ -626,70 +602,10 @@ fn examine(net: &Network, f: &Folded, cases: &[Case], w: Work) -> Piece {
     Piece::Split(vec![a, b])
 }
 
-/// Signed-gradient descent on the free inputs from `xf` for the conjunction of `cases`
-/// nearest to holding; the case and the (original) point when one holds.
-#[allow(clippy::too_many_arguments)]
-fn descend(
-    net: &Network,
-    f: &Folded,
-    cases: &[Case],
-    group: &[usize],
-    lo: &[f64],
-    hi: &[f64],
-    mut xf: Vec<f64>,
-    steps: usize,
-) -> Option<(usize, Vec<f64>)> {
-    for step in 0..=steps {
-        let x = f.expand(&xf);
-        let (y, g) = samara_nn::attack::outputs_and_gradient(net, &x, |y| {
-            // The case nearest to holding (least summed violation): the gradient of its
-            // violated constraints.
-            let mut best: Option<(f64, usize)> = None;
-            for &ci in group {
-                let v: f64 = values(&cases[ci].constraints, y)
-                    .iter()
-                    .map(|v| v.max(0.0))
-                    .sum();
-                if best.is_none_or(|b| v < b.0) {
-                    best = Some((v, ci));
-                }
-            }
-            let mut c = vec![0.0; y.len()];
-            if let Some((_, ci)) = best {
-                let cs = &cases[ci].constraints;
-                for (k, v) in cs.iter().zip(values(cs, y)) {
-                    if v >= -1e-7 * (1.0 + v.abs()) {
-                        c.iter_mut().zip(&k.obj.c).for_each(|(a, b)| *a += b);
-                    }
-                }
-            }
-            c
-        });
-        if let Some(&ci) = group
-            .iter()
-            .find(|&&ci| satisfies(&cases[ci].constraints, &y))
-        {
-            return Some((ci, x));
-        }
-        if step == steps {
-            break;
-        }
-        let eta = 0.5 * (1.0 - step as f64 / steps as f64) + 0.02;
-        let mut moved = false;
-        for (t, &i) in f.free.iter().enumerate() {
-            let d = g[i].signum() * f64::from(u8::from(g[i] != 0.0));
-            moved |= d != 0.0;
-            xf[t] = (xf[t] - eta * 0.5 * (hi[t] - lo[t]) * d).clamp(lo[t], hi[t]);
-        }
-        if !moved {
-            break;
-        }
-    }
-    None
-}
-
-/// The attack on the cases sharing the box `[lo, hi]` of the free inputs: descents from
-/// the centre (first round) and seeded random starts, for `seconds`.
+/// The attack on the cases `group` sharing the box `[lo, hi]` of the free inputs
+/// ([`crate::attack`]): on every thread, sign-gradient descents ([`crate::attack::Step`],
+/// half the box's width at most) from the centre (first round, first worker) and seeded
+/// random starts, for `seconds` each; the case and the (original) point when one holds.
 #[allow(clippy::too_many_arguments)]
 fn attack(
     net: &Network,
@@ -703,32 +619,34 @@ fn attack(
     seconds: f64,
     deadline: Option<Instant>,
 ) -> Option<(usize, Vec<f64>)> {
-    let t0 = Instant::now();
+    use crate::attack::{descend, restarts, start, starts, Partial, Step};
     let workers = rayon::current_num_threads().max(1) as u64;
+    let conj: Vec<&[crate::query::OutputConstraint]> =
+        group.iter().map(|ci| &cases[*ci].constraints[..]).collect();
+    let stop = std::sync::atomic::AtomicBool::new(false);
     (0..workers).into_par_iter().find_map_any(|wk| {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
-            s.seed ^ (round * workers + wk).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-        );
-        for r in 0.. {
-            if (r > 0 && t0.elapsed().as_secs_f64() > seconds)
-                || deadline.is_some_and(|d| Instant::now() >= d)
-            {
-                return None;
-            }
-            let xf: Vec<f64> = (0..lo.len())
-                .map(|t| {
-                    if r == 0 && round == 0 && wk == 0 {
-                        0.5 * (lo[t] + hi[t])
-                    } else {
-                        rng.gen_range(lo[t]..=hi[t])
-                    }
-                })
-                .collect();
-            if let Some(found) = descend(net, f, cases, group, lo, hi, xf, s.steps.min(30)) {
-                return Some(found);
-            }
-        }
-        None
+        let salt = round * workers + wk;
+        let mut rng = starts(s.seed, salt);
+        let mut model = Partial {
+            net,
+            base: f.base.clone(),
+            free: &f.free,
+        };
+        restarts(usize::MAX, seconds, &stop, deadline, |r| {
+            let xf = start(&mut rng, lo, hi, r == 0 && salt == 0);
+            let steps = s.steps.min(30);
+            descend(
+                &mut model,
+                &conj,
+                lo,
+                hi,
+                xf,
+                steps,
+                Step::Sign(0.5),
+                deadline,
+            )
+            .map(|(k, xf)| (group[k], f.expand(&xf)))
+        })
     })
 }
 
