@@ -6,10 +6,13 @@
 //! gradient of a weighted sum of them ([`Model`]); every point is judged on the model's
 //! own f64 outputs ([`satisfies`]), and callers re-check what they report.
 
-use crate::query::{forward, satisfies, OutputConstraint};
+#[cfg(doc)]
+use crate::query::satisfies;
+use crate::query::{forward, OutputConstraint};
+use crate::smooth::Apps;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use samara_nn::{Affine, Network};
+use samara_nn::Affine;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
@@ -45,13 +48,14 @@ impl Model for Chain<'_> {
     }
 }
 
-/// A network of any activations whose inputs `free` vary and the others stay at
-/// `base`'s values (the folded inputs of [`crate::smooth`]): the descent moves the free
-/// inputs only. The gradient is [`samara_nn::attack::outputs_and_gradient`]'s (a `Sign`
-/// passes the straight-through estimator's 1).
+/// Networks side by side ([`Apps`], one network in most queries) whose inputs `free`
+/// vary and the others stay at `base`'s values (the folded inputs of
+/// [`crate::smooth`]): the descent moves the free inputs only. The gradient is
+/// [`samara_nn::attack::outputs_and_gradient`]'s (a `Sign` passes the straight-through
+/// estimator's 1), per network, plus the weights of the carried inputs.
 pub(crate) struct Partial<'a> {
-    /// The network.
-    pub net: &'a Network,
+    /// The networks.
+    pub apps: &'a Apps<'a>,
     /// Every input, the free ones overwritten at each evaluation.
     pub base: Vec<f64>,
     /// Indices of the free inputs.
@@ -67,13 +71,39 @@ impl Model for Partial<'_> {
         for (t, &i) in self.free.iter().enumerate() {
             self.base[i] = xf[t];
         }
-        let mut picked = None;
-        let (y, g) = samara_nn::attack::outputs_and_gradient(self.net, &self.base, |y| {
-            picked = pick(y);
-            picked.clone().unwrap_or_else(|| vec![0.0; y.len()])
-        });
-        let g = picked.map(|_| self.free.iter().map(|&i| g[i]).collect());
-        (y, g)
+        if let ([net], true) = (&self.apps.nets[..], self.apps.through.is_empty()) {
+            // One pass: the forward's layers serve the backward.
+            let mut picked = None;
+            let (y, g) = samara_nn::attack::outputs_and_gradient(net, &self.base, |y| {
+                picked = pick(y);
+                picked.clone().unwrap_or_else(|| vec![0.0; y.len()])
+            });
+            let g = picked.map(|_| self.free.iter().map(|&i| g[i]).collect());
+            return (y, g);
+        }
+        let y = self.apps.eval(&self.base);
+        let Some(c) = pick(&y) else {
+            return (y, None);
+        };
+        let mut g = vec![0.0; self.base.len()];
+        let (mut at_in, mut at_out) = (0, 0);
+        for net in &self.apps.nets {
+            let (ni, no) = (net.n_inputs(), net.n_outputs());
+            let cn = &c[at_out..at_out + no];
+            if cn.iter().any(|v| *v != 0.0) {
+                let x = &self.base[at_in..at_in + ni];
+                let (_, gn) = samara_nn::attack::outputs_and_gradient(net, x, |_| cn.to_vec());
+                for (a, b) in g[at_in..at_in + ni].iter_mut().zip(gn) {
+                    *a += b;
+                }
+            }
+            at_in += ni;
+            at_out += no;
+        }
+        for (j, &i) in self.apps.through.iter().enumerate() {
+            g[i] += c[at_out + j];
+        }
+        (y, Some(self.free.iter().map(|&i| g[i]).collect()))
     }
 }
 
@@ -108,7 +138,8 @@ fn violated(k: &OutputConstraint, y: &[f64]) -> bool {
 /// constraints), by `rule` with a step that shrinks over `steps`. Stops where no input
 /// can move, and at `deadline` (checked at every step: a step of a wide network takes
 /// tens of milliseconds). Returns the index of a conjunction that holds at the point
-/// ([`satisfies`]) and the point.
+/// by `holds` ([`satisfies`], or the smooth engine's [`crate::smooth::holds`]) and the
+/// point.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn descend(
     model: &mut impl Model,
@@ -119,6 +150,7 @@ pub(crate) fn descend(
     steps: usize,
     rule: Step,
     deadline: Option<Instant>,
+    holds: impl Fn(&[OutputConstraint], &[f64]) -> bool,
 ) -> Option<(usize, Vec<f64>)> {
     for step in 0..=steps {
         if deadline.is_some_and(|d| Instant::now() >= d) {
@@ -126,7 +158,7 @@ pub(crate) fn descend(
         }
         let mut found = None;
         let (_, g) = model.outputs_and_gradient(&x, |y| {
-            if let Some(k) = group.iter().position(|cs| satisfies(cs, y)) {
+            if let Some(k) = group.iter().position(|cs| holds(cs, y)) {
                 found = Some(k);
                 return None;
             }

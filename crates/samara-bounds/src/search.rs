@@ -267,7 +267,9 @@ fn pgd_any(
         maps,
         masks: Vec::new(),
     };
-    crate::attack::descend(&mut chain, group, lo, hi, x, steps, rule, deadline)
+    crate::attack::descend(
+        &mut chain, group, lo, hi, x, steps, rule, deadline, satisfies,
+    )
 }
 
 /// The cases grouped by their box (indices in order; groups in order of their first

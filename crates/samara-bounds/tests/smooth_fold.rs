@@ -86,7 +86,7 @@ fn folded_bounds_contain_the_original_network() {
                     .collect(),
             })
             .collect();
-        let lbs = smooth::constraint_lower_bounds(&net, &cases).unwrap();
+        let lbs = smooth::constraint_lower_bounds(&smooth::Apps::one(&net), &cases).unwrap();
         let mut least_gap = f64::INFINITY;
         for k in 0..10_000 {
             let x = sample(&mut rng, &lo, &hi, k);
@@ -147,6 +147,49 @@ fn check_point(net: &Network, cases: &[Case], p: &CasePoint) {
         search::satisfies(&case.constraints, &y),
         "the point does not hold: {y:?}"
     );
+}
+
+/// Networks side by side ([`smooth::Apps`]: two networks of different depths, with
+/// `Sign` among the activations, and two inputs carried to the outputs, one fixed and
+/// one free): the constraint bounds contain the composite's f64 evaluation
+/// ([`smooth::Apps::eval`], each network's own evaluator) at 10,000 sampled points.
+#[test]
+fn bounds_of_networks_side_by_side_contain_their_evaluation() {
+    let mut rng = ChaCha8Rng::seed_from_u64(49);
+    let acts = [ACTS[0], ACTS[1], ACTS[2], Activation::Sign];
+    for trial in 0..12 {
+        let f = random_net(&mut rng, &[4, 8, 6, 2], &acts);
+        let g = random_net(&mut rng, &[3, 6, 2], &acts);
+        let apps = smooth::Apps {
+            nets: vec![&f, &g],
+            through: vec![5, 1],
+        };
+        let (lo, hi) = random_box(&mut rng, 7, 3);
+        let cases: Vec<Case> = (0..2)
+            .map(|_| Case {
+                lo: lo.clone(),
+                hi: hi.clone(),
+                constraints: (0..2)
+                    .map(|_| random_constraint(&mut rng, 6, 0.1))
+                    .collect(),
+            })
+            .collect();
+        let lbs = smooth::constraint_lower_bounds(&apps, &cases).unwrap();
+        for k in 0..10_000 {
+            let x = sample(&mut rng, &lo, &hi, k);
+            let y = apps.eval(&x);
+            assert_eq!(&y[4..], &[x[5], x[1]]);
+            for (case, lb) in cases.iter().zip(&lbs) {
+                for (c, b) in case.constraints.iter().zip(lb) {
+                    let v = value(c, &y);
+                    assert!(
+                        *b <= v + 1e-12 * (1.0 + v.abs()),
+                        "trial {trial}: bound {b} above the value {v} at {x:?}"
+                    );
+                }
+            }
+        }
+    }
 }
 
 #[test]
