@@ -25,9 +25,13 @@
 //!   (`relusplit`): beta-CROWN bounds (Wang et al., NeurIPS 2021) per phase set, after
 //!   the same checks of the whole box.
 //! - [`smooth`]: the same input-split search for networks with any activation (sigmoid,
-//!   tanh), CROWN over the free inputs after the inputs fixed in every case are folded
-//!   into the first layer's bias (the fold's rounding carried as a bias radius); VNN-COMP
-//!   2023's `dist_shift` (8 free inputs of 792) is its shape.
+//!   tanh, the step `Sign`), CROWN over the free inputs after the inputs fixed in every
+//!   case are folded into the first layer's bias (the fold's rounding carried as a bias
+//!   radius), the interval rule alone after a layer of steps; several networks side by
+//!   side with inputs carried to the outputs ([`smooth::Apps`]) state relational
+//!   queries and constraints over inputs; VNN-COMP 2023's `dist_shift` (8 free inputs of
+//!   792) is its shape. Both searches share their attack (`attack`: projected gradient
+//!   descent from seeded starts) and the order of their frontier (`work`).
 //! - [`constant`]: interval bounds rounded only where an operation was inexact, which
 //!   decide degenerate constraints (an output exactly 0 on the box, two outputs of the
 //!   same expression compared) that the widened bounds of the search never close.
@@ -45,6 +49,7 @@
 //!   and reachability's network step take their relaxations from.
 #![warn(missing_docs)]
 
+mod attack;
 pub mod constant;
 pub mod linset;
 pub mod lp;
@@ -59,3 +64,4 @@ pub mod smooth;
 pub mod symbolic;
 #[cfg(test)]
 mod testnet;
+mod work;

@@ -33,7 +33,6 @@
 use crate::query::{combination_certifies, forward};
 pub use crate::query::{satisfies, Case, OutputConstraint};
 use crate::symbolic::{self, Objective};
-use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::Affine;
 use samara_num::Timeout;
@@ -193,7 +192,7 @@ pub(crate) fn gradient(maps: &[(Affine, bool)], x: &[f64], c: &[f64]) -> Vec<f64
 
 /// [`gradient`] with the activation masks of the point given ([`forward`]'s), so a
 /// caller that has just evaluated the point does not evaluate it again.
-fn gradient_masked(maps: &[(Affine, bool)], masks: &[Vec<bool>], c: &[f64]) -> Vec<f64> {
+pub(crate) fn gradient_masked(maps: &[(Affine, bool)], masks: &[Vec<bool>], c: &[f64]) -> Vec<f64> {
     let mut g = c.to_vec();
     let mut mi = masks.len();
     for (m, r) in maps.iter().rev() {
@@ -253,78 +252,24 @@ fn pgd_any(
     group: &[&[OutputConstraint]],
     lo: &[f64],
     hi: &[f64],
-    mut x: Vec<f64>,
+    x: Vec<f64>,
     steps: usize,
     deadline: Option<Instant>,
 ) -> Option<(usize, Vec<f64>)> {
-    let n = lo.len();
-    let no = group
-        .iter()
-        .find_map(|cs| cs.first())
-        .map(|k| k.obj.c.len())
-        .unwrap_or(0);
-    let mut masks = Vec::new();
-    for step in 0..=steps {
-        // A step of a wide network (a CIFAR convolution lowered to dense maps) takes
-        // tens of milliseconds: the deadline is checked at every one.
-        if deadline.is_some_and(|d| Instant::now() >= d) {
-            return None;
-        }
-        let y = forward(maps, &x, Some(&mut masks));
-        if let Some(k) = group.iter().position(|cs| satisfies(cs, &y)) {
-            return Some((k, x));
-        }
-        if step == steps {
-            break;
-        }
-        let value = |k: &OutputConstraint| {
-            k.obj.d + k.obj.c.iter().zip(&y).map(|(c, v)| c * v).sum::<f64>()
-        };
-        let violated = |k: &OutputConstraint| {
-            let g = value(k);
-            g >= -1e-7 * (1.0 + g.abs())
-        };
-        let near = group
-            .iter()
-            .map(|cs| {
-                cs.iter()
-                    .filter(|k| violated(k))
-                    .map(|k| value(k).max(0.0))
-                    .sum::<f64>()
-            })
-            .enumerate()
-            .min_by(|a, b| a.1.total_cmp(&b.1))
-            .map_or(0, |(i, _)| i);
-        let mut c = vec![0.0; no];
-        for k in group[near].iter().filter(|k| violated(k)) {
-            for (ci, kc) in c.iter_mut().zip(&k.obj.c) {
-                *ci += kc;
-            }
-        }
-        let g = gradient_masked(maps, &masks, &c);
-        let gmax = g
-            .iter()
-            .zip(lo.iter().zip(hi))
-            .map(|(gi, (a, b))| (gi * (b - a)).abs())
-            .fold(0.0, f64::max);
-        if gmax == 0.0 {
-            break;
-        }
-        let eta = 0.5 * (1.0 - step as f64 / steps as f64) + 0.02;
-        for t in 0..n {
-            let w = hi[t] - lo[t];
-            // Steepest descent for the box (an L-infinity ball): the sign of the
-            // gradient, Madry et al.'s step; on few inputs (ACAS Xu's five) the step
-            // scaled by the gradient, which converges there in fewer steps.
-            let d = if n >= SIGN_STEP_INPUTS {
-                g[t].signum() * (g[t] != 0.0) as u8 as f64
-            } else {
-                g[t] * w / gmax
-            };
-            x[t] = (x[t] - eta * w * d).clamp(lo[t], hi[t]);
-        }
-    }
-    None
+    // Steepest descent for the box, the gradient's sign, on many inputs; on few (ACAS
+    // Xu's five) the step scaled by the gradient, which converges there in fewer steps.
+    let rule = if lo.len() >= SIGN_STEP_INPUTS {
+        crate::attack::Step::Sign(1.0)
+    } else {
+        crate::attack::Step::Scaled
+    };
+    let mut chain = crate::attack::Chain {
+        maps,
+        masks: Vec::new(),
+    };
+    crate::attack::descend(
+        &mut chain, group, lo, hi, x, steps, rule, deadline, satisfies,
+    )
 }
 
 /// The cases grouped by their box (indices in order; groups in order of their first
@@ -363,31 +308,14 @@ fn attack(
     stop: &std::sync::atomic::AtomicBool,
     deadline: Option<Instant>,
 ) -> Attacked {
-    let t0 = Instant::now();
-    let _guard = ProfGuard(t0);
-    let mut rng =
-        rand_chacha::ChaCha8Rng::seed_from_u64(s.seed ^ round.wrapping_mul(0x9E37_79B9_7F4A_7C15));
+    let _guard = ProfGuard(Instant::now());
+    let mut rng = crate::attack::starts(s.seed, round);
     let case = &cases[group[0]];
     let conj: Vec<&[OutputConstraint]> =
         group.iter().map(|ci| &cases[*ci].constraints[..]).collect();
-    let n = case.lo.len();
     let mut steps = 0u64;
-    for r in 0..s.restarts.max(1) {
-        if r > 0 && (t0.elapsed().as_secs_f64() > seconds || stop.load(AtOrd::Relaxed)) {
-            break;
-        }
-        if deadline.is_some_and(|d| Instant::now() >= d) {
-            break;
-        }
-        let x: Vec<f64> = (0..n)
-            .map(|t| {
-                if r == 0 && round == 0 {
-                    0.5 * (case.lo[t] + case.hi[t])
-                } else {
-                    rng.gen_range(case.lo[t]..=case.hi[t])
-                }
-            })
-            .collect();
+    let found = crate::attack::restarts(s.restarts.max(1), seconds, stop, deadline, |r| {
+        let x = crate::attack::start(&mut rng, &case.lo, &case.hi, r == 0 && round == 0);
         steps += steps_per_start as u64;
         // Even restarts descend on whichever case is nearest (image properties: one
         // class beats the label, whichever it is); odd ones on one case at a time in
@@ -397,7 +325,7 @@ fn attack(
             Some(k) => &conj[k..k + 1],
             None => &conj[..],
         };
-        if let Some((k, x)) = pgd_any(
+        pgd_any(
             maps,
             target,
             &case.lo,
@@ -405,12 +333,10 @@ fn attack(
             x,
             steps_per_start,
             deadline,
-        ) {
-            stop.store(true, AtOrd::Relaxed);
-            return (Some((group[one.unwrap_or(k)], x)), steps);
-        }
-    }
-    (None, steps)
+        )
+        .map(|(k, x)| (group[one.unwrap_or(k)], x))
+    });
+    (found, steps)
 }
 
 /// [`attack`] on every case, in parallel, `seconds` each and `steps` gradient steps per
@@ -515,23 +441,7 @@ struct Work {
     open: Vec<usize>,
 }
 
-impl PartialEq for Work {
-    fn eq(&self, o: &Self) -> bool {
-        self.cmp(o).is_eq()
-    }
-}
-impl Eq for Work {}
-impl PartialOrd for Work {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Work {
-    /// The max-heap pops the deepest piece, and of those the lowest key.
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.depth.cmp(&o.depth).then(o.key.total_cmp(&self.key))
-    }
-}
+crate::work::deepest_then_least_key!(Work);
 
 /// One look-ahead trial: its score (higher is better), the halves left open, the input
 /// split, and whether the halves' bounds are full CROWN (else the cheap ones).

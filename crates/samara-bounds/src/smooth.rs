@@ -1,7 +1,13 @@
-//! Input-domain branch and bound for networks with any of the IR's activations (sigmoid
-//! and tanh as well as ReLU and clamp), on box-shaped queries ([`Case`]s) whose inputs
-//! are partly fixed: VNN-COMP 2023's `dist_shift` fixes 784 of its 792 inputs (the
-//! image) and leaves 8 free (a generator's latent code).
+//! Input-domain branch and bound for networks with any of the IR's activations (sigmoid,
+//! tanh and the step `Sign` as well as ReLU and clamp), on box-shaped queries ([`Case`]s)
+//! whose inputs are partly fixed: VNN-COMP 2023's `dist_shift` fixes 784 of its 792
+//! inputs (the image) and leaves 8 free (a generator's latent code).
+//!
+//! - **Several networks** ([`Apps`]): the applications of a relational query side by
+//!   side, as one chain of block-diagonal affine maps with an activation per neuron
+//!   (identity rows carry a shorter network's outputs and the inputs listed in
+//!   [`Apps::through`], whose lines are exact), so that a constraint over inputs and
+//!   outputs of several networks is a [`Case`] over this chain's outputs.
 //!
 //! - **Folding** ([`Folded`]): the inputs fixed to the same value in every case
 //!   (`lo = hi`) are folded into the first affine map's bias, `b' = b + W_fixed x_fixed`,
@@ -17,24 +23,26 @@
 //!   folded chain, every intermediate neuron bounded by its own back-substitution and
 //!   intersected with interval propagation and with the parent piece's bounds (all
 //!   sound), each activation's lines from [`crate::rules`] (sigmoid and tanh:
-//!   [`crate::rules::sigmoid_tanh`]). Rounding is that of [`crate::linset`]: every f64
+//!   [`crate::rules::sigmoid_tanh`]). After a layer of steps the intermediate bounds
+//!   are the interval rule's alone ([`crate::rules::sign`]: its lines are constants
+//!   where it is stable and no tighter than its interval across the jump). Rounding is that of [`crate::linset`]: every f64
 //!   dot product's error is bounded by `gamma_k` times the sum of the magnitudes of its
 //!   terms times a bound of the variable it multiplies, so a bound holds in exact
 //!   arithmetic over the stored weights.
-//! - **Search**: an attack first (signed-gradient descent from the centre and random
-//!   starts, on the conjunction nearest to holding), then best-first splitting of the
+//! - **Search**: an attack first (`attack`: signed-gradient descent from the
+//!   centre and random starts, on the conjunction nearest to holding; through `Sign`
+//!   the straight-through estimator's gradient), then depth-first splitting of the
 //!   free inputs (the input with the largest smear `|coef_t| (hi_t - lo_t)` in the open
 //!   constraints' linear bounds, as ReluVal, Wang et al., USENIX Security 2018), each
 //!   piece closed when a constraint's lower bound is positive or a non-negative
 //!   combination of the conjunction's bounds is (the `query` module's), its candidate
 //!   points (the linear bound's minimising corner, the centre) checked on the original
-//!   network.
+//!   network ([`holds`]: beyond rounding, or an exact tie).
 
 use crate::query::{combination_certifies, satisfies, Case};
 use crate::rules::{self, Relax};
 use crate::search::{CasePoint, Outcome, Settings, Stats, StopReason};
 use crate::symbolic::Linear;
-use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use samara_nn::{Activation, Affine, Layer, Network};
 use samara_num::round::{gamma, inflate};
@@ -44,7 +52,184 @@ use std::time::Instant;
 /// One operation of the folded chain.
 enum Op {
     Aff(Affine),
-    Act(Activation),
+    Act(Acts),
+}
+
+/// The activations of one layer of the chain: one for every neuron (a network's own
+/// layer), or one per neuron (several networks side by side, [`Apps`]), `None` for a
+/// neuron passed on unchanged (an input carried to the outputs, a network shorter than
+/// another).
+enum Acts {
+    All(Activation),
+    Each(Vec<Option<Activation>>),
+}
+
+impl Acts {
+    /// The activation of neuron `i` (`None`: the identity).
+    fn at(&self, i: usize) -> Option<Activation> {
+        match self {
+            Acts::All(a) => Some(*a),
+            Acts::Each(v) => v[i],
+        }
+    }
+
+    /// Whether every neuron is the step `Sign` (see [`Folded::bounds`]).
+    fn all_steps(&self) -> bool {
+        match self {
+            Acts::All(a) => *a == Activation::Sign,
+            Acts::Each(v) => v.iter().all(|a| *a == Some(Activation::Sign)),
+        }
+    }
+
+    /// The interval rule of neuron `i` over `[l, u]` ([`rules::interval`]).
+    fn interval(&self, i: usize, l: f64, u: f64) -> (f64, f64) {
+        match self.at(i) {
+            Some(a) => rules::interval(a, l, u),
+            None => (l, u),
+        }
+    }
+
+    /// The lines of neuron `i` over `[l, u]` ([`rules::relax`]; the identity's are
+    /// itself, exactly).
+    fn relax(&self, i: usize, l: f64, u: f64) -> Relax {
+        match self.at(i) {
+            Some(a) => rules::relax(a, l, u),
+            None => Relax {
+                al: 1.0,
+                bl: 0.0,
+                au: 1.0,
+                bu: 0.0,
+            },
+        }
+    }
+}
+
+/// Networks side by side: the applications of a query that is not box-shaped over one
+/// network (a relational property compares two of them), as one network whose inputs
+/// are theirs concatenated and whose outputs are theirs concatenated, followed by the
+/// inputs listed in `through` (so that a constraint over inputs and outputs is one over
+/// the outputs of this network, and the search's [`Case`]s state it).
+pub struct Apps<'a> {
+    /// The networks, in the order of their inputs and outputs.
+    pub nets: Vec<&'a Network>,
+    /// Inputs (indices into the concatenated inputs) carried to the outputs, after the
+    /// networks' own, in this order.
+    pub through: Vec<usize>,
+}
+
+impl Apps<'_> {
+    /// One network, no input carried.
+    pub fn one(net: &Network) -> Apps<'_> {
+        Apps {
+            nets: vec![net],
+            through: vec![],
+        }
+    }
+
+    /// Number of inputs (all networks').
+    pub fn n_inputs(&self) -> usize {
+        self.nets.iter().map(|n| n.n_inputs()).sum()
+    }
+
+    /// The outputs at `x` (every network's f64 evaluation, then the carried inputs).
+    pub fn eval(&self, x: &[f64]) -> Vec<f64> {
+        let mut y = Vec::new();
+        let mut off = 0;
+        for n in &self.nets {
+            y.extend(n.eval_f64(&x[off..off + n.n_inputs()]));
+            off += n.n_inputs();
+        }
+        y.extend(self.through.iter().map(|&i| x[i]));
+        y
+    }
+
+    /// The chain of layers: the network's own for one network with no input carried;
+    /// otherwise each network as pairs of an affine map and an activation (an identity
+    /// map before an activation that does not follow one, identity pairs after the
+    /// shorter ones), the pairs of one depth side by side in one block-diagonal map
+    /// with the carried inputs' identity rows below.
+    fn layers(&self) -> Vec<Op> {
+        let widths: Vec<usize> = self.nets.iter().map(|n| n.n_inputs()).collect();
+        if let ([net], true) = (&self.nets[..], self.through.is_empty()) {
+            // The network's own layers (a first map added when it starts otherwise).
+            let mut ops: Vec<Op> = net
+                .raw_layers()
+                .into_iter()
+                .map(|l| match l {
+                    Layer::Affine(a) => Op::Aff(a),
+                    Layer::Act(act) => Op::Act(Acts::All(act)),
+                })
+                .collect();
+            if !matches!(ops.first(), Some(Op::Aff(_))) {
+                ops.insert(0, Op::Aff(crate::pwl::identity(widths[0])));
+            }
+            return ops;
+        }
+        let pairs: Vec<Vec<(Affine, Option<Activation>)>> = self
+            .nets
+            .iter()
+            .zip(&widths)
+            .map(|(n, &w)| {
+                let mut v: Vec<(Affine, Option<Activation>)> = Vec::new();
+                for l in n.raw_layers() {
+                    match l {
+                        Layer::Affine(a) => v.push((a, None)),
+                        Layer::Act(act) => match v.last_mut() {
+                            Some((_, slot @ None)) => *slot = Some(act),
+                            _ => {
+                                let w = v.last().map_or(w, |p| p.0.out);
+                                v.push((crate::pwl::identity(w), Some(act)));
+                            }
+                        },
+                    }
+                }
+                v
+            })
+            .collect();
+        let depth = pairs.iter().map(Vec::len).max().unwrap_or(0).max(1);
+        let mut out = Vec::with_capacity(2 * depth);
+        // Width of each network's current layer (its inputs first).
+        let mut cur = widths.clone();
+        for k in 0..depth {
+            let inp: usize =
+                cur.iter().sum::<usize>() + if k == 0 { 0 } else { self.through.len() };
+            let mut rows: Vec<Vec<(usize, f64)>> = Vec::new();
+            let mut b = Vec::new();
+            let mut acts = Vec::new();
+            let mut off = 0;
+            for (p, c) in pairs.iter().zip(cur.iter_mut()) {
+                match p.get(k) {
+                    Some((a, act)) => {
+                        for i in 0..a.out {
+                            let mut r = Vec::new();
+                            a.row(i).for_each_nonzero(|j, w| r.push((off + j, w)));
+                            rows.push(r);
+                        }
+                        b.extend_from_slice(&a.b);
+                        acts.extend(std::iter::repeat_n(*act, a.out));
+                        off += *c;
+                        *c = a.out;
+                    }
+                    None => {
+                        rows.extend((0..*c).map(|j| vec![(off + j, 1.0)]));
+                        b.extend(std::iter::repeat_n(0.0, *c));
+                        acts.extend(std::iter::repeat_n(None, *c));
+                        off += *c;
+                    }
+                }
+            }
+            for (j, &i) in self.through.iter().enumerate() {
+                rows.push(vec![(if k == 0 { i } else { off + j }, 1.0)]);
+                b.push(0.0);
+                acts.push(None);
+            }
+            out.push(Op::Aff(Affine::from_rows(inp, rows, b)));
+            if acts.iter().any(Option::is_some) {
+                out.push(Op::Act(Acts::Each(acts)));
+            }
+        }
+        out
+    }
 }
 
 /// A network with the inputs fixed in every case folded into its first affine map (see
@@ -68,8 +253,8 @@ type Bounds = Vec<Vec<(f64, f64)>>;
 impl Folded {
     /// Fold the inputs that every case fixes to one value (`lo = hi`, the same in every
     /// case). A network whose first raw layer is not affine gets an identity map first.
-    pub fn new(net: &Network, cases: &[Case]) -> Folded {
-        let n = net.n_inputs();
+    pub fn new(apps: &Apps, cases: &[Case]) -> Folded {
+        let n = apps.n_inputs();
         let fixed: Vec<bool> = (0..n)
             .map(|i| {
                 let v = cases.first().map(|c| c.lo[i]);
@@ -82,15 +267,12 @@ impl Folded {
             .map(|i| if fixed[i] { cases[0].lo[i] } else { 0.0 })
             .collect();
         let free: Vec<usize> = (0..n).filter(|i| !fixed[*i]).collect();
-        let mut layers: Vec<Layer> = net.raw_layers();
-        if !matches!(layers.first(), Some(Layer::Affine(_))) {
-            layers.insert(0, Layer::Affine(crate::pwl::identity(n)));
-        }
+        let layers = apps.layers();
         let mut ops = Vec::with_capacity(layers.len());
         let mut rad = Vec::new();
         for (k, l) in layers.into_iter().enumerate() {
             match l {
-                Layer::Affine(a) if k == 0 => {
+                Op::Aff(a) if k == 0 => {
                     let p = free.len();
                     let mut w = vec![0.0; a.out * p];
                     let mut b = Vec::with_capacity(a.out);
@@ -124,8 +306,7 @@ impl Folded {
                     }
                     ops.push(Op::Aff(Affine::new(p, a.out, w, b)));
                 }
-                Layer::Affine(a) => ops.push(Op::Aff(a)),
-                Layer::Act(act) => ops.push(Op::Act(act)),
+                op => ops.push(op),
             }
         }
         Folded {
@@ -185,9 +366,10 @@ impl Folded {
             });
             pass.inmag.push(inmag);
             let rel = match &self.ops[k] {
-                Op::Act(act) => pass.bounds[k - 1]
+                Op::Act(acts) => pass.bounds[k - 1]
                     .par_iter()
-                    .map(|&(l, u)| rules::relax(*act, l, u))
+                    .enumerate()
+                    .map(|(i, &(l, u))| acts.relax(i, l, u))
                     .collect(),
                 Op::Aff(_) => Vec::new(),
             };
@@ -196,19 +378,35 @@ impl Folded {
                 break;
             }
             let mut b: Vec<(f64, f64)> = match &self.ops[k] {
-                Op::Act(act) => pass.bounds[k - 1]
+                Op::Act(acts) => pass.bounds[k - 1]
                     .iter()
-                    .map(|&(l, u)| rules::interval(*act, l, u))
+                    .enumerate()
+                    .map(|(i, &(l, u))| acts.interval(i, l, u))
                     .collect(),
                 Op::Aff(a) => {
                     // A neuron followed by a ReLU that the parent's bounds show stable
                     // keeps them (sound here, the piece lying in the parent's box): its
                     // relaxation is exact either way.
-                    let relu_next = matches!(self.ops.get(k + 1), Some(Op::Act(Activation::Relu)));
-                    let keep = |i: usize| {
-                        relu_next && parent.is_some_and(|p| p[k][i].0 >= 0.0 || p[k][i].1 <= 0.0)
+                    let next = match self.ops.get(k + 1) {
+                        Some(Op::Act(acts)) => Some(acts),
+                        _ => None,
                     };
-                    let todo: Vec<usize> = (0..a.out).filter(|i| !keep(*i)).collect();
+                    let keep = |i: usize| {
+                        next.is_some_and(|n| n.at(i) == Some(Activation::Relu))
+                            && parent.is_some_and(|p| p[k][i].0 >= 0.0 || p[k][i].1 <= 0.0)
+                    };
+                    // After a layer of steps (`Sign`) the interval rule alone: a step's
+                    // lines are constants where it is stable, which back-substitution
+                    // cannot improve on, and across its jump they are no tighter than its
+                    // interval (the interval prover decides more on binarised networks,
+                    // at a fraction of the cost).
+                    let after_steps =
+                        k > 0 && matches!(&self.ops[k - 1], Op::Act(acts) if acts.all_steps());
+                    let todo: Vec<usize> = if after_steps {
+                        Vec::new()
+                    } else {
+                        (0..a.out).filter(|i| !keep(*i)).collect()
+                    };
                     let chunks: Vec<&[usize]> = todo.chunks(PULL_BLOCK).collect();
                     let pass = &pass;
                     let mr = k.checked_sub(1).map(|q| mid_rad(&pass.bounds[q]));
@@ -249,6 +447,11 @@ impl Folded {
                         .collect();
                     for (i, lu) in got {
                         b[i] = lu;
+                    }
+                    if let (true, Some((m, r))) = (after_steps, &mr) {
+                        for (i, bi) in b.iter_mut().enumerate() {
+                            *bi = forward_interval(a, i, m, r);
+                        }
                     }
                     b
                 }
@@ -372,9 +575,10 @@ impl Folded {
             return f64::NEG_INFINITY;
         };
         let out: Vec<(f64, f64)> = match &self.ops[last] {
-            Op::Act(act) => before
+            Op::Act(acts) => before
                 .iter()
-                .map(|&(l, u)| rules::interval(*act, l, u))
+                .enumerate()
+                .map(|(i, &(l, u))| acts.interval(i, l, u))
                 .collect(),
             Op::Aff(a) => {
                 let (m, r) = mid_rad(before);
@@ -462,8 +666,8 @@ fn mid_rad(b: &[(f64, f64)]) -> (Vec<f64>, Vec<f64>) {
 /// Sound lower bounds of every case's constraints over the box `[lo, hi]` of all the
 /// network's inputs, from one CROWN pass of the folded network (for tests and callers
 /// that check the folding): per case, per constraint, the bound of `c . f(x) + d`.
-pub fn constraint_lower_bounds(net: &Network, cases: &[Case]) -> Option<Vec<Vec<f64>>> {
-    let f = Folded::new(net, cases);
+pub fn constraint_lower_bounds(apps: &Apps, cases: &[Case]) -> Option<Vec<Vec<f64>>> {
+    let f = Folded::new(apps, cases);
     cases
         .iter()
         .map(|c| {
@@ -479,6 +683,33 @@ pub fn constraint_lower_bounds(net: &Network, cases: &[Case]) -> Option<Vec<Vec<
         .collect()
 }
 
+/// Whether outputs `y` satisfy a conjunction for this engine: beyond rounding
+/// ([`satisfies`]), or with every constraint that does not clear its rounding a
+/// non-strict one whose value is exactly 0 whatever the rounding: no constant, and its
+/// terms cancel in pairs of equal outputs with opposite coefficients (two logits that
+/// tie, as a binarised network's integer logits do; `y_l - y_j <= 0` holds there). The
+/// caller re-checks every point by its own rules.
+pub fn holds(cs: &[crate::query::OutputConstraint], y: &[f64]) -> bool {
+    let tie = |k: &crate::query::OutputConstraint| {
+        if k.strict || k.obj.d != 0.0 {
+            return false;
+        }
+        let mut ts: Vec<(f64, f64)> = k
+            .obj
+            .c
+            .iter()
+            .zip(y)
+            .filter(|(c, v)| **c != 0.0 && **v != 0.0)
+            .map(|(c, v)| (*v, *c))
+            .collect();
+        ts.sort_by(|p, q| p.0.total_cmp(&q.0));
+        ts.chunk_by(|p, q| p.0 == q.0)
+            .all(|g| g.iter().map(|t| t.1).sum::<f64>() == 0.0)
+    };
+    cs.iter()
+        .all(|k| satisfies(std::slice::from_ref(k), y) || tie(k))
+}
+
 /// A piece: a box of the free inputs, the cases still open on it, the bounds of its
 /// parent.
 struct Work {
@@ -491,23 +722,7 @@ struct Work {
     depth: u32,
 }
 
-impl PartialEq for Work {
-    fn eq(&self, o: &Self) -> bool {
-        self.cmp(o) == std::cmp::Ordering::Equal
-    }
-}
-impl Eq for Work {}
-impl PartialOrd for Work {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Work {
-    /// Deepest first (bounded memory), then the least bound.
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.depth.cmp(&o.depth).then(o.key.total_cmp(&self.key))
-    }
-}
+crate::work::deepest_then_least_key!(Work);
 
 /// What examining a piece gave.
 enum Piece {
@@ -517,15 +732,8 @@ enum Piece {
     Stuck,
 }
 
-/// The value of every constraint of `cs` at outputs `y`.
-fn values(cs: &[crate::query::OutputConstraint], y: &[f64]) -> Vec<f64> {
-    cs.iter()
-        .map(|k| k.obj.d + k.obj.c.iter().zip(y).map(|(c, v)| c * v).sum::<f64>())
-        .collect()
-}
-
 /// Bound, check and split one piece.
-fn examine(net: &Network, f: &Folded, cases: &[Case], w: Work) -> Piece {
+fn examine(apps: &Apps, f: &Folded, cases: &[Case], w: Work) -> Piece {
     let Some(pass) = f.bounds(&w.lo, &w.hi, w.parent.as_deref()) else {
         return Piece::Stuck;
     };
@@ -566,8 +774,8 @@ fn examine(net: &Network, f: &Folded, cases: &[Case], w: Work) -> Piece {
         let centre: Vec<f64> = w.lo.iter().zip(&w.hi).map(|(a, b)| 0.5 * (a + b)).collect();
         for xf in [fs[kw].argmin_corner(&w.lo, &w.hi), centre] {
             let x = f.expand(&xf);
-            let y = net.eval_f64(&x);
-            if satisfies(cs, &y) {
+            let y = apps.eval(&x);
+            if holds(cs, &y) {
                 return Piece::Found(ci, x);
             }
         }
@@ -626,73 +834,13 @@ fn examine(net: &Network, f: &Folded, cases: &[Case], w: Work) -> Piece {
     Piece::Split(vec![a, b])
 }
 
-/// Signed-gradient descent on the free inputs from `xf` for the conjunction of `cases`
-/// nearest to holding; the case and the (original) point when one holds.
-#[allow(clippy::too_many_arguments)]
-fn descend(
-    net: &Network,
-    f: &Folded,
-    cases: &[Case],
-    group: &[usize],
-    lo: &[f64],
-    hi: &[f64],
-    mut xf: Vec<f64>,
-    steps: usize,
-) -> Option<(usize, Vec<f64>)> {
-    for step in 0..=steps {
-        let x = f.expand(&xf);
-        let (y, g) = samara_nn::attack::outputs_and_gradient(net, &x, |y| {
-            // The case nearest to holding (least summed violation): the gradient of its
-            // violated constraints.
-            let mut best: Option<(f64, usize)> = None;
-            for &ci in group {
-                let v: f64 = values(&cases[ci].constraints, y)
-                    .iter()
-                    .map(|v| v.max(0.0))
-                    .sum();
-                if best.is_none_or(|b| v < b.0) {
-                    best = Some((v, ci));
-                }
-            }
-            let mut c = vec![0.0; y.len()];
-            if let Some((_, ci)) = best {
-                let cs = &cases[ci].constraints;
-                for (k, v) in cs.iter().zip(values(cs, y)) {
-                    if v >= -1e-7 * (1.0 + v.abs()) {
-                        c.iter_mut().zip(&k.obj.c).for_each(|(a, b)| *a += b);
-                    }
-                }
-            }
-            c
-        });
-        if let Some(&ci) = group
-            .iter()
-            .find(|&&ci| satisfies(&cases[ci].constraints, &y))
-        {
-            return Some((ci, x));
-        }
-        if step == steps {
-            break;
-        }
-        let eta = 0.5 * (1.0 - step as f64 / steps as f64) + 0.02;
-        let mut moved = false;
-        for (t, &i) in f.free.iter().enumerate() {
-            let d = g[i].signum() * f64::from(u8::from(g[i] != 0.0));
-            moved |= d != 0.0;
-            xf[t] = (xf[t] - eta * 0.5 * (hi[t] - lo[t]) * d).clamp(lo[t], hi[t]);
-        }
-        if !moved {
-            break;
-        }
-    }
-    None
-}
-
-/// The attack on the cases sharing the box `[lo, hi]` of the free inputs: descents from
-/// the centre (first round) and seeded random starts, for `seconds`.
+/// The attack on the cases `group` sharing the box `[lo, hi]` of the free inputs
+/// ([`crate::attack`]): on every thread, sign-gradient descents ([`crate::attack::Step`],
+/// half the box's width at most) from the centre (first round, first worker) and seeded
+/// random starts, for `seconds` each; the case and the (original) point when one holds.
 #[allow(clippy::too_many_arguments)]
 fn attack(
-    net: &Network,
+    apps: &Apps,
     f: &Folded,
     cases: &[Case],
     group: &[usize],
@@ -703,32 +851,35 @@ fn attack(
     seconds: f64,
     deadline: Option<Instant>,
 ) -> Option<(usize, Vec<f64>)> {
-    let t0 = Instant::now();
+    use crate::attack::{descend, restarts, start, starts, Partial, Step};
     let workers = rayon::current_num_threads().max(1) as u64;
+    let conj: Vec<&[crate::query::OutputConstraint]> =
+        group.iter().map(|ci| &cases[*ci].constraints[..]).collect();
+    let stop = std::sync::atomic::AtomicBool::new(false);
     (0..workers).into_par_iter().find_map_any(|wk| {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(
-            s.seed ^ (round * workers + wk).wrapping_mul(0x9E37_79B9_7F4A_7C15),
-        );
-        for r in 0.. {
-            if (r > 0 && t0.elapsed().as_secs_f64() > seconds)
-                || deadline.is_some_and(|d| Instant::now() >= d)
-            {
-                return None;
-            }
-            let xf: Vec<f64> = (0..lo.len())
-                .map(|t| {
-                    if r == 0 && round == 0 && wk == 0 {
-                        0.5 * (lo[t] + hi[t])
-                    } else {
-                        rng.gen_range(lo[t]..=hi[t])
-                    }
-                })
-                .collect();
-            if let Some(found) = descend(net, f, cases, group, lo, hi, xf, s.steps.min(30)) {
-                return Some(found);
-            }
-        }
-        None
+        let salt = round * workers + wk;
+        let mut rng = starts(s.seed, salt);
+        let mut model = Partial {
+            apps,
+            base: f.base.clone(),
+            free: &f.free,
+        };
+        restarts(usize::MAX, seconds, &stop, deadline, |r| {
+            let xf = start(&mut rng, lo, hi, r == 0 && salt == 0);
+            let steps = s.steps.min(30);
+            descend(
+                &mut model,
+                &conj,
+                lo,
+                hi,
+                xf,
+                steps,
+                Step::Sign(0.5),
+                deadline,
+                holds,
+            )
+            .map(|(k, xf)| (group[k], f.expand(&xf)))
+        })
     })
 }
 
@@ -737,18 +888,25 @@ fn attack(
 /// piece of every case is closed by the sound bounds; a point is returned with the
 /// network's f64 outputs there (the caller re-checks it).
 pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
+    solve_apps(&Apps::one(net), cases, s)
+}
+
+/// [`solve`] over several networks side by side ([`Apps`]): the cases' boxes are over
+/// all their inputs, their constraints over all their outputs and the carried inputs.
+/// A point's `y` is [`Apps::eval`]'s.
+pub fn solve_apps(apps: &Apps, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
     let t0 = Instant::now();
     let mut stats = Stats::default();
     let deadline = s.timeout.deadline_from(t0);
     let out_of_time = || s.timeout.expired(t0, Instant::now());
     let found = |ci: usize, x: Vec<f64>| {
-        let y = net.eval_f64(&x);
+        let y = apps.eval(&x);
         Outcome::Violated(CasePoint { case: ci, x, y })
     };
     if cases.is_empty() {
         return (Outcome::Proved, stats);
     }
-    let f = Folded::new(net, cases);
+    let f = Folded::new(apps, cases);
     // Cases over the same box (after folding) share their pieces.
     let groups = crate::search::box_groups(cases);
     let boxes: Vec<(Vec<f64>, Vec<f64>)> = groups
@@ -756,7 +914,8 @@ pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
         .map(|g| (f.restrict(&cases[g[0]].lo), f.restrict(&cases[g[0]].hi)))
         .collect();
     for (g, (lo, hi)) in groups.iter().zip(&boxes) {
-        if let Some((ci, x)) = attack(net, &f, cases, g, lo, hi, s, 0, s.attack_seconds, deadline) {
+        if let Some((ci, x)) = attack(apps, &f, cases, g, lo, hi, s, 0, s.attack_seconds, deadline)
+        {
             return (found(ci, x), stats);
         }
     }
@@ -789,7 +948,8 @@ pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
             round += 1;
             for (g, (lo, hi)) in groups.iter().zip(&boxes) {
                 let secs = 0.1 * interval / groups.len() as f64;
-                if let Some((ci, x)) = attack(net, &f, cases, g, lo, hi, s, round, secs, deadline) {
+                if let Some((ci, x)) = attack(apps, &f, cases, g, lo, hi, s, round, secs, deadline)
+                {
                     return (found(ci, x), stats);
                 }
             }
@@ -800,7 +960,7 @@ pub fn solve(net: &Network, cases: &[Case], s: &Settings) -> (Outcome, Stats) {
         stats.pieces += ws.len() as u64;
         let res: Vec<Piece> = ws
             .into_par_iter()
-            .map(|w| examine(net, &f, cases, w))
+            .map(|w| examine(apps, &f, cases, w))
             .collect();
         for r in res {
             match r {
@@ -870,7 +1030,7 @@ mod tests {
             hi,
             constraints: vec![],
         };
-        let f = Folded::new(&net, &[case]);
+        let f = Folded::new(&Apps::one(&net), &[case]);
         assert_eq!(f.free, vec![3]);
         let Op::Aff(a) = &f.ops[0] else {
             panic!("the first op is the folded map")

@@ -8,6 +8,7 @@ mod rounding;
 mod smooth_fold;
 mod soundness;
 mod sparse_storage;
+mod support;
 
 /// See [`samara_testkit::assert_every_test_file_is_built`].
 #[test]

@@ -7,12 +7,13 @@
 //! survives 10,000 samples and a point found satisfies its case on the original network,
 //! with every fixed input at its value.
 
+use crate::support::{self, chain};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_bounds::search::{self, Case, CasePoint, Outcome, OutputConstraint, Settings};
 use samara_bounds::smooth;
 use samara_bounds::symbolic::Objective;
-use samara_nn::{Activation, Affine, Layer, Network};
+use samara_nn::{Activation, Layer, Network};
 use samara_num::Timeout;
 
 /// A random network `dims` with the activation of each hidden layer drawn from `acts`.
@@ -51,14 +52,7 @@ fn random_box(rng: &mut ChaCha8Rng, n: usize, fixed: usize) -> (Vec<f64>, Vec<f6
 }
 
 fn sample(rng: &mut ChaCha8Rng, lo: &[f64], hi: &[f64], k: usize) -> Vec<f64> {
-    lo.iter()
-        .zip(hi)
-        .map(|(a, b)| match k % 5 {
-            0 => *a,
-            1 => *b,
-            _ => rng.gen_range(*a..=*b),
-        })
-        .collect()
+    support::sample(rng, lo, hi, k, 5)
 }
 
 fn value(k: &OutputConstraint, y: &[f64]) -> f64 {
@@ -92,7 +86,7 @@ fn folded_bounds_contain_the_original_network() {
                     .collect(),
             })
             .collect();
-        let lbs = smooth::constraint_lower_bounds(&net, &cases).unwrap();
+        let lbs = smooth::constraint_lower_bounds(&smooth::Apps::one(&net), &cases).unwrap();
         let mut least_gap = f64::INFINITY;
         for k in 0..10_000 {
             let x = sample(&mut rng, &lo, &hi, k);
@@ -114,18 +108,6 @@ fn folded_bounds_contain_the_original_network() {
             "trial {trial}: loose bounds (gap {least_gap})"
         );
     }
-}
-
-fn chain(net: &Network) -> Vec<(Affine, bool)> {
-    let mut maps: Vec<(Affine, bool)> = Vec::new();
-    for l in net.raw_layers() {
-        match l {
-            Layer::Affine(a) => maps.push((a, false)),
-            Layer::Act(Activation::Relu) => maps.last_mut().unwrap().1 = true,
-            other => panic!("unexpected {other:?}"),
-        }
-    }
-    maps
 }
 
 /// The sampled range of `c . f(x)` over the box.
@@ -167,6 +149,49 @@ fn check_point(net: &Network, cases: &[Case], p: &CasePoint) {
     );
 }
 
+/// Networks side by side ([`smooth::Apps`]: two networks of different depths, with
+/// `Sign` among the activations, and two inputs carried to the outputs, one fixed and
+/// one free): the constraint bounds contain the composite's f64 evaluation
+/// ([`smooth::Apps::eval`], each network's own evaluator) at 10,000 sampled points.
+#[test]
+fn bounds_of_networks_side_by_side_contain_their_evaluation() {
+    let mut rng = ChaCha8Rng::seed_from_u64(49);
+    let acts = [ACTS[0], ACTS[1], ACTS[2], Activation::Sign];
+    for trial in 0..12 {
+        let f = random_net(&mut rng, &[4, 8, 6, 2], &acts);
+        let g = random_net(&mut rng, &[3, 6, 2], &acts);
+        let apps = smooth::Apps {
+            nets: vec![&f, &g],
+            through: vec![5, 1],
+        };
+        let (lo, hi) = random_box(&mut rng, 7, 3);
+        let cases: Vec<Case> = (0..2)
+            .map(|_| Case {
+                lo: lo.clone(),
+                hi: hi.clone(),
+                constraints: (0..2)
+                    .map(|_| random_constraint(&mut rng, 6, 0.1))
+                    .collect(),
+            })
+            .collect();
+        let lbs = smooth::constraint_lower_bounds(&apps, &cases).unwrap();
+        for k in 0..10_000 {
+            let x = sample(&mut rng, &lo, &hi, k);
+            let y = apps.eval(&x);
+            assert_eq!(&y[4..], &[x[5], x[1]]);
+            for (case, lb) in cases.iter().zip(&lbs) {
+                for (c, b) in case.constraints.iter().zip(lb) {
+                    let v = value(c, &y);
+                    assert!(
+                        *b <= v + 1e-12 * (1.0 + v.abs()),
+                        "trial {trial}: bound {b} above the value {v} at {x:?}"
+                    );
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn folded_search_agrees_with_the_relu_search() {
     let mut rng = ChaCha8Rng::seed_from_u64(36);
@@ -178,17 +203,7 @@ fn folded_search_agrees_with_the_relu_search() {
         // Thresholds around the sampled range: some queries with points, some without.
         let (a, b) = sampled_range(&mut rng, &net, &lo, &hi, &c);
         let t = a + (b - a) * [-0.3, -0.05, 0.02, 0.3][trial % 4];
-        let cases = vec![Case {
-            lo: lo.clone(),
-            hi: hi.clone(),
-            constraints: vec![OutputConstraint {
-                obj: Objective {
-                    c: c.clone(),
-                    d: -t,
-                },
-                strict: false,
-            }],
-        }];
+        let cases = support::threshold_case(&lo, &hi, &c, t);
         let (folded, _) = smooth::solve(&net, &cases, &settings());
         let (plain, _) = search::solve(&chain(&net), &cases, &settings());
         match (&folded, &plain) {
@@ -217,17 +232,7 @@ fn smooth_verdicts_survive_sampling() {
         let c: Vec<f64> = vec![1.0, -0.5, -0.5];
         let (a, b) = sampled_range(&mut rng, &net, &lo, &hi, &c);
         let t = a + (b - a) * [-0.2, -0.02, 0.05, 0.5][trial % 4];
-        let cases = vec![Case {
-            lo: lo.clone(),
-            hi: hi.clone(),
-            constraints: vec![OutputConstraint {
-                obj: Objective {
-                    c: c.clone(),
-                    d: -t,
-                },
-                strict: false,
-            }],
-        }];
+        let cases = support::threshold_case(&lo, &hi, &c, t);
         match smooth::solve(&net, &cases, &settings()).0 {
             Outcome::Proved => {
                 proved += 1;

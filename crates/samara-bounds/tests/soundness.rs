@@ -4,23 +4,12 @@
 //! every `Empty` verdict must survive dense sampling; every point found must satisfy its
 //! constraints when re-evaluated.
 
+use crate::support::{self, chain};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_bounds::search::{solve, Case, CasePoint, Outcome, OutputConstraint, Settings};
 use samara_bounds::symbolic::{self, Objective};
 use samara_nn::{Activation, Affine, Layer, Network};
-
-fn chain(net: &Network) -> Vec<(Affine, bool)> {
-    let mut maps: Vec<(Affine, bool)> = Vec::new();
-    for l in net.raw_layers() {
-        match l {
-            Layer::Affine(a) => maps.push((a, false)),
-            Layer::Act(Activation::Relu) => maps.last_mut().unwrap().1 = true,
-            other => panic!("unexpected {other:?}"),
-        }
-    }
-    maps
-}
 
 /// Pre-activations of every map, by the IR's layers (affine then ReLU).
 fn pre_activations(net: &Network, x: &[f64]) -> Vec<Vec<f64>> {
@@ -51,15 +40,7 @@ fn random_box(rng: &mut ChaCha8Rng, n: usize, scale: f64) -> (Vec<f64>, Vec<f64>
 }
 
 fn sample(rng: &mut ChaCha8Rng, lo: &[f64], hi: &[f64], k: usize) -> Vec<f64> {
-    // Corners now and then: bounds are tightest to break there.
-    lo.iter()
-        .zip(hi)
-        .map(|(a, b)| match k % 7 {
-            0 => *a,
-            1 => *b,
-            _ => rng.gen_range(*a..=*b),
-        })
-        .collect()
+    support::sample(rng, lo, hi, k, 7)
 }
 
 #[test]

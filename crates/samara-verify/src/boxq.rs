@@ -17,10 +17,9 @@ use crate::exact::rigorous_satisfies;
 use crate::net::PwlNet;
 use crate::point::Point;
 use crate::Counterexample;
-use samara_bounds::search::{self, Case, CasePoint, Outcome, OutputConstraint, StopReason};
-use samara_bounds::symbolic::Objective;
+use samara_bounds::search::{self, Case, CasePoint, Outcome, StopReason};
 use samara_num::Timeout;
-use samara_spec::normal::{Cmp, Goal, Query, Var};
+use samara_spec::normal::{Goal, Query};
 
 /// The answer of the input-split route.
 #[derive(Clone, Debug, PartialEq)]
@@ -45,86 +44,13 @@ pub enum BoxUnknown {
 /// The query as input-split cases (one per non-empty disjunct, with the disjunct's
 /// index), or `None` when it is not box-shaped (see the module doc).
 pub fn to_cases(q: &Query) -> Option<Vec<(usize, Case)>> {
-    if q.applications.len() != 1 || !q.free_vars.is_empty() || q.goal != Goal::Prove {
+    if q.applications.len() != 1 || q.goal != Goal::Prove {
         return None;
     }
-    let app = &q.applications[0];
-    let mut cases = Vec::new();
-    for (di, conj) in q.region.iter().enumerate() {
-        let mut lo: Vec<f64> = app.input_box.iter().map(|b| b.0).collect();
-        let mut hi: Vec<f64> = app.input_box.iter().map(|b| b.1).collect();
-        let mut cons = Vec::new();
-        for c in conj {
-            let e = c.expr.clone().normalised();
-            let n_in = e
-                .terms
-                .iter()
-                .filter(|t| matches!(t.0, Var::Input { .. }))
-                .count();
-            if e.terms.iter().any(|t| matches!(t.0, Var::Free(_))) {
-                return None;
-            }
-            if n_in == 1 && e.terms.len() == 1 {
-                // k x_i + d (cmp) 0: a bound on x_i (strict bounds widened to closed
-                // ones; a point on the edge is caught by the final re-check).
-                let (Var::Input { index, .. }, k) = e.terms[0] else {
-                    return None;
-                };
-                let v = -e.constant / k;
-                if index >= lo.len() || !v.is_finite() {
-                    return None;
-                }
-                if k > 0.0 || c.cmp == Cmp::Eq {
-                    hi[index] = hi[index].min(v);
-                }
-                if k < 0.0 || c.cmp == Cmp::Eq {
-                    lo[index] = lo[index].max(v);
-                }
-                continue;
-            }
-            if n_in > 0 {
-                return None;
-            }
-            let mut coef = vec![0.0; app.n_outputs];
-            for (v, k) in &e.terms {
-                match v {
-                    Var::Output { index, .. } if *index < app.n_outputs => coef[*index] += k,
-                    _ => return None,
-                }
-            }
-            if c.cmp == Cmp::Eq {
-                cons.push(OutputConstraint {
-                    obj: Objective {
-                        c: coef.iter().map(|v| -v).collect(),
-                        d: -e.constant,
-                    },
-                    strict: false,
-                });
-            }
-            cons.push(OutputConstraint {
-                obj: Objective {
-                    c: coef,
-                    d: e.constant,
-                },
-                strict: c.cmp == Cmp::Lt,
-            });
-        }
-        if lo.iter().chain(&hi).any(|v| !v.is_finite()) {
-            return None;
-        }
-        if lo.iter().zip(&hi).any(|(a, b)| a > b) {
-            continue; // an empty disjunct
-        }
-        cases.push((
-            di,
-            Case {
-                lo,
-                hi,
-                constraints: cons,
-            },
-        ));
+    match crate::smooth::to_cases(q)? {
+        (through, cases) if through.is_empty() => Some(cases),
+        _ => None,
     }
-    Some(cases)
 }
 
 /// Constraints decided by bounds that round only where an operation was inexact

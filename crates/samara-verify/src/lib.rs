@@ -619,100 +619,29 @@ pub fn prove(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Verify
     })
 }
 
-/// Networks with `Sign` layers (a gradient of zero almost everywhere): a
-/// straight-through sign-gradient attack on the whole disjunction first
-/// ([`smooth::attack`]), for half of the time limit (the interval search after it
-/// rarely proves anything of an image-sized binarised network). `Some` only with a
-/// point whose f64 outputs robustly satisfy a disjunct.
-fn step_attack(q: &Query, prep: &Prepared, s: &Settings, t0: Instant) -> Option<Verdict> {
-    let [a] = q.applications.as_slice() else {
-        return None;
-    };
-    let net = prep.plain.get(&a.network)?;
-    let has_sign = net
-        .layers
+/// Queries with a network that is not piecewise linear (sigmoid, tanh, `Sign`): the
+/// input-split engine of [`samara_bounds::smooth`] through [`smooth::prove`]. `None`
+/// when every network is piecewise linear, or the query is not one that engine states
+/// (free variables, a box that is not finite).
+fn smooth_query(q: &Query, prep: &Prepared, s: &Settings, t0: Instant) -> Option<Verdict> {
+    if q.applications
         .iter()
-        .any(|l| matches!(l, samara_nn::Layer::Act(samara_nn::Activation::Sign)));
-    if !has_sign || !q.free_vars.is_empty() {
-        return None;
-    }
-    let half = Timeout::from_secs_f64(s.timeout.left(t0).secs() * 0.5).ok()?;
-    let (d, pt) = smooth::attack(net, &a.input_box, &q.region, half, Instant::now())?;
-    pt.robustly_satisfies(&q.region[d]).ok()?;
-    Some(Verdict::Violated(Counterexample {
-        margin: pt.margin(&q.region[d]),
-        point: pt,
-        exact: None,
-        disjunct: d,
-    }))
-}
-
-/// Box-shaped queries ([`boxq::to_cases`]) on one network that is not piecewise linear
-/// (sigmoid, tanh): the input-split search of [`samara_bounds::smooth`] (CROWN bounds,
-/// the inputs fixed in every disjunct folded into the first layer's bias). `None` when
-/// the query is not of that shape, or when that search stopped with time left for
-/// another reason than the time limit (the interval prover below then tries). A point
-/// counts only when its f64 outputs satisfy the disjunct beyond rounding.
-fn smooth_boxes(q: &Query, prep: &Prepared, s: &Settings, t0: Instant) -> Option<Verdict> {
-    use samara_bounds::search::{self, CasePoint, Outcome, StopReason};
-    let [a] = q.applications.as_slice() else {
-        return None;
-    };
-    if prep.pwl.get(&a.network).is_none_or(|p| p.is_ok()) {
-        return None;
-    }
-    let net = *prep.plain.get(&a.network)?;
-    // Step networks (`Sign`) keep the sign-gradient attack and the interval prover: a
-    // jump's lines are no tighter than its interval, and the prover decides more there.
-    if net
-        .layers
-        .iter()
-        .any(|l| matches!(l, samara_nn::Layer::Act(samara_nn::Activation::Sign)))
+        .all(|a| prep.pwl.get(&a.network).is_some_and(|p| p.is_ok()))
     {
         return None;
     }
-    let cases = boxq::to_cases(q)?;
-    let plain: Vec<search::Case> = cases.iter().map(|c| c.1.clone()).collect();
-    let settings = search::Settings {
-        timeout: s.timeout.left(t0),
-        ..Default::default()
-    };
-    let (outcome, stats) = samara_bounds::smooth::solve(net, &plain, &settings);
-    Some(match outcome {
-        Outcome::Proved => Verdict::Proved,
-        Outcome::Violated(CasePoint { case, x, .. }) => {
-            let d = cases[case].0;
-            let pt = Point {
-                outputs: vec![net.eval_f64(&x)],
-                inputs: vec![x],
-                free: vec![],
-            };
-            match pt.robustly_satisfies(&q.region[d]) {
-                Ok(()) => Verdict::Violated(Counterexample {
-                    margin: pt.margin(&q.region[d]),
-                    point: pt,
-                    exact: None,
-                    disjunct: d,
-                }),
-                Err((margin, tolerance)) => {
-                    Verdict::Unknown(UnknownReason::Rounding { margin, tolerance })
-                }
-            }
-        }
-        Outcome::Unknown(StopReason::Timeout) => Verdict::Unknown(UnknownReason::Timeout {
-            nodes: stats.pieces as usize,
-        }),
-        Outcome::Unknown(_) => return None,
-    })
+    let nets: Vec<&Network> = q
+        .applications
+        .iter()
+        .map(|a| prep.plain.get(&a.network).copied())
+        .collect::<Option<_>>()?;
+    smooth::prove(q, &nets, s.timeout.left(t0))
 }
 
 fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, VerifyError> {
     let t0 = Instant::now();
     let mut unknown = None;
-    if let Some(v) = step_attack(q, prep, s, t0) {
-        return Ok(v);
-    }
-    if let Some(v) = smooth_boxes(q, prep, s, t0) {
+    if let Some(v) = smooth_query(q, prep, s, t0) {
         return Ok(v);
     }
     for d in 0..q.region.len() {
@@ -722,39 +651,9 @@ fn prove_checked(q: &Query, prep: &Prepared, s: &Settings) -> Result<Verdict, Ve
         let mut p = match prep.problem(q, d, None) {
             Ok(p) => p,
             Err(e) => {
-                // Smooth activations: the interval prover with input splitting.
-                if !q.free_vars.is_empty() {
-                    return Ok(Verdict::Unknown(UnknownReason::Unsupported { what: e }));
-                }
-                let nets: Vec<&Network> = q
-                    .applications
-                    .iter()
-                    .map(|a| prep.plain[&a.network])
-                    .collect();
-                let boxes: Vec<Vec<(f64, f64)>> =
-                    q.applications.iter().map(|a| a.input_box.clone()).collect();
-                let boxes = point::tighten(&boxes, &q.region[d]);
-                let left = s.timeout.left(t0);
-                match smooth::search(&nets, &boxes, &q.region[d], left, 2_000_000) {
-                    smooth::SmoothResult::Proved => continue,
-                    smooth::SmoothResult::Violated(pt) => {
-                        let margin = pt.margin(&q.region[d]);
-                        if let Err((margin, tolerance)) = pt.robustly_satisfies(&q.region[d]) {
-                            unknown = Some(UnknownReason::Rounding { margin, tolerance });
-                            continue;
-                        }
-                        return Ok(Verdict::Violated(Counterexample {
-                            point: pt,
-                            margin,
-                            exact: None,
-                            disjunct: d,
-                        }));
-                    }
-                    smooth::SmoothResult::Unknown(r) => {
-                        unknown = Some(r);
-                        continue;
-                    }
-                }
+                // A network the optimiser cannot encode, in a query the smooth engine
+                // does not state either (free variables).
+                return Ok(Verdict::Unknown(UnknownReason::Unsupported { what: e }));
             }
         };
         let original = q.region[d].clone();

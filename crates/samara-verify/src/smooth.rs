@@ -1,376 +1,233 @@
-//! Networks with smooth activations (sigmoid, tanh): a sound interval prover with input
-//! splitting. Each box of inputs is pushed through the network in interval arithmetic
-//! (each activation's interval rule from `samara_bounds::rules`: sigmoid and tanh are
-//! monotone, so their images are the enclosures of the end points' images in
-//! outward-rounded `samara_num::Interval` arithmetic); a box whose outputs certainly violate a region
-//! constraint holds no counterexample. Boxes are bisected along their widest input until
-//! a box's centre, evaluated concretely, is a counterexample (Violated), every box is
-//! pruned (Proved), or the budget runs out (Unknown, never Proved).
+//! Queries on networks that are not piecewise linear (sigmoid, tanh, the step `Sign`):
+//! a front over the one input-split engine for them, [`samara_bounds::smooth`] (CROWN
+//! bounds intersected with interval bounds, the interval rule alone after a layer of
+//! steps, the inputs fixed in every disjunct folded into the first layer's bias, an
+//! attack with the straight-through gradient through `Sign` first). A query of several
+//! applications is one network of them side by side ([`samara_bounds::smooth::Apps`]),
+//! and a constraint over inputs as well as outputs is one over that network's outputs
+//! with those inputs carried through, so every query without free variables is one the
+//! engine states as [`Case`]s ([`to_cases`]).
+//!
+//! Contract, as for every verdict of this crate: `Proved` only from the engine's sound
+//! bounds having closed every piece; a point only when its f64 outputs satisfy the
+//! disjunct beyond rounding ([`Point::robustly_satisfies`]); anything cut short is
+//! `Unknown` with its reason.
 
-use crate::net::{affine_bounds, down, up};
+use crate::boxq::BoxUnknown;
 use crate::point::Point;
-use samara_nn::{Layer, Network};
+use crate::route::box_reason;
+use crate::{Counterexample, UnknownReason, Verdict};
+use samara_bounds::search::{Case, CasePoint, Outcome, OutputConstraint, Settings};
+use samara_bounds::smooth::Apps;
+use samara_bounds::symbolic::Objective;
+use samara_nn::{Activation, Layer, Network};
 use samara_num::Timeout;
-use samara_spec::normal::{Cmp, Constraint, Var};
-use std::time::Instant;
+use samara_spec::normal::{Cmp, Query, Var};
 
-/// Sound interval image of a box through a network (any of the IR's activations).
-pub fn interval_eval(net: &Network, lo: &[f64], hi: &[f64]) -> (Vec<f64>, Vec<f64>) {
-    let (mut l, mut h) = (lo.to_vec(), hi.to_vec());
-    for layer in net.raw_layer_refs() {
-        match layer.as_ref() {
-            Layer::Affine(a) => {
-                let (nl, nh) = affine_bounds(a, &l, &h);
-                l = nl;
-                h = nh;
-            }
-            Layer::Act(act) => {
-                for i in 0..l.len() {
-                    (l[i], h[i]) = samara_bounds::rules::interval(*act, l[i], h[i]);
-                }
-            }
-        }
-    }
-    (l, h)
-}
+/// The inputs carried to the outputs and the cases with their disjuncts' indices
+/// ([`to_cases`]).
+pub type Cases = (Vec<usize>, Vec<(usize, Case)>);
 
-/// Total order on f64 for the priority queue.
-#[derive(PartialEq, Clone, Copy)]
-struct OrdF(f64);
-impl Eq for OrdF {}
-impl PartialOrd for OrdF {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for OrdF {
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&o.0)
-    }
-}
-
-/// A box in the best-first queue: smallest key first, then the most recent.
-struct Item {
-    key: OrdF,
-    id: u64,
-    b: Vec<(f64, f64)>,
-}
-impl PartialEq for Item {
-    fn eq(&self, o: &Self) -> bool {
-        self.key == o.key && self.id == o.id
-    }
-}
-impl Eq for Item {}
-impl PartialOrd for Item {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Item {
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        o.key.cmp(&self.key).then(self.id.cmp(&o.id))
-    }
-}
-
-fn lower_bound(c: &Constraint, bounds: &dyn Fn(Var) -> (f64, f64)) -> f64 {
-    let mut lo = c.expr.constant;
-    for (v, k) in &c.expr.terms {
-        let (a, b) = bounds(*v);
-        lo += (k * a).min(k * b);
-    }
-    lo
-}
-
-fn certainly_violated(c: &Constraint, bounds: &dyn Fn(Var) -> (f64, f64)) -> bool {
-    let mut lo = c.expr.constant;
-    for (v, k) in &c.expr.terms {
-        let (a, b) = bounds(*v);
-        lo = down(lo + down((k * a).min(k * b)));
-    }
-    match c.cmp {
-        Cmp::Le => lo > 0.0,
-        Cmp::Lt => lo >= 0.0,
-        Cmp::Eq => {
-            let mut hi = c.expr.constant;
-            for (v, k) in &c.expr.terms {
-                let (a, b) = bounds(*v);
-                hi = up(hi + up((k * a).max(k * b)));
-            }
-            lo > 0.0 || hi < 0.0
-        }
-    }
-}
-
-/// The point with these inputs, its outputs evaluated by the plain f64 evaluator.
-fn concrete_point(nets: &[&Network], inputs: Vec<Vec<f64>>) -> Point {
-    let outputs = nets
-        .iter()
-        .zip(&inputs)
-        .map(|(net, x)| net.eval_f64(x))
-        .collect();
-    Point {
-        inputs,
-        outputs,
-        free: vec![],
-    }
-}
-
-/// Starts of [`attack`] that descend (the centre first).
-pub const DESCENTS: usize = 4;
-/// Steps of each descent of [`attack`].
-pub const STEPS: i32 = 8;
-/// Starts of [`attack`] in all (the ones after [`DESCENTS`] evaluate a corner only).
-pub const STARTS: usize = 1024;
-
-/// Falsification of a whole disjunction on one network by a sign-gradient descent
-/// (iterated FGSM, Goodfellow et al., 2015) on the constraint nearest to holding, with
-/// the straight-through gradient through `Sign` ([`samara_nn::attack::outputs_and_gradient`]):
-/// for networks whose gradient is zero almost everywhere (binarised layers), where a
-/// box's centre and sampling rarely meet the region. Every point is checked on the
-/// network's exact f64 outputs; the first that satisfies a disjunct is returned with
-/// its index. Descends from the centre and [`DESCENTS`]` - 1` pseudo-random corners
-/// ([`STEPS`] steps each), then evaluates further corners, [`STARTS`] starts in all;
-/// stops at `timeout` (from `t0`).
-pub fn attack(
-    net: &Network,
-    bx: &[(f64, f64)],
-    region: &[Vec<Constraint>],
-    timeout: Timeout,
-    t0: Instant,
-) -> Option<(usize, Point)> {
-    let value = |c: &Constraint, x: &[f64], y: &[f64]| {
-        c.expr.eval(|v| match v {
-            Var::Input { index, .. } => x[index],
-            Var::Output { index, .. } => y[index],
-            Var::Free(_) => f64::NAN,
-        })
-    };
-    // How far a disjunct is from holding at (x, y): its largest constraint value (a
-    // constraint holds at <= 0) and that constraint.
-    let nearest = |x: &[f64], y: &[f64]| {
-        let mut best: Option<(f64, usize, usize)> = None;
-        for (d, conj) in region.iter().enumerate() {
-            let worst = conj
-                .iter()
-                .enumerate()
-                .map(|(k, c)| (value(c, x, y), k))
-                .fold((f64::NEG_INFINITY, 0), |a, b| if b.0 > a.0 { b } else { a });
-            if best.is_none_or(|b| worst.0 < b.0) {
-                best = Some((worst.0, d, worst.1));
-            }
-        }
-        best
-    };
-    if region
-        .iter()
-        .flatten()
-        .any(|c| c.expr.terms.iter().any(|(v, _)| matches!(v, Var::Free(_))))
-    {
+/// The query as the engine's cases over `nets` side by side: the inputs to carry to the
+/// outputs (indices into the concatenated inputs, [`Apps::through`]) and, per disjunct
+/// that is not empty, its index and its case: the applications' boxes concatenated and
+/// tightened by the constraints on a single input, the other constraints over the
+/// networks' outputs and the carried inputs (an equality as two inequalities).
+/// `None` with free variables, a variable out of range, or a box that is not finite.
+/// One application and no input carried is the VNN-COMP shape ([`crate::boxq`]).
+pub fn to_cases(q: &Query) -> Option<Cases> {
+    if !q.free_vars.is_empty() {
         return None;
     }
-    let mut seed = 0x9e37_79b9_7f4a_7c15u64;
-    let mut next = move || {
-        // SplitMix64: a fixed sequence of corners, the same on every run.
-        seed = seed.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = seed;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    };
-    let centre: Vec<f64> = bx.iter().map(|(l, h)| 0.5 * (l + h)).collect();
-    for start in 0..STARTS {
-        let mut x = if start == 0 {
-            centre.clone()
-        } else {
-            bx.iter()
-                .map(|&(l, h)| if next() & 1 == 0 { l } else { h })
-                .collect()
-        };
-        if start >= DESCENTS {
-            // A corner, evaluated only (a binarised network's counterexamples are often
-            // corners of the box, and a forward pass costs half a descent step).
-            if timeout.expired(t0, Instant::now()) {
-                return None;
-            }
-            let p = concrete_point(&[net], vec![x]);
-            if let Some(d) = region.iter().position(|conj| p.satisfies(conj)) {
-                return Some((d, p));
-            }
-            continue;
+    let apps = &q.applications;
+    let in_at: Vec<usize> = apps
+        .iter()
+        .scan(0, |s, a| {
+            *s += a.n_inputs;
+            Some(*s - a.n_inputs)
+        })
+        .collect();
+    let out_at: Vec<usize> = apps
+        .iter()
+        .scan(0, |s, a| {
+            *s += a.n_outputs;
+            Some(*s - a.n_outputs)
+        })
+        .collect();
+    let n_out: usize = apps.iter().map(|a| a.n_outputs).sum();
+    let input = |v: &Var| match *v {
+        Var::Input { app, index } if app < apps.len() && index < apps[app].n_inputs => {
+            Some(in_at[app] + index)
         }
-        for k in 0..STEPS {
-            if timeout.expired(t0, Instant::now()) {
-                return None;
-            }
-            let mut target = None;
-            let (y, mut g) = samara_nn::attack::outputs_and_gradient(net, &x, |y| {
-                let mut c = vec![0.0; y.len()];
-                if let Some((_, d, k)) = nearest(&x, y) {
-                    target = Some((d, k));
-                    for (v, a) in &region[d][k].expr.terms {
-                        if let Var::Output { index, .. } = v {
-                            c[*index] += a;
-                        }
+        _ => None,
+    };
+    // Inputs in constraints of several terms are carried through.
+    let mut through: Vec<usize> = Vec::new();
+    for c in q.region.iter().flatten() {
+        let e = c.expr.clone().normalised();
+        if e.terms.len() > 1 {
+            for (v, _) in &e.terms {
+                if let Var::Input { .. } = v {
+                    let i = input(v)?;
+                    if !through.contains(&i) {
+                        through.push(i);
                     }
                 }
-                c
-            });
-            let (d, ci) = target?;
-            // The outputs of the forward pass: the network's own f64 evaluation.
-            let p = Point {
-                inputs: vec![x.clone()],
-                outputs: vec![y],
-                free: vec![],
-            };
-            if p.satisfies(&region[d]) {
-                return Some((d, p));
-            }
-            for (v, a) in &region[d][ci].expr.terms {
-                if let Var::Input { index, .. } = v {
-                    g[*index] += a;
-                }
-            }
-            // Descend the constraint's value: a step of a shrinking fraction of each
-            // input's range against the gradient's sign (the first to a corner).
-            let frac = 0.8f64.powi(k);
-            for ((xi, gi), &(l, h)) in x.iter_mut().zip(&g).zip(bx) {
-                if *gi != 0.0 {
-                    *xi = (*xi - frac * (h - l) * gi.signum()).clamp(l, h);
-                }
             }
         }
     }
-    None
+    let width = n_out + through.len();
+    let mut cases = Vec::new();
+    for (di, conj) in q.region.iter().enumerate() {
+        let mut lo: Vec<f64> = apps
+            .iter()
+            .flat_map(|a| a.input_box.iter().map(|b| b.0))
+            .collect();
+        let mut hi: Vec<f64> = apps
+            .iter()
+            .flat_map(|a| a.input_box.iter().map(|b| b.1))
+            .collect();
+        let mut cons = Vec::new();
+        for c in conj {
+            let e = c.expr.clone().normalised();
+            if let [(v @ Var::Input { .. }, k)] = e.terms.as_slice() {
+                // k x_i + d (cmp) 0: a bound on x_i (strict bounds widened to closed
+                // ones; a point on the edge is caught by the final re-check).
+                let i = input(v)?;
+                let t = -e.constant / k;
+                if !t.is_finite() {
+                    return None;
+                }
+                if *k > 0.0 || c.cmp == Cmp::Eq {
+                    hi[i] = hi[i].min(t);
+                }
+                if *k < 0.0 || c.cmp == Cmp::Eq {
+                    lo[i] = lo[i].max(t);
+                }
+                continue;
+            }
+            let mut coef = vec![0.0; width];
+            for (v, k) in &e.terms {
+                let at = match *v {
+                    Var::Output { app, index }
+                        if app < apps.len() && index < apps[app].n_outputs =>
+                    {
+                        out_at[app] + index
+                    }
+                    Var::Input { .. } => {
+                        let i = input(v)?;
+                        n_out + through.iter().position(|t| *t == i)?
+                    }
+                    _ => return None,
+                };
+                coef[at] += k;
+            }
+            if c.cmp == Cmp::Eq {
+                cons.push(OutputConstraint {
+                    obj: Objective {
+                        c: coef.iter().map(|v| -v).collect(),
+                        d: -e.constant,
+                    },
+                    strict: false,
+                });
+            }
+            cons.push(OutputConstraint {
+                obj: Objective {
+                    c: coef,
+                    d: e.constant,
+                },
+                strict: c.cmp == Cmp::Lt,
+            });
+        }
+        if lo.iter().chain(&hi).any(|v| !v.is_finite()) {
+            return None;
+        }
+        if lo.iter().zip(&hi).any(|(a, b)| a > b) {
+            continue; // an empty disjunct
+        }
+        cases.push((
+            di,
+            Case {
+                lo,
+                hi,
+                constraints: cons,
+            },
+        ));
+    }
+    Some((through, cases))
 }
 
-/// Outcome of the smooth prover for one conjunction, in the one answer vocabulary:
-/// `Proved` (no counterexample in the domain), `Violated` with a concrete
-/// counterexample, or `Unknown` when the budget (time or box limit) is exhausted.
-pub type SmoothResult = samara_num::Outcome<Point, crate::UnknownReason>;
+/// Whether a network has a step (`Sign`) layer.
+pub fn has_steps(net: &Network) -> bool {
+    net.layers
+        .iter()
+        .any(|l| matches!(l, Layer::Act(Activation::Sign)))
+}
 
-/// Search one conjunction over the applications' boxes (single free of parameters).
-pub fn search(
-    nets: &[&Network],
-    boxes: &[Vec<(f64, f64)>],
-    cs: &[Constraint],
-    timeout: Timeout,
-    max_boxes: usize,
-) -> SmoothResult {
-    let t0 = Instant::now();
-    // The search space: all applications' inputs, concatenated.
-    let dims: Vec<usize> = boxes.iter().map(|b| b.len()).collect();
-    // Best-first: the box whose constraints look most satisfiable (smallest worst lower
-    // bound) first, so counterexamples are met early; a quick sampling pass goes first.
-    let mut heap: std::collections::BinaryHeap<Item> = std::collections::BinaryHeap::new();
-    let mut id = 0u64;
-    heap.push(Item {
-        key: OrdF(f64::NEG_INFINITY),
-        id,
-        b: boxes.iter().flatten().copied().collect(),
-    });
-    let split = |flat: &[(f64, f64)]| -> Vec<Vec<(f64, f64)>> {
-        let mut out = Vec::new();
-        let mut off = 0;
-        for d in &dims {
-            out.push(flat[off..off + d].to_vec());
-            off += d;
-        }
-        out
+/// Decide `q` over `nets` (the applications' networks, in order) with
+/// [`samara_bounds::smooth::solve_apps`] within `timeout`; `None` when the query is not
+/// one the engine states ([`to_cases`]). Networks with a step give the first attack
+/// half the time (their gradient is the straight-through estimator's, a direction
+/// only, and an image-sized binarised network is rarely proved by bounds).
+pub fn prove(q: &Query, nets: &[&Network], timeout: Timeout) -> Option<Verdict> {
+    let (through, cases) = to_cases(q)?;
+    if cases.is_empty() {
+        return Some(Verdict::Proved);
+    }
+    let apps = Apps {
+        nets: nets.to_vec(),
+        through,
     };
-    {
-        // Falsification by sampling (deterministic low-discrepancy points).
-        let flat: Vec<(f64, f64)> = boxes.iter().flatten().copied().collect();
-        for i in 0..2000u64 {
-            // A wide network takes a good part of a second per evaluation.
-            if timeout.expired(t0, Instant::now()) {
-                return SmoothResult::Unknown(crate::UnknownReason::Timeout { nodes: 0 });
-            }
-            let x: Vec<f64> = flat
-                .iter()
-                .enumerate()
-                .map(|(k, (l, h))| {
-                    let u = ((i + 1) as f64
-                        * (0.5 + (k as f64 + 1.0).sqrt().fract() + 0.1 * k as f64))
-                        .fract();
-                    l + (h - l) * u
-                })
-                .collect();
-            let per = split(&x.iter().map(|v| (*v, *v)).collect::<Vec<_>>());
-            let inputs: Vec<Vec<f64>> = per
-                .iter()
-                .map(|b| b.iter().map(|p| p.0).collect())
-                .collect();
-            let p = concrete_point(nets, inputs);
-            if p.satisfies(cs) {
-                return SmoothResult::Violated(p);
-            }
-        }
+    let mut settings = Settings {
+        timeout,
+        ..Default::default()
+    };
+    let half = 0.5 * timeout.secs();
+    if nets.iter().any(|n| has_steps(n)) && half.is_finite() {
+        settings.attack_seconds = settings.attack_seconds.max(half);
     }
-    let mut n = 0usize;
-    while let Some(Item { b, .. }) = heap.pop() {
-        n += 1;
-        if n > max_boxes || timeout.expired(t0, Instant::now()) {
-            return SmoothResult::Unknown(if n > max_boxes {
-                crate::UnknownReason::NodeLimit { nodes: n - 1 }
-            } else {
-                crate::UnknownReason::Timeout { nodes: n - 1 }
-            });
+    // The point of the concatenated inputs `x`, evaluated by every network.
+    let point = |x: &[f64]| {
+        let mut inputs = Vec::new();
+        let mut at = 0;
+        for n in nets {
+            inputs.push(x[at..at + n.n_inputs()].to_vec());
+            at += n.n_inputs();
         }
-        let per = split(&b);
-        let outs: Vec<(Vec<f64>, Vec<f64>)> = nets
-            .iter()
-            .zip(&per)
-            .map(|(net, bx)| {
-                let (l, h): (Vec<f64>, Vec<f64>) = bx.iter().copied().unzip();
-                interval_eval(net, &l, &h)
-            })
-            .collect();
-        let bounds = |v: Var| match v {
-            Var::Input { app, index } => per[app][index],
-            Var::Output { app, index } => (outs[app].0[index], outs[app].1[index]),
-            Var::Free(_) => (f64::NEG_INFINITY, f64::INFINITY),
-        };
-        if cs.iter().any(|c| certainly_violated(c, &bounds)) {
-            continue;
+        Point {
+            outputs: nets
+                .iter()
+                .zip(&inputs)
+                .map(|(n, x)| n.eval_f64(x))
+                .collect(),
+            inputs,
+            free: vec![],
         }
-        let score = cs
-            .iter()
-            .map(|c| lower_bound(c, &bounds))
-            .fold(f64::NEG_INFINITY, f64::max);
-        // Concrete check at the centre.
-        let inputs: Vec<Vec<f64>> = per
-            .iter()
-            .map(|bx| bx.iter().map(|(l, h)| 0.5 * (l + h)).collect())
-            .collect();
-        let p = concrete_point(nets, inputs);
-        if p.satisfies(cs) {
-            return SmoothResult::Violated(p);
+    };
+    let plain: Vec<Case> = cases.iter().map(|c| c.1.clone()).collect();
+    let (outcome, stats) = samara_bounds::smooth::solve_apps(&apps, &plain, &settings);
+    let nodes = stats.pieces as usize;
+    Some(match outcome {
+        Outcome::Proved => Verdict::Proved,
+        Outcome::Violated(CasePoint { case, x, .. }) => {
+            let d = cases[case].0;
+            let pt = point(&x);
+            match pt.robustly_satisfies(&q.region[d]) {
+                Ok(()) => Verdict::Violated(Counterexample {
+                    margin: pt.margin(&q.region[d]),
+                    point: pt,
+                    exact: None,
+                    disjunct: d,
+                }),
+                Err((margin, tolerance)) => {
+                    Verdict::Unknown(UnknownReason::Rounding { margin, tolerance })
+                }
+            }
         }
-        // Bisect the widest input (relative to nothing: inputs share units per network).
-        let (k, w) = b
-            .iter()
-            .enumerate()
-            .map(|(k, (l, h))| (k, h - l))
-            .fold((0, -1.0), |a, c| if c.1 > a.1 { c } else { a });
-        if w <= 0.0 {
-            continue;
-        }
-        let mid = 0.5 * (b[k].0 + b[k].1);
-        let mut left = b.clone();
-        left[k].1 = mid;
-        let mut right = b;
-        right[k].0 = mid;
-        id += 2;
-        heap.push(Item {
-            key: OrdF(score),
-            id,
-            b: left,
-        });
-        heap.push(Item {
-            key: OrdF(score),
-            id: id + 1,
-            b: right,
-        });
-    }
-    SmoothResult::Proved
+        Outcome::Unknown(r) => Verdict::Unknown(match box_reason(BoxUnknown::Stopped(r)) {
+            UnknownReason::Timeout { .. } => UnknownReason::Timeout { nodes },
+            UnknownReason::NodeLimit { .. } => UnknownReason::NodeLimit { nodes },
+            other => other,
+        }),
+    })
 }

@@ -4,7 +4,7 @@
 //! from here: the forward symbolic pass and CROWN/alpha-CROWN of [`crate::symbolic`], the
 //! back-substitution of [`crate::pwl`] (and so reachability's network step in
 //! `samara-reach`), the branching scores of the searches, CROWN over linear sets
-//! ([`crate::linset`]) and the interval prover of `samara-verify`.
+//! ([`crate::linset`]) and the input-split search of [`crate::smooth`].
 //!
 //! - [`relu`]: `max(z, 0)`: the interval rule, the upper chord `u (z - l) / (u - l)` (in
 //!   f64 to steer a search, rounded up where a bound rests on it), the lower slopes
