@@ -3,9 +3,10 @@
 //!
 //! A node is the search's box with a phase fixed for some unstable ReLUs (`z_t <= 0`,
 //! inactive, or `z_t >= 0`, active); it stands for the set `S` of inputs of the box where
-//! every fixed phase holds. Its pre-activation bounds are the root's (valid on the box,
-//! so on `S`) with the fixed neurons clamped (`[l, min(u, 0)]` or `[max(l, 0), u]`), so a
-//! fixed neuron is passed exactly. Each constraint `g(y) <= 0` of an open case is bounded
+//! every fixed phase holds. Its pre-activation bounds are its parent's (the root's valid
+//! on the box, so on `S`) with the fixed neurons clamped (`[l, min(u, 0)]` or
+//! `[max(l, 0), u]`), so a fixed neuron is passed exactly, and the layers after the
+//! newest phase re-bounded by CROWN over them (intersected with the parent's). Each constraint `g(y) <= 0` of an open case is bounded
 //! below on `S` by beta-CROWN (Wang et al., NeurIPS 2021): the backward bound with
 //! optimised lower-relaxation slopes (alpha-CROWN, Xu et al., ICLR 2021) and a Lagrange
 //! multiplier per fixed phase, the term `beta_t * z_t(x)` with the sign that makes it
@@ -24,12 +25,14 @@
 //! (u - l)` (BaBSR's intercept score, Bunel et al., JMLR 2020), the one whose worse
 //! child has the highest f64 bound with the node's slopes and multipliers and the new
 //! phase's multiplier a child starts from (the choice only steers the search; every
-//! child is bounded rigorously). A child's new multiplier starts where its parent's
-//! lower relaxation of the neuron was, so its bound starts at its parent's. Nodes go
-//! depth first (the frontier stays small), in parallel batches, every pull-back over
-//! the sparse rows of the lowered convolutions ([`symbolic::Sparse`], built once per
-//! batch). A node with every unstable neuron fixed that is still open cannot be split:
-//! the search reports that as unknown, not as a proof.
+//! child is bounded rigorously). On deep dense networks the first nodes branch in the
+//! early layers instead, whose splits tighten the later layers' re-bounds ([`Deep`]).
+//! A child's new multiplier starts where its parent's lower relaxation of the neuron
+//! was, so its bound starts at its parent's. Nodes go depth first (the frontier stays
+//! small), in parallel batches, every pull-back over the sparse rows of the lowered
+//! convolutions ([`symbolic::Sparse`], built once per batch). A node with every
+//! unstable neuron fixed that is still open cannot be split: the search reports that
+//! as unknown, not as a proof.
 //!
 //! On boxes with few inputs ([`Tree::lp_bounds`]: networks with one hidden layer, where
 //! the root's pre-activation bounds are exact over the box and only the output layer's
