@@ -3,9 +3,10 @@
 //!
 //! A node is the search's box with a phase fixed for some unstable ReLUs (`z_t <= 0`,
 //! inactive, or `z_t >= 0`, active); it stands for the set `S` of inputs of the box where
-//! every fixed phase holds. Its pre-activation bounds are the root's (valid on the box,
-//! so on `S`) with the fixed neurons clamped (`[l, min(u, 0)]` or `[max(l, 0), u]`), so a
-//! fixed neuron is passed exactly. Each constraint `g(y) <= 0` of an open case is bounded
+//! every fixed phase holds. Its pre-activation bounds are its parent's (the root's valid
+//! on the box, so on `S`) with the fixed neurons clamped (`[l, min(u, 0)]` or
+//! `[max(l, 0), u]`), so a fixed neuron is passed exactly, and the layers after the
+//! newest phase re-bounded by CROWN over them (intersected with the parent's). Each constraint `g(y) <= 0` of an open case is bounded
 //! below on `S` by beta-CROWN (Wang et al., NeurIPS 2021): the backward bound with
 //! optimised lower-relaxation slopes (alpha-CROWN, Xu et al., ICLR 2021) and a Lagrange
 //! multiplier per fixed phase, the term `beta_t * z_t(x)` with the sign that makes it
@@ -24,12 +25,14 @@
 //! (u - l)` (BaBSR's intercept score, Bunel et al., JMLR 2020), the one whose worse
 //! child has the highest f64 bound with the node's slopes and multipliers and the new
 //! phase's multiplier a child starts from (the choice only steers the search; every
-//! child is bounded rigorously). A child's new multiplier starts where its parent's
-//! lower relaxation of the neuron was, so its bound starts at its parent's. Nodes go
-//! depth first (the frontier stays small), in parallel batches, every pull-back over
-//! the sparse rows of the lowered convolutions ([`symbolic::Sparse`], built once per
-//! batch). A node with every unstable neuron fixed that is still open cannot be split:
-//! the search reports that as unknown, not as a proof.
+//! child is bounded rigorously). On deep dense networks the first nodes branch in the
+//! early layers instead, whose splits tighten the later layers' re-bounds ([`Deep`]).
+//! A child's new multiplier starts where its parent's lower relaxation of the neuron
+//! was, so its bound starts at its parent's. Nodes go depth first (the frontier stays
+//! small), in parallel batches, every pull-back over the sparse rows of the lowered
+//! convolutions ([`symbolic::Sparse`], built once per batch). A node with every
+//! unstable neuron fixed that is still open cannot be split: the search reports that
+//! as unknown, not as a proof.
 //!
 //! On boxes with few inputs ([`Tree::lp_bounds`]: networks with one hidden layer, where
 //! the root's pre-activation bounds are exact over the box and only the output layer's
@@ -136,6 +139,29 @@ pub(crate) struct Tree<'a> {
     /// negative (see [`examine`]). For boxes with few inputs, where the LP is small
     /// (networks with one hidden layer, VNN-COMP 2024 safenlp: 30 inputs).
     pub(crate) lp_bounds: bool,
+    /// Branch in the early layers first, for deep dense networks ([`Deep`]).
+    pub(crate) deep: Option<Deep>,
+}
+
+/// Branching for deep dense networks (MNIST's 256x4 and 256x6 of VNN-COMP 2021/2022):
+/// splitting a neuron of an early layer fixes a term that every later layer's bounds
+/// carry, so the later layers' neurons, re-bounded on the node by CROWN (see
+/// [`examine`]), tighten and many become stable (the "indirect effect" of DEEPSPLIT,
+/// Henriksen & Lomuscio, IJCAI 2021), which the score from the output bound's
+/// pull-back does not see: by that score the search split only the last ReLU layer,
+/// the one after which nothing is re-bounded. So nodes with fewer than `depth` phases
+/// fixed branch only in maps `..layers` while those have unstable neurons (by the same
+/// scores and filtered smart branching, restricted to them). The bounds are unchanged
+/// (only the choice of neuron is). On VNN-COMP 2022 mnist_fc `256x4` prop_3_0.05, one
+/// split of map 0 left 48 of the last layer's 73 neurons unstable, and the query was
+/// proved in 1.2 CPU-s (it timed out at 300 s before, 2,000+ nodes a minute down to
+/// depth 131 and nodes with every unstable neuron fixed still open).
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Deep {
+    /// Nodes with fewer phases fixed branch early.
+    pub(crate) depth: u32,
+    /// The early maps: `0..layers`.
+    pub(crate) layers: usize,
 }
 
 /// The root node of the cases `open` (all over the tree's box).
@@ -429,9 +455,26 @@ pub(crate) fn examine(
     // (the LP's, Salman et al. 2019) splitting it leaves one child's bound at its
     // parent's, so with `lp_bounds` only the negative ones (chords) are scored.
     let last = pre.len().saturating_sub(1);
+    // On deep dense networks, the first nodes branch in the early layers while those
+    // have unstable neurons (see [`Deep`]); any unstable neuron there scores above 0.
+    let early = tree
+        .deep
+        .filter(|d| node.depth < d.depth)
+        .map(|d| d.layers)
+        .filter(|&k| {
+            pre.iter()
+                .take(k)
+                .enumerate()
+                .any(|(j, l)| maps[j].1 && l.iter().any(|b| relu::unstable(b.0, b.1)))
+        });
     let signed = |j: usize, t: usize| {
         let v = nu[j + 1][t];
-        if tree.lp_bounds && j == last && v > 0.0 {
+        if let Some(k) = early {
+            match j < k {
+                true => v.abs().max(f64::MIN_POSITIVE),
+                false => 0.0,
+            }
+        } else if tree.lp_bounds && j == last && v > 0.0 {
             0.0
         } else {
             v.abs()

@@ -591,6 +591,13 @@ fn relu_splitting_proofs_on_sparse_conv_like_layers_survive_sampling_and_pgd() {
 }
 
 #[test]
+fn relu_splitting_proofs_on_deep_dense_networks_survive_sampling_and_pgd() {
+    // Three dense ReLU layers on 80 inputs: the first nodes branch in the early layer
+    // (relusplit's `Deep`, the route of mnist_fc's 256x4 and 256x6 networks).
+    relu_splitting_trials(4949, &[80, 16, 16, 16, 3], None);
+}
+
+#[test]
 fn relu_splitting_proofs_on_one_hidden_layer_survive_sampling_and_pgd() {
     // 30 inputs and one ReLU layer: ReLU splitting with the phases as LP constraints
     // (relusplit's `lp_bounds`, the route of VNN-COMP 2024 safenlp's networks).
