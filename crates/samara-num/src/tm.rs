@@ -1854,6 +1854,13 @@ impl Div for Tm {
         Tm::mul_ref(&self, &o.recip())
     }
 }
+impl<'a> Add<&'a Tm> for Tm {
+    type Output = Tm;
+    /// Sum into this model's coefficients, the other operand borrowed (no copy of it).
+    fn add(self, o: &Tm) -> Tm {
+        self.add_signed(o, 1.0)
+    }
+}
 impl<'a> Add<&'a Tm> for &'a Tm {
     type Output = Tm;
     /// Sum without consuming the operands.
