@@ -1603,15 +1603,26 @@ impl Tm {
         let mut part4 = [[0.0f64; W]; 4];
         let wd = &t.wdeg[..len];
         let bc = &b.c[..len];
+        let ac = &a.c[..len];
+        // With them, in the same pass, the sums of |a_i| and the nonzero `a_i` by
+        // weighted degree (for the bound sums below).
+        let mut apart4 = [[0.0f64; W]; 4];
+        let mut nz4 = [[0usize; W]; 4];
         let mut j = 0;
         while j + 4 <= len {
-            for (lane, acc) in part4.iter_mut().enumerate() {
-                acc[wd[j + lane] as usize] += bc[j + lane].abs();
+            for lane in 0..4 {
+                let (w, v) = (wd[j + lane] as usize, ac[j + lane]);
+                part4[lane][w] += bc[j + lane].abs();
+                apart4[lane][w] += v.abs();
+                nz4[lane][w] += (v != 0.0) as usize;
             }
             j += 4;
         }
         while j < len {
-            part4[0][wd[j] as usize] += bc[j].abs();
+            let (w, v) = (wd[j] as usize, ac[j]);
+            part4[0][w] += bc[j].abs();
+            apart4[0][w] += v.abs();
+            nz4[0][w] += (v != 0.0) as usize;
             j += 1;
         }
         let mut le = [0.0f64; W];
@@ -1627,7 +1638,6 @@ impl Tm {
         for d in (0..ord).rev() {
             ge[d] = up(ge[d] + ge[d + 1]);
         }
-        let ac = &a.c[..len];
         // The bound sums `sum_i |a_i| le[keep_i]` and `sum_i |a_i| ge[keep_i + 1]`
         // (`keep_i = ord - wdeg_i`) by weighted degree: the sums of |a_i| of each
         // weighted degree (four lanes, each bounded once, [`nonneg_sum_bound`]) times
@@ -1635,23 +1645,6 @@ impl Tm {
         // ([`nonneg_dot_bound`], `ord + 1` products), so no chain of dependent
         // additions runs through every row; and the pairs of the rows of nonzero
         // `a_i` (their count by weighted degree times the rows' length).
-        let mut apart4 = [[0.0f64; W]; 4];
-        let mut nz4 = [[0usize; W]; 4];
-        let mut j = 0;
-        while j + 4 <= len {
-            for lane in 0..4 {
-                let (w, v) = (wd[j + lane] as usize, ac[j + lane]);
-                apart4[lane][w] += v.abs();
-                nz4[lane][w] += (v != 0.0) as usize;
-            }
-            j += 4;
-        }
-        while j < len {
-            let (w, v) = (wd[j] as usize, ac[j]);
-            apart4[0][w] += v.abs();
-            nz4[0][w] += (v != 0.0) as usize;
-            j += 1;
-        }
         let (mut kept, mut trunc, mut pairs) = (0.0f64, 0.0f64, 0usize);
         for d in 0..=ord {
             let nz = (nz4[0][d] + nz4[1][d]) + (nz4[2][d] + nz4[3][d]);
@@ -1708,10 +1701,12 @@ impl Tm {
                 }
             }
         }
+        // Without a test of `a_i`: a zero `a_i` adds `+-0`, which leaves every sum as it
+        // is, since no sum here is `-0` (each starts as `0 + a_0 b_k` or `+0`, and a sum
+        // is `-0` only when both terms are); so the pass vectorises, with the same
+        // numbers.
         for (x, &ai) in rr.iter_mut().zip(ac).skip(1) {
-            if ai != 0.0 {
-                *x += ai * b0;
-            }
+            *x += ai * b0;
         }
         let err = up(up(t.gamma * kept) + 2.0 * pairs as f64 * ETA);
         let mut rem = sym(up(err + trunc));
