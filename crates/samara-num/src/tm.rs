@@ -1849,7 +1849,7 @@ impl Div for Tm {
         Tm::mul_ref(&self, &o.recip())
     }
 }
-impl<'a> Add<&'a Tm> for Tm {
+impl Add<&Tm> for Tm {
     type Output = Tm;
     /// Sum into this model's coefficients, the other operand borrowed (no copy of it).
     fn add(self, o: &Tm) -> Tm {
