@@ -208,9 +208,10 @@ struct Table {
     exps: Vec<u8>,
     /// Start of row `i` in `mul`.
     row: Vec<usize>,
-    /// `mul[row[i] + j]`: index of `m_i m_j` for `j < pre[order - deg_i]` (classic
-    /// tables), or for the `j = part[row[i] + ..]` with `wdeg_i + wdeg_j <= order`
-    /// (mixed tables, whose monomials of one weighted degree are not contiguous).
+    /// `mul[row[i] + j]`: index of `m_i m_j` for the `j` of degree `<= order - deg_i`,
+    /// the first `rowlen[deg_i]` monomials (classic tables), or for the
+    /// `j = part[row[i] + ..]` with `wdeg_i + wdeg_j <= order` (mixed tables, whose
+    /// monomials of one weighted degree are not contiguous).
     mul: Vec<u32>,
     /// The partner `j` of every `mul` entry on mixed tables (empty on classic ones).
     part: Vec<u32>,
