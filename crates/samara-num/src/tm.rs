@@ -206,16 +206,28 @@ struct Table {
     even: Vec<bool>,
     /// Exponents, `n` per monomial.
     exps: Vec<u8>,
-    /// `pre[d]`: number of monomials of degree `<= d`.
-    pre: Vec<usize>,
     /// Start of row `i` in `mul`.
     row: Vec<usize>,
-    /// `mul[row[i] + j]`: index of `m_i m_j` for `j < pre[order - deg_i]` (classic
-    /// tables), or for the `j = part[row[i] + ..]` with `wdeg_i + wdeg_j <= order`
-    /// (mixed tables, whose monomials of one weighted degree are not contiguous).
+    /// `mul[row[i] + j]`: index of `m_i m_j` for the `j` of degree `<= order - deg_i`,
+    /// the first `rowlen[deg_i]` monomials (classic tables), or for the
+    /// `j = part[row[i] + ..]` with `wdeg_i + wdeg_j <= order` (mixed tables, whose
+    /// monomials of one weighted degree are not contiguous).
     mul: Vec<u32>,
     /// The partner `j` of every `mul` entry on mixed tables (empty on classic ones).
     part: Vec<u32>,
+    /// The rows `i >= 1` with a partner besides the constant (weighted degree below the
+    /// order), in index order: the only rows [`Tm::mul_on`]'s scatter visits (at order
+    /// 4 with 36 lifted parameters of weight 2, 335 of 1,884).
+    scat: Vec<u32>,
+    /// `rowlen[w]`: the length of a row of weighted degree `w` (its partners: the
+    /// monomials of weighted degree `<= order - w`), so that the number of pairs of a
+    /// product is a sum over weighted degrees.
+    rowlen: Vec<usize>,
+    /// `vars[vstart[i]..vstart[i + 1]]`: the parameters of monomial `i` (its nonzero
+    /// exponents, in parameter order), so that passes over a model's terms visit a few
+    /// parameters per monomial rather than all `n`.
+    vstart: Vec<u32>,
+    vars: Vec<u32>,
     /// `gamma_m` for the largest number `m` of pairs mapping to one monomial (rounded up).
     gamma: f64,
     /// Exponent vector to index.
@@ -364,6 +376,35 @@ impl Table {
                 assert!((0..len).all(|j| mul[j] as usize == j && (!mixed || part[j] as usize == j)));
             }
         }
+        // Row lengths depend on the weighted degree alone (checked), and every index
+        // of the scatter is inside the table.
+        let mut rowlen = vec![0usize; order as usize + 1];
+        for i in 0..len {
+            let l = row[i + 1] - row[i];
+            let w = wdeg[i] as usize;
+            assert!(
+                rowlen[w] == 0 || rowlen[w] == l,
+                "Tm table: rows of weighted degree {w} differ in length"
+            );
+            rowlen[w] = l;
+        }
+        assert!(mul.iter().chain(&part).all(|&k| (k as usize) < len));
+        let scat: Vec<u32> = (1..len)
+            .filter(|&i| row[i + 1] - row[i] > 1)
+            .map(|i| i as u32)
+            .collect();
+        let mut vstart = Vec::with_capacity(len + 1);
+        let mut vars = Vec::new();
+        for e in &mons {
+            vstart.push(vars.len() as u32);
+            vars.extend(
+                e.iter()
+                    .enumerate()
+                    .filter(|&(_, &x)| x > 0)
+                    .map(|(k, _)| k as u32),
+            );
+        }
+        vstart.push(vars.len() as u32);
         let m = count.iter().copied().max().unwrap_or(1).max(1) as f64;
         let gamma = up(up(m * U) / dn(1.0 - m * U));
         let exps = mons.concat();
@@ -376,13 +417,22 @@ impl Table {
             wdeg,
             even,
             exps,
-            pre,
             row,
             mul,
             part,
+            scat,
+            rowlen,
+            vstart,
+            vars,
             gamma,
             index,
         }
+    }
+
+    /// The parameters of monomial `i` (its nonzero exponents).
+    #[inline(always)]
+    fn vars_of(&self, i: usize) -> &[u32] {
+        &self.vars[self.vstart[i] as usize..self.vstart[i + 1] as usize]
     }
 
     /// Whether parameters past `full` weigh more than 1 (the table may still hold no
@@ -604,6 +654,55 @@ fn conversion(from: &'static Table, to: &'static Table) -> Rc<Conversion> {
         }
         maps.insert(key, m.clone());
         m
+    })
+}
+
+/// Where [`Tm::reparam`] puts each monomial of `from` when parameter `k` becomes
+/// `map[k]` of `to`'s (`u32::MAX`: bounded into the remainder, because it has a dropped
+/// parameter or lies past `to`'s weighted order). Kept for the last few maps of each
+/// thread: an order reduction renumbers every state and input by one map.
+fn renumbering(from: &'static Table, to: &'static Table, map: &[Option<usize>]) -> Rc<Vec<u32>> {
+    type Entry = (usize, usize, Vec<Option<usize>>, Rc<Vec<u32>>);
+    thread_local! {
+        static LAST: RefCell<Vec<Entry>> = const { RefCell::new(Vec::new()) };
+    }
+    let (fk, tk) = (from as *const Table as usize, to as *const Table as usize);
+    LAST.with(|last| {
+        if let Some(e) = last
+            .borrow()
+            .iter()
+            .find(|e| e.0 == fk && e.1 == tk && e.2 == map)
+        {
+            return e.3.clone();
+        }
+        let mut out = vec![u32::MAX; from.len()];
+        let mut key = vec![0u8; to.n];
+        out[0] = 0;
+        for (i, o) in out.iter_mut().enumerate().skip(1) {
+            key.iter_mut().for_each(|e| *e = 0);
+            let mut dropped = false;
+            let exps = from.exps(i);
+            for &k in from.vars_of(i) {
+                match map[k as usize] {
+                    Some(j) => key[j] = exps[k as usize],
+                    None => dropped = true,
+                }
+            }
+            // A kept monomial past the new table's weighted order (a parameter moved
+            // to a heavier place) is bounded like a dropped one.
+            if !dropped {
+                if let Some(&idx) = to.index.get(&key) {
+                    *o = idx;
+                }
+            }
+        }
+        let out = Rc::new(out);
+        let mut last = last.borrow_mut();
+        if last.len() >= 4 {
+            last.remove(0);
+        }
+        last.push((fk, tk, map.to_vec(), out.clone()));
+        out
     })
 }
 
@@ -1197,10 +1296,8 @@ impl Tm {
             if v == 0.0 {
                 continue;
             }
-            for (k, &e) in self.t.exps(i).iter().enumerate() {
-                if e > 0 {
-                    w[k] += v;
-                }
+            for &k in self.t.vars_of(i) {
+                w[k as usize] += v;
             }
         }
         w
@@ -1227,31 +1324,19 @@ impl Tm {
             seen[*j] = true;
         }
         let t = table_mixed(n, self.t.order, self.t.full, self.t.lw);
+        let to = renumbering(self.t, t, &map[..self.t.n]);
         let mut c = vec![0.0; t.len()];
         c[0] = self.c[0];
         let (mut sn, mut sp) = (0.0, 0.0);
-        let mut key = vec![0u8; n];
         for i in 1..self.t.len() {
             let v = self.c[i];
             if v == 0.0 {
                 continue;
             }
-            key.iter_mut().for_each(|e| *e = 0);
-            let mut dropped = false;
-            for (k, &e) in self.t.exps(i).iter().enumerate() {
-                if e > 0 {
-                    match map[k] {
-                        Some(j) => key[j] = e,
-                        None => dropped = true,
-                    }
-                }
-            }
-            // A kept monomial past the new table's weighted order (a parameter moved
-            // to a heavier place) is bounded like a dropped one.
-            match (dropped, t.index.get(&key)) {
+            match to[i] {
                 // Two old monomials never meet in one new one (the map is injective on
                 // kept parameters), so this is a copy, not a sum.
-                (false, Some(&idx)) => c[idx as usize] = v,
+                idx if idx != u32::MAX => c[idx as usize] = v,
                 _ => acc_range(v, self.t.even[i], &mut sn, &mut sp),
             }
         }
@@ -1519,15 +1604,26 @@ impl Tm {
         let mut part4 = [[0.0f64; W]; 4];
         let wd = &t.wdeg[..len];
         let bc = &b.c[..len];
+        let ac = &a.c[..len];
+        // With them, in the same pass, the sums of |a_i| and the nonzero `a_i` by
+        // weighted degree (for the bound sums below).
+        let mut apart4 = [[0.0f64; W]; 4];
+        let mut nz4 = [[0usize; W]; 4];
         let mut j = 0;
         while j + 4 <= len {
-            for (lane, acc) in part4.iter_mut().enumerate() {
-                acc[wd[j + lane] as usize] += bc[j + lane].abs();
+            for lane in 0..4 {
+                let (w, v) = (wd[j + lane] as usize, ac[j + lane]);
+                part4[lane][w] += bc[j + lane].abs();
+                apart4[lane][w] += v.abs();
+                nz4[lane][w] += (v != 0.0) as usize;
             }
             j += 4;
         }
         while j < len {
-            part4[0][wd[j] as usize] += bc[j].abs();
+            let (w, v) = (wd[j] as usize, ac[j]);
+            part4[0][w] += bc[j].abs();
+            apart4[0][w] += v.abs();
+            nz4[0][w] += (v != 0.0) as usize;
             j += 1;
         }
         let mut le = [0.0f64; W];
@@ -1543,62 +1639,76 @@ impl Tm {
         for d in (0..ord).rev() {
             ge[d] = up(ge[d] + ge[d + 1]);
         }
-        let mut r = vec![0.0; len];
+        // The bound sums `sum_i |a_i| le[keep_i]` and `sum_i |a_i| ge[keep_i + 1]`
+        // (`keep_i = ord - wdeg_i`) by weighted degree: the sums of |a_i| of each
+        // weighted degree (four lanes, each bounded once, [`nonneg_sum_bound`]) times
+        // the `le` and `ge` of their rows, summed and bounded once
+        // ([`nonneg_dot_bound`], `ord + 1` products), so no chain of dependent
+        // additions runs through every row; and the pairs of the rows of nonzero
+        // `a_i` (their count by weighted degree times the rows' length).
+        let (mut kept, mut trunc, mut pairs) = (0.0f64, 0.0f64, 0usize);
+        for d in 0..=ord {
+            let nz = (nz4[0][d] + nz4[1][d]) + (nz4[2][d] + nz4[3][d]);
+            if nz == 0 {
+                continue;
+            }
+            let s = (apart4[0][d] + apart4[1][d]) + (apart4[2][d] + apart4[3][d]);
+            let ad = nonneg_sum_bound(s, len);
+            kept += ad * le[ord - d];
+            if d > 0 {
+                trunc += ad * ge[ord - d + 1];
+            }
+            pairs += nz * t.rowlen[d];
+        }
+        let kept = nonneg_dot_bound(kept, ord + 1);
+        let trunc = nonneg_dot_bound(trunc, ord + 1);
+        // The products, in the order of additions of the row-by-row scatter (so the
+        // same numbers): row 0 (`a_0` times every `b_j`, at index `j`: the first
+        // addition into each coefficient) as one contiguous pass; the rows of
+        // `Table::scat` (the others have no partner but the constant) in index order;
+        // and the first pair of every other row (`a_i b_0`, at index `i`,
+        // [`Table::build`] checks both) after all rows, where it is the last addition
+        // into coefficient `i`, since every other pair landing there has a divisor of
+        // `m_i`, of a lower degree, so an earlier row. At order 4 with 36 lifted
+        // parameters the first and last are 3,400 of the 11,000 pairs, and at order 2
+        // (the later time coefficients under the joint degree) most of them.
+        let a0 = ac[0];
+        let b0 = bc[0];
+        let mut r: Vec<f64> = if a0 != 0.0 {
+            bc.iter().map(|&bj| 0.0 + a0 * bj).collect()
+        } else {
+            vec![0.0; len]
+        };
         // Local slices: the scatter's stores cannot alias them, so the loops keep their
         // pointers in registers instead of reloading them through `a` and `b`.
-        let (ac, rr) = (&a.c[..len], &mut r[..]);
+        let rr = &mut r[..];
         let (mul, part, rowv) = (&t.mul[..], &t.part[..], &t.row[..]);
-        // Plain sums of |a_i| le[keep_i] and |a_i| ge[keep_i + 1], bounded once below.
-        let (mut kept, mut trunc, mut pairs, mut rows) = (0.0f64, 0.0f64, 0usize, 0usize);
-        // Two kinds of pairs are taken out of the scatter, in the same order of
-        // additions into every coefficient (so the same numbers): row 0 (`a_0` times
-        // every `b_j`, at index `j`: the first addition into each coefficient) as one
-        // contiguous pass, and the first pair of every other row (`a_i b_0`, at index
-        // `i`, [`Table::build`] checks both) after all rows, where it is the last
-        // addition into coefficient `i`, since every other pair landing there has a
-        // divisor of `m_i`, of a lower degree, so an earlier row. At order 4 with 36
-        // lifted parameters they are 3,400 of the 11,000 pairs, and at order 2 (the
-        // later time coefficients under the joint degree) most of them.
-        let b0 = bc[0];
-        for (i, &ai) in ac.iter().enumerate() {
+        for &i in &t.scat {
+            let i = i as usize;
+            let ai = ac[i];
             if ai == 0.0 {
                 continue;
             }
-            let keep = ord - wd[i] as usize;
-            let m = if i == 0 {
-                for (x, &bj) in rr.iter_mut().zip(bc) {
-                    *x += ai * bj;
-                }
-                len
-            } else if part.is_empty() {
-                let m = t.pre[keep];
+            if part.is_empty() {
+                let m = t.rowlen[wd[i] as usize];
                 let row = &mul[rowv[i] + 1..rowv[i] + m];
                 for (&bj, &k) in bc[1..m].iter().zip(row) {
                     rr[k as usize] += ai * bj;
                 }
-                m
             } else {
                 let (s, e) = (rowv[i] + 1, rowv[i + 1]);
                 for (&j, &k) in part[s..e].iter().zip(&mul[s..e]) {
                     rr[k as usize] += ai * bc[j as usize];
                 }
-                e + 1 - s
-            };
-            let aa = ai.abs();
-            kept += aa * le[keep];
-            if keep < ord {
-                trunc += aa * ge[keep + 1];
             }
-            pairs += m;
-            rows += 1;
         }
+        // Without a test of `a_i`: a zero `a_i` adds `+-0`, which leaves every sum as it
+        // is, since no sum here is `-0` (each starts as `0 + a_0 b_k` or `+0`, and a sum
+        // is `-0` only when both terms are); so the pass vectorises, with the same
+        // numbers.
         for (x, &ai) in rr.iter_mut().zip(ac).skip(1) {
-            if ai != 0.0 {
-                *x += ai * b0;
-            }
+            *x += ai * b0;
         }
-        let kept = nonneg_dot_bound(kept, rows);
-        let trunc = nonneg_dot_bound(trunc, rows);
         let err = up(up(t.gamma * kept) + 2.0 * pairs as f64 * ETA);
         let mut rem = sym(up(err + trunc));
         // Each operand's polynomial range only where the other has a remainder.
@@ -1738,6 +1848,13 @@ impl Div for Tm {
             o
         };
         Tm::mul_ref(&self, &o.recip())
+    }
+}
+impl Add<&Tm> for Tm {
+    type Output = Tm;
+    /// Sum into this model's coefficients, the other operand borrowed (no copy of it).
+    fn add(self, o: &Tm) -> Tm {
+        self.add_signed(o, 1.0)
     }
 }
 impl<'a> Add<&'a Tm> for &'a Tm {

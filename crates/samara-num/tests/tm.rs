@@ -1235,3 +1235,168 @@ fn capped_products_and_kept_lowerings_hold() {
     assert!(finite > 1000, "only {finite} finite");
     eprintln!("capped products: {capped} capped, {finite} finite");
 }
+
+/// The exponents of monomial `i` of `t`'s table, read through the public interface:
+/// monomial `i` at the point with `xi_k = 1/2` and every other parameter 1 is
+/// `2^-e_k`, which its (outward-rounded) evaluation encloses.
+fn exponents(t: &Tm, i: usize) -> Vec<u32> {
+    let m = t.term(i);
+    (0..t.n_vars())
+        .map(|k| {
+            let mut xi = vec![1.0; t.n_vars()];
+            xi[k] = 0.5;
+            let v = m.eval_at(&xi);
+            let e = (-(0.5 * (v.lo + v.hi)).log2()).round();
+            assert!(v.contains(2f64.powf(-e)), "monomial {i} at a power of two");
+            e as u32
+        })
+        .collect()
+}
+
+/// A model with every monomial of `base`'s table set (mixed magnitudes, some zero)
+/// and a random remainder, and its exact function: the coefficients, the exponents
+/// and the remainder's chosen point.
+fn dense_model(rng: &mut Rng, base: &Tm, exps: &[Vec<u32>]) -> (Tm, Vec<f64>, Interval) {
+    let decay = rng.range(0.05, 1.0);
+    let c: Vec<f64> = (0..base.n_terms())
+        .map(|i| match rng.below(8) {
+            0 => 0.0,
+            _ => rng.coef() * decay.powi(exps[i].iter().sum::<u32>() as i32),
+        })
+        .collect();
+    let terms: Vec<(usize, f64)> = (1..c.len()).map(|i| (i, c[i])).collect();
+    let rem = match rng.below(3) {
+        0 => Interval::point(0.0),
+        _ => {
+            let a = rng.coef().abs() * 1e-6;
+            Interval::new(-a * rng.unit(), a * rng.unit())
+        }
+    };
+    (base.from_terms(c[0], &terms).with_rem(rem), c, rem)
+}
+
+fn exact_poly(c: &[f64], exps: &[Vec<u32>], xq: &[BigRational]) -> BigRational {
+    let mut s = BigRational::zero();
+    for (ci, e) in c.iter().zip(exps) {
+        if *ci == 0.0 {
+            continue;
+        }
+        let mut m = q(*ci);
+        for (k, &ek) in e.iter().enumerate() {
+            for _ in 0..ek {
+                m *= &xq[k];
+            }
+        }
+        s += m;
+    }
+    s
+}
+
+/// Products of dense models (every monomial of the table nonzero but a few, as the
+/// time coefficients of a lifted flow are) on mixed-degree tables (3 weight-1 and 4
+/// lifted parameters of weight 2 at order 4, as the six-state cell's 6 and 36; 2 and 3
+/// of weight 3) and classic ones, at the full order and capped at every lower one
+/// (`Scalar::mul_capped`), enclose the exact rational product at random points with
+/// any point of the operands' remainders. What the product's bounds by weighted degree
+/// (the rounding errors and truncated terms summed per degree, not per row) must hold.
+#[test]
+fn dense_products_enclose_exact_values() {
+    let mut rng = Rng(0x5EED_DE45);
+    let tables = [
+        Tm::var(0, 3, 4).with_lifted_weight(2).param(0, 7),
+        Tm::var(0, 2, 4).with_lifted_weight(3).param(0, 5),
+        Tm::var(0, 4, 3),
+        Tm::var(0, 2, 5),
+    ];
+    let mut checked = 0usize;
+    for (tk, base) in tables.iter().enumerate() {
+        let exps: Vec<Vec<u32>> = (0..base.n_terms()).map(|i| exponents(base, i)).collect();
+        let n = base.n_vars();
+        for case in 0..60 {
+            let (a, ca, ra) = dense_model(&mut rng, base, &exps);
+            let (b, cb, rb) = dense_model(&mut rng, base, &exps);
+            let cap = if case % 3 == 0 {
+                base.order()
+            } else {
+                rng.below(base.order() as u64 + 1) as u32
+            };
+            let p = a.mul_capped(&b, cap);
+            assert!(p.order() <= cap);
+            let bound = p.bound();
+            for _ in 0..4 {
+                let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+                let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+                let va = exact_poly(&ca, &exps, &xq) + q(point_in(&mut rng, &ra));
+                let vb = exact_poly(&cb, &exps, &xq) + q(point_in(&mut rng, &rb));
+                let v = va * vb;
+                let at = p.eval_at(&xi);
+                assert!(
+                    contains_exact(&at, &v),
+                    "table {tk}, case {case}, cap {cap}: exact {} not in {at:?}",
+                    v.to_f64().unwrap_or(f64::NAN)
+                );
+                assert!(contains_exact(&bound, &v), "table {tk}, case {case}: bound");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 4 * 60 * 4);
+}
+
+/// Elementary functions of dense models on mixed-degree tables (the six-state cell's
+/// kind, 3 weight-1 and 4 lifted parameters of weight 2 at order 4) and classic ones
+/// meet the libm values at random points: their Horner products run at the order each
+/// step's result is left with (`order - k` for the `k`-th from the end), which must
+/// keep every value.
+#[test]
+fn elementary_functions_of_dense_models_meet_libm_values() {
+    let mut rng = Rng(0x5EED_E1E4);
+    let tables = [
+        Tm::var(0, 3, 4).with_lifted_weight(2).param(0, 7),
+        Tm::var(0, 2, 5).with_lifted_weight(3).param(0, 4),
+        Tm::var(0, 3, 4),
+        Tm::var(0, 2, 2),
+    ];
+    let mut checks = 0usize;
+    for (tk, base) in tables.iter().enumerate() {
+        let exps: Vec<Vec<u32>> = (0..base.n_terms()).map(|i| exponents(base, i)).collect();
+        let n = base.n_vars();
+        for case in 0..40 {
+            for ((name, ft, ff), lo, hi) in funs() {
+                // g = c + a dense polynomial of range radius <= `scale` (+ a remainder).
+                let (d, mut cd, rd) = dense_model(&mut rng, base, &exps);
+                let s: f64 = cd.iter().skip(1).map(|v| v.abs()).sum();
+                let scale = [0.5, 0.1, 0.01][rng.below(3) as usize];
+                let f = if s > 0.0 { scale / s } else { 1.0 };
+                cd[0] = rng.range(lo, hi);
+                for v in cd.iter_mut().skip(1) {
+                    *v *= f;
+                }
+                let terms: Vec<(usize, f64)> = (1..cd.len()).map(|i| (i, cd[i])).collect();
+                let r = Interval::new(rd.lo * 1e-3, rd.hi * 1e-3);
+                let g = d.from_terms(cd[0], &terms).with_rem(r);
+                let dr = point_in(&mut rng, &r);
+                let fg = ft(&g);
+                let b = fg.bound();
+                assert!(
+                    b.lo.is_finite() && b.hi.is_finite(),
+                    "table {tk}, {name} case {case}: not finite"
+                );
+                for _ in 0..4 {
+                    let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+                    let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+                    let y = exact_poly(&cd, &exps, &xq) + q(dr);
+                    let want = reference(ff, &y);
+                    let at = fg.eval_at(&xi);
+                    assert!(
+                        meets(&at, &want),
+                        "table {tk}, {name} case {case}: f(g) in {want:?}, eval_at {at:?}"
+                    );
+                    assert!(meets(&b, &want), "table {tk}, {name} case {case}: bound");
+                    checks += 1;
+                }
+            }
+        }
+    }
+    assert_eq!(checks, 4 * 40 * funs().len() * 4);
+}

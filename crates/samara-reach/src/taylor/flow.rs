@@ -368,7 +368,7 @@ fn taylor_try(
             for i in (0..p).rev() {
                 // Raised to the lower time order's table first, so that the sum keeps
                 // that coefficient's order (joint degree).
-                acc = acc.raised_to(&c.c[i]) * h + c.c[i].clone();
+                acc = acc.raised_to(&c.c[i]) * h + &c.c[i];
             }
             acc.with_rem(*r)
         })
@@ -421,7 +421,7 @@ fn sub_boxes(
                 .map(|((c, cb), bj)| {
                     let mut at = c.c[p].clone();
                     for i in (0..p).rev() {
-                        at = at.raised_to(&c.c[i]) * ta + c.c[i].clone();
+                        at = at.raised_to(&c.c[i]) * ta + &c.c[i];
                     }
                     let mut d = c.c[p].bound() * p as f64;
                     for i in (1..p).rev() {
