@@ -89,23 +89,8 @@ impl Node {
     }
 }
 
-impl PartialEq for Node {
-    fn eq(&self, o: &Self) -> bool {
-        self.cmp(o).is_eq()
-    }
-}
-impl Eq for Node {}
-impl PartialOrd for Node {
-    fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(o))
-    }
-}
-impl Ord for Node {
-    /// The max-heap pops the deepest node, and of those the lowest key.
-    fn cmp(&self, o: &Self) -> std::cmp::Ordering {
-        self.depth.cmp(&o.depth).then(o.key.total_cmp(&self.key))
-    }
-}
+// The max-heap pops the deepest node, and of those the lowest key.
+crate::work::deepest_then_least_key!(Node);
 
 /// What one node came to.
 pub(crate) enum NodeOut {

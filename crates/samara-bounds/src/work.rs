@@ -1,4 +1,5 @@
-//! The order of the input-split searches' frontiers ([`crate::search`], [`crate::smooth`]):
+//! The order of the searches' frontiers (input splitting in [`crate::search`] and
+//! [`crate::smooth`], ReLU splitting in [`crate::relusplit`]):
 //! a max-heap of pieces that pops the deepest piece first (depth first, so the frontier
 //! stays small and pieces get cheap quickly), and among pieces of one depth the one
 //! with the lowest key (the least constraint bound: closest to holding a point).
