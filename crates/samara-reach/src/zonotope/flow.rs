@@ -305,20 +305,18 @@ fn taylor_step(
 /// (the states); the control row is carried unchanged.
 fn compose(z: &Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSettings) -> Zonotope {
     let d = z.dim();
-    let mid: Vec<Vec<f64>> = jac
+    // Row-major d x d midpoint and radius matrices of `jac`.
+    let mid: Vec<f64> = jac
         .iter()
-        .map(|r| r.iter().map(|x| 0.5 * (x.lo + x.hi)).collect())
+        .flat_map(|r| r.iter().map(|x| 0.5 * (x.lo + x.hi)))
         .collect();
-    let rad: Vec<Vec<f64>> = jac
+    let rad: Vec<f64> = jac
         .iter()
+        .flatten()
         .zip(&mid)
-        .map(|(r, m)| {
-            r.iter()
-                .zip(m)
-                .map(|(x, mm)| (x.hi - mm).max(mm - x.lo).next_up())
-                .collect()
-        })
+        .map(|(x, mm)| (x.hi - mm).max(mm - x.lo).next_up())
         .collect();
+    let gd = gamma(d);
     let mut noise = vec![0.0f64; d];
     let mut c = z.c.clone();
     for j in 0..centre.len() {
@@ -328,18 +326,21 @@ fn compose(z: &Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSet
     }
     let mut gens = Vec::with_capacity(z.gens.len() + d);
     for g in &z.gens {
+        let g = &g[..d];
         let mut ng = vec![0.0; d];
         for j in 0..d {
+            let (mr, rr) = (&mid[j * d..(j + 1) * d], &rad[j * d..(j + 1) * d]);
             let mut acc = 0.0;
             let mut mag = 0.0;
             let mut radterm = 0.0;
             for k in 0..d {
-                acc += mid[j][k] * g[k];
-                mag += (mid[j][k] * g[k]).abs();
-                radterm += rad[j][k] * g[k].abs();
+                let p = mr[k] * g[k];
+                acc += p;
+                mag += p.abs();
+                radterm += rr[k] * g[k].abs();
             }
             ng[j] = acc;
-            noise[j] += (radterm + mag * gamma(d)) * (1.0 + gamma(d));
+            noise[j] += (radterm + mag * gd) * (1.0 + gd);
         }
         gens.push(ng);
     }
