@@ -517,6 +517,38 @@ mod tests {
         assert_eq!(Interval::new(3.0, 4.0).sgn(), Interval::point(1.0));
     }
 
+    /// The branch-free rounding is `f64::next_up` / `next_down` on every finite float:
+    /// random bit patterns (every binade, subnormals) and the edge cases.
+    #[test]
+    fn branch_free_rounding_is_next_up_and_next_down() {
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut edge = vec![0.0, -0.0, f64::MAX, f64::MIN, f64::MIN_POSITIVE, 1.0, -1.0];
+        edge.extend([
+            f64::from_bits(1),
+            -f64::from_bits(1),
+            f64::from_bits(0xf_ffff),
+        ]);
+        for i in 0..200_000 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            let x = match edge.get(i) {
+                Some(&e) => e,
+                None if i % 3 == 0 => f64::from_bits(s >> 12) * if s & 1 == 0 { 1.0 } else { -1.0 },
+                None => f64::from_bits(s),
+            };
+            if !x.is_finite() {
+                continue;
+            }
+            assert_eq!(up_finite(x).to_bits(), x.next_up().to_bits(), "up {x:e}");
+            assert_eq!(
+                dn_finite(x).to_bits(),
+                x.next_down().to_bits(),
+                "down {x:e}"
+            );
+        }
+    }
+
     #[test]
     fn trigonometric_extrema_and_signs() {
         let i = Interval::new(1.0, 2.0); // contains pi/2
