@@ -192,15 +192,31 @@ impl Mul for Interval {
     #[inline]
     fn mul(self, o: Self) -> Self {
         let (a, b) = (self, o);
-        if !(a.lo.is_finite() & a.hi.is_finite() & b.lo.is_finite() & b.hi.is_finite()) {
+        if !(a.is_finite() & b.is_finite()) {
             return mul_general(a, b);
         }
-        let (p1, p2, p3, p4) = (a.lo * b.lo, a.lo * b.hi, a.hi * b.lo, a.hi * b.hi);
-        outward(
-            min2(min2(p1, p2), min2(p3, p4)),
-            max2(max2(p1, p2), max2(p3, p4)),
-        )
+        mul_finite(a, b)
     }
+}
+
+impl Interval {
+    /// Whether both ends are finite.
+    #[inline(always)]
+    pub(crate) fn is_finite(&self) -> bool {
+        self.lo.is_finite() & self.hi.is_finite()
+    }
+}
+
+/// The product of two intervals with finite ends (the caller checks, e.g. once for all
+/// the components of an interval dual): the four end products, the least and greatest
+/// rounded outward ([`Mul`] for the argument).
+#[inline(always)]
+pub(crate) fn mul_finite(a: Interval, b: Interval) -> Interval {
+    let (p1, p2, p3, p4) = (a.lo * b.lo, a.lo * b.hi, a.hi * b.lo, a.hi * b.hi);
+    outward(
+        min2(min2(p1, p2), min2(p3, p4)),
+        max2(max2(p1, p2), max2(p3, p4)),
+    )
 }
 
 /// The four-product multiplication, for unbounded or NaN ends.
