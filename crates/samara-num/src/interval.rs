@@ -32,6 +32,66 @@ fn up4(x: f64) -> f64 {
     up(up(up(up(x))))
 }
 
+/// `x.next_up()` for a finite `x`, without branches: the same float as
+/// [`f64::next_up`] (and so as [`crate::round::up`]) on every finite input.
+///
+/// `x + 0.0` maps `-0` to `+0` and leaves every other finite float unchanged (IEEE 754:
+/// a sum is exact when it is representable, and `-0 + +0 = +0` in round-to-nearest).
+/// For the bit pattern `b` of a finite float of sign bit `s`, the next float above is
+/// `b + 1` when `s = 0` (a larger magnitude, `+0` giving the smallest subnormal and `MAX`
+/// giving `+inf`) and `b - 1` when `s = 1` (a smaller magnitude, the smallest negative
+/// subnormal giving `-0`), i.e. `b + 1 - 2 s`, which is what [`f64::next_up`] computes on
+/// the same inputs. Callers test finiteness first (NaN and `+inf` would not map right).
+#[inline(always)]
+fn up_finite(x: f64) -> f64 {
+    let b = (x + 0.0).to_bits();
+    f64::from_bits(b.wrapping_add(1).wrapping_sub((b >> 63) << 1))
+}
+
+/// `x.next_down()` for a finite `x`, without branches: `-(-x).next_up()`, which is how
+/// [`f64::next_down`] is defined ([`up_finite`]).
+#[inline(always)]
+fn dn_finite(x: f64) -> f64 {
+    -up_finite(-x)
+}
+
+/// `[dn(lo), up(hi)]`: the branch-free rounding when both ends are finite (the common
+/// case), [`dn`] / [`up`] otherwise; the same floats either way.
+#[inline(always)]
+fn outward(lo: f64, hi: f64) -> Interval {
+    if lo.is_finite() & hi.is_finite() {
+        Interval {
+            lo: dn_finite(lo),
+            hi: up_finite(hi),
+        }
+    } else {
+        Interval {
+            lo: dn(lo),
+            hi: up(hi),
+        }
+    }
+}
+
+/// The smaller of two floats that are not NaN (one `minsd`).
+#[inline(always)]
+fn min2(a: f64, b: f64) -> f64 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+/// The larger of two floats that are not NaN (one `maxsd`).
+#[inline(always)]
+fn max2(a: f64, b: f64) -> f64 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
 impl Interval {
     /// `[lo, hi]`; the ends are swapped if given in the wrong order.
     pub fn new(lo: f64, hi: f64) -> Self {
@@ -106,62 +166,57 @@ impl Add for Interval {
     type Output = Self;
     #[inline]
     fn add(self, o: Self) -> Self {
-        Interval {
-            lo: dn(self.lo + o.lo),
-            hi: up(self.hi + o.hi),
-        }
+        outward(self.lo + o.lo, self.hi + o.hi)
     }
 }
 impl Sub for Interval {
     type Output = Self;
+    #[inline]
     fn sub(self, o: Self) -> Self {
-        Interval {
-            lo: dn(self.lo - o.hi),
-            hi: up(self.hi - o.lo),
-        }
+        outward(self.lo - o.hi, self.hi - o.lo)
     }
 }
 impl Mul for Interval {
     type Output = Self;
-    /// Sign-case multiplication (two products in eight of the nine cases), each end
-    /// rounded outward by one ulp; unbounded or NaN ends take the general path.
+    /// The four end products, their least and greatest each rounded outward by one ulp;
+    /// unbounded or NaN ends take the general path.
+    ///
+    /// For finite ends the four products are not NaN, and the exact product set of two
+    /// intervals has its extremes among the four exact end products (the product is
+    /// bilinear). Rounding to nearest is monotone, so the least (greatest) rounded
+    /// product is the rounding of the least (greatest) exact one: the floats the
+    /// sign-case selection (Moore's nine cases) picks, without its branches, which
+    /// mispredict on mixed signs. Each is within half an ulp of its exact value, so
+    /// one ulp outward ([`outward`]) encloses it. A zero's sign may differ from the
+    /// sign-case choice, which rounding then erases (`next_down(+-0)` is the same float).
     #[inline]
     fn mul(self, o: Self) -> Self {
         let (a, b) = (self, o);
-        if !(a.lo.is_finite() && a.hi.is_finite() && b.lo.is_finite() && b.hi.is_finite()) {
+        if !(a.is_finite() & b.is_finite()) {
             return mul_general(a, b);
         }
-        let (lo, hi) = if a.lo >= 0.0 {
-            if b.lo >= 0.0 {
-                (a.lo * b.lo, a.hi * b.hi)
-            } else if b.hi <= 0.0 {
-                (a.hi * b.lo, a.lo * b.hi)
-            } else {
-                (a.hi * b.lo, a.hi * b.hi)
-            }
-        } else if a.hi <= 0.0 {
-            if b.lo >= 0.0 {
-                (a.lo * b.hi, a.hi * b.lo)
-            } else if b.hi <= 0.0 {
-                (a.hi * b.hi, a.lo * b.lo)
-            } else {
-                (a.lo * b.hi, a.lo * b.lo)
-            }
-        } else if b.lo >= 0.0 {
-            (a.lo * b.hi, a.hi * b.hi)
-        } else if b.hi <= 0.0 {
-            (a.hi * b.lo, a.lo * b.lo)
-        } else {
-            (
-                (a.lo * b.hi).min(a.hi * b.lo),
-                (a.lo * b.lo).max(a.hi * b.hi),
-            )
-        };
-        Interval {
-            lo: dn(lo),
-            hi: up(hi),
-        }
+        mul_finite(a, b)
     }
+}
+
+impl Interval {
+    /// Whether both ends are finite.
+    #[inline(always)]
+    pub(crate) fn is_finite(&self) -> bool {
+        self.lo.is_finite() & self.hi.is_finite()
+    }
+}
+
+/// The product of two intervals with finite ends (the caller checks, e.g. once for all
+/// the components of an interval dual): the four end products, the least and greatest
+/// rounded outward ([`Mul`] for the argument).
+#[inline(always)]
+pub(crate) fn mul_finite(a: Interval, b: Interval) -> Interval {
+    let (p1, p2, p3, p4) = (a.lo * b.lo, a.lo * b.hi, a.hi * b.lo, a.hi * b.hi);
+    outward(
+        min2(min2(p1, p2), min2(p3, p4)),
+        max2(max2(p1, p2), max2(p3, p4)),
+    )
 }
 
 /// The four-product multiplication, for unbounded or NaN ends.
@@ -184,6 +239,7 @@ fn outward_hull(p: [f64; 4]) -> Interval {
 
 impl Div for Interval {
     type Output = Self;
+    #[inline]
     fn div(self, o: Self) -> Self {
         if o.lo <= 0.0 && o.hi >= 0.0 {
             return Interval::entire();
@@ -198,6 +254,7 @@ impl Div for Interval {
 }
 impl Neg for Interval {
     type Output = Self;
+    #[inline]
     fn neg(self) -> Self {
         Interval {
             lo: -self.hi,
@@ -229,29 +286,41 @@ impl Mul<f64> for Interval {
         } else {
             (self.hi * o, self.lo * o)
         };
-        Interval {
-            lo: dn(lo),
-            hi: up(hi),
-        }
+        outward(lo, hi)
     }
 }
 impl Div<f64> for Interval {
     type Output = Self;
+    /// `self / [o, o]`: for finite ends and a finite nonzero `o` the two quotients of
+    /// the ends (division by a point is monotone, decreasing for `o < 0`), rounded
+    /// outward; the same floats as the four-quotient hull, which the other cases take.
+    #[inline]
     fn div(self, o: f64) -> Self {
-        self / Interval::point(o)
+        if !(self.lo.is_finite() & self.hi.is_finite() & o.is_finite()) || o == 0.0 {
+            return self / Interval::point(o);
+        }
+        let (lo, hi) = if o > 0.0 {
+            (self.lo / o, self.hi / o)
+        } else {
+            (self.hi / o, self.lo / o)
+        };
+        outward(lo, hi)
     }
 }
 impl AddAssign for Interval {
+    #[inline]
     fn add_assign(&mut self, o: Self) {
         *self = *self + o;
     }
 }
 impl SubAssign for Interval {
+    #[inline]
     fn sub_assign(&mut self, o: Self) {
         *self = *self - o;
     }
 }
 impl MulAssign for Interval {
+    #[inline]
     fn mul_assign(&mut self, o: Self) {
         *self = *self * o;
     }
@@ -462,6 +531,38 @@ mod tests {
         assert_eq!(Interval::new(-1.0, 2.0).sgn(), Interval::new(-1.0, 1.0));
         assert_eq!(Interval::new(0.0, 2.0).sgn(), Interval::new(0.0, 1.0));
         assert_eq!(Interval::new(3.0, 4.0).sgn(), Interval::point(1.0));
+    }
+
+    /// The branch-free rounding is `f64::next_up` / `next_down` on every finite float:
+    /// random bit patterns (every binade, subnormals) and the edge cases.
+    #[test]
+    fn branch_free_rounding_is_next_up_and_next_down() {
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut edge = vec![0.0, -0.0, f64::MAX, f64::MIN, f64::MIN_POSITIVE, 1.0, -1.0];
+        edge.extend([
+            f64::from_bits(1),
+            -f64::from_bits(1),
+            f64::from_bits(0xf_ffff),
+        ]);
+        for i in 0..200_000 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            let x = match edge.get(i) {
+                Some(&e) => e,
+                None if i % 3 == 0 => f64::from_bits(s >> 12) * if s & 1 == 0 { 1.0 } else { -1.0 },
+                None => f64::from_bits(s),
+            };
+            if !x.is_finite() {
+                continue;
+            }
+            assert_eq!(up_finite(x).to_bits(), x.next_up().to_bits(), "up {x:e}");
+            assert_eq!(
+                dn_finite(x).to_bits(),
+                x.next_down().to_bits(),
+                "down {x:e}"
+            );
+        }
     }
 
     #[test]

@@ -3,6 +3,7 @@
 //! time went to those). Each file is a module: `cargo test -p samara-num --test all
 //! FILE::` runs one. `every_test_file_is_built` fails for a file left out.
 
+mod interval_exact;
 mod tm;
 mod tm_reduce;
 

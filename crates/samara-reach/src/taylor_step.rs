@@ -16,6 +16,7 @@
 //!    which encloses `x(h) - sum_k x_k h^k` for every solution in `B`.
 
 use samara_num::{Interval, Scalar, Series};
+use samara_system::taylor::SeriesScratch;
 use samara_system::Graph;
 
 /// Whether every interval of `a` lies inside the matching interval of `b`.
@@ -121,7 +122,22 @@ pub(crate) fn series<S: Scalar, const K: usize>(
     upto: usize,
     trim: &dyn Fn(usize, S) -> S,
 ) -> Option<Vec<Series<S, K>>> {
-    if let Some(s) = samara_system::taylor::solution_series_trimmed::<S, K>(g, x0, u, upto, trim) {
+    series_in::<S, K>(g, x0, u, upto, trim, &mut SeriesScratch::default())
+}
+
+/// [`series`] with the incremental expansion's tables in `scratch` (reused across the
+/// expansions of a step; the same numbers).
+pub(crate) fn series_in<S: Scalar, const K: usize>(
+    g: &Graph,
+    x0: &[S],
+    u: &[S],
+    upto: usize,
+    trim: &dyn Fn(usize, S) -> S,
+    scratch: &mut SeriesScratch<S>,
+) -> Option<Vec<Series<S, K>>> {
+    if let Some(s) =
+        samara_system::taylor::solution_series_trimmed_in::<S, K>(g, x0, u, upto, trim, scratch)
+    {
         return (!s.iter().any(|v| v.bad)).then_some(s);
     }
     let d = x0.len();

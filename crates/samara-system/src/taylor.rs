@@ -54,17 +54,75 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
     upto: usize,
     trim: &dyn Fn(usize, S) -> S,
 ) -> Option<Vec<Series<S, K>>> {
+    solution_series_trimmed_in::<S, K>(g, x0, u, upto, trim, &mut SeriesScratch::default())
+}
+
+/// The working storage of [`solution_series_trimmed_in`]: every instruction's
+/// coefficients and the per-instruction flags. A caller that expands many series (one
+/// validated step expands four) keeps one and passes it to every expansion, so that the
+/// tables are allocated once, not per expansion; the contents never carry over (each
+/// expansion resets what it reads).
+#[derive(Debug)]
+pub struct SeriesScratch<S> {
+    c: Vec<S>,
+    aux: Vec<S>,
+    aux2: Vec<S>,
+    slot: Vec<usize>,
+    konst: Vec<bool>,
+    bad: Vec<bool>,
+    pick: Vec<i8>,
+}
+
+impl<S> Default for SeriesScratch<S> {
+    fn default() -> Self {
+        SeriesScratch {
+            c: Vec::new(),
+            aux: Vec::new(),
+            aux2: Vec::new(),
+            slot: Vec::new(),
+            konst: Vec::new(),
+            bad: Vec::new(),
+            pick: Vec::new(),
+        }
+    }
+}
+
+/// `v` holding `n` copies of `x`, reusing its allocation.
+fn refill<T: Clone>(v: &mut Vec<T>, n: usize, x: T) {
+    v.clear();
+    v.resize(n, x);
+}
+
+/// [`solution_series_trimmed`] in the storage `scratch` (the same numbers: the tables
+/// are reset to what a fresh expansion allocates).
+pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
+    g: &Graph,
+    x0: &[S],
+    u: &[S],
+    upto: usize,
+    trim: &dyn Fn(usize, S) -> S,
+    scratch: &mut SeriesScratch<S>,
+) -> Option<Vec<Series<S, K>>> {
     let m = upto + 1;
     if m > K || g.outputs.len() != x0.len() {
         return None;
     }
     let nops = g.ops.len();
     let zero = S::cst(0.0);
+    let SeriesScratch {
+        c,
+        aux,
+        aux2,
+        slot,
+        konst,
+        bad,
+        pick,
+    } = scratch;
     // Coefficients per instruction: row `k` is `c[k * m..(k + 1) * m]`.
-    let mut c: Vec<S> = vec![zero.clone(); nops * m];
+    refill(c, nops * m, zero.clone());
     // Companion series only for the instructions that need them: `slot[k]` is the row
     // of instruction `k` in `aux` (sin, cos, tanh, atan) and `aux2` (atan).
-    let mut slot = vec![usize::MAX; nops];
+    refill(slot, nops, usize::MAX);
     let mut slots = 0;
     for (k, op) in g.ops.iter().enumerate() {
         if matches!(op, Op::Un(Un::Sin | Un::Cos | Un::Tanh | Un::Atan, _)) {
@@ -72,13 +130,13 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
             slots += 1;
         }
     }
-    let mut aux: Vec<S> = vec![zero.clone(); slots * m];
-    let mut aux2: Vec<S> = vec![zero.clone(); slots * m];
-    let mut konst = vec![false; nops];
-    let mut bad = vec![false; nops];
+    refill(aux, slots * m, zero.clone());
+    refill(aux2, slots * m, zero.clone());
+    refill(konst, nops, false);
+    refill(bad, nops, false);
     // Decided branches, per instruction (0: undecided): for `abs` the sign -1 / 1, for
     // `select` 1 the first branch, -1 the second.
-    let mut pick: Vec<i8> = vec![0; nops];
+    refill(pick, nops, 0i8);
     let mut x: Vec<Vec<S>> = x0
         .iter()
         .map(|v| {

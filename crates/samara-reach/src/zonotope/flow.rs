@@ -19,10 +19,20 @@
 #![allow(clippy::assign_op_pattern, clippy::needless_range_loop)]
 
 use super::set::{gamma, Zonotope};
-use crate::taylor_step::{apriori_by, finite, lagrange_remainder, series, subset};
+use crate::taylor_step::{apriori_by, finite, lagrange_remainder, series_in, subset};
 use samara_num::{IDual, Interval, Scalar, Series};
 use samara_plant::Plant;
+use samara_system::taylor::SeriesScratch;
 use samara_system::Graph;
+use std::cell::RefCell;
+
+thread_local! {
+    /// The series expansions' tables, per worker thread: allocated once, not four
+    /// times per step (malloc and free took about a tenth of the published setting's
+    /// time before).
+    static SCRATCH_I: RefCell<SeriesScratch<Interval>> = RefCell::new(SeriesScratch::default());
+    static SCRATCH_D: RefCell<SeriesScratch<IDual<ND>>> = RefCell::new(SeriesScratch::default());
+}
 
 /// Taylor order of the validated steps.
 pub const ORDER: usize = 7;
@@ -31,6 +41,13 @@ pub const ORDER: usize = 7;
 /// interval spread over the set instead, a small first-order term.
 pub const JAC_ORDER: usize = 5;
 const KK: usize = ORDER + 2;
+/// Safety factor of the step-size suggestion `h s (tol / rem)^(1 / (p + 1))` (Hairer,
+/// Norsett & Wanner, *Solving ODEs I*, sec. II.4). 0.8 rather than 0.9: the remainder
+/// over the a-priori box grows faster than `h^(p+1)` (the box grows with `h`), and at
+/// 0.9 a step after a long one was rejected often enough that rejected attempts were
+/// 17 % of the published setting's and a third of the full model's (2026-11-28,
+/// bench/reach/published_speed.md); at 0.8 about 1 % and 8 %, with slightly fewer accepted steps.
+const STEP_SAFETY: f64 = 0.8;
 /// Dual directions: v_xp, v_yp, omega, theta and ex (the right-hand side never reads
 /// x or y, so their Jacobian columns are unit vectors).
 const ND: usize = 5;
@@ -162,6 +179,7 @@ fn taylor<S: Scalar + Copy, const K: usize>(
     g: Option<&Graph>,
     x0: &[S],
     upto: usize,
+    scratch: &mut SeriesScratch<S>,
 ) -> Vec<Series<S, K>> {
     let d = x0.len();
     let n = d - 1;
@@ -169,7 +187,9 @@ fn taylor<S: Scalar + Copy, const K: usize>(
     // the plant on series per order is O(K^3); the same recurrences, so the same
     // enclosures); the plant's own equations on series below where there is no recording
     // or its series is `bad` (an undecided branch: then `bad` here too).
-    if let Some(mut s) = g.and_then(|g| series::<S, K>(g, &x0[..n], &x0[n..], upto, &|_, v| v)) {
+    if let Some(mut s) =
+        g.and_then(|g| series_in::<S, K>(g, &x0[..n], &x0[n..], upto, &|_, v| v, scratch))
+    {
         s.push(Series::constant(x0[n]));
         return s;
     }
@@ -211,7 +231,8 @@ fn taylor_step(
     let b = apriori(plant, &bz, h)?;
     // Remainder h^{p+1} x_{p+1}(B).
     let rec = record_rhs(plant, &b);
-    let tb = taylor::<Interval, KK>(plant, rec.as_ref(), &b, ORDER + 1);
+    let tb = SCRATCH_I
+        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_ref(), &b, ORDER + 1, sc));
     if tb[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -227,7 +248,7 @@ fn taylor_step(
         .fold(0.0f64, f64::max)
         * s.rem_tol;
     *hint = if worst.is_finite() && worst > 0.0 {
-        h * 0.9 * (s.rem_tol / worst).powf(1.0 / (ORDER as f64 + 1.0))
+        h * STEP_SAFETY * (s.rem_tol / worst).powf(1.0 / (ORDER as f64 + 1.0))
     } else if worst == 0.0 {
         2.0 * h
     } else {
@@ -238,7 +259,8 @@ fn taylor_step(
     }
     // T(c).
     let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
-    let tc = taylor::<Interval, KK>(plant, rec.as_ref(), &cpt, ORDER);
+    let tc = SCRATCH_I
+        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_ref(), &cpt, ORDER, sc));
     if tc[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -252,7 +274,8 @@ fn taylor_step(
     };
     // Orders above JAC_ORDER enter by intervals over box(Z):
     // h^i (x_i(s) - x_i(c)) ∈ h^i (x_i(box Z) - x_i(c)).
-    let tz = taylor::<Interval, KK>(plant, rec.as_ref(), &bz, ORDER);
+    let tz =
+        SCRATCH_I.with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_ref(), &bz, ORDER, sc));
     if tz[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -270,8 +293,9 @@ fn taylor_step(
         })
         .collect();
     // DT(box Z).
-    let tj =
-        taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, rec.as_ref(), &dual_seeds(&bz), JAC_ORDER);
+    let tj = SCRATCH_D.with_borrow_mut(|sc| {
+        taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, rec.as_ref(), &dual_seeds(&bz), JAC_ORDER, sc)
+    });
     if tj[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -305,20 +329,18 @@ fn taylor_step(
 /// (the states); the control row is carried unchanged.
 fn compose(z: &Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSettings) -> Zonotope {
     let d = z.dim();
-    let mid: Vec<Vec<f64>> = jac
+    // Row-major d x d midpoint and radius matrices of `jac`.
+    let mid: Vec<f64> = jac
         .iter()
-        .map(|r| r.iter().map(|x| 0.5 * (x.lo + x.hi)).collect())
+        .flat_map(|r| r.iter().map(|x| 0.5 * (x.lo + x.hi)))
         .collect();
-    let rad: Vec<Vec<f64>> = jac
+    let rad: Vec<f64> = jac
         .iter()
+        .flatten()
         .zip(&mid)
-        .map(|(r, m)| {
-            r.iter()
-                .zip(m)
-                .map(|(x, mm)| (x.hi - mm).max(mm - x.lo).next_up())
-                .collect()
-        })
+        .map(|(x, mm)| (x.hi - mm).max(mm - x.lo).next_up())
         .collect();
+    let gd = gamma(d);
     let mut noise = vec![0.0f64; d];
     let mut c = z.c.clone();
     for j in 0..centre.len() {
@@ -328,18 +350,21 @@ fn compose(z: &Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSet
     }
     let mut gens = Vec::with_capacity(z.gens.len() + d);
     for g in &z.gens {
+        let g = &g[..d];
         let mut ng = vec![0.0; d];
         for j in 0..d {
+            let (mr, rr) = (&mid[j * d..(j + 1) * d], &rad[j * d..(j + 1) * d]);
             let mut acc = 0.0;
             let mut mag = 0.0;
             let mut radterm = 0.0;
             for k in 0..d {
-                acc += mid[j][k] * g[k];
-                mag += (mid[j][k] * g[k]).abs();
-                radterm += rad[j][k] * g[k].abs();
+                let p = mr[k] * g[k];
+                acc += p;
+                mag += p.abs();
+                radterm += rr[k] * g[k].abs();
             }
             ng[j] = acc;
-            noise[j] += (radterm + mag * gamma(d)) * (1.0 + gamma(d));
+            noise[j] += (radterm + mag * gd) * (1.0 + gd);
         }
         gens.push(ng);
     }

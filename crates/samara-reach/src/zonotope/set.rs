@@ -116,13 +116,16 @@ impl Zonotope {
         let d = self.dim();
         // Keep max_noise - d of the worst-to-box, box the rest into d generators.
         let keep = max_noise.saturating_sub(d);
-        let mut idx: Vec<usize> = (np..self.gens.len()).collect();
         let key = |g: &Vec<f64>| {
             let l1: f64 = g.iter().map(|x| x.abs()).sum();
             let li = g.iter().fold(0.0f64, |m, x| m.max(x.abs()));
             l1 - li
         };
-        idx.sort_by(|&a, &b| key(&self.gens[b]).total_cmp(&key(&self.gens[a])));
+        // Each key computed once (not twice per comparison); the same stable sort on
+        // the same keys, so the same order.
+        let keys: Vec<f64> = self.gens.iter().map(key).collect();
+        let mut idx: Vec<usize> = (np..self.gens.len()).collect();
+        idx.sort_by(|&a, &b| keys[b].total_cmp(&keys[a]));
         let (kept, boxed) = idx.split_at(keep.min(idx.len()));
         let mut r = vec![0.0; d];
         for (i, ri) in r.iter_mut().enumerate() {
