@@ -4,6 +4,7 @@
 //! FILE::` runs one. `every_test_file_is_built` fails for a file left out.
 
 mod interval_exact;
+mod support;
 mod tm;
 mod tm_reduce;
 

@@ -13,20 +13,10 @@
 use num_rational::BigRational;
 use samara_num::Interval;
 
-/// SplitMix64: a small seeded generator (no dependency, reproducible).
-struct Rng(u64);
+use crate::support::Rng;
 
+/// The rounding cases on top of the shared generator.
 impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
     /// A float from a mix of the cases that matter to rounding.
     fn float(&mut self) -> f64 {
         let sign = if self.next_u64() & 1 == 0 { 1.0 } else { -1.0 };

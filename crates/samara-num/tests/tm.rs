@@ -13,21 +13,10 @@ use num_traits::{ToPrimitive, Zero};
 use samara_num::{Interval, Scalar, Series, Sign, Tm};
 use std::time::Instant;
 
-/// SplitMix64: a small seeded generator (no dependency, reproducible).
-struct Rng(u64);
+use crate::support::Rng;
 
+/// Coefficients and parameter points on top of the shared generator.
 impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
     fn below(&mut self, n: u64) -> u64 {
         self.next_u64() % n
     }
