@@ -9,7 +9,6 @@
 #[cfg(doc)]
 use crate::query::satisfies;
 use crate::query::{forward, OutputConstraint};
-use crate::smooth::Apps;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_nn::Affine;
@@ -43,68 +42,48 @@ impl Model for Chain<'_> {
         pick: impl FnOnce(&[f64]) -> Option<Vec<f64>>,
     ) -> (Vec<f64>, Option<Vec<f64>>) {
         let y = forward(self.maps, x, Some(&mut self.masks));
-        let g = pick(&y).map(|c| crate::search::gradient_masked(self.maps, &self.masks, &c));
+        let g = pick(&y).map(|c| gradient_masked(self.maps, &self.masks, &c));
         (y, g)
     }
 }
 
-/// Networks side by side ([`Apps`], one network in most queries) whose inputs `free`
-/// vary and the others stay at `base`'s values (the folded inputs of
-/// [`crate::smooth`]): the descent moves the free inputs only. The gradient is
-/// [`samara_nn::attack::outputs_and_gradient`]'s (a `Sign` passes the straight-through
-/// estimator's 1), per network, plus the weights of the carried inputs.
-pub(crate) struct Partial<'a> {
-    /// The networks.
-    pub apps: &'a Apps<'a>,
-    /// Every input, the free ones overwritten at each evaluation.
-    pub base: Vec<f64>,
-    /// Indices of the free inputs.
-    pub free: &'a [usize],
+/// Gradient of `c . f(x)` at `x` (the active linear piece).
+pub(crate) fn gradient(maps: &[(Affine, bool)], x: &[f64], c: &[f64]) -> Vec<f64> {
+    let mut masks = Vec::new();
+    forward(maps, x, Some(&mut masks));
+    gradient_masked(maps, &masks, c)
 }
 
-impl Model for Partial<'_> {
-    fn outputs_and_gradient(
-        &mut self,
-        xf: &[f64],
-        pick: impl FnOnce(&[f64]) -> Option<Vec<f64>>,
-    ) -> (Vec<f64>, Option<Vec<f64>>) {
-        for (t, &i) in self.free.iter().enumerate() {
-            self.base[i] = xf[t];
-        }
-        if let ([net], true) = (&self.apps.nets[..], self.apps.through.is_empty()) {
-            // One pass: the forward's layers serve the backward.
-            let mut picked = None;
-            let (y, g) = samara_nn::attack::outputs_and_gradient(net, &self.base, |y| {
-                picked = pick(y);
-                picked.clone().unwrap_or_else(|| vec![0.0; y.len()])
-            });
-            let g = picked.map(|_| self.free.iter().map(|&i| g[i]).collect());
-            return (y, g);
-        }
-        let y = self.apps.eval(&self.base);
-        let Some(c) = pick(&y) else {
-            return (y, None);
-        };
-        let mut g = vec![0.0; self.base.len()];
-        let (mut at_in, mut at_out) = (0, 0);
-        for net in &self.apps.nets {
-            let (ni, no) = (net.n_inputs(), net.n_outputs());
-            let cn = &c[at_out..at_out + no];
-            if cn.iter().any(|v| *v != 0.0) {
-                let x = &self.base[at_in..at_in + ni];
-                let (_, gn) = samara_nn::attack::outputs_and_gradient(net, x, |_| cn.to_vec());
-                for (a, b) in g[at_in..at_in + ni].iter_mut().zip(gn) {
-                    *a += b;
+/// [`gradient`] with the activation masks of the point given ([`forward`]'s), so a
+/// caller that has just evaluated the point does not evaluate it again.
+pub(crate) fn gradient_masked(maps: &[(Affine, bool)], masks: &[Vec<bool>], c: &[f64]) -> Vec<f64> {
+    let mut g = c.to_vec();
+    let mut mi = masks.len();
+    for (m, r) in maps.iter().rev() {
+        if *r {
+            mi -= 1;
+            for (gi, on) in g.iter_mut().zip(&masks[mi]) {
+                if !on {
+                    *gi = 0.0;
                 }
             }
-            at_in += ni;
-            at_out += no;
         }
-        for (j, &i) in self.apps.through.iter().enumerate() {
-            g[i] += c[at_out + j];
+        let mut next = vec![0.0; m.inp];
+        for (i, gi) in g.iter().enumerate() {
+            if *gi != 0.0 {
+                match m.row(i) {
+                    samara_nn::ir::Row::Dense(w) => {
+                        for (nx, w) in next.iter_mut().zip(w) {
+                            *nx += gi * w;
+                        }
+                    }
+                    r => r.for_each_nonzero(|j, w| next[j] += gi * w),
+                }
+            }
         }
-        (y, Some(self.free.iter().map(|&i| g[i]).collect()))
+        g = next;
     }
+    g
 }
 
 /// How a descent step moves each input `t` of width `w_t`, `eta` shrinking from 0.52 to

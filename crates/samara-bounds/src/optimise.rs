@@ -675,7 +675,7 @@ fn value_at(f: &LinearFn, v: &[f64], y: &[f64]) -> f64 {
 fn grad_at(ctx: &Ctx, f: &LinearFn, v: &[f64]) -> Vec<f64> {
     let mut g = f.v.clone();
     if f.uses_outputs() {
-        let gx = crate::search::gradient(ctx.p.maps, &v[..ctx.nx], &f.y);
+        let gx = crate::attack::gradient(ctx.p.maps, &v[..ctx.nx], &f.y);
         for (a, b) in g.iter_mut().zip(gx) {
             *a += b;
         }

@@ -183,45 +183,6 @@ pub struct Stats {
     pub attack_steps: u64,
 }
 
-/// Gradient of `c . f(x)` at `x` (the active linear piece).
-pub(crate) fn gradient(maps: &[(Affine, bool)], x: &[f64], c: &[f64]) -> Vec<f64> {
-    let mut masks = Vec::new();
-    forward(maps, x, Some(&mut masks));
-    gradient_masked(maps, &masks, c)
-}
-
-/// [`gradient`] with the activation masks of the point given ([`forward`]'s), so a
-/// caller that has just evaluated the point does not evaluate it again.
-pub(crate) fn gradient_masked(maps: &[(Affine, bool)], masks: &[Vec<bool>], c: &[f64]) -> Vec<f64> {
-    let mut g = c.to_vec();
-    let mut mi = masks.len();
-    for (m, r) in maps.iter().rev() {
-        if *r {
-            mi -= 1;
-            for (gi, on) in g.iter_mut().zip(&masks[mi]) {
-                if !on {
-                    *gi = 0.0;
-                }
-            }
-        }
-        let mut next = vec![0.0; m.inp];
-        for (i, gi) in g.iter().enumerate() {
-            if *gi != 0.0 {
-                match m.row(i) {
-                    samara_nn::ir::Row::Dense(w) => {
-                        for (nx, w) in next.iter_mut().zip(w) {
-                            *nx += gi * w;
-                        }
-                    }
-                    r => r.for_each_nonzero(|j, w| next[j] += gi * w),
-                }
-            }
-        }
-        g = next;
-    }
-    g
-}
-
 /// From this many inputs on (images), the attack steps by the gradient's sign and
 /// attacks the cases over one box together.
 const SIGN_STEP_INPUTS: usize = 64;

@@ -3,7 +3,7 @@
 //! bounds on single inputs plus linear constraints over the outputs only. Such queries
 //! go to [`samara_bounds::search`] (symbolic and CROWN bounds, input splitting, an attack
 //! first), which suits low-dimensional inputs; anything else stays with the ReLU-phase
-//! branch and bound of [`crate::engine`].
+//! branch and bound of [`crate::single`].
 //!
 //! Contract, as for every verdict of this crate: a point is reported only after every
 //! constraint of its disjunct (input bounds included, strict ones strictly) is shown to
@@ -17,9 +17,10 @@ use crate::exact::rigorous_satisfies;
 use crate::net::PwlNet;
 use crate::point::Point;
 use crate::Counterexample;
-use samara_bounds::search::{self, Case, CasePoint, Outcome, StopReason};
+use samara_bounds::search::{self, Case, CasePoint, Outcome, OutputConstraint, StopReason};
+use samara_bounds::symbolic::Objective;
 use samara_num::Timeout;
-use samara_spec::normal::{Goal, Query};
+use samara_spec::normal::{Cmp, Goal, Query, Var};
 
 /// The answer of the input-split route.
 #[derive(Clone, Debug, PartialEq)]
@@ -47,7 +48,7 @@ pub fn to_cases(q: &Query) -> Option<Vec<(usize, Case)>> {
     if q.applications.len() != 1 || q.goal != Goal::Prove {
         return None;
     }
-    match crate::smooth::to_cases(q)? {
+    match cases_side_by_side(q)? {
         (through, cases) if through.is_empty() => Some(cases),
         _ => None,
     }
@@ -137,4 +138,138 @@ pub fn prove_boxes(q: &Query, net: &PwlNet, timeout: Timeout) -> Option<BoxAnswe
             })
         }
     })
+}
+
+/// The inputs carried to the outputs and the cases with their disjuncts' indices
+/// ([`cases_side_by_side`]).
+pub type Cases = (Vec<usize>, Vec<(usize, Case)>);
+
+/// The query as the engine's cases over `nets` side by side: the inputs to carry to the
+/// outputs (indices into the concatenated inputs, [`samara_bounds::smooth::Apps::through`]) and, per disjunct
+/// that is not empty, its index and its case: the applications' boxes concatenated and
+/// tightened by the constraints on a single input, the other constraints over the
+/// networks' outputs and the carried inputs (an equality as two inequalities).
+/// `None` with free variables, a variable out of range, or a box that is not finite.
+/// One application and no input carried is the VNN-COMP shape ([`to_cases`]); several
+/// are the relational queries of [`crate::smooth`].
+pub fn cases_side_by_side(q: &Query) -> Option<Cases> {
+    if !q.free_vars.is_empty() {
+        return None;
+    }
+    let apps = &q.applications;
+    let in_at: Vec<usize> = apps
+        .iter()
+        .scan(0, |s, a| {
+            *s += a.n_inputs;
+            Some(*s - a.n_inputs)
+        })
+        .collect();
+    let out_at: Vec<usize> = apps
+        .iter()
+        .scan(0, |s, a| {
+            *s += a.n_outputs;
+            Some(*s - a.n_outputs)
+        })
+        .collect();
+    let n_out: usize = apps.iter().map(|a| a.n_outputs).sum();
+    let input = |v: &Var| match *v {
+        Var::Input { app, index } if app < apps.len() && index < apps[app].n_inputs => {
+            Some(in_at[app] + index)
+        }
+        _ => None,
+    };
+    // Inputs in constraints of several terms are carried through.
+    let mut through: Vec<usize> = Vec::new();
+    for c in q.region.iter().flatten() {
+        let e = c.expr.clone().normalised();
+        if e.terms.len() > 1 {
+            for (v, _) in &e.terms {
+                if let Var::Input { .. } = v {
+                    let i = input(v)?;
+                    if !through.contains(&i) {
+                        through.push(i);
+                    }
+                }
+            }
+        }
+    }
+    let width = n_out + through.len();
+    let mut cases = Vec::new();
+    for (di, conj) in q.region.iter().enumerate() {
+        let mut lo: Vec<f64> = apps
+            .iter()
+            .flat_map(|a| a.input_box.iter().map(|b| b.0))
+            .collect();
+        let mut hi: Vec<f64> = apps
+            .iter()
+            .flat_map(|a| a.input_box.iter().map(|b| b.1))
+            .collect();
+        let mut cons = Vec::new();
+        for c in conj {
+            let e = c.expr.clone().normalised();
+            if let [(v @ Var::Input { .. }, k)] = e.terms.as_slice() {
+                // k x_i + d (cmp) 0: a bound on x_i (strict bounds widened to closed
+                // ones; a point on the edge is caught by the final re-check).
+                let i = input(v)?;
+                let t = -e.constant / k;
+                if !t.is_finite() {
+                    return None;
+                }
+                if *k > 0.0 || c.cmp == Cmp::Eq {
+                    hi[i] = hi[i].min(t);
+                }
+                if *k < 0.0 || c.cmp == Cmp::Eq {
+                    lo[i] = lo[i].max(t);
+                }
+                continue;
+            }
+            let mut coef = vec![0.0; width];
+            for (v, k) in &e.terms {
+                let at = match *v {
+                    Var::Output { app, index }
+                        if app < apps.len() && index < apps[app].n_outputs =>
+                    {
+                        out_at[app] + index
+                    }
+                    Var::Input { .. } => {
+                        let i = input(v)?;
+                        n_out + through.iter().position(|t| *t == i)?
+                    }
+                    _ => return None,
+                };
+                coef[at] += k;
+            }
+            if c.cmp == Cmp::Eq {
+                cons.push(OutputConstraint {
+                    obj: Objective {
+                        c: coef.iter().map(|v| -v).collect(),
+                        d: -e.constant,
+                    },
+                    strict: false,
+                });
+            }
+            cons.push(OutputConstraint {
+                obj: Objective {
+                    c: coef,
+                    d: e.constant,
+                },
+                strict: c.cmp == Cmp::Lt,
+            });
+        }
+        if lo.iter().chain(&hi).any(|v| !v.is_finite()) {
+            return None;
+        }
+        if lo.iter().zip(&hi).any(|(a, b)| a > b) {
+            continue; // an empty disjunct
+        }
+        cases.push((
+            di,
+            Case {
+                lo,
+                hi,
+                constraints: cons,
+            },
+        ));
+    }
+    Some((through, cases))
 }
