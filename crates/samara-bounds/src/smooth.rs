@@ -986,6 +986,65 @@ pub fn solve_apps(apps: &Apps, cases: &[Case], s: &Settings) -> (Outcome, Stats)
     }
 }
 
+/// Networks side by side ([`Apps`], one network in most queries) whose inputs `free`
+/// vary and the others stay at `base`'s values (the folded inputs of
+/// this module): the descent moves the free inputs only. The gradient is
+/// [`samara_nn::attack::outputs_and_gradient`]'s (a `Sign` passes the straight-through
+/// estimator's 1), per network, plus the weights of the carried inputs.
+pub(crate) struct Partial<'a> {
+    /// The networks.
+    pub apps: &'a Apps<'a>,
+    /// Every input, the free ones overwritten at each evaluation.
+    pub base: Vec<f64>,
+    /// Indices of the free inputs.
+    pub free: &'a [usize],
+}
+
+impl crate::attack::Model for Partial<'_> {
+    fn outputs_and_gradient(
+        &mut self,
+        xf: &[f64],
+        pick: impl FnOnce(&[f64]) -> Option<Vec<f64>>,
+    ) -> (Vec<f64>, Option<Vec<f64>>) {
+        for (t, &i) in self.free.iter().enumerate() {
+            self.base[i] = xf[t];
+        }
+        if let ([net], true) = (&self.apps.nets[..], self.apps.through.is_empty()) {
+            // One pass: the forward's layers serve the backward.
+            let mut picked = None;
+            let (y, g) = samara_nn::attack::outputs_and_gradient(net, &self.base, |y| {
+                picked = pick(y);
+                picked.clone().unwrap_or_else(|| vec![0.0; y.len()])
+            });
+            let g = picked.map(|_| self.free.iter().map(|&i| g[i]).collect());
+            return (y, g);
+        }
+        let y = self.apps.eval(&self.base);
+        let Some(c) = pick(&y) else {
+            return (y, None);
+        };
+        let mut g = vec![0.0; self.base.len()];
+        let (mut at_in, mut at_out) = (0, 0);
+        for net in &self.apps.nets {
+            let (ni, no) = (net.n_inputs(), net.n_outputs());
+            let cn = &c[at_out..at_out + no];
+            if cn.iter().any(|v| *v != 0.0) {
+                let x = &self.base[at_in..at_in + ni];
+                let (_, gn) = samara_nn::attack::outputs_and_gradient(net, x, |_| cn.to_vec());
+                for (a, b) in g[at_in..at_in + ni].iter_mut().zip(gn) {
+                    *a += b;
+                }
+            }
+            at_in += ni;
+            at_out += no;
+        }
+        for (j, &i) in self.apps.through.iter().enumerate() {
+            g[i] += c[at_out + j];
+        }
+        (y, Some(self.free.iter().map(|&i| g[i]).collect()))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1053,64 +1112,5 @@ mod tests {
             assert_eq!(a.weight(i, 0), w[i * 4 + 3]);
         }
         assert_eq!(f.expand(&[0.5]), vec![1.0, 1.0 + f64::EPSILON, 0.1, 0.5]);
-    }
-}
-
-/// Networks side by side ([`Apps`], one network in most queries) whose inputs `free`
-/// vary and the others stay at `base`'s values (the folded inputs of
-/// this module): the descent moves the free inputs only. The gradient is
-/// [`samara_nn::attack::outputs_and_gradient`]'s (a `Sign` passes the straight-through
-/// estimator's 1), per network, plus the weights of the carried inputs.
-pub(crate) struct Partial<'a> {
-    /// The networks.
-    pub apps: &'a Apps<'a>,
-    /// Every input, the free ones overwritten at each evaluation.
-    pub base: Vec<f64>,
-    /// Indices of the free inputs.
-    pub free: &'a [usize],
-}
-
-impl crate::attack::Model for Partial<'_> {
-    fn outputs_and_gradient(
-        &mut self,
-        xf: &[f64],
-        pick: impl FnOnce(&[f64]) -> Option<Vec<f64>>,
-    ) -> (Vec<f64>, Option<Vec<f64>>) {
-        for (t, &i) in self.free.iter().enumerate() {
-            self.base[i] = xf[t];
-        }
-        if let ([net], true) = (&self.apps.nets[..], self.apps.through.is_empty()) {
-            // One pass: the forward's layers serve the backward.
-            let mut picked = None;
-            let (y, g) = samara_nn::attack::outputs_and_gradient(net, &self.base, |y| {
-                picked = pick(y);
-                picked.clone().unwrap_or_else(|| vec![0.0; y.len()])
-            });
-            let g = picked.map(|_| self.free.iter().map(|&i| g[i]).collect());
-            return (y, g);
-        }
-        let y = self.apps.eval(&self.base);
-        let Some(c) = pick(&y) else {
-            return (y, None);
-        };
-        let mut g = vec![0.0; self.base.len()];
-        let (mut at_in, mut at_out) = (0, 0);
-        for net in &self.apps.nets {
-            let (ni, no) = (net.n_inputs(), net.n_outputs());
-            let cn = &c[at_out..at_out + no];
-            if cn.iter().any(|v| *v != 0.0) {
-                let x = &self.base[at_in..at_in + ni];
-                let (_, gn) = samara_nn::attack::outputs_and_gradient(net, x, |_| cn.to_vec());
-                for (a, b) in g[at_in..at_in + ni].iter_mut().zip(gn) {
-                    *a += b;
-                }
-            }
-            at_in += ni;
-            at_out += no;
-        }
-        for (j, &i) in self.apps.through.iter().enumerate() {
-            g[i] += c[at_out + j];
-        }
-        (y, Some(self.free.iter().map(|&i| g[i]).collect()))
     }
 }
