@@ -1290,7 +1290,7 @@ fn solve_relu(
 /// [`DEEP_RELU_LAYERS`] ReLU layers: the first half of them are the early ones.
 fn deep_split(maps: &[(Affine, bool)], inputs: usize) -> Option<crate::relusplit::Deep> {
     let relus = maps.iter().filter(|m| m.1).count();
-    if relus < DEEP_RELU_LAYERS || symbolic::Sparse::of(maps, inputs).is_some() {
+    if relus < DEEP_RELU_LAYERS || symbolic::Sparse::applies(maps, inputs) {
         return None;
     }
     Some(crate::relusplit::Deep {

@@ -789,19 +789,22 @@ pub(crate) struct Sparse {
     rows: Vec<Option<Rows>>,
 }
 
+/// Boxes with fewer inputs keep the dense loops ([`Sparse::of`]).
+const SPARSE_MIN_INPUTS: usize = 64;
+
 impl Sparse {
     /// The sparse view of `maps`, or `None` when no map is sparse enough to gain or the
     /// box has fewer than 64 inputs (there the dense loops are what the search was
     /// measured with, and a build per call would cost more than it saves).
     pub(crate) fn of(maps: &[(Affine, bool)], inputs: usize) -> Option<Sparse> {
-        if inputs < 64 {
+        if inputs < SPARSE_MIN_INPUTS {
             return None;
         }
         let rows: Vec<Option<Rows>> = maps
             .iter()
             .map(|(m, _)| {
                 let nnz = m.nonzeros();
-                if nnz * 4 > m.out * m.inp || m.inp > u32::MAX as usize {
+                if !Self::gains(m, nnz) {
                     return None;
                 }
                 let mut start = Vec::with_capacity(m.out + 1);
@@ -822,6 +825,18 @@ impl Sparse {
             return None;
         }
         Some(Sparse { rows })
+    }
+
+    /// Whether [`Sparse::of`] gives a view of `maps` (without building it): some map
+    /// sparse enough ([`Sparse::gains`]) on a box of at least [`SPARSE_MIN_INPUTS`] inputs.
+    pub(crate) fn applies(maps: &[(Affine, bool)], inputs: usize) -> bool {
+        inputs >= SPARSE_MIN_INPUTS && maps.iter().any(|(m, _)| Self::gains(m, m.nonzeros()))
+    }
+
+    /// Whether map `m`, with `nnz` non-zero weights, gets sparse rows: at most a quarter
+    /// of its weights non-zero (and column indices that fit a `u32`).
+    fn gains(m: &Affine, nnz: usize) -> bool {
+        nnz * 4 <= m.out * m.inp && m.inp <= u32::MAX as usize
     }
 
     /// The sparse rows of map `j`, when it has them (`self` covers a chain of which
@@ -2019,6 +2034,13 @@ mod tests {
         assert!(
             Sparse::of(&maps, 63).is_none(),
             "no sparse view below 64 inputs"
+        );
+        // The test without the build says the same.
+        assert!(Sparse::applies(&maps, 96) && !Sparse::applies(&maps, 63));
+        let dense: Vec<(Affine, bool)> = maps.iter().map(|(m, r)| (m.densified(), *r)).collect();
+        assert_eq!(
+            Sparse::applies(&dense, 96),
+            Sparse::of(&dense, 96).is_some()
         );
         let lo: Vec<f64> = (0..96).map(|t| (t as f64 * 0.37).sin() - 0.1).collect();
         let hi: Vec<f64> = lo.iter().map(|v| v + 0.2).collect();
