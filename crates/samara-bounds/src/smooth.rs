@@ -94,12 +94,7 @@ impl Acts {
     fn relax(&self, i: usize, l: f64, u: f64) -> Relax {
         match self.at(i) {
             Some(a) => rules::relax(a, l, u),
-            None => Relax {
-                al: 1.0,
-                bl: 0.0,
-                au: 1.0,
-                bu: 0.0,
-            },
+            None => Relax::IDENTITY,
         }
     }
 }

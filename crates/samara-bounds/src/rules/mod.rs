@@ -45,6 +45,16 @@ pub struct Relax {
     pub bu: f64,
 }
 
+impl Relax {
+    /// The lines of a neuron passed on exactly (`f(z) = z`): both are `z` itself.
+    pub const IDENTITY: Relax = Relax {
+        al: 1.0,
+        bl: 0.0,
+        au: 1.0,
+        bu: 0.0,
+    };
+}
+
 /// The interval rule: a sound range of `f(z)` for `z in [l, u]` (every activation here
 /// is monotone, so the ends' images bound it; tanh and sigmoid in outward-rounded
 /// [`Interval`] arithmetic, clipped to their ranges; sign exactly).

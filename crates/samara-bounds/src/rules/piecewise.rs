@@ -15,12 +15,7 @@ pub fn relax(f: impl Fn(f64) -> f64, bps: &[f64], l: f64, u: f64) -> Relax {
         // and Clamp) or a constant.
         let (fl, fu) = (f(l), f(u));
         if fl == l && fu == u {
-            return Relax {
-                al: 1.0,
-                bl: 0.0,
-                au: 1.0,
-                bu: 0.0,
-            };
+            return Relax::IDENTITY;
         }
         debug_assert!(fl == fu);
         return Relax {
