@@ -9,7 +9,8 @@
 //! * [`up`] / [`down`] move a float one ulp outward. A NaN becomes `+inf` / `-inf` (the
 //!   widest sound answer), and infinities move like any float (`next_up(-inf) = -MAX`):
 //!   a sum that overflowed to `-inf` in round-to-nearest may stand for a finite exact
-//!   value, so an upper bound must not stay at `-inf`.
+//!   value, so an upper bound must not stay at `-inf`. [`up_finite`] / [`down_finite`]
+//!   are the same floats without branches, for callers that know the float is finite.
 //! * [`gamma`] is the relative error factor of a sum or dot product of `k` terms,
 //!   `(k + 2) u'` with `u' = 2^-52`: at least twice Higham's `gamma_k = k u / (1 - k u)`
 //!   (`u = 2^-53`; Higham, *Accuracy and Stability of Numerical Algorithms*, 2nd ed.,
@@ -40,6 +41,29 @@ pub fn down(x: f64) -> f64 {
     } else {
         x.next_down()
     }
+}
+
+/// `x.next_up()` for a finite `x`, without branches: the same float as
+/// [`f64::next_up`] (and so as [`up`]) on every finite input.
+///
+/// `x + 0.0` maps `-0` to `+0` and leaves every other finite float unchanged (IEEE 754:
+/// a sum is exact when it is representable, and `-0 + +0 = +0` in round-to-nearest).
+/// For the bit pattern `b` of a finite float of sign bit `s`, the next float above is
+/// `b + 1` when `s = 0` (a larger magnitude, `+0` giving the smallest subnormal and `MAX`
+/// giving `+inf`) and `b - 1` when `s = 1` (a smaller magnitude, the smallest negative
+/// subnormal giving `-0`), i.e. `b + 1 - 2 s`, which is what [`f64::next_up`] computes on
+/// the same inputs. Callers test finiteness first (NaN and `+inf` would not map right).
+#[inline(always)]
+pub fn up_finite(x: f64) -> f64 {
+    let b = (x + 0.0).to_bits();
+    f64::from_bits(b.wrapping_add(1).wrapping_sub((b >> 63) << 1))
+}
+
+/// `x.next_down()` for a finite `x`, without branches: `-(-x).next_up()`, which is how
+/// [`f64::next_down`] is defined ([`up_finite`]).
+#[inline(always)]
+pub fn down_finite(x: f64) -> f64 {
+    -up_finite(-x)
 }
 
 /// Relative error factor of a recursive sum or dot product of `k` rounded terms,
@@ -100,6 +124,36 @@ pub fn sum_dn(a: f64, b: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn branch_free_rounding_is_next_up_and_next_down() {
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut edge = vec![0.0, -0.0, f64::MAX, f64::MIN, f64::MIN_POSITIVE, 1.0, -1.0];
+        edge.extend([
+            f64::from_bits(1),
+            -f64::from_bits(1),
+            f64::from_bits(0xf_ffff),
+        ]);
+        for i in 0..200_000 {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            let x = match edge.get(i) {
+                Some(&e) => e,
+                None if i % 3 == 0 => f64::from_bits(s >> 12) * if s & 1 == 0 { 1.0 } else { -1.0 },
+                None => f64::from_bits(s),
+            };
+            if !x.is_finite() {
+                continue;
+            }
+            assert_eq!(up_finite(x).to_bits(), x.next_up().to_bits(), "up {x:e}");
+            assert_eq!(
+                down_finite(x).to_bits(),
+                x.next_down().to_bits(),
+                "down {x:e}"
+            );
+        }
+    }
 
     /// Exact comparisons through `i128` arithmetic on integers scaled by a power of two:
     /// the bounds hold for random sums whose exact value is known independently.
