@@ -92,7 +92,8 @@ pub enum Op {
 }
 
 impl Op {
-    fn key(&self) -> (u8, u64, u64, u64) {
+    /// The instruction as a hashable key (constants by their bits).
+    pub(crate) fn key(&self) -> (u8, u64, u64, u64) {
         let b = |x: f64| x.to_bits();
         let u = |x: usize| x as u64;
         match *self {

@@ -19,6 +19,7 @@
 use crate::graph::{Bin2, Cond, Graph, Op, Un};
 use samara_num::{conv, dconv, Scalar, Series, Sign};
 use std::cell::RefCell;
+use std::collections::HashMap;
 use std::ops::{Add, AddAssign, Div, Mul, MulAssign, Neg, Sub, SubAssign};
 
 /// The Taylor series in time, coefficients `0..=upto`, of the solution of
@@ -68,6 +69,8 @@ pub struct SeriesScratch<S> {
     aux: Vec<S>,
     aux2: Vec<S>,
     slot: Vec<usize>,
+    twin: Vec<usize>,
+    trig: Vec<usize>,
     konst: Vec<bool>,
     bad: Vec<bool>,
     pick: Vec<i8>,
@@ -80,6 +83,8 @@ impl<S> Default for SeriesScratch<S> {
             aux: Vec::new(),
             aux2: Vec::new(),
             slot: Vec::new(),
+            twin: Vec::new(),
+            trig: Vec::new(),
             konst: Vec::new(),
             bad: Vec::new(),
             pick: Vec::new(),
@@ -114,6 +119,8 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
         aux,
         aux2,
         slot,
+        twin,
+        trig,
         konst,
         bad,
         pick,
@@ -122,9 +129,24 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
     refill(c, nops * m, zero.clone());
     // Companion series only for the instructions that need them: `slot[k]` is the row
     // of instruction `k` in `aux` (sin, cos, tanh, atan) and `aux2` (atan).
+    // A sine and a cosine of the same operand are one pair of recurrences: the later
+    // of the two (`twin[k]`, the earlier's index) reads its coefficients from the
+    // earlier's companion row, which holds the very numbers it would compute (the same
+    // recurrences on the same operands, in the same order).
     refill(slot, nops, usize::MAX);
+    refill(twin, nops, usize::MAX);
     let mut slots = 0;
+    // The sines and cosines met so far that have their own rows.
+    trig.clear();
     for (k, op) in g.ops.iter().enumerate() {
+        if let Op::Un(f @ (Un::Sin | Un::Cos), a) = *op {
+            let other = if f == Un::Sin { Un::Cos } else { Un::Sin };
+            if let Some(&j) = trig.iter().find(|&&j| g.ops[j] == Op::Un(other, a)) {
+                twin[k] = j;
+                continue;
+            }
+            trig.push(k);
+        }
         if matches!(op, Op::Un(Un::Sin | Un::Cos | Un::Tanh | Un::Atan, _)) {
             slot[k] = slots;
             slots += 1;
@@ -303,6 +325,9 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
                                 acc / r(a)[0].clone()
                             }
                         }
+                        Un::Sin | Un::Cos if twin[k] != usize::MAX => {
+                            aux[slot[twin[k]] * m + i].clone()
+                        }
                         Un::Sin | Un::Cos => {
                             // Row `k` of `c` is this function, its `aux` row the companion.
                             let sin = f == Un::Sin;
@@ -434,21 +459,38 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
     )
 }
 
+/// What a recording has gathered so far: the instructions, whether an operation without
+/// an instruction (a hull) was met, and whether the recorded function asked for a value
+/// or a sign of its arguments (a branch that the values decide).
+struct Tape {
+    ops: Vec<Op>,
+    refused: bool,
+    asked: bool,
+}
+
 thread_local! {
-    /// The instructions recorded so far on this thread (`None`: not recording), and
-    /// whether an operation without an instruction (a hull) was met.
-    static TAPE: RefCell<Option<(Vec<Op>, bool)>> = const { RefCell::new(None) };
+    /// The recording in progress on this thread (`None`: not recording).
+    static TAPE: RefCell<Option<Tape>> = const { RefCell::new(None) };
 }
 
 fn push(op: Op) -> usize {
     TAPE.with(|t| {
         let mut t = t.borrow_mut();
-        let (ops, _) = t
+        let tape = t
             .as_mut()
             .expect("Rec used outside samara_system::taylor::record");
-        ops.push(op);
-        ops.len() - 1
+        tape.ops.push(op);
+        tape.ops.len() - 1
     })
+}
+
+/// Note that the recorded function looked at a value (its instructions may depend on it).
+fn asked() {
+    TAPE.with(|t| {
+        if let Some(tape) = t.borrow_mut().as_mut() {
+            tape.asked = true;
+        }
+    });
 }
 
 /// A value being recorded: its instruction and its value in `S` (which decides the
@@ -531,6 +573,7 @@ impl<S: Scalar> Scalar for Rec<S> {
         }
     }
     fn value(&self) -> f64 {
+        asked();
         self.val.value()
     }
     fn sin(&self) -> Self {
@@ -562,13 +605,14 @@ impl<S: Scalar> Scalar for Rec<S> {
     }
     /// As [`Series`]: only a strict sign of the constant coefficient decides.
     fn sign(&self) -> Sign {
+        asked();
         self.val.sign().strict()
     }
     /// A hull has no instruction: the recording is refused (a series would be `bad`).
     fn hull(&self, o: &Self) -> Self {
         TAPE.with(|t| {
-            if let Some((_, refused)) = t.borrow_mut().as_mut() {
-                *refused = true;
+            if let Some(tape) = t.borrow_mut().as_mut() {
+                tape.refused = true;
             }
         });
         Rec {
@@ -588,7 +632,29 @@ pub fn record<S: Scalar>(
     n_out: usize,
     f: impl FnOnce(&[Rec<S>], &[Rec<S>], &mut [Rec<S>]),
 ) -> Option<Graph> {
-    TAPE.with(|t| *t.borrow_mut() = Some((Vec::new(), false)));
+    record_checked(x, u, n_out, f).map(|(g, _)| g)
+}
+
+/// [`record`], and whether its graph holds at every argument: `true` when `f` never
+/// asked for a sign or a value of what it computes ([`Scalar::sign`],
+/// [`Scalar::value`], through which every branch of a generic function on a
+/// [`Scalar`] goes). Its instructions then depend on nothing the values decide, and a
+/// recording at any other `x`, `u` gives the same graph: a caller may keep it and
+/// expand it at every argument (the glider's reduced model: one recording per thread
+/// instead of one per validated step).
+pub fn record_checked<S: Scalar>(
+    x: &[S],
+    u: &[S],
+    n_out: usize,
+    f: impl FnOnce(&[Rec<S>], &[Rec<S>], &mut [Rec<S>]),
+) -> Option<(Graph, bool)> {
+    TAPE.with(|t| {
+        *t.borrow_mut() = Some(Tape {
+            ops: Vec::new(),
+            refused: false,
+            asked: false,
+        })
+    });
     let xs: Vec<Rec<S>> = x
         .iter()
         .enumerate()
@@ -612,12 +678,62 @@ pub fn record<S: Scalar>(
         })
         .collect();
     f(&xs, &us, &mut out);
-    let (ops, refused) = TAPE.with(|t| t.borrow_mut().take()).expect("recording");
-    if refused {
+    let tape = TAPE.with(|t| t.borrow_mut().take()).expect("recording");
+    if tape.refused {
         return None;
     }
-    Some(Graph {
-        ops,
-        outputs: out.iter().map(|r| r.id).collect(),
-    })
+    Some((
+        Graph {
+            ops: tape.ops,
+            outputs: out.iter().map(|r| r.id).collect(),
+        },
+        !tape.asked,
+    ))
+}
+
+/// `g` with every repeated instruction (the same operation on the same operands, constants
+/// compared bit for bit) computed once and instructions no output reads dropped: common
+/// subexpression elimination by hash-consing, as [`crate::System`]'s graphs are built.
+/// Nothing is folded or reordered, so every expansion of the result gives the same
+/// numbers as of `g`, with less work (the glider's recorded right-hand side computes
+/// `alpha^2` and `omega^2` twice each).
+pub fn merge_common(g: &Graph) -> Graph {
+    let n = g.ops.len();
+    // Renumbering of the first pass: each instruction to its first equal.
+    let mut to = vec![0usize; n];
+    let mut seen: HashMap<(u8, u64, u64, u64), usize> = HashMap::with_capacity(n);
+    let mut ops: Vec<Op> = Vec::with_capacity(n);
+    for (k, op) in g.ops.iter().enumerate() {
+        let op = op.remap(|a| to[a]);
+        to[k] = *seen.entry(op.key()).or_insert_with(|| {
+            ops.push(op);
+            ops.len() - 1
+        });
+    }
+    let outputs: Vec<usize> = g.outputs.iter().map(|&o| to[o]).collect();
+    // Drop what no output reads.
+    let mut live = vec![false; ops.len()];
+    for &o in &outputs {
+        live[o] = true;
+    }
+    for k in (0..ops.len()).rev() {
+        if live[k] {
+            let (a, m) = ops[k].operands();
+            for &j in &a[..m] {
+                live[j] = true;
+            }
+        }
+    }
+    let mut index = vec![usize::MAX; ops.len()];
+    let mut kept = Vec::with_capacity(ops.len());
+    for (k, op) in ops.into_iter().enumerate() {
+        if live[k] {
+            index[k] = kept.len();
+            kept.push(op.remap(|a| index[a]));
+        }
+    }
+    Graph {
+        ops: kept,
+        outputs: outputs.iter().map(|&o| index[o]).collect(),
+    }
 }

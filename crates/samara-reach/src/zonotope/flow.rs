@@ -25,6 +25,7 @@ use samara_plant::Plant;
 use samara_system::taylor::SeriesScratch;
 use samara_system::Graph;
 use std::cell::RefCell;
+use std::rc::Rc;
 
 thread_local! {
     /// The series expansions' tables, per worker thread: allocated once, not four
@@ -32,6 +33,9 @@ thread_local! {
     /// time before).
     static SCRATCH_I: RefCell<SeriesScratch<Interval>> = RefCell::new(SeriesScratch::default());
     static SCRATCH_D: RefCell<SeriesScratch<IDual<ND>>> = RefCell::new(SeriesScratch::default());
+    /// The right-hand side's graph where it holds at every box ([`record_rhs`]), with
+    /// the plant it was recorded for.
+    static GRAPH: RefCell<Option<(Plant, Rc<Graph>)>> = const { RefCell::new(None) };
 }
 
 /// Taylor order of the validated steps.
@@ -163,13 +167,33 @@ fn rhs_interval(plant: &Plant, x: &[Interval]) -> Vec<Interval> {
 /// subset of `b`, so one recording over a step's a-priori box serves every expansion of
 /// the step (over the set's box, at its centre, with duals over the box): the graph a
 /// recording at any of those would give.
-fn record_rhs(plant: &Plant, b: &[Interval]) -> Option<Graph> {
+///
+/// A plant whose right-hand side decides no branch on values (the reduced model: no
+/// sign is asked, [`samara_system::taylor::record_checked`]) records the same graph at
+/// every box: it is recorded once per thread and plant, with its common subexpressions
+/// merged ([`samara_system::taylor::merge_common`]: the same numbers, `alpha^2`,
+/// `omega^2` and `cos theta` computed once).
+fn record_rhs(plant: &Plant, b: &[Interval]) -> Option<Rc<Graph>> {
+    if let Some(g) = GRAPH.with_borrow(|c| {
+        c.as_ref()
+            .filter(|(p, _)| p == plant)
+            .map(|(_, g)| Rc::clone(g))
+    }) {
+        return Some(g);
+    }
     let n = b.len() - 1;
-    samara_system::taylor::record(&b[..n], &b[n..], n, |x, u, out| {
-        let mut full = x.to_vec();
-        full.push(u[0].clone());
-        rhs6(plant, &full, out);
-    })
+    let (g, everywhere) =
+        samara_system::taylor::record_checked(&b[..n], &b[n..], n, |x, u, out| {
+            let mut full = x.to_vec();
+            full.push(u[0].clone());
+            rhs6(plant, &full, out);
+        })?;
+    if !everywhere {
+        return Some(Rc::new(g));
+    }
+    let g = Rc::new(samara_system::taylor::merge_common(&g));
+    GRAPH.set(Some((plant.clone(), Rc::clone(&g))));
+    Some(g)
 }
 
 /// Taylor coefficients `0..=upto` of the solution from `x0` (last entry: ex, constant),
@@ -232,7 +256,7 @@ fn taylor_step(
     // Remainder h^{p+1} x_{p+1}(B).
     let rec = record_rhs(plant, &b);
     let tb = SCRATCH_I
-        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_ref(), &b, ORDER + 1, sc));
+        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_deref(), &b, ORDER + 1, sc));
     if tb[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -260,7 +284,7 @@ fn taylor_step(
     // T(c).
     let cpt: Vec<Interval> = z.c.iter().map(|&v| Interval::point(v)).collect();
     let tc = SCRATCH_I
-        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_ref(), &cpt, ORDER, sc));
+        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_deref(), &cpt, ORDER, sc));
     if tc[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -274,8 +298,8 @@ fn taylor_step(
     };
     // Orders above JAC_ORDER enter by intervals over box(Z):
     // h^i (x_i(s) - x_i(c)) ∈ h^i (x_i(box Z) - x_i(c)).
-    let tz =
-        SCRATCH_I.with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_ref(), &bz, ORDER, sc));
+    let tz = SCRATCH_I
+        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_deref(), &bz, ORDER, sc));
     if tz[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
@@ -294,7 +318,13 @@ fn taylor_step(
         .collect();
     // DT(box Z).
     let tj = SCRATCH_D.with_borrow_mut(|sc| {
-        taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, rec.as_ref(), &dual_seeds(&bz), JAC_ORDER, sc)
+        taylor::<IDual<ND>, { JAC_ORDER + 1 }>(
+            plant,
+            rec.as_deref(),
+            &dual_seeds(&bz),
+            JAC_ORDER,
+            sc,
+        )
     });
     if tj[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
