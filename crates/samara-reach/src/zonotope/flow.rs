@@ -241,14 +241,15 @@ fn apriori(plant: &Plant, bz: &[Interval], h: f64) -> Option<Vec<Interval>> {
     apriori_by(|x| rhs_interval(plant, x), bz, h)
 }
 
-/// One Taylor step; `None` if it cannot be validated at this `h`.
+/// One Taylor step, `z` replaced by its image; `None` (and `z` unchanged) if it cannot
+/// be validated at this `h`. Returns the a-priori box.
 fn taylor_step(
     plant: &Plant,
-    z: &Zonotope,
+    z: &mut Zonotope,
     h: f64,
     s: &FlowSettings,
     hint: &mut f64,
-) -> Option<(Zonotope, Vec<Interval>)> {
+) -> Option<Vec<Interval>> {
     let d = z.dim();
     let n = d - 1;
     let bz = z.bbox();
@@ -350,65 +351,65 @@ fn taylor_step(
     if jac.iter().any(|r| !finite(r)) || !finite(&centre) {
         return None;
     }
-    Some((compose(z, &centre, &jac, s), b))
+    compose(z, &centre, &jac, s);
+    Some(b)
 }
 
-/// The zonotope `centre + jac G xi`: `mid(jac)` maps the generators exactly; the radius of
-/// `jac` times `|G|`, the centre's width and the rounding of the products become new
-/// axis-aligned generators (then Girard reduction). `centre` covers the first rows
-/// (the states); the control row is carried unchanged.
-fn compose(z: &Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSettings) -> Zonotope {
+/// The zonotope `centre + jac G xi`, in place of `z = c + G xi`: `mid(jac)` maps the
+/// generators exactly; the radius of `jac` times `|G|`, the centre's width and the
+/// rounding of the products become new axis-aligned generators (then Girard
+/// reduction). `centre` covers the first rows (the states); the control row is carried
+/// unchanged.
+///
+/// Each generator's image is summed over the columns `k` in increasing order, one
+/// accumulator per row: the rows' sums are independent (they vectorise, and no sum
+/// waits on the previous one's rounding), each the same floats as a row-by-row loop.
+fn compose(z: &mut Zonotope, centre: &[Interval], jac: &[Vec<Interval>], s: &FlowSettings) {
+    const D: usize = ROWS;
     let d = z.dim();
-    // Row-major d x d midpoint and radius matrices of `jac`.
-    let mid: Vec<f64> = jac
-        .iter()
-        .flat_map(|r| r.iter().map(|x| 0.5 * (x.lo + x.hi)))
-        .collect();
-    let rad: Vec<f64> = jac
-        .iter()
-        .flatten()
-        .zip(&mid)
-        .map(|(x, mm)| (x.hi - mm).max(mm - x.lo).next_up())
-        .collect();
+    debug_assert_eq!(d, D, "the flow's sets have ROWS rows");
+    // Column-major midpoint and radius matrices of `jac`: `mid_t[k][j]` = mid(jac[j][k]).
+    let mut mid_t = [[0.0f64; D]; D];
+    let mut rad_t = [[0.0f64; D]; D];
+    for j in 0..D {
+        for k in 0..D {
+            let x = jac[j][k];
+            let mm = 0.5 * (x.lo + x.hi);
+            mid_t[k][j] = mm;
+            rad_t[k][j] = (x.hi - mm).max(mm - x.lo).next_up();
+        }
+    }
     let gd = gamma(d);
-    let mut noise = vec![0.0f64; d];
-    let mut c = z.c.clone();
+    let mut noise = [0.0f64; D];
     for j in 0..centre.len() {
         let m = 0.5 * (centre[j].lo + centre[j].hi);
-        c[j] = m;
+        z.c[j] = m;
         noise[j] = (centre[j].hi - m).max(m - centre[j].lo).next_up();
     }
-    let mut gens = Vec::with_capacity(z.gens.len() + d);
-    for g in &z.gens {
-        let g = &g[..d];
-        let mut ng = vec![0.0; d];
-        for j in 0..d {
-            let (mr, rr) = (&mid[j * d..(j + 1) * d], &rad[j * d..(j + 1) * d]);
-            let mut acc = 0.0;
-            let mut mag = 0.0;
-            let mut radterm = 0.0;
-            for k in 0..d {
-                let p = mr[k] * g[k];
-                acc += p;
-                mag += p.abs();
-                radterm += rr[k] * g[k].abs();
+    for g in z.gens.iter_mut() {
+        let g: &mut [f64; D] = (&mut g[..D]).try_into().expect("D rows");
+        let mut acc = [0.0f64; D];
+        let mut mag = [0.0f64; D];
+        let mut radterm = [0.0f64; D];
+        for k in 0..D {
+            let (gk, ak) = (g[k], g[k].abs());
+            for j in 0..D {
+                let p = mid_t[k][j] * gk;
+                acc[j] += p;
+                mag[j] += p.abs();
+                radterm[j] += rad_t[k][j] * ak;
             }
-            ng[j] = acc;
-            noise[j] += (radterm + mag * gd) * (1.0 + gd);
         }
-        gens.push(ng);
+        for j in 0..D {
+            noise[j] += (radterm[j] + mag[j] * gd) * (1.0 + gd);
+        }
+        *g = acc;
     }
     for x in noise.iter_mut() {
         *x = x.next_up();
     }
-    let mut nz = Zonotope {
-        c,
-        gens,
-        n_param: z.n_param,
-    };
-    nz.add_box(&noise);
-    nz.reduce(s.max_noise_per_dim * d);
-    nz
+    z.add_box(&noise);
+    z.reduce(s.max_noise_per_dim * d);
 }
 
 /// Enclosure of the right-hand side's Jacobian (rows and columns: the 6 states and ex)
@@ -467,13 +468,13 @@ fn identity(d: usize) -> Vec<Vec<Interval>> {
 /// of both pieces' derivatives), the flow's Jacobian over `[0, h]` by the fixed point
 /// `W ⊇ I + [0, h] J(B) W`, and `phi_h(Z) ⊆ phi_h(c) + (I + h J + h²/2 J J W) G xi` by the
 /// mean-value theorem (Clarke's version for Lipschitz maps), with
-/// `phi_h(c) ∈ c + h f(B_c)`.
+/// `phi_h(c) ∈ c + h f(B_c)`. As [`taylor_step`]: `z` replaced by its image, or unchanged.
 fn lohner1_step(
     plant: &Plant,
-    z: &Zonotope,
+    z: &mut Zonotope,
     h: f64,
     s: &FlowSettings,
-) -> Option<(Zonotope, Vec<Interval>)> {
+) -> Option<Vec<Interval>> {
     let d = z.dim();
     let n = d - 1;
     let bz = z.bbox();
@@ -548,31 +549,32 @@ fn lohner1_step(
     if !finite(&centre) || wh.iter().any(|r| !finite(r)) {
         return None;
     }
-    Some((compose(z, &centre, &wh, s), b))
+    compose(z, &centre, &wh, s);
+    Some(b)
 }
 
-/// The zeroth-order step `phi_h(Z) ⊆ Z ⊕ h f(B)`.
+/// The zeroth-order step `phi_h(Z) ⊆ Z ⊕ h f(B)`. As [`taylor_step`]: `z` replaced by
+/// its image, or unchanged.
 fn fallback_step(
     plant: &Plant,
-    z: &Zonotope,
+    z: &mut Zonotope,
     h: f64,
     s: &FlowSettings,
-) -> Option<(Zonotope, Vec<Interval>)> {
+) -> Option<Vec<Interval>> {
     let bz = z.bbox();
     let b = apriori(plant, &bz, h)?;
     let fb = rhs_interval(plant, &b);
-    let mut nz = z.clone();
     let mut r = vec![0.0; z.dim()];
     for j in 0..z.dim() - 1 {
         let inc = fb[j] * h;
         let m = 0.5 * (inc.lo + inc.hi);
-        let e = (nz.c[j].abs() + m.abs()) * f64::EPSILON;
-        nz.c[j] += m;
+        let e = (z.c[j].abs() + m.abs()) * f64::EPSILON;
+        z.c[j] += m;
         r[j] = ((inc.hi - m).max(m - inc.lo) + e).next_up();
     }
-    nz.add_box(&r);
-    nz.reduce(s.max_noise_per_dim * z.dim());
-    Some((nz, b))
+    z.add_box(&r);
+    z.reduce(s.max_noise_per_dim * z.dim());
+    Some(b)
 }
 
 /// Enclose the flow of `z` (last row: the held control) over `[0, period]`. Returns
@@ -593,20 +595,21 @@ pub fn flow_period(
         let rest = period - t;
         let hh = if h >= rest * (1.0 - 1e-12) { rest } else { h };
         let mut hint = 0.5 * hh;
-        let mut res = taylor_step(plant, &z, hh, s, &mut hint);
+        // Each step replaces `z` by its image only where it succeeds.
+        let mut res = taylor_step(plant, &mut z, hh, s, &mut hint);
         if res.is_some() {
             st.taylor_steps += 1;
         } else if hh <= s.h_min_taylor * 1.0001 || hint.is_nan() && hh <= s.h_lohner1 {
             // Not analytic here (hint NaN), or Taylor cannot be validated: first order.
-            res = lohner1_step(plant, &z, hh, s).or_else(|| fallback_step(plant, &z, hh, s));
+            res =
+                lohner1_step(plant, &mut z, hh, s).or_else(|| fallback_step(plant, &mut z, hh, s));
             if res.is_some() {
                 st.fallback_steps += 1;
             }
         }
         match res {
-            Some((nz, b)) => {
+            Some(b) => {
                 xy = xy.hull(&(b[4] + b[5]));
-                z = nz;
                 t = if hh == rest { period } else { t + hh };
                 if hh < rest {
                     h = hint.clamp(0.5 * hh, 4.0 * hh).max(s.h_min_taylor).min(s.h);

@@ -131,12 +131,23 @@ impl Zonotope {
         for (i, ri) in r.iter_mut().enumerate() {
             *ri = abs_sum_up(boxed.iter().map(|&k| self.gens[k][i]));
         }
-        let mut gens: Vec<Vec<f64>> = self.gens[..np].to_vec();
-        for &k in kept {
-            gens.push(self.gens[k].clone());
+        // The generators are moved, not copied, into their new order; the boxed ones'
+        // storage holds the new box generators.
+        let mut old = std::mem::take(&mut self.gens);
+        let mut gens: Vec<Vec<f64>> = Vec::with_capacity(np + kept.len() + d);
+        gens.extend(old[..np].iter_mut().map(std::mem::take));
+        gens.extend(kept.iter().map(|&k| std::mem::take(&mut old[k])));
+        let mut spare = boxed.iter().map(|&k| std::mem::take(&mut old[k]));
+        for (i, &ri) in r.iter().enumerate() {
+            if ri > 0.0 {
+                let mut g = spare.next().unwrap_or_default();
+                g.clear();
+                g.resize(d, 0.0);
+                g[i] = ri;
+                gens.push(g);
+            }
         }
         self.gens = gens;
-        self.add_box(&r);
     }
 
     /// Split along parameter generator `j`: `xi_j in [-1, 0]` and `[0, 1]`, exactly.
