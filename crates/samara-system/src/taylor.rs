@@ -109,11 +109,101 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
     scratch: &mut SeriesScratch<S>,
 ) -> Option<Vec<Series<S, K>>> {
     let m = upto + 1;
-    if m > K || g.outputs.len() != x0.len() {
+    if m > K || g.outputs.len() != x0.len() || !prepare(g, m, scratch) {
         return None;
     }
-    let nops = g.ops.len();
-    let zero = S::cst(0.0);
+    let mut x = start(x0, m);
+    for i in 0..upto {
+        advance(g, i, m, &mut x, u, trim, scratch);
+    }
+    Some(collect(g, x, m, &scratch.bad))
+}
+
+/// The expansion of [`solution_series_trimmed_in`] on `S` to order `upto_s`, continued on
+/// `T` to order `upto_t` from the coefficients so far mapped by `proj` (both without
+/// trimming): the coefficients `0..=upto_s` of the first and `0..=upto_t` of the second.
+///
+/// The lower orders are computed once, on `S`. Where `proj` maps each coefficient to
+/// an enclosure of the same number in `T` (the value part of an interval dual), the
+/// continuation encloses the higher coefficients: every recurrence of order `i` reads
+/// coefficients below `i` only, and is inclusion-monotone. Where `proj` commutes with
+/// every operation (the value part of an [`samara_num::IDual`] is computed by the very
+/// interval operations on the value parts), the second series are, bit for bit, those of
+/// [`solution_series_trimmed_in`] on `T` from `proj(x0)` (the Lohner step's Jacobian and
+/// its higher orders over one box: the lower orders' values not computed twice). The
+/// branches are decided once, on `S`. `None` where [`solution_series_trimmed_in`] gives
+/// `None`, or `upto_s > upto_t`.
+#[allow(clippy::too_many_arguments)]
+pub fn solution_series_pair_in<S: Scalar, T: Scalar, const KS: usize, const KT: usize>(
+    g: &Graph,
+    x0: &[S],
+    u: &[S],
+    upto_s: usize,
+    upto_t: usize,
+    proj: &dyn Fn(&S) -> T,
+    scratch_s: &mut SeriesScratch<S>,
+    scratch_t: &mut SeriesScratch<T>,
+) -> Option<(Vec<Series<S, KS>>, Vec<Series<T, KT>>)> {
+    let (ms, mt) = (upto_s + 1, upto_t + 1);
+    if ms > KS || mt > KT || upto_s > upto_t || g.outputs.len() != x0.len() {
+        return None;
+    }
+    if !prepare(g, ms, scratch_s) || !prepare(g, mt, scratch_t) {
+        return None;
+    }
+    let keep: &dyn Fn(usize, S) -> S = &|_, v| v;
+    let mut xs = start(x0, ms);
+    for i in 0..upto_s {
+        advance(g, i, ms, &mut xs, u, keep, scratch_s);
+    }
+    // The same graph: the same rows and companion slots in both tables.
+    let rows = |from: &[S], to: &mut [T]| {
+        for (f, t) in from.chunks(ms).zip(to.chunks_mut(mt)) {
+            for (a, b) in f.iter().zip(t.iter_mut()) {
+                *b = proj(a);
+            }
+        }
+    };
+    rows(&scratch_s.c, &mut scratch_t.c);
+    rows(&scratch_s.aux, &mut scratch_t.aux);
+    rows(&scratch_s.aux2, &mut scratch_t.aux2);
+    scratch_t.bad.clone_from(&scratch_s.bad);
+    scratch_t.pick.clone_from(&scratch_s.pick);
+    let mut xt: Vec<Vec<T>> = xs
+        .iter()
+        .map(|r| {
+            let mut v = vec![T::cst(0.0); mt];
+            for (a, b) in r.iter().zip(v.iter_mut()) {
+                *b = proj(a);
+            }
+            v
+        })
+        .collect();
+    let ut: Vec<T> = u.iter().map(proj).collect();
+    let keep_t: &dyn Fn(usize, T) -> T = &|_, v| v;
+    for i in upto_s..upto_t {
+        advance(g, i, mt, &mut xt, &ut, keep_t, scratch_t);
+    }
+    Some((
+        collect(g, xs, ms, &scratch_s.bad),
+        collect(g, xt, mt, &scratch_t.bad),
+    ))
+}
+
+/// The states' coefficient table: row `j` holds `x0[j]` and `m - 1` zeros.
+fn start<S: Scalar>(x0: &[S], m: usize) -> Vec<Vec<S>> {
+    x0.iter()
+        .map(|v| {
+            let mut r = vec![S::cst(0.0); m];
+            r[0] = v.clone();
+            r
+        })
+        .collect()
+}
+
+/// Reset the tables of `scratch` for an expansion of `g` with `m` coefficients per row;
+/// `false` if an instruction without a recurrence here reads the states.
+fn prepare<S: Scalar>(g: &Graph, m: usize, scratch: &mut SeriesScratch<S>) -> bool {
     let SeriesScratch {
         c,
         aux,
@@ -125,6 +215,8 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
         bad,
         pick,
     } = scratch;
+    let nops = g.ops.len();
+    let zero = S::cst(0.0);
     // Coefficients per instruction: row `k` is `c[k * m..(k + 1) * m]`.
     refill(c, nops * m, zero.clone());
     // Companion series only for the instructions that need them: `slot[k]` is the row
@@ -159,14 +251,6 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
     // Decided branches, per instruction (0: undecided): for `abs` the sign -1 / 1, for
     // `select` 1 the first branch, -1 the second.
     refill(pick, nops, 0i8);
-    let mut x: Vec<Vec<S>> = x0
-        .iter()
-        .map(|v| {
-            let mut r = vec![zero.clone(); m];
-            r[0] = v.clone();
-            r
-        })
-        .collect();
     // Instructions without a recurrence here (tan, sgn, min, max, powi) are taken
     // only on constants, by their own arithmetic on the constant coefficient (as a
     // series of constants computes them).
@@ -204,259 +288,292 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
             }
         };
         if generic && !konst[k] {
-            return None;
+            return false;
         }
     }
-    for i in 0..upto {
-        for k in 0..nops {
-            // Constants have only their constant coefficient.
-            if konst[k] && i > 0 {
-                continue;
-            }
-            let v = {
-                let r = |a: usize| &c[a * m..(a + 1) * m];
-                match g.ops[k] {
-                    Op::Const(v) => S::cst(v),
-                    Op::State(s) => x[s][i].clone(),
-                    Op::Input(s) => u[s].clone(),
-                    Op::AddC(a, v) => {
-                        if i == 0 {
-                            r(a)[0].clone() + v
-                        } else {
-                            r(a)[i].clone()
-                        }
+    true
+}
+
+/// Order `i` of every instruction (from the orders below it), then coefficient `i + 1`
+/// of every state, through `trim`.
+fn advance<S: Scalar>(
+    g: &Graph,
+    i: usize,
+    m: usize,
+    x: &mut [Vec<S>],
+    u: &[S],
+    trim: &dyn Fn(usize, S) -> S,
+    scratch: &mut SeriesScratch<S>,
+) {
+    let nops = g.ops.len();
+    let zero = S::cst(0.0);
+    let SeriesScratch {
+        c,
+        aux,
+        aux2,
+        slot,
+        twin,
+        trig: _,
+        konst,
+        bad,
+        pick,
+    } = scratch;
+    for k in 0..nops {
+        // Constants have only their constant coefficient.
+        if konst[k] && i > 0 {
+            continue;
+        }
+        let v = {
+            let r = |a: usize| &c[a * m..(a + 1) * m];
+            match g.ops[k] {
+                Op::Const(v) => S::cst(v),
+                Op::State(s) => x[s][i].clone(),
+                Op::Input(s) => u[s].clone(),
+                Op::AddC(a, v) => {
+                    if i == 0 {
+                        r(a)[0].clone() + v
+                    } else {
+                        r(a)[i].clone()
                     }
-                    Op::SubC(a, v) => {
-                        if i == 0 {
-                            r(a)[0].clone() - v
-                        } else {
-                            r(a)[i].clone()
-                        }
+                }
+                Op::SubC(a, v) => {
+                    if i == 0 {
+                        r(a)[0].clone() - v
+                    } else {
+                        r(a)[i].clone()
                     }
-                    Op::CSub(v, a) => {
-                        if i == 0 {
-                            -r(a)[0].clone() + v
-                        } else {
-                            -r(a)[i].clone()
-                        }
+                }
+                Op::CSub(v, a) => {
+                    if i == 0 {
+                        -r(a)[0].clone() + v
+                    } else {
+                        -r(a)[i].clone()
                     }
-                    Op::MulC(a, v) => r(a)[i].clone() * v,
-                    Op::DivC(a, v) => r(a)[i].clone() / v,
-                    // `S::cst(v) / a`: a constant numerator.
-                    Op::CDiv(v, a) => {
+                }
+                Op::MulC(a, v) => r(a)[i].clone() * v,
+                Op::DivC(a, v) => r(a)[i].clone() / v,
+                // `S::cst(v) / a`: a constant numerator.
+                Op::CDiv(v, a) => {
+                    if konst[a] {
+                        S::cst(v) / r(a)[0].clone()
+                    } else {
+                        let num = if i == 0 { S::cst(v) } else { zero.clone() };
+                        let cap = quot_cap(&num, r(a), &c[k * m..(k + 1) * m], i, 1..i + 1);
+                        let mut acc = num;
+                        for j in 1..=i {
+                            acc -= r(a)[j].mul_capped(&c[k * m + i - j], cap);
+                        }
+                        acc / r(a)[0].clone()
+                    }
+                }
+                Op::Bin(f, a, b) => match f {
+                    Bin2::Add => r(a)[i].clone() + r(b)[i].clone(),
+                    Bin2::Sub => r(a)[i].clone() - r(b)[i].clone(),
+                    Bin2::Mul => {
                         if konst[a] {
-                            S::cst(v) / r(a)[0].clone()
+                            r(b)[i].mul_by_ref(&r(a)[0])
+                        } else if konst[b] {
+                            r(a)[i].mul_by_ref(&r(b)[0])
                         } else {
-                            let num = if i == 0 { S::cst(v) } else { zero.clone() };
-                            let cap = quot_cap(&num, r(a), &c[k * m..(k + 1) * m], i, 1..i + 1);
-                            let mut acc = num;
+                            conv(r(a), r(b), i)
+                        }
+                    }
+                    Bin2::Div => {
+                        if konst[b] {
+                            r(a)[i].clone() / r(b)[0].clone()
+                        } else {
+                            let mut acc = r(a)[i].clone();
+                            let cap = quot_cap(&acc, r(b), &c[k * m..(k + 1) * m], i, 1..i + 1);
                             for j in 1..=i {
-                                acc -= r(a)[j].mul_capped(&c[k * m + i - j], cap);
+                                acc -= r(b)[j].mul_capped(&c[k * m + i - j], cap);
+                            }
+                            acc / r(b)[0].clone()
+                        }
+                    }
+                    // Constants only (refused above otherwise): i = 0.
+                    Bin2::Min | Bin2::Max => crate::graph::bin(f, &r(a)[0], &r(b)[0]),
+                },
+                Op::Un(f, a) => match f {
+                    Un::Neg => -r(a)[i].clone(),
+                    Un::Sqr => {
+                        if i == 0 {
+                            r(a)[0].sqr()
+                        } else {
+                            conv(r(a), r(a), i)
+                        }
+                    }
+                    Un::Sqrt => {
+                        if i == 0 {
+                            r(a)[0].sqrt()
+                        } else {
+                            let mut acc = r(a)[i].clone();
+                            let row = &c[k * m..(k + 1) * m];
+                            let cap = quot_cap(&acc, row, row, i, 1..i);
+                            for j in 1..i {
+                                acc -= c[k * m + j].mul_capped(&c[k * m + i - j], cap);
+                            }
+                            acc / (c[k * m].clone() * 2.0)
+                        }
+                    }
+                    Un::Exp => {
+                        if i == 0 {
+                            r(a)[0].exp()
+                        } else {
+                            dconv(r(a), &c[k * m..(k + 1) * m], i)
+                        }
+                    }
+                    Un::Ln => {
+                        if i == 0 {
+                            r(a)[0].ln()
+                        } else {
+                            let mut acc = r(a)[i].clone();
+                            for j in 1..i {
+                                acc -= c[k * m + j].clone()
+                                    * r(a)[i - j].clone()
+                                    * (j as f64 / i as f64);
                             }
                             acc / r(a)[0].clone()
                         }
                     }
-                    Op::Bin(f, a, b) => match f {
-                        Bin2::Add => r(a)[i].clone() + r(b)[i].clone(),
-                        Bin2::Sub => r(a)[i].clone() - r(b)[i].clone(),
-                        Bin2::Mul => {
-                            if konst[a] {
-                                r(b)[i].mul_by_ref(&r(a)[0])
-                            } else if konst[b] {
-                                r(a)[i].mul_by_ref(&r(b)[0])
-                            } else {
-                                conv(r(a), r(b), i)
-                            }
-                        }
-                        Bin2::Div => {
-                            if konst[b] {
-                                r(a)[i].clone() / r(b)[0].clone()
-                            } else {
-                                let mut acc = r(a)[i].clone();
-                                let cap = quot_cap(&acc, r(b), &c[k * m..(k + 1) * m], i, 1..i + 1);
-                                for j in 1..=i {
-                                    acc -= r(b)[j].mul_capped(&c[k * m + i - j], cap);
-                                }
-                                acc / r(b)[0].clone()
-                            }
-                        }
-                        // Constants only (refused above otherwise): i = 0.
-                        Bin2::Min | Bin2::Max => crate::graph::bin(f, &r(a)[0], &r(b)[0]),
-                    },
-                    Op::Un(f, a) => match f {
-                        Un::Neg => -r(a)[i].clone(),
-                        Un::Sqr => {
-                            if i == 0 {
-                                r(a)[0].sqr()
-                            } else {
-                                conv(r(a), r(a), i)
-                            }
-                        }
-                        Un::Sqrt => {
-                            if i == 0 {
-                                r(a)[0].sqrt()
-                            } else {
-                                let mut acc = r(a)[i].clone();
-                                let row = &c[k * m..(k + 1) * m];
-                                let cap = quot_cap(&acc, row, row, i, 1..i);
-                                for j in 1..i {
-                                    acc -= c[k * m + j].mul_capped(&c[k * m + i - j], cap);
-                                }
-                                acc / (c[k * m].clone() * 2.0)
-                            }
-                        }
-                        Un::Exp => {
-                            if i == 0 {
-                                r(a)[0].exp()
-                            } else {
-                                dconv(r(a), &c[k * m..(k + 1) * m], i)
-                            }
-                        }
-                        Un::Ln => {
-                            if i == 0 {
-                                r(a)[0].ln()
-                            } else {
-                                let mut acc = r(a)[i].clone();
-                                for j in 1..i {
-                                    acc -= c[k * m + j].clone()
-                                        * r(a)[i - j].clone()
-                                        * (j as f64 / i as f64);
-                                }
-                                acc / r(a)[0].clone()
-                            }
-                        }
-                        Un::Sin | Un::Cos if twin[k] != usize::MAX => {
-                            aux[slot[twin[k]] * m + i].clone()
-                        }
-                        Un::Sin | Un::Cos => {
-                            // Row `k` of `c` is this function, its `aux` row the companion.
-                            let sin = f == Un::Sin;
-                            if i == 0 {
-                                let (s0, c0) = r(a)[0].sin_cos();
-                                let (own, other) = if sin { (s0, c0) } else { (c0, s0) };
-                                aux[slot[k] * m] = other;
-                                own
-                            } else {
-                                let (own, other) = if sin {
-                                    let s = dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
-                                    let co = -dconv(r(a), &c[k * m..(k + 1) * m], i);
-                                    (s, co)
-                                } else {
-                                    let s = dconv(r(a), &c[k * m..(k + 1) * m], i);
-                                    let co = -dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
-                                    (co, s)
-                                };
-                                aux[slot[k] * m + i] = other;
-                                own
-                            }
-                        }
-                        Un::Atan => {
-                            // q = a^2 + 1 (aux), d_{i-1} = (i a_i - sum q_j d_{i-1-j}) / q_0
-                            // (aux2), u_i = d_{i-1} / i.
-                            if i == 0 {
-                                aux[slot[k] * m] = r(a)[0].sqr() + 1.0;
-                                r(a)[0].atan()
-                            } else {
-                                aux[slot[k] * m + i] = conv(r(a), r(a), i);
-                                let q = i - 1;
-                                let mut acc = r(a)[q + 1].clone() * (q as f64 + 1.0);
-                                for j in 1..=q {
-                                    acc -= aux[slot[k] * m + j].clone()
-                                        * aux2[slot[k] * m + q - j].clone();
-                                }
-                                let d = acc / aux[slot[k] * m].clone();
-                                aux2[slot[k] * m + q] = d.clone();
-                                d / i as f64
-                            }
-                        }
-                        Un::Abs => {
-                            if i == 0 {
-                                pick[k] = match r(a)[0].sign().strict() {
-                                    Sign::Positive => 1,
-                                    Sign::Negative => -1,
-                                    _ => 0,
-                                };
-                            }
-                            match pick[k] {
-                                1 => r(a)[i].clone(),
-                                -1 => -r(a)[i].clone(),
-                                _ => r(a)[i].abs(),
-                            }
-                        }
-                        Un::Tanh => {
-                            // w = 1 - t^2 (aux): t_i = dconv(a, w, i) needs w up to
-                            // i - 1, and w_{i-1} = -(t^2)_{i-1} the t stored so far.
-                            if i == 0 {
-                                let t0 = r(a)[0].tanh();
-                                aux[slot[k] * m] = -t0.sqr() + 1.0;
-                                t0
-                            } else {
-                                if i > 1 {
-                                    aux[slot[k] * m + i - 1] = -conv(r(k), r(k), i - 1);
-                                }
-                                dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i)
-                            }
-                        }
-                        // Constants only (refused above otherwise): i = 0.
-                        Un::Tan | Un::Sgn => crate::graph::un(f, &r(a)[0]),
-                    },
-                    // Constants only (refused above otherwise): i = 0.
-                    Op::Powi(a, n) => r(a)[0].powi(n),
-                    Op::Select(cond, q, a, b) => {
+                    Un::Sin | Un::Cos if twin[k] != usize::MAX => {
+                        aux[slot[twin[k]] * m + i].clone()
+                    }
+                    Un::Sin | Un::Cos => {
+                        // Row `k` of `c` is this function, its `aux` row the companion.
+                        let sin = f == Un::Sin;
                         if i == 0 {
-                            let s = r(q)[0].sign().strict();
-                            pick[k] = match (cond, s) {
-                                (Cond::Neg | Cond::NonPos, Sign::Negative) => 1,
-                                (Cond::Neg | Cond::NonPos, Sign::Positive) => -1,
+                            let (s0, c0) = r(a)[0].sin_cos();
+                            let (own, other) = if sin { (s0, c0) } else { (c0, s0) };
+                            aux[slot[k] * m] = other;
+                            own
+                        } else {
+                            let (own, other) = if sin {
+                                let s = dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
+                                let co = -dconv(r(a), &c[k * m..(k + 1) * m], i);
+                                (s, co)
+                            } else {
+                                let s = dconv(r(a), &c[k * m..(k + 1) * m], i);
+                                let co = -dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i);
+                                (co, s)
+                            };
+                            aux[slot[k] * m + i] = other;
+                            own
+                        }
+                    }
+                    Un::Atan => {
+                        // q = a^2 + 1 (aux), d_{i-1} = (i a_i - sum q_j d_{i-1-j}) / q_0
+                        // (aux2), u_i = d_{i-1} / i.
+                        if i == 0 {
+                            aux[slot[k] * m] = r(a)[0].sqr() + 1.0;
+                            r(a)[0].atan()
+                        } else {
+                            aux[slot[k] * m + i] = conv(r(a), r(a), i);
+                            let q = i - 1;
+                            let mut acc = r(a)[q + 1].clone() * (q as f64 + 1.0);
+                            for j in 1..=q {
+                                acc -= aux[slot[k] * m + j].clone()
+                                    * aux2[slot[k] * m + q - j].clone();
+                            }
+                            let d = acc / aux[slot[k] * m].clone();
+                            aux2[slot[k] * m + q] = d.clone();
+                            d / i as f64
+                        }
+                    }
+                    Un::Abs => {
+                        if i == 0 {
+                            pick[k] = match r(a)[0].sign().strict() {
+                                Sign::Positive => 1,
+                                Sign::Negative => -1,
                                 _ => 0,
                             };
                         }
                         match pick[k] {
                             1 => r(a)[i].clone(),
-                            -1 => r(b)[i].clone(),
-                            _ => r(a)[i].hull(&r(b)[i]),
+                            -1 => -r(a)[i].clone(),
+                            _ => r(a)[i].abs(),
                         }
                     }
+                    Un::Tanh => {
+                        // w = 1 - t^2 (aux): t_i = dconv(a, w, i) needs w up to
+                        // i - 1, and w_{i-1} = -(t^2)_{i-1} the t stored so far.
+                        if i == 0 {
+                            let t0 = r(a)[0].tanh();
+                            aux[slot[k] * m] = -t0.sqr() + 1.0;
+                            t0
+                        } else {
+                            if i > 1 {
+                                aux[slot[k] * m + i - 1] = -conv(r(k), r(k), i - 1);
+                            }
+                            dconv(r(a), &aux[slot[k] * m..(slot[k] + 1) * m], i)
+                        }
+                    }
+                    // Constants only (refused above otherwise): i = 0.
+                    Un::Tan | Un::Sgn => crate::graph::un(f, &r(a)[0]),
+                },
+                // Constants only (refused above otherwise): i = 0.
+                Op::Powi(a, n) => r(a)[0].powi(n),
+                Op::Select(cond, q, a, b) => {
+                    if i == 0 {
+                        let s = r(q)[0].sign().strict();
+                        pick[k] = match (cond, s) {
+                            (Cond::Neg | Cond::NonPos, Sign::Negative) => 1,
+                            (Cond::Neg | Cond::NonPos, Sign::Positive) => -1,
+                            _ => 0,
+                        };
+                    }
+                    match pick[k] {
+                        1 => r(a)[i].clone(),
+                        -1 => r(b)[i].clone(),
+                        _ => r(a)[i].hull(&r(b)[i]),
+                    }
+                }
+            }
+        };
+        c[k * m + i] = v;
+        if i == 0 {
+            // Unusable if an operand is, or the branch was undecided; a decided
+            // select takes its branch's flag, as a series would.
+            bad[k] = match g.ops[k] {
+                Op::Select(_, _, a, b) => match pick[k] {
+                    1 => bad[a],
+                    -1 => bad[b],
+                    _ => true,
+                },
+                Op::Un(Un::Abs, a) => bad[a] || pick[k] == 0,
+                op => {
+                    let (ops, n) = op.operands();
+                    ops[..n].iter().any(|&a| bad[a])
                 }
             };
-            c[k * m + i] = v;
-            if i == 0 {
-                // Unusable if an operand is, or the branch was undecided; a decided
-                // select takes its branch's flag, as a series would.
-                bad[k] = match g.ops[k] {
-                    Op::Select(_, _, a, b) => match pick[k] {
-                        1 => bad[a],
-                        -1 => bad[b],
-                        _ => true,
-                    },
-                    Op::Un(Un::Abs, a) => bad[a] || pick[k] == 0,
-                    op => {
-                        let (ops, n) = op.operands();
-                        ops[..n].iter().any(|&a| bad[a])
-                    }
-                };
-            }
-        }
-        for (j, &o) in g.outputs.iter().enumerate() {
-            x[j][i + 1] = trim(i + 1, c[o * m + i].clone() / (i as f64 + 1.0));
         }
     }
+    for (j, &o) in g.outputs.iter().enumerate() {
+        x[j][i + 1] = trim(i + 1, c[o * m + i].clone() / (i as f64 + 1.0));
+    }
+}
+
+/// The states' series from their coefficient table (`bad` all of them where an output
+/// is).
+fn collect<S: Scalar, const K: usize>(
+    g: &Graph,
+    x: Vec<Vec<S>>,
+    m: usize,
+    bad: &[bool],
+) -> Vec<Series<S, K>> {
     // A state whose series is bad makes every later coefficient of everything reading
     // it unusable: as with series, one bad output spoils them all.
     let all_bad = g.outputs.iter().any(|&o| bad[o]);
-    Some(
-        x.into_iter()
-            .map(|co| {
-                let mut s = Series::var(co[0].clone());
-                for (t, v) in co.into_iter().enumerate() {
-                    s.c[t] = v;
-                }
-                s.n = m;
-                s.bad = all_bad;
-                s
-            })
-            .collect(),
-    )
+    x.into_iter()
+        .map(|co| {
+            let mut s = Series::var(co[0].clone());
+            for (t, v) in co.into_iter().enumerate() {
+                s.c[t] = v;
+            }
+            s.n = m;
+            s.bad = all_bad;
+            s
+        })
+        .collect()
 }
 
 /// What a recording has gathered so far: the instructions, whether an operation without

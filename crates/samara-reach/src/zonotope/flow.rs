@@ -236,6 +236,60 @@ fn taylor<S: Scalar + Copy, const K: usize>(
     x
 }
 
+/// The two expansions over the set's box `bz`: Taylor coefficients `0..=JAC_ORDER` on
+/// interval duals seeded over `bz` ([`dual_seeds`]), and `0..=ORDER` on intervals.
+/// With a recording, one expansion
+/// ([`samara_system::taylor::solution_series_pair_in`]): the duals' orders, then the
+/// interval orders above them continued from the duals' value parts, which are the
+/// interval expansion's own lower orders (a dual's value is computed by the same
+/// interval operations), so the interval series are those of a separate expansion;
+/// two separate expansions ([`taylor`]) otherwise.
+#[allow(clippy::type_complexity)]
+fn over_box(
+    plant: &Plant,
+    g: Option<&Graph>,
+    bz: &[Interval],
+) -> (
+    Vec<Series<IDual<ND>, { JAC_ORDER + 1 }>>,
+    Vec<Series<Interval, KK>>,
+) {
+    let n = bz.len() - 1;
+    let seeds = dual_seeds(bz);
+    let pair = g.and_then(|g| {
+        SCRATCH_D.with_borrow_mut(|sd| {
+            SCRATCH_I.with_borrow_mut(|si| {
+                samara_system::taylor::solution_series_pair_in::<
+                    IDual<ND>,
+                    Interval,
+                    { JAC_ORDER + 1 },
+                    KK,
+                >(
+                    g,
+                    &seeds[..n],
+                    &seeds[n..],
+                    JAC_ORDER,
+                    ORDER,
+                    &|d| d.v,
+                    sd,
+                    si,
+                )
+            })
+        })
+    });
+    if let Some((mut tj, mut tz)) = pair {
+        if !tj.iter().any(|x| x.bad) && !tz.iter().any(|x| x.bad) {
+            tj.push(Series::constant(seeds[n]));
+            tz.push(Series::constant(bz[n]));
+            return (tj, tz);
+        }
+    }
+    let tz = SCRATCH_I.with_borrow_mut(|sc| taylor::<Interval, KK>(plant, g, bz, ORDER, sc));
+    let tj = SCRATCH_D.with_borrow_mut(|sc| {
+        taylor::<IDual<ND>, { JAC_ORDER + 1 }>(plant, g, &seeds, JAC_ORDER, sc)
+    });
+    (tj, tz)
+}
+
 /// A-priori enclosure of all trajectories from `bz` over `[0, h]`.
 fn apriori(plant: &Plant, bz: &[Interval], h: f64) -> Option<Vec<Interval>> {
     apriori_by(|x| rhs_interval(plant, x), bz, h)
@@ -297,11 +351,10 @@ fn taylor_step(
         }
         acc
     };
-    // Orders above JAC_ORDER enter by intervals over box(Z):
-    // h^i (x_i(s) - x_i(c)) ∈ h^i (x_i(box Z) - x_i(c)).
-    let tz = SCRATCH_I
-        .with_borrow_mut(|sc| taylor::<Interval, KK>(plant, rec.as_deref(), &bz, ORDER, sc));
-    if tz[..n].iter().any(|x| x.bad) {
+    // DT(box Z) by interval duals, and the orders above JAC_ORDER by intervals over
+    // box(Z): h^i (x_i(s) - x_i(c)) ∈ h^i (x_i(box Z) - x_i(c)).
+    let (tj, tz) = over_box(plant, rec.as_deref(), &bz);
+    if tz[..n].iter().any(|x| x.bad) || tj[..n].iter().any(|x| x.bad) {
         *hint = f64::NAN;
         return None;
     }
@@ -317,20 +370,6 @@ fn taylor_step(
             horner(&tc[j].c) + rem[j] + hi_orders
         })
         .collect();
-    // DT(box Z).
-    let tj = SCRATCH_D.with_borrow_mut(|sc| {
-        taylor::<IDual<ND>, { JAC_ORDER + 1 }>(
-            plant,
-            rec.as_deref(),
-            &dual_seeds(&bz),
-            JAC_ORDER,
-            sc,
-        )
-    });
-    if tj[..n].iter().any(|x| x.bad) {
-        *hint = f64::NAN;
-        return None;
-    }
     // jac[j][k] enclosure of d T_j / d s_k.
     let mut jac = vec![vec![Interval::point(0.0); d]; d];
     for j in 0..n {
