@@ -11,6 +11,7 @@ mod errors;
 mod fuzz;
 mod step_collapse;
 mod taylor;
+mod taylor_shared;
 
 /// See [`samara_testkit::assert_every_test_file_is_built`].
 #[test]
