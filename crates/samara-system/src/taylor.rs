@@ -60,9 +60,9 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
 
 /// The working storage of [`solution_series_trimmed_in`]: every instruction's
 /// coefficients and the per-instruction flags. A caller that expands many series (one
-/// validated step expands four) keeps one and passes it to every expansion, so that the
-/// tables are allocated once, not per expansion; the contents never carry over (each
-/// expansion resets what it reads).
+/// validated step of the zonotope flow expands three) keeps one and passes it to every
+/// expansion, so that the tables are allocated once, not per expansion; the contents
+/// never carry over (each expansion resets what it reads).
 #[derive(Debug)]
 pub struct SeriesScratch<S> {
     c: Vec<S>,

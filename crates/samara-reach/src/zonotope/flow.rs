@@ -28,7 +28,7 @@ use std::cell::RefCell;
 use std::rc::Rc;
 
 thread_local! {
-    /// The series expansions' tables, per worker thread: allocated once, not four
+    /// The series expansions' tables, per worker thread: allocated once, not three
     /// times per step (malloc and free took about a tenth of the published setting's
     /// time before).
     static SCRATCH_I: RefCell<SeriesScratch<Interval>> = RefCell::new(SeriesScratch::default());
