@@ -755,7 +755,8 @@ pub fn record<S: Scalar>(
 /// [`record`], and whether its graph holds at every argument: `true` when `f` never
 /// asked for a sign or a value of what it computes ([`Scalar::sign`],
 /// [`Scalar::value`], through which every branch of a generic function on a
-/// [`Scalar`] goes). Its instructions then depend on nothing the values decide, and a
+/// [`Scalar`] goes: the trait's own branching methods, `smin`, `relu`, `clamp_to`,
+/// `sgn`, ..., call `sign`, and a hull refuses the recording). Its instructions then depend on nothing the values decide, and a
 /// recording at any other `x`, `u` gives the same graph: a caller may keep it and
 /// expand it at every argument (the glider's reduced model: one recording per thread
 /// instead of one per validated step).

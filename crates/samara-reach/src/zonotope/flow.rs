@@ -34,8 +34,8 @@ thread_local! {
     static SCRATCH_I: RefCell<SeriesScratch<Interval>> = RefCell::new(SeriesScratch::default());
     static SCRATCH_D: RefCell<SeriesScratch<IDual<ND>>> = RefCell::new(SeriesScratch::default());
     /// The right-hand side's graph where it holds at every box ([`record_rhs`]), with
-    /// the plant it was recorded for.
-    static GRAPH: RefCell<Option<(Plant, Rc<Graph>)>> = const { RefCell::new(None) };
+    /// the plant and the number of states it was recorded for.
+    static GRAPH: RefCell<Option<(Plant, usize, Rc<Graph>)>> = const { RefCell::new(None) };
 }
 
 /// Taylor order of the validated steps.
@@ -174,14 +174,14 @@ fn rhs_interval(plant: &Plant, x: &[Interval]) -> Vec<Interval> {
 /// merged ([`samara_system::taylor::merge_common`]: the same numbers, `alpha^2`,
 /// `omega^2` and `cos theta` computed once).
 fn record_rhs(plant: &Plant, b: &[Interval]) -> Option<Rc<Graph>> {
+    let n = b.len() - 1;
     if let Some(g) = GRAPH.with_borrow(|c| {
         c.as_ref()
-            .filter(|(p, _)| p == plant)
-            .map(|(_, g)| Rc::clone(g))
+            .filter(|(p, rows, _)| p == plant && *rows == n)
+            .map(|(_, _, g)| Rc::clone(g))
     }) {
         return Some(g);
     }
-    let n = b.len() - 1;
     let (g, everywhere) =
         samara_system::taylor::record_checked(&b[..n], &b[n..], n, |x, u, out| {
             let mut full = x.to_vec();
@@ -192,7 +192,7 @@ fn record_rhs(plant: &Plant, b: &[Interval]) -> Option<Rc<Graph>> {
         return Some(Rc::new(g));
     }
     let g = Rc::new(samara_system::taylor::merge_common(&g));
-    GRAPH.set(Some((plant.clone(), Rc::clone(&g))));
+    GRAPH.set(Some((plant.clone(), n, Rc::clone(&g))));
     Some(g)
 }
 
