@@ -119,6 +119,11 @@ pub fn solution_series_trimmed_in<S: Scalar, const K: usize>(
     Some(collect(g, x, m, &scratch.bad))
 }
 
+/// The states' series of [`solution_series_pair_in`]: on `S` to one order, on `T` to a
+/// higher one.
+pub type SeriesPair<S, T, const KS: usize, const KT: usize> =
+    (Vec<Series<S, KS>>, Vec<Series<T, KT>>);
+
 /// The expansion of [`solution_series_trimmed_in`] on `S` to order `upto_s`, continued on
 /// `T` to order `upto_t` from the coefficients so far mapped by `proj` (both without
 /// trimming): the coefficients `0..=upto_s` of the first and `0..=upto_t` of the second.
@@ -143,7 +148,7 @@ pub fn solution_series_pair_in<S: Scalar, T: Scalar, const KS: usize, const KT: 
     proj: &dyn Fn(&S) -> T,
     scratch_s: &mut SeriesScratch<S>,
     scratch_t: &mut SeriesScratch<T>,
-) -> Option<(Vec<Series<S, KS>>, Vec<Series<T, KT>>)> {
+) -> Option<SeriesPair<S, T, KS, KT>> {
     let (ms, mt) = (upto_s + 1, upto_t + 1);
     if ms > KS || mt > KT || upto_s > upto_t || g.outputs.len() != x0.len() {
         return None;

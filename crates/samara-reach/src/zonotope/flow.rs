@@ -22,7 +22,7 @@ use super::set::{gamma, Zonotope};
 use crate::taylor_step::{apriori_by, finite, lagrange_remainder, series_in, subset};
 use samara_num::{IDual, Interval, Scalar, Series};
 use samara_plant::Plant;
-use samara_system::taylor::SeriesScratch;
+use samara_system::taylor::{SeriesPair, SeriesScratch};
 use samara_system::Graph;
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -244,15 +244,11 @@ fn taylor<S: Scalar + Copy, const K: usize>(
 /// interval expansion's own lower orders (a dual's value is computed by the same
 /// interval operations), so the interval series are those of a separate expansion;
 /// two separate expansions ([`taylor`]) otherwise.
-#[allow(clippy::type_complexity)]
 fn over_box(
     plant: &Plant,
     g: Option<&Graph>,
     bz: &[Interval],
-) -> (
-    Vec<Series<IDual<ND>, { JAC_ORDER + 1 }>>,
-    Vec<Series<Interval, KK>>,
-) {
+) -> SeriesPair<IDual<ND>, Interval, { JAC_ORDER + 1 }, KK> {
     let n = bz.len() - 1;
     let seeds = dual_seeds(bz);
     let pair = g.and_then(|g| {
