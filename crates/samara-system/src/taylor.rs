@@ -62,7 +62,8 @@ pub fn solution_series_trimmed<S: Scalar, const K: usize>(
 /// coefficients and the per-instruction flags. A caller that expands many series (one
 /// validated step of the zonotope flow expands three) keeps one and passes it to every
 /// expansion, so that the tables are allocated once, not per expansion; the contents
-/// never carry over (each expansion resets what it reads).
+/// never carry over (each expansion writes every coefficient before reading it, and
+/// resets the constants' zeros).
 #[derive(Debug)]
 pub struct SeriesScratch<S> {
     c: Vec<S>,
@@ -89,6 +90,16 @@ impl<S> Default for SeriesScratch<S> {
             bad: Vec::new(),
             pick: Vec::new(),
         }
+    }
+}
+
+/// `v` with `n` entries, reusing its allocation: the first ones as they were, new ones
+/// `x`.
+fn resize<T: Clone>(v: &mut Vec<T>, n: usize, x: &T) {
+    if v.len() > n {
+        v.truncate(n);
+    } else {
+        v.resize(n, x.clone());
     }
 }
 
@@ -222,8 +233,12 @@ fn prepare<S: Scalar>(g: &Graph, m: usize, scratch: &mut SeriesScratch<S>) -> bo
     } = scratch;
     let nops = g.ops.len();
     let zero = S::cst(0.0);
-    // Coefficients per instruction: row `k` is `c[k * m..(k + 1) * m]`.
-    refill(c, nops * m, zero.clone());
+    // Coefficients per instruction: row `k` is `c[k * m..(k + 1) * m]`. Only the
+    // constants' higher coefficients (zero) are reset, below: every other coefficient
+    // a recurrence reads is written first (order `i` of an instruction reads the orders
+    // up to `i` of earlier instructions and below `i` of its own row and companion
+    // rows, all computed before it), so what an earlier expansion left is never read.
+    resize(c, nops * m, &zero);
     // Companion series only for the instructions that need them: `slot[k]` is the row
     // of instruction `k` in `aux` (sin, cos, tanh, atan) and `aux2` (atan).
     // A sine and a cosine of the same operand are one pair of recurrences: the later
@@ -249,8 +264,8 @@ fn prepare<S: Scalar>(g: &Graph, m: usize, scratch: &mut SeriesScratch<S>) -> bo
             slots += 1;
         }
     }
-    refill(aux, slots * m, zero.clone());
-    refill(aux2, slots * m, zero.clone());
+    resize(aux, slots * m, &zero);
+    resize(aux2, slots * m, &zero);
     refill(konst, nops, false);
     refill(bad, nops, false);
     // Decided branches, per instruction (0: undecided): for `abs` the sign -1 / 1, for
@@ -295,6 +310,9 @@ fn prepare<S: Scalar>(g: &Graph, m: usize, scratch: &mut SeriesScratch<S>) -> bo
         if generic && !konst[k] {
             return false;
         }
+    }
+    for (row, _) in c.chunks_mut(m).zip(konst.iter()).filter(|(_, &k)| k) {
+        row[1..].fill(zero.clone());
     }
     true
 }

@@ -7,14 +7,16 @@
 //!   series of the graph as recorded;
 //! - `solution_series_pair_in` (interval duals to one order, intervals continued from
 //!   their value parts) gives the series of the two separate expansions;
-//! - `record_checked` calls a recording universal only where no branch was asked.
+//! - `record_checked` calls a recording universal only where no branch was asked;
+//! - a scratch reused across expansions (its tables not reset) expands as a fresh one.
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_num::{IDual, Interval, Scalar, Series};
 use samara_plant::{Model, Plant};
 use samara_system::taylor::{
-    merge_common, record, record_checked, solution_series, solution_series_pair_in, SeriesScratch,
+    merge_common, record, record_checked, solution_series, solution_series_pair_in,
+    solution_series_trimmed_in, SeriesScratch,
 };
 use samara_system::{Graph, System};
 
@@ -221,5 +223,40 @@ fn the_pair_expansion_is_the_two_expansions() {
             compared += 1;
         }
         assert!(compared > 50, "{model:?}: {compared} recordings");
+    }
+}
+
+/// One scratch reused across expansions of different graphs and orders (what an
+/// earlier expansion leaves in the tables is never read) gives the series of fresh
+/// tables, bit for bit.
+#[test]
+fn a_reused_scratch_expands_as_a_fresh_one() {
+    let mut rng = ChaCha8Rng::seed_from_u64(19);
+    let mut sc = SeriesScratch::<Interval>::default();
+    for trial in 0..300 {
+        let model = [Model::Reduced, Model::Plate6, Model::Full][trial % 3];
+        let plant = Plant::new(model);
+        let d = plant.dim();
+        let (s, ex) = glider_state(&mut rng, d);
+        let bx = interval_box(&mut rng, &s, 1e-3);
+        let be = [Interval::new(ex - 1e-4, ex)];
+        let Some(g) = record(&bx, &be, d, |x, u, out| plant.rhs(x, &u[0], out)) else {
+            continue;
+        };
+        let upto = 3 + trial % 6;
+        let keep: &dyn Fn(usize, Interval) -> Interval = &|_, v| v;
+        let reused = solution_series_trimmed_in::<Interval, K>(&g, &bx, &be, upto, keep, &mut sc)
+            .expect("supported");
+        let fresh = solution_series::<Interval, K>(&g, &bx, &be, upto).expect("supported");
+        for j in 0..d {
+            assert_eq!(reused[j].bad, fresh[j].bad);
+            for i in 0..=upto {
+                assert_eq!(
+                    bits(&reused[j].c[i]),
+                    bits(&fresh[j].c[i]),
+                    "{model:?} {j} {i}"
+                );
+            }
+        }
     }
 }
