@@ -47,6 +47,7 @@ impl<const N: usize> IDual<N> {
 
 impl<const N: usize> Add for IDual<N> {
     type Output = Self;
+    #[inline(always)]
     fn add(mut self, o: Self) -> Self {
         self.v = self.v + o.v;
         for i in 0..N {
@@ -57,6 +58,7 @@ impl<const N: usize> Add for IDual<N> {
 }
 impl<const N: usize> Sub for IDual<N> {
     type Output = Self;
+    #[inline(always)]
     fn sub(mut self, o: Self) -> Self {
         self.v = self.v - o.v;
         for i in 0..N {
@@ -110,6 +112,7 @@ impl<const N: usize> Div for IDual<N> {
 }
 impl<const N: usize> Neg for IDual<N> {
     type Output = Self;
+    #[inline(always)]
     fn neg(mut self) -> Self {
         self.v = -self.v;
         for x in self.d.iter_mut() {
@@ -120,6 +123,7 @@ impl<const N: usize> Neg for IDual<N> {
 }
 impl<const N: usize> Add<f64> for IDual<N> {
     type Output = Self;
+    #[inline(always)]
     fn add(mut self, o: f64) -> Self {
         self.v = self.v + o;
         self
@@ -127,6 +131,7 @@ impl<const N: usize> Add<f64> for IDual<N> {
 }
 impl<const N: usize> Sub<f64> for IDual<N> {
     type Output = Self;
+    #[inline(always)]
     fn sub(mut self, o: f64) -> Self {
         self.v = self.v - o;
         self
@@ -134,6 +139,7 @@ impl<const N: usize> Sub<f64> for IDual<N> {
 }
 impl<const N: usize> Mul<f64> for IDual<N> {
     type Output = Self;
+    #[inline(always)]
     fn mul(mut self, o: f64) -> Self {
         self.v = self.v * o;
         for x in self.d.iter_mut() {
@@ -144,6 +150,7 @@ impl<const N: usize> Mul<f64> for IDual<N> {
 }
 impl<const N: usize> Div<f64> for IDual<N> {
     type Output = Self;
+    #[inline(always)]
     fn div(mut self, o: f64) -> Self {
         self.v = self.v / o;
         for x in self.d.iter_mut() {
@@ -153,11 +160,13 @@ impl<const N: usize> Div<f64> for IDual<N> {
     }
 }
 impl<const N: usize> AddAssign for IDual<N> {
+    #[inline(always)]
     fn add_assign(&mut self, o: Self) {
         *self = *self + o;
     }
 }
 impl<const N: usize> SubAssign for IDual<N> {
+    #[inline(always)]
     fn sub_assign(&mut self, o: Self) {
         *self = *self - o;
     }
