@@ -28,7 +28,7 @@
 //! On 64 or more inputs (images) halving one input hardly moves a bound: a box left open
 //! by those same checks is decided by ReLU splitting with beta-CROWN bounds instead
 //! (`crate::relusplit`), one tree per open case, after the intermediate bounds are
-//! tightened once by alpha-CROWN ([`symbolic::alpha_pre_until`]).
+//! tightened once by alpha-CROWN with Adam's steps ([`symbolic::alpha_pre_with`]).
 
 use crate::query::{combination_certifies, forward};
 pub use crate::query::{satisfies, Case, OutputConstraint};
@@ -1212,7 +1212,15 @@ fn solve_relu(
         let mut pre = st.pre.to_vec();
         let left_s = deadline.map(|d| d.saturating_duration_since(Instant::now()));
         let pre_deadline = left_s.map(|l| Instant::now() + l / 4);
-        symbolic::alpha_pre_until(maps, &mut pre, &st.lo, &st.hi, RELU_PRE_ITERS, pre_deadline);
+        symbolic::alpha_pre_with(
+            maps,
+            &mut pre,
+            &st.lo,
+            &st.hi,
+            RELU_PRE_ITERS,
+            RELU_PRE_ASCENT,
+            pre_deadline,
+        );
         let tree = relusplit::Tree {
             maps,
             cases,
@@ -1233,6 +1241,18 @@ fn solve_relu(
                 .iter()
                 .map(|l| format!("{}:{:.3}", l.0, l.1.lb))
                 .collect();
+            for (k, (a, b)) in st.pre.iter().zip(&pre).enumerate() {
+                let cnt = |v: &Vec<(f64, f64)>| v.iter().filter(|x| x.0 < 0.0 && x.1 > 0.0).count();
+                let wid =
+                    |v: &Vec<(f64, f64)>| v.iter().map(|x| x.1 - x.0).sum::<f64>() / v.len() as f64;
+                eprintln!(
+                    "layer {k}: crown {} unstable, width {:.3}; alpha {} width {:.3}",
+                    cnt(a),
+                    wid(a),
+                    cnt(b),
+                    wid(b)
+                );
+            }
             eprintln!(
                 "relu split: {un} unstable, {un2} after alpha, open {lbs:?} after {:.2} s",
                 t0.elapsed().as_secs_f64()
@@ -1316,6 +1336,8 @@ const RELU_NODE_ITERS: usize = 10;
 /// mnistfc 256x4 prop_0_0.03, 15 steps left 198 of 309 ReLUs unstable in 4 s, 30 steps
 /// 184).
 const RELU_PRE_ITERS: usize = 15;
+/// Their optimiser: Adam at alpha-CROWN's step size scale (see [`symbolic::Ascent`]).
+const RELU_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Adam(0.3);
 
 /// The first attack's budget per case on boxes of fewer than [`SIGN_STEP_INPUTS`] inputs
 /// (ACAS Xu), at most (seconds). Measured on the 47 `sat` instances of VNN-COMP 2021
