@@ -127,6 +127,10 @@ pub(crate) struct Tree<'a> {
     pub(crate) lp_bounds: bool,
     /// Branch in the early layers first, for deep dense networks ([`Deep`]).
     pub(crate) deep: Option<Deep>,
+    /// The slopes of the root's alpha-CROWN intermediate bounds: with them, each node
+    /// re-bounds the layers after its newest phase once more, after CROWN
+    /// ([`symbolic::rebound_with_slopes`]).
+    pub(crate) pre_slopes: Option<&'a symbolic::PreSlopes>,
 }
 
 /// Branching for deep dense networks (MNIST's 256x4 and 256x6 of VNN-COMP 2021/2022):
@@ -294,6 +298,9 @@ pub(crate) fn examine(
     if let Some(&(j, _, _)) = node.splits.last() {
         if j + 1 < pre.len() {
             pre = symbolic::crown_pre_from_sp(maps, lo, hi, &pre, j + 1, deadline, sp);
+            if let Some(slopes) = tree.pre_slopes {
+                symbolic::rebound_with_slopes(maps, &mut pre, lo, hi, j + 1, slopes, deadline);
+            }
             if pre.iter().flatten().any(|&(l, u)| l > u) {
                 return NodeOut::Closed;
             }

@@ -28,7 +28,7 @@
 //! On 64 or more inputs (images) halving one input hardly moves a bound: a box left open
 //! by those same checks is decided by ReLU splitting with beta-CROWN bounds instead
 //! (`crate::relusplit`), one tree per open case, after the intermediate bounds are
-//! tightened once by alpha-CROWN with Adam's steps ([`symbolic::alpha_pre_with`]).
+//! tightened once by alpha-CROWN ([`symbolic::alpha_pre_with`]).
 
 use crate::query::{combination_certifies, forward};
 pub use crate::query::{satisfies, Case, OutputConstraint};
@@ -1212,7 +1212,7 @@ fn solve_relu(
         let mut pre = st.pre.to_vec();
         let left_s = deadline.map(|d| d.saturating_duration_since(Instant::now()));
         let pre_deadline = left_s.map(|l| Instant::now() + l / 4);
-        symbolic::alpha_pre_with(
+        let slopes = symbolic::alpha_pre_with(
             maps,
             &mut pre,
             &st.lo,
@@ -1221,6 +1221,7 @@ fn solve_relu(
             RELU_PRE_ASCENT,
             pre_deadline,
         );
+        let deep = deep_split(maps, st.lo.len());
         let tree = relusplit::Tree {
             maps,
             cases,
@@ -1230,7 +1231,10 @@ fn solve_relu(
             root_iters: RELU_ROOT_ITERS,
             iters: RELU_NODE_ITERS,
             lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
-            deep: deep_split(maps, st.lo.len()),
+            deep,
+            // Dense deep networks only: their early-layer branching gains through the
+            // later layers' re-bounds ([`crate::relusplit::Deep`]).
+            pre_slopes: (RELU_NODE_SLOPES && deep.is_some()).then_some(&slopes),
         };
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
         if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
@@ -1336,8 +1340,22 @@ const RELU_NODE_ITERS: usize = 10;
 /// mnistfc 256x4 prop_0_0.03, 15 steps left 198 of 309 ReLUs unstable in 4 s, 30 steps
 /// 184).
 const RELU_PRE_ITERS: usize = 15;
-/// Their optimiser: Adam at alpha-CROWN's step size scale (see [`symbolic::Ascent`]).
-const RELU_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Adam(0.3);
+/// Their optimiser. Adam (`Ascent::Adam(0.3)`, alpha-CROWN's own) gives much tighter
+/// bounds for the same 15 passes: on mnist_fc (VNN-COMP 2022) `256x6` prop_3_0.05, 547
+/// ReLUs left unstable instead of 698, the last ReLU layer's mean width 8.9 instead of
+/// 93, and the root's case bounds about -14.7 instead of -78. It is not the default:
+/// on `256x4` prop_3_0.05 (unsat in 74 nodes, 1.2 CPU-s, with these steps) the tree over
+/// Adam's tighter bounds grew past 3,000 nodes and timed out at 40 s, as the early
+/// splits of [`crate::relusplit::Deep`] stopped gaining (the nodes' CROWN re-bounds no
+/// longer beat the root's bounds), and no undecided row was decided within 60 s
+/// (2026-11-28, branch i50-m).
+const RELU_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Normalised;
+/// Whether nodes of deep dense networks re-bound their later layers with the root's
+/// intermediate slopes too ([`symbolic::rebound_with_slopes`]). With Adam's root bounds
+/// this took `256x6` prop_3_0.05's first path from -14.7 to -1.2 in 7 early splits
+/// (-7.8 without), but with either optimiser it lost `256x4` prop_3_0.05 (over 2,800
+/// nodes at 40 s; 74 without): off until the branching uses it.
+const RELU_NODE_SLOPES: bool = false;
 
 /// The first attack's budget per case on boxes of fewer than [`SIGN_STEP_INPUTS`] inputs
 /// (ACAS Xu), at most (seconds). Measured on the 47 `sat` instances of VNN-COMP 2021
