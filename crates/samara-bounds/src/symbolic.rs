@@ -1484,9 +1484,7 @@ pub fn alpha_pre_until(
 }
 
 /// [`alpha_pre_until`] with the slopes moved by `ascent`, returning the slopes of each
-/// bound (for [`rebound_with_slopes`]). A neuron whose optimised lower bound is already
-/// non-negative keeps its upper bound (it is stable, passed exactly), so its second
-/// optimisation is skipped.
+/// bound (for [`rebound_with_slopes`]).
 pub fn alpha_pre_with(
     maps: &[(Affine, bool)],
     pre: &mut [Vec<(f64, f64)>],
@@ -1546,9 +1544,6 @@ pub fn alpha_pre_with(
                     ascent,
                 );
                 let l = l.min_over(lo, hi);
-                if l >= 0.0 {
-                    return (i, (l, la), (f64::INFINITY, None));
-                }
                 c[i] = -1.0;
                 let (u, ua) = alpha_lower_best(
                     sub,
