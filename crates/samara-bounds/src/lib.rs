@@ -49,6 +49,7 @@
 //!   and reachability's network step take their relaxations from.
 #![warn(missing_docs)]
 
+mod adam;
 mod attack;
 pub mod constant;
 pub mod linset;

@@ -48,6 +48,7 @@
 //! every neuron left 6 of the 9 hard instances open at 20 s that this closes in 0.4-7
 //! CPU seconds each.
 
+use crate::adam::Adam;
 use crate::query::{forward, satisfies, Case};
 use crate::rules::relu;
 use crate::symbolic::{self, Linear, Objective, Sparse};
@@ -126,6 +127,10 @@ pub(crate) struct Tree<'a> {
     pub(crate) lp_bounds: bool,
     /// Branch in the early layers first, for deep dense networks ([`Deep`]).
     pub(crate) deep: Option<Deep>,
+    /// The slopes of the root's alpha-CROWN intermediate bounds: with them, each node
+    /// re-bounds the layers after its newest phase once more, after CROWN
+    /// ([`symbolic::rebound_with_slopes`]).
+    pub(crate) pre_slopes: Option<&'a symbolic::PreSlopes>,
 }
 
 /// Branching for deep dense networks (MNIST's 256x4 and 256x6 of VNN-COMP 2021/2022):
@@ -158,48 +163,6 @@ pub(crate) fn root(open: Vec<usize>) -> Node {
         pre: None,
         key: f64::NEG_INFINITY,
         depth: 0,
-    }
-}
-
-/// Adam's moment estimates for one set of parameters.
-struct Adam {
-    m: Vec<Vec<f64>>,
-    v: Vec<Vec<f64>>,
-}
-
-impl Adam {
-    fn new(like: &[Vec<f64>]) -> Self {
-        let z: Vec<Vec<f64>> = like.iter().map(|a| vec![0.0; a.len()]).collect();
-        Adam { m: z.clone(), v: z }
-    }
-
-    /// One ascent step of size `lr[j]` on entry `(j, t)` where `keep(j, t)`, then `proj`.
-    fn step(
-        &mut self,
-        x: &mut [Vec<f64>],
-        g: &[Vec<f64>],
-        it: usize,
-        lr: &[f64],
-        keep: impl Fn(usize, usize) -> bool,
-        proj: impl Fn(usize, usize, f64) -> f64,
-    ) {
-        let (b1, b2) = (0.9f64, 0.999f64);
-        let c1 = 1.0 - b1.powi(it as i32 + 1);
-        let c2 = 1.0 - b2.powi(it as i32 + 1);
-        for j in 0..x.len() {
-            for t in 0..x[j].len() {
-                if !keep(j, t) {
-                    continue;
-                }
-                let gi = g[j][t];
-                let m = &mut self.m[j][t];
-                let v = &mut self.v[j][t];
-                *m = b1 * *m + (1.0 - b1) * gi;
-                *v = b2 * *v + (1.0 - b2) * gi * gi;
-                let d = lr[j] * (*m / c1) / ((*v / c2).sqrt() + 1e-12);
-                x[j][t] = proj(j, t, x[j][t] + d);
-            }
-        }
     }
 }
 
@@ -335,6 +298,9 @@ pub(crate) fn examine(
     if let Some(&(j, _, _)) = node.splits.last() {
         if j + 1 < pre.len() {
             pre = symbolic::crown_pre_from_sp(maps, lo, hi, &pre, j + 1, deadline, sp);
+            if let Some(slopes) = tree.pre_slopes {
+                symbolic::rebound_with_slopes(maps, &mut pre, lo, hi, j + 1, slopes, deadline);
+            }
             if pre.iter().flatten().any(|&(l, u)| l > u) {
                 return NodeOut::Closed;
             }
@@ -657,6 +623,10 @@ fn split_beta(alpha: &[Vec<f64>], nu: &[Vec<f64>], j: usize, t: usize, on: bool)
 /// two f64 pull-backs, a few percent of a node's bounds on oval21's networks).
 const FSB_CANDIDATES: usize = 8;
 
+/// With `SAMARA_SEARCH_PROFILE`: the share of the trees' phase space closed so far (a
+/// node closed at depth `d` closes `2^-d` of its case's tree), the search's progress.
+static PROF_CLOSED_SHARE: std::sync::Mutex<f64> = std::sync::Mutex::new(0.0);
+
 /// Examine a batch of nodes in parallel.
 pub(crate) fn examine_batch(
     tree: &Tree,
@@ -666,6 +636,7 @@ pub(crate) fn examine_batch(
     let t0 = Instant::now();
     let sp = Sparse::of(tree.maps, tree.lo.len());
     let n = batch.len();
+    let depths: Vec<u32> = batch.iter().map(|b| b.depth).collect();
     let out: Vec<NodeOut> = batch
         .into_par_iter()
         .map(|n| examine(tree, n, deadline, sp.as_ref()))
@@ -680,9 +651,16 @@ pub(crate) fn examine_batch(
         };
         let ks: Vec<String> = out.iter().map(kind).collect();
         let ks = ks.join(" ");
+        let mut share = PROF_CLOSED_SHARE.lock().unwrap();
+        for (o, d) in out.iter().zip(&depths) {
+            if matches!(o, NodeOut::Closed) {
+                *share += 0.5f64.powi(*d as i32);
+            }
+        }
         eprintln!(
-            "relu split batch: {n} nodes in {:.3} s: {ks}",
-            t0.elapsed().as_secs_f64()
+            "relu split batch: {n} nodes in {:.3} s: closed share {:.3e}: {ks}",
+            t0.elapsed().as_secs_f64(),
+            *share
         );
     }
     out

@@ -28,7 +28,7 @@
 //! On 64 or more inputs (images) halving one input hardly moves a bound: a box left open
 //! by those same checks is decided by ReLU splitting with beta-CROWN bounds instead
 //! (`crate::relusplit`), one tree per open case, after the intermediate bounds are
-//! tightened once by alpha-CROWN ([`symbolic::alpha_pre_until`]).
+//! tightened once by alpha-CROWN ([`symbolic::alpha_pre_with`]).
 
 use crate::query::{combination_certifies, forward};
 pub use crate::query::{satisfies, Case, OutputConstraint};
@@ -1212,7 +1212,16 @@ fn solve_relu(
         let mut pre = st.pre.to_vec();
         let left_s = deadline.map(|d| d.saturating_duration_since(Instant::now()));
         let pre_deadline = left_s.map(|l| Instant::now() + l / 4);
-        symbolic::alpha_pre_until(maps, &mut pre, &st.lo, &st.hi, RELU_PRE_ITERS, pre_deadline);
+        let slopes = symbolic::alpha_pre_with(
+            maps,
+            &mut pre,
+            &st.lo,
+            &st.hi,
+            RELU_PRE_ITERS,
+            RELU_PRE_ASCENT,
+            pre_deadline,
+        );
+        let deep = deep_split(maps, st.lo.len());
         let tree = relusplit::Tree {
             maps,
             cases,
@@ -1222,7 +1231,10 @@ fn solve_relu(
             root_iters: RELU_ROOT_ITERS,
             iters: RELU_NODE_ITERS,
             lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
-            deep: deep_split(maps, st.lo.len()),
+            deep,
+            // Dense deep networks only: their early-layer branching gains through the
+            // later layers' re-bounds ([`crate::relusplit::Deep`]).
+            pre_slopes: (RELU_NODE_SLOPES && deep.is_some()).then_some(&slopes),
         };
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
         if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
@@ -1233,6 +1245,18 @@ fn solve_relu(
                 .iter()
                 .map(|l| format!("{}:{:.3}", l.0, l.1.lb))
                 .collect();
+            for (k, (a, b)) in st.pre.iter().zip(&pre).enumerate() {
+                let cnt = |v: &Vec<(f64, f64)>| v.iter().filter(|x| x.0 < 0.0 && x.1 > 0.0).count();
+                let wid =
+                    |v: &Vec<(f64, f64)>| v.iter().map(|x| x.1 - x.0).sum::<f64>() / v.len() as f64;
+                eprintln!(
+                    "layer {k}: crown {} unstable, width {:.3}; alpha {} width {:.3}",
+                    cnt(a),
+                    wid(a),
+                    cnt(b),
+                    wid(b)
+                );
+            }
             eprintln!(
                 "relu split: {un} unstable, {un2} after alpha, open {lbs:?} after {:.2} s",
                 t0.elapsed().as_secs_f64()
@@ -1316,6 +1340,22 @@ const RELU_NODE_ITERS: usize = 10;
 /// mnistfc 256x4 prop_0_0.03, 15 steps left 198 of 309 ReLUs unstable in 4 s, 30 steps
 /// 184).
 const RELU_PRE_ITERS: usize = 15;
+/// Their optimiser. Adam (`Ascent::Adam(0.3)`, alpha-CROWN's own) gives much tighter
+/// bounds for the same 15 passes: on mnist_fc (VNN-COMP 2022) `256x6` prop_3_0.05, 547
+/// ReLUs left unstable instead of 698, the last ReLU layer's mean width 8.9 instead of
+/// 93, and the root's case bounds about -14.7 instead of -78. It is not the default:
+/// on `256x4` prop_3_0.05 (unsat in 74 nodes, 1.2 CPU-s, with these steps) the tree over
+/// Adam's tighter bounds grew past 3,000 nodes and timed out at 40 s, as the early
+/// splits of [`crate::relusplit::Deep`] stopped gaining (the nodes' CROWN re-bounds no
+/// longer beat the root's bounds), and no undecided row was decided within 60 s
+/// (2026-11-28, branch i50-m).
+const RELU_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Normalised;
+/// Whether nodes of deep dense networks re-bound their later layers with the root's
+/// intermediate slopes too ([`symbolic::rebound_with_slopes`]). With Adam's root bounds
+/// this took `256x6` prop_3_0.05's first path from -14.7 to -1.2 in 7 early splits
+/// (-7.8 without), but with either optimiser it lost `256x4` prop_3_0.05 (over 2,800
+/// nodes at 40 s; 74 without): off until the branching uses it.
+const RELU_NODE_SLOPES: bool = false;
 
 /// The first attack's budget per case on boxes of fewer than [`SIGN_STEP_INPUTS`] inputs
 /// (ACAS Xu), at most (seconds). Measured on the 47 `sat` instances of VNN-COMP 2021
