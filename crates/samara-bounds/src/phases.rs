@@ -36,7 +36,7 @@
 //!
 //! Cost per node: on `S` the layers before the earliest unstable one are affine, so
 //! every pull-back of a node runs on a shorter chain whose first map is their
-//! composition ([`Chain`]; its f64 rounding error is bounded and carried in the
+//! composition (`Chain`; its f64 rounding error is bounded and carried in the
 //! pull-backs' slack), extended from the parent's; the cases are checked once before the
 //! later layers are re-bounded, which a node they close skips; the two children of a node
 //! run in parallel (`rayon::join`).

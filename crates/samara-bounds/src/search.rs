@@ -152,7 +152,7 @@ pub enum StopReason {
     Unsplittable,
     /// A piece's region is thin: with every ReLU phase fixed the network is affine and
     /// the case's constraints leave room for points only at the rounding level
-    /// ([`crate::phases::PhaseResult::Thin`]); reported as soon as the rest of the
+    /// (`phases::PhaseResult::Thin`); reported as soon as the rest of the
     /// search is done, not after splitting that piece to the time limit.
     ThinRegion,
 }

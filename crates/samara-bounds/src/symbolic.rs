@@ -1297,7 +1297,7 @@ pub fn alpha_lower_until(
     )
 }
 
-/// How [`alpha_lower_sp`] moves the slopes: any slopes in `[0, 1]` give a sound bound,
+/// How `alpha_lower_sp` moves the slopes: any slopes in `[0, 1]` give a sound bound,
 /// so the choice only decides how tight the bound gets in a given number of backward
 /// passes.
 #[derive(Clone, Copy, Debug, PartialEq)]
