@@ -236,7 +236,10 @@ fn stand_in_step(
     bue.extend(si.dist.iter().map(|_| zero));
     let gy = &si.graph;
     let by = apriori_by(|x| rhs_box(gy, x, &bue), bz, h)?;
-    let (ynext, yparts) = taylor_try(gy, x, &ue, &bue, &by, bz, h, s, last_chance)?;
+    // Every check on intervals first (the remainder, the branches over the hull, the
+    // deviation), the Taylor models' series last: a step that fails a check then costs
+    // no Taylor-model arithmetic (the same results in the same order otherwise).
+    let plan = taylor_plan(gy, &bue, &by, bz, h, s, last_chance)?;
     let dbox: Vec<Interval> = b.iter().zip(&by).map(|(p, q)| p.hull(q)).collect();
     let wh: Vec<Interval> = si.dist.iter().map(|w| w.hull(&zero)).collect();
     // The mean-value bound needs the right-hand side with the stand-ins to be Lipschitz
@@ -249,6 +252,7 @@ fn stand_in_step(
     taylor::<Interval>(gy, &dbox, &bw, 1)?;
     let (jx, jw) = standin::jacobians(gy, &dbox, bu, &wh);
     let (e, eh) = standin::deviation(&jx, &jw, &si.dist, h)?;
+    let (ynext, yparts) = taylor_models(gy, x, &ue, plan, bz, h, s, &by)?;
     let next: Vec<Tm> = ynext
         .into_iter()
         .zip(&eh)
@@ -290,6 +294,30 @@ fn taylor_try(
     s: &TmFlowSettings,
     last_chance: bool,
 ) -> Option<(Vec<Tm>, Vec<Part>)> {
+    let plan = taylor_plan(g, bu, b, bz, h, s, last_chance)?;
+    taylor_models(g, x, u, plan, bz, h, s, b)
+}
+
+/// What [`taylor_plan`] settles on intervals before a Taylor step's models are computed:
+/// the interval series over the a-priori box, the time order and its Lagrange remainder.
+struct StepPlan {
+    tb: Vec<Series<Interval, K>>,
+    p: usize,
+    rem: Vec<Interval>,
+}
+
+/// The interval half of [`taylor_try`]: the time order whose remainder over the
+/// a-priori box `b` is narrow enough (at the smallest step, the narrowest); `None` if
+/// none is.
+fn taylor_plan(
+    g: &Graph,
+    bu: &[Interval],
+    b: &[Interval],
+    bz: &[Interval],
+    h: f64,
+    s: &TmFlowSettings,
+    last_chance: bool,
+) -> Option<StepPlan> {
     let pmax = s.time_order.clamp(1, K - 2);
     // The remainder over the a-priori box decides whether the step validates and at
     // which time order; it needs only the cheap interval series, so it is settled before
@@ -327,6 +355,24 @@ fn taylor_try(
         }
     }
     let (_, p, rem) = best?;
+    Some(StepPlan { tb, p, rem })
+}
+
+/// The Taylor-model half of [`taylor_try`]: the time coefficients as Taylor models up to
+/// the planned order, the state at `h` and the step's parts.
+#[allow(clippy::too_many_arguments)]
+fn taylor_models(
+    g: &Graph,
+    x: &[Tm],
+    u: &[Tm],
+    plan: StepPlan,
+    bz: &[Interval],
+    h: f64,
+    s: &TmFlowSettings,
+    b: &[Interval],
+) -> Option<(Vec<Tm>, Vec<Part>)> {
+    let StepPlan { tb, p, rem } = plan;
+    let tol = |bx: &Interval| s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo));
     // Joint degree in (parameters, time), as Flow* truncates (Chen, Abraham &
     // Sankaranarayanan, "Flow*", CAV 2013): the time coefficient `k >= 1` keeps
     // parameter order `max(2, order + 1 - k)`, and so do the products that read it;
