@@ -15,14 +15,19 @@ use samara_system::taylor::{record, solution_series};
 use samara_system::{Graph, System};
 use std::path::PathBuf;
 
-const K: usize = 10;
+pub(crate) const K: usize = 10;
 
 /// Draws a start and the held inputs.
 type Draw<'a> = &'a dyn Fn(&mut ChaCha8Rng) -> (Vec<f64>, Vec<f64>);
-const UPTO: usize = 8;
+pub(crate) const UPTO: usize = 8;
 
 /// The reference: the graph run on series once per order (`x_{i+1} = g_i / (i + 1)`).
-fn series_loop<S: Scalar>(g: &Graph, x0: &[S], u: &[S], upto: usize) -> Vec<Series<S, K>> {
+pub(crate) fn series_loop<S: Scalar>(
+    g: &Graph,
+    x0: &[S],
+    u: &[S],
+    upto: usize,
+) -> Vec<Series<S, K>> {
     let mut x: Vec<Series<S, K>> = x0.iter().map(|v| Series::var(v.clone())).collect();
     let us: Vec<Series<S, K>> = u.iter().map(|v| Series::constant(v.clone())).collect();
     let mut out = vec![Series::<S, K>::cst(0.0); x0.len()];

@@ -10,18 +10,17 @@
 //! - `record_checked` calls a recording universal only where no branch was asked;
 //! - a scratch reused across expansions (its tables not reset) expands as a fresh one.
 
+use crate::taylor::{series_loop, K, UPTO};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use samara_num::{IDual, Interval, Scalar, Series};
+use samara_num::{IDual, Interval};
 use samara_plant::{Model, Plant};
 use samara_system::taylor::{
     merge_common, record, record_checked, solution_series, solution_series_pair_in,
     solution_series_trimmed_in, SeriesScratch,
 };
-use samara_system::{Graph, System};
+use samara_system::System;
 
-const K: usize = 10;
-const UPTO: usize = 8;
 /// Dual directions: the glider's up to seven states and ex.
 const N: usize = 8;
 
@@ -32,24 +31,6 @@ fn bits(x: &Interval) -> (u64, u64) {
 
 fn dual_bits<const M: usize>(x: &IDual<M>) -> Vec<(u64, u64)> {
     std::iter::once(&x.v).chain(x.d.iter()).map(bits).collect()
-}
-
-/// The reference: the graph run on series once per order (`x_{i+1} = g_i / (i + 1)`).
-fn series_loop<S: Scalar>(g: &Graph, x0: &[S], u: &[S], upto: usize) -> Vec<Series<S, K>> {
-    let mut x: Vec<Series<S, K>> = x0.iter().map(|v| Series::var(v.clone())).collect();
-    let us: Vec<Series<S, K>> = u.iter().map(|v| Series::constant(v.clone())).collect();
-    let mut out = vec![Series::<S, K>::cst(0.0); x0.len()];
-    for i in 0..upto {
-        for xj in x.iter_mut() {
-            xj.n = i + 1;
-        }
-        g.eval(&x, &us, &mut out);
-        for j in 0..x0.len() {
-            x[j].c[i + 1] = out[j].c[i].clone() / (i as f64 + 1.0);
-            x[j].bad |= out[j].bad;
-        }
-    }
-    x
 }
 
 fn interval_box(r: &mut ChaCha8Rng, centre: &[f64], radius: f64) -> Vec<Interval> {
