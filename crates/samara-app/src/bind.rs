@@ -428,7 +428,7 @@ pub(crate) fn flag_prefix(flag: &str) -> String {
     }
 }
 
-/// `--timeout` (the verify commands' whole-command limit) as a [`Timeout`]: a number of
+/// `--timeout` (the verify commands' whole-command limit) as a `Timeout`: a number of
 /// seconds >= 0, `inf` for none.
 pub fn timeout_flag(t: f64) -> Result<samara_num::Timeout, AppError> {
     samara_num::Timeout::from_secs_f64(t).map_err(|_| {

@@ -3,7 +3,7 @@
 //! converts Python values and calls these (no logic of its own, none copied).
 //!
 //! - [`ReachRequest`]: the arguments of `samara.reach`, checked into the library's
-//!   [`ReachSettings`];
+//!   `ReachSettings`;
 //! - [`train_method`] and [`TrainReport`]: `samara.train`'s method (P1-P4 of the case
 //!   study for dl2/goedel) and its report (the fields of `samara train --json` without
 //!   the file paths, plus the training R^2 and the loss log);

@@ -3,7 +3,7 @@
 //! summary ([`ReachSummary`]), the settings echo, and the reach shard file of the
 //! zonotope path ([`ZonotopeRun`], [`ZonotopeShard`]) with its merge
 //! ([`merge_zonotope`]). The Taylor-model path (system files) is in
-//! [`system`](crate::reach::system).
+//! [`system`].
 //!
 //! Every document goes through `serde_json::Value` when printed (keys sorted), which is
 //! the layout the CLI has always written. Shards store numbers as [`Exact`] text so that

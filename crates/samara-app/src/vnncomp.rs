@@ -389,7 +389,7 @@ pub fn free_apart(net: Network) {
 }
 
 /// The instance whose time limit ran out while its network was loaded
-/// ([`load_instance_until`]): `unknown (timeout)` after `seconds`, no engine having run
+/// (`load_instance_until`): `unknown (timeout)` after `seconds`, no engine having run
 /// (the engine named is the router's first, the input-split one).
 pub fn timed_out_loading(seconds: f64) -> Decided {
     Decided::timed_out(

@@ -80,7 +80,7 @@ impl<const N: usize> IDual<N> {
 impl<const N: usize> Mul for IDual<N> {
     type Output = Self;
     /// The product rule; the ends' finiteness is checked once for the `2 N + 1` interval
-    /// products, which then take [`mul_finite`] (the same floats as [`Interval`]'s `*`).
+    /// products, which then take `mul_finite` (the same floats as [`Interval`]'s `*`).
     #[inline]
     fn mul(self, o: Self) -> Self {
         let mut d = [Z; N];

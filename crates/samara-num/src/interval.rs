@@ -164,7 +164,7 @@ impl Mul for Interval {
     /// product is the rounding of the least (greatest) exact one: the floats the
     /// sign-case selection (Moore's nine cases) picks, without its branches, which
     /// mispredict on mixed signs. Each is within half an ulp of its exact value, so
-    /// one ulp outward ([`outward`]) encloses it. A zero's sign may differ from the
+    /// one ulp outward (`outward`) encloses it. A zero's sign may differ from the
     /// sign-case choice, which rounding then erases (`next_down(+-0)` is the same float).
     #[inline]
     fn mul(self, o: Self) -> Self {

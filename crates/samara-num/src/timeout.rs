@@ -36,7 +36,7 @@ impl Timeout {
         Timeout(Some(Duration::from_secs(secs)))
     }
 
-    /// A limit of `secs` seconds: `inf` is none, finite values above [`MAX_SECS`] are
+    /// A limit of `secs` seconds: `inf` is none, finite values above `MAX_SECS` are
     /// clamped to it; NaN and negative numbers are refused.
     pub fn from_secs_f64(secs: f64) -> Result<Self, BadTimeout> {
         if secs.is_nan() || secs < 0.0 {

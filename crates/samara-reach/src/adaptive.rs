@@ -15,13 +15,13 @@
 //!    `mid +- target_ratio * (hi - lo) / 2`, `mid` the flights' midpoint. That is each
 //!    cell's share of the target: a cell is tight enough when its own enclosure lies in
 //!    the band, however wide it is on its own.
-//! 3. Rounds: every cell of the frontier is flown by [`crate::system::fly_box`] in
+//! 3. Rounds: every cell of the frontier is flown by `crate::system::fly_box` in
 //!    parallel (the rayon pool of the caller, `--threads`). A cell is **accepted** when
 //!    its sets reach the horizon, its measure lies in the band and (unless a flight
 //!    already refuted them) its goals are proved. Every other cell is cut in two:
 //!    - lost (or stopped where a goal became undecidable): along the parameter that moves
 //!      the state most at the control instant where its sets ended
-//!      ([`crate::system::bisect_sensitive`], flights from the cell's centre with one
+//!      (`crate::system::bisect_sensitive`, flights from the cell's centre with one
 //!      parameter at its ends);
 //!    - too wide: along the parameter that moves the measure at the horizon most (the
 //!      same flights, the measure's difference): the dependence that cutting halves.

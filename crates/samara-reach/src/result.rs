@@ -149,8 +149,8 @@ impl ReachResult {
 /// A flown sub-box: one node of a piece's refinement tree, and how the driver judges it.
 #[derive(Clone, Debug)]
 pub struct Flown {
-    /// Its name: [`piece_key`] of its piece, then one digit per split (see
-    /// [`child_key`]).
+    /// Its name: `piece_key` of its piece, then one digit per split (see
+    /// `child_key`).
     pub key: String,
     /// Whether it is worth splitting: it lost its enclosure, its final `x + y` carries
     /// too much noise, or the goal is undecided on it.

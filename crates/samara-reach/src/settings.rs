@@ -10,10 +10,10 @@ use serde::Serialize;
 /// would overflow.
 pub const MAX_INIT: f64 = 1e3;
 
-/// Largest number of control periods (`horizon / period`) [`reach`] accepts.
+/// Largest number of control periods (`horizon / period`) `reach` accepts.
 pub const MAX_PERIODS: usize = 100_000;
 
-/// Errors of bad input (verdicts are values, see [`Verdict`]).
+/// Errors of bad input (verdicts are values, see `Verdict`).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum ReachError {
     /// The network does not read the six raw states or does not give one output.

@@ -7,12 +7,12 @@
 //! One step of length `h` from the box `bz` (Nedialkov, Jackson & Corliss, "Validated
 //! solutions of initial value problems for ordinary differential equations", Appl. Math.
 //! Comput. 105, 1999):
-//! 1. [`apriori_by`]: a box `B` with `bz + [0, h] f(B) ⊆ B` (Picard-Lindeloef), which
+//! 1. `apriori_by`: a box `B` with `bz + [0, h] f(B) ⊆ B` (Picard-Lindeloef), which
 //!    contains every solution from `bz` over `[0, h]`;
-//! 2. [`series`]: the time coefficients `x_0 .. x_p` of the solution, by Taylor-mode
+//! 2. `series`: the time coefficients `x_0 .. x_p` of the solution, by Taylor-mode
 //!    automatic differentiation of the right-hand side recorded as a
 //!    [`samara_system::Graph`] (`x_{k+1} = f(x)_k / (k + 1)`);
-//! 3. [`lagrange_remainder`]: `x_{p+1}(B) h^{p+1}` from the same coefficients on `B`,
+//! 3. `lagrange_remainder`: `x_{p+1}(B) h^{p+1}` from the same coefficients on `B`,
 //!    which encloses `x(h) - sum_k x_k h^k` for every solution in `B`.
 
 use samara_num::{Interval, Scalar, Series};

@@ -66,7 +66,7 @@ pub(crate) fn first_violation(samples: &[Sample], g: &Goal, s: &ReachSettings) -
 /// Re-check a `Violated` verdict concretely: the trajectory from its initial state (a
 /// point of the initial set) is flown again exactly as the run's samples are
 /// ([`simulate_one`](crate::sampling::simulate_one)) and must miss the goal where and
-/// as the verdict says, bit for bit ([`first_violation`], the run's own test). Used by
+/// as the verdict says, bit for bit (`first_violation`, the run's own test). Used by
 /// `samara merge reach` on the counterexample its shards carry.
 pub fn recheck_violation(
     net: &samara_nn::Network,

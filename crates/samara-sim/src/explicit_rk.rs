@@ -1,5 +1,5 @@
 //! The one adaptive explicit Runge-Kutta driver: any [`Tableau`] (DP5(4), DOP853) under a
-//! step-control policy ([`StepControl`]): the standard control of Hairer, Norsett &
+//! step-control policy (`StepControl`): the standard control of Hairer, Norsett &
 //! Wanner ([`integrate`]), or the clone of MATLAB's `ode45` ([`crate::ode45`]).
 //!
 //! The driver owns the stages, the solution, the FSAL bookkeeping, the accept/reject

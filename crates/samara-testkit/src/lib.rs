@@ -2,7 +2,7 @@
 //!
 //! The published case-study files (networks, training data, normalisation constants)
 //! live in `../shared/reference` beside the repository, not in it. Tests reach them
-//! through [`reference`], with one policy: a missing file fails the test with a message
+//! through [`reference`](fn@reference), with one policy: a missing file fails the test with a message
 //! naming the file and where it is expected; a test never skips or passes silently
 //! because a reference file is absent.
 
@@ -35,7 +35,7 @@ pub fn published_dir() -> PathBuf {
     reference_dir()
 }
 
-/// [`reference`] as a path string (for command lines).
+/// [`reference`](fn@reference) as a path string (for command lines).
 pub fn reference_str(name: &str) -> String {
     reference(name).display().to_string()
 }

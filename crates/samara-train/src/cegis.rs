@@ -1,7 +1,7 @@
 //! Closed-loop training with counterexample-guided rounds (issue 18 item 2,
 //! `samara train --method closed-loop`).
 //!
-//! 1. The network is first trained on the PID data alone ([`crate::train`], the plain
+//! 1. The network is first trained on the PID data alone ([`crate::train`](mod@crate::train), the plain
 //!    method, restarts included), so every round starts from a controller that imitates
 //!    the PID.
 //! 2. Each round takes `steps_per_round` full-batch Adam steps on

@@ -212,7 +212,7 @@ pub struct ReachArgs {
     /// input table's listed values the analysis takes: `all` (default: every value, a
     /// branch each, the sound choice for any pilot), `middle`, `min` or `max`. With such
     /// a file --network may also be a folder (its .nnet/.onnx files in name order, one
-    /// per mode value) or a comma-separated list, and --init NAME=A[:B] replaces a
+    /// per mode value) or a comma-separated list, and `--init NAME=A[:B]` replaces a
     /// state's initial interval.
     #[arg(long, value_name = "all|middle|min|max", requires = "system")]
     pub choice: Option<String>,

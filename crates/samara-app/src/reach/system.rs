@@ -319,7 +319,7 @@ pub struct TaylorShard {
     pub system_name: String,
     /// `--network` as given.
     pub network_name: String,
-    /// The cells' merged result, every number kept exactly ([`reach_form`]: an
+    /// The cells' merged result, every number kept exactly (`reach_form`: an
     /// infinite bound of a lost enclosure stays infinite), so that the merge gives
     /// what one process gives.
     #[serde(with = "reach_form")]

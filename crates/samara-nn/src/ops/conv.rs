@@ -272,7 +272,7 @@ pub fn conv(x: &Tensor, w: &Tensor, b: Option<&Tensor>, a: &ConvAttrs) -> Result
 
 /// `ConvTranspose`: every input position scatters its kernel-weighted value to
 /// `o = i s + k d - p`; W has shape `[C, M / G, k...]`. Evaluated through
-/// [`conv_transpose_visit`], the geometry [`conv_transpose_rows`] lowers with: each
+/// `conv_transpose_visit`, the geometry [`conv_transpose_rows`] lowers with: each
 /// output adds its bias, then its (input, weight) pairs in the rows' order, so the two
 /// give the same bits.
 pub fn conv_transpose(
@@ -460,7 +460,7 @@ pub(crate) fn conv_transpose_visit(
 /// The output shape of a `ConvTranspose` on an input of shape `xs` and its rows as a
 /// sparse linear map (the bias left out): per output entry (row-major), the input
 /// entries it reads and their weights, in the order the direct scatter adds them.
-/// `check` is called once per input channel ([`conv_transpose_visit`]).
+/// `check` is called once per input channel (`conv_transpose_visit`).
 #[allow(clippy::type_complexity)]
 pub fn conv_transpose_rows(
     xs: &[usize],

@@ -76,7 +76,7 @@ pub struct TmFlowSettings {
     /// one coefficient per model instead of its share of every monomial of the order.
     pub lifted_weight: u32,
     /// Polynomial stand-ins with a bounded disturbance for terms that a step cannot
-    /// expand (an `abs` across 0, a `sqrt` near 0; [`crate::standin`]), tried before the
+    /// expand (an `abs` across 0, a `sqrt` near 0; `crate::standin`), tried before the
     /// plain Taylor step wherever the a-priori box needs them (default on).
     pub stand_ins: bool,
     /// Truncate the solution's time coefficient `k >= 1` at parameter order

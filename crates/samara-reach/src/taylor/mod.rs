@@ -28,7 +28,7 @@
 //!
 //! Verdicts: `proved` only when every sub-box's sets decide every goal true; `violated`
 //! only with a simulated flight that misses a goal; `unknown` with the reason otherwise.//!
-//! Files: [`settings`](self::settings) (settings, measures, errors), `result` (verdict,
+//! Files: [`settings`] (settings, measures, errors), `result` (verdict,
 //! sub-boxes, summary), `driver` (the run), `refine` (splitting), `flight` (one sub-box
 //! over the horizon), `network` (the controller over Taylor models), [`flow`] (the
 //! flowpipe of one period), `standin` (polynomial stand-ins for non-smooth operations);

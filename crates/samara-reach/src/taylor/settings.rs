@@ -24,7 +24,7 @@ pub struct SystemReachSettings {
     /// spent (default: none).
     pub timeout: samara_num::Timeout,
     /// Re-parameterise the set at a control instant when its remainders have grown
-    /// ([`precondition`]; default on).
+    /// (`precondition`; default on).
     pub precondition: bool,
     /// How the network step's error enters the set (`None`: chosen per run, see
     /// [`NetworkError`]; default).
@@ -131,7 +131,7 @@ pub enum NetworkError {
     /// As a fresh parameter per input and period (a symbolic remainder, as a
     /// zonotope's new generator or the predicate variable of NNV's star sets), so the
     /// flow keeps the states it drives correlated; at most `extra` parameters beyond
-    /// the state count are kept before the set is re-parameterised ([`precondition`]),
+    /// the state count are kept before the set is re-parameterised (`precondition`),
     /// and never more than the term budget of the order allows.
     Symbolic {
         /// Parameters allowed beyond the number of states.
