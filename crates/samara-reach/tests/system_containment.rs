@@ -394,9 +394,12 @@ fn double_pendulum_more_robust_is_falsified_by_a_real_flight() {
 }
 
 /// A run stopped by its time budget: the share of the set enclosed to the horizon is
-/// reported (below 1, against a Monte Carlo count of the starts in enclosed sub-boxes),
-/// the hulls end where the shortest sub-box ends, and every instant they list still
-/// contains the flights.
+/// reported (the volume of the sub-boxes whose sets reach it, recomputed here from the
+/// leaves; below 1 whenever the budget stopped a flight), the hulls end where the
+/// shortest sub-box ends, and every instant they list still contains the flights.
+/// How far the flights got in 4 s depends on the machine's speed and load: on a fast,
+/// quiet one every sub-box flown may reach the horizon (share 1) with goals still
+/// undecided, so the share is checked against the leaves, not against a fixed bound.
 #[test]
 fn budget_limited_run_reports_the_share_enclosed() {
     let sys = system("double_pendulum.sys");
@@ -406,11 +409,38 @@ fn budget_limited_run_reports_the_share_enclosed() {
         ..Default::default()
     };
     let r = reach_system(&sys, &net, &s).unwrap();
-    assert!(
-        r.covered < 1.0,
-        "the proof takes over a minute: 4 s cannot cover the set"
-    );
     assert_eq!(r.verdict.name(), "unknown", "{:?}", r.verdict);
+    let whole = |l: &&samara_reach::system::SystemLeaf| {
+        l.failure.is_none() && l.stopped_at.is_none() && l.instants.len() > sys.steps()
+    };
+    let share: f64 = r
+        .leaves
+        .iter()
+        .filter(whole)
+        .map(|l| {
+            l.init
+                .iter()
+                .zip(&sys.init)
+                .filter(|(_, b)| b.1 > b.0)
+                .map(|(v, b)| (v[1] - v[0]) / (b.1 - b.0))
+                .product::<f64>()
+        })
+        .sum();
+    assert!(
+        (r.covered - share.min(1.0)).abs() < 1e-9,
+        "covered {} against the leaves' {share}",
+        r.covered
+    );
+    if r.leaves.iter().any(|l| !whole(&l)) {
+        assert!(r.covered < 1.0, "a stopped sub-box counted as covered");
+    }
+    if r.covered == 1.0 {
+        assert!(
+            format!("{:?}", r.verdict).contains("timeout"),
+            "the whole set reached the horizon, so the budget must be what stopped the run: {:?}",
+            r.verdict
+        );
+    }
     assert_tiles(&sys, &r, s.max_boxes);
     assert!(check_contains(&sys, &net, &r, 100, 12) >= 100);
 }
