@@ -131,6 +131,9 @@ pub(crate) struct Tree<'a> {
     /// re-bounds the layers after its newest phase once more, after CROWN
     /// ([`symbolic::rebound_with_slopes`]).
     pub(crate) pre_slopes: Option<&'a symbolic::PreSlopes>,
+    /// With `SAMARA_SEARCH_PROFILE`: the share of this search's trees closed so far (a
+    /// node closed at depth `d` closes `2^-d` of its case's tree), its progress measure.
+    pub(crate) closed_share: std::sync::Mutex<f64>,
 }
 
 /// Branching for deep dense networks (MNIST's 256x4 and 256x6 of VNN-COMP 2021/2022):
@@ -623,10 +626,6 @@ fn split_beta(alpha: &[Vec<f64>], nu: &[Vec<f64>], j: usize, t: usize, on: bool)
 /// two f64 pull-backs, a few percent of a node's bounds on oval21's networks).
 const FSB_CANDIDATES: usize = 8;
 
-/// With `SAMARA_SEARCH_PROFILE`: the share of the trees' phase space closed so far (a
-/// node closed at depth `d` closes `2^-d` of its case's tree), the search's progress.
-static PROF_CLOSED_SHARE: std::sync::Mutex<f64> = std::sync::Mutex::new(0.0);
-
 /// Examine a batch of nodes in parallel.
 pub(crate) fn examine_batch(
     tree: &Tree,
@@ -651,7 +650,7 @@ pub(crate) fn examine_batch(
         };
         let ks: Vec<String> = out.iter().map(kind).collect();
         let ks = ks.join(" ");
-        let mut share = PROF_CLOSED_SHARE.lock().unwrap();
+        let mut share = tree.closed_share.lock().unwrap_or_else(|e| e.into_inner());
         for (o, d) in out.iter().zip(&depths) {
             if matches!(o, NodeOut::Closed) {
                 *share += 0.5f64.powi(*d as i32);

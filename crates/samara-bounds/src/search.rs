@@ -1235,6 +1235,7 @@ fn solve_relu(
             // Dense deep networks only: their early-layer branching gains through the
             // later layers' re-bounds ([`crate::relusplit::Deep`]).
             pre_slopes: (RELU_NODE_SLOPES && deep.is_some()).then_some(&slopes),
+            closed_share: std::sync::Mutex::new(0.0),
         };
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
         if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
