@@ -164,7 +164,7 @@ fn every_instruction_agrees_with_the_series_and_boxes_contain_points() {
 }
 
 /// A glider state in the range the flights visit (`d` states, E = 0) and a held ex.
-fn glider_state(r: &mut ChaCha8Rng, d: usize) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn glider_state(r: &mut ChaCha8Rng, d: usize) -> (Vec<f64>, Vec<f64>) {
     let mut s = vec![
         r.gen_range(0.3..3.5),
         r.gen_range(-0.5..0.5),

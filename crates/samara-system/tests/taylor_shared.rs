@@ -10,7 +10,7 @@
 //! - `record_checked` calls a recording universal only where no branch was asked;
 //! - a scratch reused across expansions (its tables not reset) expands as a fresh one.
 
-use crate::taylor::{series_loop, K, UPTO};
+use crate::taylor::{glider_state, series_loop, K, UPTO};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use samara_num::{IDual, Interval};
@@ -41,20 +41,6 @@ fn interval_box(r: &mut ChaCha8Rng, centre: &[f64], radius: f64) -> Vec<Interval
             Interval::new(v - w, v + w)
         })
         .collect()
-}
-
-/// A glider state in the range the flights visit (`d` states, E = 0) and a held ex.
-fn glider_state(r: &mut ChaCha8Rng, d: usize) -> (Vec<f64>, f64) {
-    let mut s = vec![
-        r.gen_range(0.3..3.5),
-        r.gen_range(-0.5..0.5),
-        r.gen_range(-0.6..0.6),
-        r.gen_range(-1.0..0.2),
-        r.gen_range(0.0..40.0),
-        r.gen_range(-40.0..4.0),
-    ];
-    s.resize(d, 0.0);
-    (s, r.gen_range(0.181..0.193))
 }
 
 #[test]
@@ -105,7 +91,8 @@ fn merged_recordings_expand_to_the_same_numbers() {
         let d = plant.dim();
         let mut compared = 0;
         for _ in 0..100 {
-            let (s, ex) = glider_state(&mut rng, d);
+            let (s, u) = glider_state(&mut rng, d);
+            let ex = u[0];
             let bx = interval_box(&mut rng, &s, 1e-3);
             let be = [Interval::new(ex - 1e-4, ex)];
             let Some(g) = record(&bx, &be, d, |x, u, out| plant.rhs(x, &u[0], out)) else {
@@ -133,7 +120,8 @@ fn recordings_are_universal_only_without_branches() {
     for model in [Model::Reduced, Model::Plate6, Model::Full] {
         let plant = Plant::new(model);
         let d = plant.dim();
-        let (s, ex) = glider_state(&mut rng, d);
+        let (s, u) = glider_state(&mut rng, d);
+        let ex = u[0];
         let (g, universal) =
             record_checked(&s, &[ex], d, |x, u, out| plant.rhs(x, &u[0], out)).expect("records");
         // The full model decides |omega| and the quadrants on signs; the others have
@@ -142,7 +130,8 @@ fn recordings_are_universal_only_without_branches() {
         if universal {
             // Universal: the recording at any other point is the same graph.
             for _ in 0..50 {
-                let (p, e) = glider_state(&mut rng, d);
+                let (p, u) = glider_state(&mut rng, d);
+                let e = u[0];
                 let h = record(&p, &[e], d, |x, u, out| plant.rhs(x, &u[0], out)).expect("records");
                 assert_eq!(g, h, "{model:?}");
             }
@@ -161,7 +150,8 @@ fn the_pair_expansion_is_the_two_expansions() {
         let d = plant.dim();
         let mut compared = 0;
         for trial in 0..100 {
-            let (s, ex) = glider_state(&mut rng, d);
+            let (s, u) = glider_state(&mut rng, d);
+            let ex = u[0];
             let radius = if trial % 4 == 3 { 0.3 } else { 1e-3 };
             let bx = interval_box(&mut rng, &s, radius);
             let be = [Interval::new(ex - 1e-4, ex)];
@@ -218,7 +208,8 @@ fn a_reused_scratch_expands_as_a_fresh_one() {
         let model = [Model::Reduced, Model::Plate6, Model::Full][trial % 3];
         let plant = Plant::new(model);
         let d = plant.dim();
-        let (s, ex) = glider_state(&mut rng, d);
+        let (s, u) = glider_state(&mut rng, d);
+        let ex = u[0];
         let bx = interval_box(&mut rng, &s, 1e-3);
         let be = [Interval::new(ex - 1e-4, ex)];
         let Some(g) = record(&bx, &be, d, |x, u, out| plant.rhs(x, &u[0], out)) else {
