@@ -1212,6 +1212,10 @@ fn solve_relu(
         let mut pre = st.pre.to_vec();
         let left_s = deadline.map(|d| d.saturating_duration_since(Instant::now()));
         let pre_deadline = left_s.map(|l| Instant::now() + l / 4);
+        let deep = deep_split(maps, st.lo.len());
+        // Dense deep networks only: their early-layer branching gains through the
+        // later layers' re-bounds ([`crate::relusplit::Deep`]).
+        let node_slopes = RELU_NODE_SLOPES && deep.is_some();
         let slopes = symbolic::alpha_pre_with(
             maps,
             &mut pre,
@@ -1219,9 +1223,9 @@ fn solve_relu(
             &st.hi,
             RELU_PRE_ITERS,
             RELU_PRE_ASCENT,
+            node_slopes,
             pre_deadline,
         );
-        let deep = deep_split(maps, st.lo.len());
         let tree = relusplit::Tree {
             maps,
             cases,
@@ -1232,9 +1236,7 @@ fn solve_relu(
             iters: RELU_NODE_ITERS,
             lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
             deep,
-            // Dense deep networks only: their early-layer branching gains through the
-            // later layers' re-bounds ([`crate::relusplit::Deep`]).
-            pre_slopes: (RELU_NODE_SLOPES && deep.is_some()).then_some(&slopes),
+            pre_slopes: node_slopes.then_some(&slopes),
             closed_share: std::sync::Mutex::new(0.0),
         };
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();

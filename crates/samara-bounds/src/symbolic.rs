@@ -1480,11 +1480,23 @@ pub fn alpha_pre_until(
     iters: usize,
     deadline: Option<std::time::Instant>,
 ) {
-    alpha_pre_with(maps, pre, lo, hi, iters, Ascent::Normalised, deadline);
+    alpha_pre_with(
+        maps,
+        pre,
+        lo,
+        hi,
+        iters,
+        Ascent::Normalised,
+        false,
+        deadline,
+    );
 }
 
-/// [`alpha_pre_until`] with the slopes moved by `ascent`, returning the slopes of each
-/// bound (for [`rebound_with_slopes`]).
+/// [`alpha_pre_until`] with the slopes moved by `ascent`; with `keep_slopes`, returns the
+/// slopes of each bound (for [`rebound_with_slopes`]), otherwise `None` everywhere: a
+/// bound's slopes span every ReLU before its layer, so keeping them for every neuron
+/// of a convolutional network would cost far more memory than the bounds themselves.
+#[allow(clippy::too_many_arguments)]
 pub fn alpha_pre_with(
     maps: &[(Affine, bool)],
     pre: &mut [Vec<(f64, f64)>],
@@ -1492,6 +1504,7 @@ pub fn alpha_pre_with(
     hi: &[f64],
     iters: usize,
     ascent: Ascent,
+    keep_slopes: bool,
     deadline: Option<std::time::Instant>,
 ) -> PreSlopes {
     use rayon::prelude::*;
@@ -1563,7 +1576,9 @@ pub fn alpha_pre_with(
             let b = &mut pre[k][i];
             b.0 = b.0.max(l);
             b.1 = b.1.min(u);
-            slopes[k][i] = [la, ua];
+            if keep_slopes {
+                slopes[k][i] = [la, ua];
+            }
         }
     }
     slopes

@@ -750,6 +750,7 @@ fn adam_intermediate_bounds_hold_and_are_within_crowns() {
             &hi,
             15,
             symbolic::Ascent::Adam(0.3),
+            false,
             None,
         );
         let mut norm = crown.clone();
@@ -760,6 +761,7 @@ fn adam_intermediate_bounds_hold_and_are_within_crowns() {
             &hi,
             15,
             symbolic::Ascent::Normalised,
+            false,
             None,
         );
         for (j, (a, c)) in adam.iter().zip(&crown).enumerate() {
@@ -820,7 +822,7 @@ fn rebound_with_the_roots_slopes_holds_on_the_nodes_set() {
         let (_, _, fwd) = symbolic::hidden(&maps, &lo, &hi, None);
         let mut root = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
         let ascent = [symbolic::Ascent::Adam(0.3), symbolic::Ascent::Normalised][trial % 2];
-        let slopes = symbolic::alpha_pre_with(&maps, &mut root, &lo, &hi, 10, ascent, None);
+        let slopes = symbolic::alpha_pre_with(&maps, &mut root, &lo, &hi, 10, ascent, true, None);
         let Some(t) = root[0].iter().position(|b| b.0 < 0.0 && b.1 > 0.0) else {
             continue;
         };
