@@ -91,6 +91,14 @@ pub struct TmFlowSettings {
     pub deadline: Option<std::time::Instant>,
 }
 
+impl TmFlowSettings {
+    /// The remainder tolerance of a coordinate whose a-priori box is `bx`: `rem_tol`,
+    /// or `rem_rel` of the box's width where that is larger.
+    fn tol(&self, bx: &Interval) -> f64 {
+        self.rem_tol.max(self.rem_rel * (bx.hi - bx.lo))
+    }
+}
+
 impl Default for TmFlowSettings {
     fn default() -> Self {
         TmFlowSettings {
@@ -325,7 +333,6 @@ fn taylor_plan(
     // Taylor-model arithmetic: every step first tries twice its predecessor's length).
     let tb = taylor::<Interval>(g, b, bu, pmax + 1)?;
     // Widest remainder allowed for a state whose box is `bx`.
-    let tol = |bx: &Interval| s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo));
     // The highest time order first; where its remainder over B overflows or is too
     // wide (the interval recurrences grow fast on stiff terms: the k-th time
     // coefficient of sqrt(omega^2 + eps) near omega = 0 scales like eps^(-k/2)),
@@ -338,7 +345,7 @@ fn taylor_plan(
         if !finite(&rem) {
             continue;
         }
-        let too_wide = rem.iter().zip(bz).any(|(r, bx)| r.hi - r.lo > tol(bx));
+        let too_wide = rem.iter().zip(bz).any(|(r, bx)| r.hi - r.lo > s.tol(bx));
         if !too_wide {
             best = Some((0.0, p, rem));
             break;
@@ -347,7 +354,7 @@ fn taylor_plan(
             let size: f64 = rem
                 .iter()
                 .zip(bz)
-                .map(|(r, bx)| (r.hi - r.lo) / tol(bx))
+                .map(|(r, bx)| (r.hi - r.lo) / s.tol(bx))
                 .fold(0.0, f64::max);
             if best.as_ref().is_none_or(|b| size < b.0) {
                 best = Some((size, p, rem));
@@ -372,7 +379,6 @@ fn taylor_models(
     b: &[Interval],
 ) -> Option<(Vec<Tm>, Vec<Part>)> {
     let StepPlan { tb, p, rem } = plan;
-    let tol = |bx: &Interval| s.rem_tol.max(s.rem_rel * (bx.hi - bx.lo));
     // Joint degree in (parameters, time), as Flow* truncates (Chen, Abraham &
     // Sankaranarayanan, "Flow*", CAV 2013): the time coefficient `k >= 1` keeps
     // parameter order `max(2, order + 1 - k)`, and so do the products that read it;
@@ -387,7 +393,7 @@ fn taylor_models(
     let base = x.iter().map(|v| v.order()).max().unwrap_or(0);
     // Coefficients up to the chosen order `p` only.
     let tx = if s.joint_degree && base > 2 {
-        let budget = TRIM_SHARE * bz.iter().map(tol).fold(f64::INFINITY, f64::min);
+        let budget = TRIM_SHARE * bz.iter().map(|bx| s.tol(bx)).fold(f64::INFINITY, f64::min);
         let trim = |k: usize, v: Tm| {
             let order = (base + 1).saturating_sub(k as u32).max(2);
             if order >= v.order() {
