@@ -31,8 +31,9 @@
 //! was, so its bound starts at its parent's. Nodes go depth first (the frontier stays
 //! small), in parallel batches, every pull-back over the sparse rows of the lowered
 //! convolutions ([`symbolic::Sparse`], built once per batch). A node with every
-//! unstable neuron fixed that is still open cannot be split: the search reports that
-//! as unknown, not as a proof.
+//! unstable neuron fixed that is still open cannot be split: the network is affine on
+//! its set, and the exact LP of [`crate::exact`] decides it (closed, or a point); only
+//! when that LP does not (deadline, rounding) the search reports it as unknown.
 //!
 //! On boxes with few inputs ([`Tree::lp_bounds`]: networks with one hidden layer, where
 //! the root's pre-activation bounds are exact over the box and only the output layer's
@@ -334,6 +335,24 @@ pub(crate) fn examine(
     } else {
         tree.iters
     };
+    // Deep nodes with few unstable neurons left also bound each constraint by an LP
+    // over the phases' rows ([`crate::exact::Rows::minimise_linear`] of the beta-CROWN
+    // bound): the best multipliers for the rows, where the node's few Adam steps stall.
+    let unstable = pre
+        .iter()
+        .enumerate()
+        .map(|(j, l)| {
+            if maps[j].1 {
+                l.iter().filter(|b| relu::unstable(b.0, b.1)).count()
+            } else {
+                0
+            }
+        })
+        .sum::<usize>();
+    let polish = lp_polish();
+    let mut rows = (polish.is_some_and(|(k, d)| unstable <= k && node.depth >= d))
+        .then(|| crate::exact::Rows::new(maps, &pre, &node.splits, lo, hi));
+    let prof = std::env::var_os("SAMARA_SEARCH_PROFILE").is_some();
     let mut still = Vec::new();
     let mut warm = Vec::new();
     // The pull-back's ReLU-output coefficients of each entry of `warm`, for the
@@ -365,8 +384,37 @@ pub(crate) fn examine(
                 deadline,
                 sp,
             );
-            let lb = f.min_over(lo, hi);
-            if if con.strict { lb >= 0.0 } else { lb > 0.0 } {
+            let mut lb = f.min_over(lo, hi);
+            let closes = |lb: f64| if con.strict { lb >= 0.0 } else { lb > 0.0 };
+            if !closes(lb) {
+                if let Some(rows) = rows.as_mut() {
+                    let t0 = Instant::now();
+                    let mut point = None;
+                    let lb2 = rows.minimise_linear(&f, deadline, |b, x| {
+                        if closes(b) {
+                            return true;
+                        }
+                        if satisfies(&case.constraints, &forward(maps, x, None)) {
+                            point = Some(x.to_vec());
+                            return true;
+                        }
+                        false
+                    });
+                    if prof {
+                        eprintln!(
+                            "lp polish: depth {}, {unstable} unstable, {} rows, {lb:.4e} -> {lb2:.4e} in {:.3} s",
+                            node.depth,
+                            rows.len(),
+                            t0.elapsed().as_secs_f64()
+                        );
+                    }
+                    if let Some(x) = point {
+                        return NodeOut::Found(ci, x);
+                    }
+                    lb = lb.max(lb2);
+                }
+            }
+            if closes(lb) {
                 closed = true;
                 break;
             }
@@ -515,7 +563,7 @@ pub(crate) fn examine(
         }
     }
     let Some((_, j, t)) = choice else {
-        return NodeOut::Stuck;
+        return exact_node(tree, &pre, &node, &still, deadline);
     };
     let pre = Arc::new(pre);
     let children = [false, true]
@@ -540,6 +588,69 @@ pub(crate) fn examine(
         })
         .collect();
     NodeOut::Split(children)
+}
+
+/// Which nodes [`examine`] bounds by an LP too: `(k, d)`, at most `k` unstable neurons
+/// and at least `d` phases fixed (experimental: `SAMARA_X_LPK=k,d`; off by default).
+fn lp_polish() -> Option<(usize, u32)> {
+    static P: std::sync::OnceLock<Option<(usize, u32)>> = std::sync::OnceLock::new();
+    *P.get_or_init(|| {
+        let v = std::env::var("SAMARA_X_LPK").ok()?;
+        let (k, d) = v.split_once(',')?;
+        Some((k.trim().parse().ok()?, d.trim().parse().ok()?))
+    })
+}
+
+/// A node with no unstable neuron left and cases `still` open: each decided by the exact
+/// LP of [`crate::exact`] (the network is affine on the node's set), else stuck.
+fn exact_node(
+    tree: &Tree,
+    pre: &[Vec<(f64, f64)>],
+    node: &Node,
+    still: &[usize],
+    deadline: Option<Instant>,
+) -> NodeOut {
+    debug_assert!(crate::exact::all_stable(tree.maps, pre));
+    let t0 = Instant::now();
+    let mut open = false;
+    let mut outs = Vec::new();
+    for &ci in still {
+        let e = crate::exact::decide(
+            tree.maps,
+            pre,
+            &node.splits,
+            &tree.cases[ci],
+            tree.lo,
+            tree.hi,
+            deadline,
+        );
+        if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+            outs.push(match &e {
+                crate::exact::Exact::Closed => "closed".to_string(),
+                crate::exact::Exact::Found(_) => "found".to_string(),
+                crate::exact::Exact::Open(lb) => format!("open {lb:.3e}"),
+            });
+        }
+        match e {
+            crate::exact::Exact::Closed => {}
+            crate::exact::Exact::Found(x) => return NodeOut::Found(ci, x),
+            crate::exact::Exact::Open(_) => open = true,
+        }
+    }
+    if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+        eprintln!(
+            "exact lp: depth {}, {} phases, {:.3} s: {}",
+            node.depth,
+            node.splits.len(),
+            t0.elapsed().as_secs_f64(),
+            outs.join(", ")
+        );
+    }
+    if open {
+        NodeOut::Stuck
+    } else {
+        NodeOut::Closed
+    }
 }
 
 /// The phases `splits` as linear constraints `f_p(x) <= 0` on the node's set: a linear

@@ -1215,14 +1215,20 @@ fn solve_relu(
         let deep = deep_split(maps, st.lo.len());
         // Dense deep networks only: their early-layer branching gains through the
         // later layers' re-bounds ([`crate::relusplit::Deep`]).
-        let node_slopes = RELU_NODE_SLOPES && deep.is_some();
+        let node_slopes =
+            (RELU_NODE_SLOPES || std::env::var_os("SAMARA_X_SLOPES").is_some()) && deep.is_some();
+        let ascent = if std::env::var_os("SAMARA_X_ADAM").is_some() {
+            symbolic::Ascent::Adam(0.3)
+        } else {
+            RELU_PRE_ASCENT
+        };
         let slopes = symbolic::alpha_pre_with(
             maps,
             &mut pre,
             &st.lo,
             &st.hi,
             RELU_PRE_ITERS,
-            RELU_PRE_ASCENT,
+            ascent,
             node_slopes,
             pre_deadline,
         );
