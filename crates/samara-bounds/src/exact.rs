@@ -121,6 +121,8 @@ pub(crate) struct Rows<'a> {
     hi: &'a [f64],
     phases: Vec<(usize, usize, bool)>,
     lins: Vec<Linear>,
+    /// The last LP's multipliers (one per row of `phases` then), when it was solved.
+    duals: Option<Vec<f64>>,
 }
 
 impl<'a> Rows<'a> {
@@ -143,7 +145,19 @@ impl<'a> Rows<'a> {
             hi,
             phases: splits.to_vec(),
             lins,
+            duals: None,
         }
+    }
+
+    /// The phases of the rows.
+    pub(crate) fn phases(&self) -> &[(usize, usize, bool)] {
+        &self.phases
+    }
+
+    /// The multipliers of the last LP of [`Rows::minimise_linear`] that was solved (one
+    /// per row of [`Rows::phases`] at that time, a prefix of them now).
+    pub(crate) fn duals(&self) -> Option<&[f64]> {
+        self.duals.as_deref()
     }
 
     /// How many rows.
@@ -187,6 +201,7 @@ impl<'a> Rows<'a> {
                 break;
             };
             lb = lb.max(certify(g, &self.lins, &r.duals, lo, hi));
+            self.duals = Some(r.duals.clone());
             if !r.feasible {
                 stop(lb, &r.x);
                 break;

@@ -749,4 +749,39 @@ mod tests {
             }
         }
     }
+
+    /// The LP size of a deep MNIST node decided exactly (784 inputs, 150 phase rows):
+    /// timing only (`cargo test --release -p samara-bounds --lib lp_speed_mnist --
+    /// --ignored --nocapture`). Rows are random dense ones through a point of the
+    /// box (so the set is not empty), the box an eps-ball of 0.05 in [0, 1].
+    #[test]
+    #[ignore]
+    fn lp_speed_mnist() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let n = 784;
+        for m in [20usize, 60, 110, 150] {
+            let x0: Vec<f64> = (0..n).map(|_| rng.gen_range(0.0..1.0)).collect();
+            let lo: Vec<f64> = x0.iter().map(|v| (v - 0.05f64).max(0.0)).collect();
+            let hi: Vec<f64> = x0.iter().map(|v| (v + 0.05f64).min(1.0)).collect();
+            let a: Vec<Vec<f64>> = (0..m)
+                .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
+                .collect();
+            let d: Vec<f64> = a
+                .iter()
+                .map(|r| -r.iter().zip(&x0).map(|(u, v)| u * v).sum::<f64>() - 0.05)
+                .collect();
+            let refs: Vec<&[f64]> = a.iter().map(|r| &r[..]).collect();
+            let c: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+            let t = std::time::Instant::now();
+            let r = min_linear_from_corner(&c, &refs, &d, &lo, &hi, None).expect("solved");
+            let t1 = t.elapsed().as_secs_f64();
+            let t = std::time::Instant::now();
+            let r2 = min_linear(&c, &refs, &d, &lo, &hi).expect("solved");
+            let t2 = t.elapsed().as_secs_f64();
+            eprintln!(
+                "784 x {m}: from the corner {t1:.3} s (feasible {}), plain {t2:.3} s (feasible {})",
+                r.feasible, r2.feasible
+            );
+        }
+    }
 }
