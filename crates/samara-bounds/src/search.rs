@@ -1237,7 +1237,9 @@ fn solve_relu(
             lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
             deep,
             pre_slopes: node_slopes.then_some(&slopes),
-            lp_depth: deep.map(|_| DEEP_LP_DEPTH),
+            lp_depth: deep
+                .filter(|_| st.lo.len() <= relusplit::EXACT_LP_INPUTS)
+                .map(|_| DEEP_LP_DEPTH),
             closed_share: std::sync::Mutex::new(0.0),
         };
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
