@@ -52,6 +52,7 @@
 mod adam;
 mod attack;
 pub mod constant;
+mod exact;
 pub mod linset;
 pub mod lp;
 pub mod optimise;

@@ -1237,6 +1237,9 @@ fn solve_relu(
             lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
             deep,
             pre_slopes: node_slopes.then_some(&slopes),
+            lp_depth: deep
+                .filter(|_| st.lo.len() <= relusplit::EXACT_LP_INPUTS)
+                .map(|_| DEEP_LP_DEPTH),
             closed_share: std::sync::Mutex::new(0.0),
         };
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
@@ -1335,6 +1338,15 @@ const DEEP_RELU_LAYERS: usize = 3;
 /// re-bounds of the later layers per node, in 5.7, and those re-bounds alone cost 5x).
 const DEEP_EARLY_DEPTH: u32 = 6;
 
+/// Nodes of ReLU splitting on deep dense networks with at least this many phases fixed
+/// also bound each open constraint by the LP over their phases' rows and hand its
+/// multipliers to their children ([`crate::relusplit::Tree::lp_depth`]). On VNN-COMP
+/// 2021 mnistfc `256x4` prop_5_0.03 (VeriNet unsat in 6 s; a timeout here before, 13,833
+/// nodes in 90 s, 32.7 CPU-s) the tree closed in 4,356 nodes, 18.4 CPU-s; at depth 10
+/// the LPs start below the early-layer branching of [`DEEP_EARLY_DEPTH`] (2026-11-28,
+/// branch i51-m).
+const DEEP_LP_DEPTH: u32 = 10;
+
 /// Slope and multiplier optimisation steps of ReLU splitting's root node (from CROWN's
 /// slopes) and of every later node (warm-started from its parent's).
 const RELU_ROOT_ITERS: usize = 30;
@@ -1351,7 +1363,11 @@ const RELU_PRE_ITERS: usize = 15;
 /// Adam's tighter bounds grew past 3,000 nodes and timed out at 40 s, as the early
 /// splits of [`crate::relusplit::Deep`] stopped gaining (the nodes' CROWN re-bounds no
 /// longer beat the root's bounds), and no undecided row was decided within 60 s
-/// (2026-11-28, branch i50-m).
+/// (2026-11-28, branch i50-m). Round 51 (i51-m) re-measured it with the LPs of
+/// [`DEEP_LP_DEPTH`]: with Adam's root (with or without [`RELU_NODE_SLOPES`]), `256x4`
+/// prop_3_0.05 was still open at 90 s (about 2,000 nodes, 17 CPU-s each), and the
+/// three rows' deep nodes had 100-250 unstable neurons left, none with every one fixed
+/// (so the exact LP of [`crate::exact`] was never reached): both stay off.
 const RELU_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Normalised;
 /// Whether nodes of deep dense networks re-bound their later layers with the root's
 /// intermediate slopes too ([`symbolic::rebound_with_slopes`]). With Adam's root bounds
