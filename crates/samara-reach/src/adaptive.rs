@@ -61,7 +61,7 @@ use samara_num::Interval;
 use samara_system::sim::{fly, goals_hold};
 use samara_system::System;
 use serde::{Deserialize, Serialize};
-use std::collections::BTreeMap;
+use std::collections::{BTreeMap, BTreeSet};
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -117,6 +117,10 @@ pub struct AdaptiveSettings {
     pub resume: Vec<FinishedRoot>,
     /// Called with every starting cell as it finishes (to write a checkpoint).
     pub on_finished: Option<OnFinished>,
+    /// `Some(f)`: a cell lost after reaching the share `f` of the horizon's control
+    /// steps is flown once more with more symbolic parameters ([`retry_mode`]) before
+    /// it is cut, once per cell (default [`RETRY_FROM`]); `None`: lost cells are cut.
+    pub retry_from: Option<f64>,
 }
 
 impl Default for AdaptiveSettings {
@@ -129,6 +133,7 @@ impl Default for AdaptiveSettings {
             shard: None,
             resume: Vec::new(),
             on_finished: None,
+            retry_from: Some(RETRY_FROM),
         }
     }
 }
@@ -141,6 +146,10 @@ pub struct AdaptiveCell {
     /// Sets to the horizon, the measure in the band, goals proved (or refuted by a
     /// flight).
     pub accepted: bool,
+    /// Its sets are those of its second flight, with [`retry_mode`]'s network error
+    /// (its first was lost late).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub retried: bool,
 }
 
 /// The result of an adaptive run.
@@ -219,6 +228,35 @@ impl CellId {
             root: self.root,
             path,
         }
+    }
+}
+
+/// The share of the horizon's control steps a lost cell must have reached to be flown
+/// once more with [`retry_mode`] before it is cut. On the glider's six-state cells
+/// (bench/reach/cell_cost.md, "i51-r"), cells lost in the periods from t = 18 and 19
+/// of 20 reach the horizon with `symbolic:60` where they were lost with `symbolic:40`,
+/// at about 1.5x a cell's cost where their two halves cost 2x; a cell lost from t = 16
+/// is lost again (at t = 19.5), and so are coarser cells lost earlier: those are cut.
+pub const RETRY_FROM: f64 = 0.85;
+
+/// The network error a cell lost late is flown again with: half as many symbolic
+/// parameters again (`symbolic:40` -> `symbolic:60`, at most 256: more symbolic
+/// remainders keep more of the network's error correlated, the lifted parameters of
+/// Makino and Berz's symbolic remainders), symbolic remainders after interval ones.
+pub fn retry_mode(mode: NetworkError) -> NetworkError {
+    match mode {
+        NetworkError::Interval => NetworkError::Symbolic { extra: 20 },
+        NetworkError::Symbolic { extra } => NetworkError::Symbolic {
+            extra: (extra + extra.div_ceil(2)).min(256),
+        },
+    }
+}
+
+/// `interval` or `symbolic:N`, as `--network-error` names a mode.
+fn mode_name(m: NetworkError) -> String {
+    match m {
+        NetworkError::Interval => "interval".into(),
+        NetworkError::Symbolic { extra } => format!("symbolic:{extra}"),
     }
 }
 
@@ -307,6 +345,9 @@ pub fn reach_adaptive(
     }
     // Starting cells a checkpoint finished: their cells as they are, not flown again.
     let mut done: Vec<(CellId, SystemLeaf, bool)> = Vec::new();
+    // Cells flown with `retry_mode` (their second flight), and those of the next round.
+    let mut retried: BTreeSet<CellId> = BTreeSet::new();
+    let mut retrying: BTreeSet<CellId> = BTreeSet::new();
     let (mut resumed_rounds, mut resumed_flown) = (0, 0);
     if !a.resume.is_empty() {
         let mut resumed = std::collections::BTreeSet::new();
@@ -321,7 +362,12 @@ pub fn reach_adaptive(
             resumed_flown += f.flown;
             for (c, l) in &f.cells {
                 match CellId::parse(&c.id) {
-                    Some(id) if id.root == f.root => done.push((id, l.clone(), c.accepted)),
+                    Some(id) if id.root == f.root => {
+                        if c.retried {
+                            retried.insert(id.clone());
+                        }
+                        done.push((id, l.clone(), c.accepted))
+                    }
                     _ => {
                         return setting(format!(
                             "the checkpoint's cell `{}` is not a cell of starting cell {}: the file is damaged; remove it",
@@ -362,6 +408,7 @@ pub fn reach_adaptive(
         .network_error
         .unwrap_or(NetworkError::Symbolic { extra: 20 });
     let steps = sys.steps();
+    let again = retry_mode(mode);
     let need = |l: &SystemLeaf| -> Need {
         if goals_count {
             if let Some(gi) = l.decided.iter().position(|d| *d == Some(false)) {
@@ -402,10 +449,15 @@ pub fn reach_adaptive(
         rounds += 1;
         let results: Vec<(CellId, SystemLeaf)> = frontier
             .par_iter()
-            .map(|(id, b)| (id.clone(), fly_box(sys, net, b, s, mode, deadline)))
+            .map(|(id, b)| {
+                let m = if retrying.contains(id) { again } else { mode };
+                (id.clone(), fly_box(sys, net, b, s, m, deadline))
+            })
             .collect();
         flown += results.len();
+        retried.append(&mut retrying);
         let mut cuts: Vec<(u8, f64, CellId, SystemLeaf)> = Vec::new();
+        let mut again_next: Vec<(CellId, SystemLeaf)> = Vec::new();
         let (mut accepted, mut lost, mut wide) = (0usize, 0usize, 0usize);
         let mut touched = std::collections::BTreeSet::new();
         for (id, _) in &results {
@@ -431,7 +483,15 @@ pub fn reach_adaptive(
                 Need::Cut(class, key) => {
                     lost += usize::from(class == 0);
                     wide += usize::from(class == 1);
-                    cuts.push((class, key, id, l));
+                    let late = a.retry_from.is_some_and(|f| {
+                        l.failure.is_some()
+                            && l.instants.len().saturating_sub(1) as f64 >= f * steps as f64
+                    });
+                    if class == 0 && late && again != mode && !retried.contains(&id) {
+                        again_next.push((id, l));
+                    } else {
+                        cuts.push((class, key, id, l));
+                    }
                 }
             }
         }
@@ -453,6 +513,24 @@ pub fn reach_adaptive(
         for (_, _, id, l) in rest {
             roots.entry(id.root).or_default().tainted = true;
             done.push((id, l, false));
+        }
+        // Lost late: flown once more (it stays one leaf), unless the run is ending.
+        let n_again = again_next.len();
+        let mut again_cells = Vec::new();
+        for (id, l) in again_next {
+            if refuted.is_some() || timed_out {
+                roots.entry(id.root).or_default().tainted = true;
+                done.push((id, l, false));
+                continue;
+            }
+            roots.entry(id.root).or_default().pending += 1;
+            let b: Vec<Interval> = l
+                .init
+                .iter()
+                .map(|v| Interval { lo: v[0], hi: v[1] })
+                .collect();
+            retrying.insert(id.clone());
+            again_cells.push((id, b));
         }
         for (_, _, id, _) in &cuts {
             roots.entry(id.root).or_default().pending += 2;
@@ -481,7 +559,8 @@ pub fn reach_adaptive(
                 vec![(id.child(0), p), (id.child(1), q)]
             })
             .collect();
-        frontier = halves.into_iter().flatten().collect();
+        frontier = again_cells;
+        frontier.extend(halves.into_iter().flatten());
         for root in touched {
             let finished = roots.get(&root).is_some_and(|r| r.pending == 0);
             if !finished {
@@ -501,6 +580,7 @@ pub fn reach_adaptive(
                                 AdaptiveCell {
                                     id: id.label(),
                                     accepted: *ok,
+                                    retried: retried.contains(id),
                                 },
                                 l.clone(),
                             )
@@ -511,7 +591,8 @@ pub fn reach_adaptive(
         }
         if let Some(f) = &a.on_round {
             f(&format!(
-                "round {rounds}: {accepted} cells accepted, {lost} lost, {wide} too wide or undecided; {} to fly next; {} leaves of {}, {} accepted so far; {:.0} s",
+                "round {rounds}: {accepted} cells accepted, {lost} lost ({n_again} lost late, to fly again with {}), {wide} too wide or undecided; {} to fly next; {} leaves of {}, {} accepted so far; {:.0} s",
+                mode_name(again),
                 frontier.len(),
                 leaves,
                 s.max_boxes,
@@ -555,6 +636,7 @@ pub fn reach_adaptive(
         .map(|(id, l, ok)| {
             (
                 AdaptiveCell {
+                    retried: retried.contains(&id),
                     id: id.label(),
                     accepted: ok,
                 },

@@ -275,7 +275,9 @@ struct CheckpointHead {
     run: TaylorRun,
 }
 
-const CHECKPOINT: &str = "samara adaptive reach checkpoint 1";
+// 2: cells lost late are flown again with more symbolic parameters before a cut
+// (`samara_reach::adaptive::RETRY_FROM`); a checkpoint of 1 holds cells cut instead.
+const CHECKPOINT: &str = "samara adaptive reach checkpoint 2";
 
 /// A shard's checkpoint file (JSON lines: the run, then one finished starting cell a
 /// line, appended as they finish), from which a rerun of a killed or timed-out shard
@@ -490,6 +492,7 @@ pub fn run_shard(r: ShardRun<'_>) -> Result<ShardDone> {
         shard: Some((r.shard.i, r.shard.n)),
         resume,
         on_finished: cp.as_ref().map(Checkpoint::on_finished),
+        retry_from: AdaptiveSettings::default().retry_from,
     };
     let res = reach_adaptive(r.sys, r.net, r.settings, &a)
         .map_err(|e| AppError::Input(format!("{}: {e}", r.system_name)))?;
