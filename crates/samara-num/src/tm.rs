@@ -611,8 +611,11 @@ struct Drops(
     /// lower bound it was made from ([`Tm::lowering_key`]), which operations change
     /// without [`Tm::touch`]: a kept model is used only while they are the same. Not
     /// copied by a clone.
-    OnceLock<Box<[OnceLock<(Tm, [u64; 4])>; DROP_SLOTS]>>,
+    OnceLock<Box<[OnceLock<KeptLowering>; DROP_SLOTS]>>,
 );
+
+/// A lowered model and the lowering key of the source it was made from.
+type KeptLowering = (Tm, [u64; 4]);
 
 impl Drops {
     /// The kept bounds for target order `k` (dropped terms, lowered model's extents),
