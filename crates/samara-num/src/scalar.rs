@@ -119,6 +119,22 @@ pub trait Scalar:
     fn mul_by_ref(&self, o: &Self) -> Self {
         self.clone() * o.clone()
     }
+    /// The sum `self + o` of two borrowed values: the same number as the sum by value,
+    /// without copying the second operand (Taylor models add it into a copy of the
+    /// first by reference).
+    fn add_by_ref(&self, o: &Self) -> Self {
+        self.clone() + o.clone()
+    }
+    /// The difference `self - o` of two borrowed values, as [`Scalar::add_by_ref`].
+    fn sub_by_ref(&self, o: &Self) -> Self {
+        self.clone() - o.clone()
+    }
+    /// The quotient `self / o` with the divisor borrowed: the same number as the
+    /// quotient by value (Taylor models keep the divisor's reciprocal for the next
+    /// quotient by the same divisor, which a series' recurrence takes at every order).
+    fn div_by_ref(self, o: &Self) -> Self {
+        self / o.clone()
+    }
     /// The order past which this value's products are truncated (Taylor models:
     /// their order; `u32::MAX` for types that keep everything).
     fn trunc_order(&self) -> u32 {
@@ -131,6 +147,17 @@ pub trait Scalar:
     fn mul_capped(&self, o: &Self, cap: u32) -> Self {
         let _ = cap;
         self.mul_by_ref(o)
+    }
+    /// `sum_{j in lo..=i} a_j b_{i-j}`, each product truncated at order `cap` (the sums
+    /// of products of the series recurrences, `series::conv`): by default the products
+    /// one by one ([`Scalar::mul_capped`]), each added to the sum of the earlier ones.
+    /// Types may sum them otherwise (Taylor models: into one vector).
+    fn conv_capped(a: &[Self], b: &[Self], lo: usize, i: usize, cap: u32) -> Self {
+        let mut acc = a[lo].mul_capped(&b[i - lo], cap);
+        for j in lo + 1..=i {
+            acc += a[j].mul_capped(&b[i - j], cap);
+        }
+        acc
     }
     /// Square, `x * x` (types may do better, e.g. intervals).
     fn sqr(&self) -> Self {

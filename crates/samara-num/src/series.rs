@@ -120,15 +120,12 @@ pub fn dconv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
 
 /// Coefficient `i` of the product of the series `a` and `b`,
 /// `a_0 b_i + sum_{j=1}^{i} a_j b_{i-j}`, in the order shared with the incremental
-/// expansion, each product truncated at the order the sum ends at (as [`dconv`]).
+/// expansion, each product truncated at the order the sum ends at (as [`dconv`]);
+/// summed by [`Scalar::conv_capped`].
 #[inline]
 pub fn conv<S: Scalar>(a: &[S], b: &[S], i: usize) -> S {
     let cap = conv_cap(a, b, 0, i);
-    let mut acc = a[0].mul_capped(&b[i], cap);
-    for j in 1..=i {
-        acc += a[j].mul_capped(&b[i - j], cap);
-    }
-    acc
+    S::conv_capped(a, b, 0, i, cap)
 }
 
 impl<S: Scalar, const K: usize> Add for Series<S, K> {

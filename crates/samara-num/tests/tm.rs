@@ -1332,6 +1332,94 @@ fn dense_products_enclose_exact_values() {
     assert_eq!(checked, 4 * 60 * 4);
 }
 
+/// Sums of products of dense models as a series' convolution takes them
+/// (`Scalar::conv_capped`: `sum_j a_j b_{i-j}` at the smallest order of its operands,
+/// the later coefficients at lower orders as under the joint degree, every product
+/// added into one vector with one rounding-error bound) enclose the exact rational sum
+/// at random points with any point of the remainders, on the tables of
+/// `dense_products_enclose_exact_values`; and their remainders are not wider than
+/// those of the products summed one by one, but for rounding terms.
+#[test]
+fn dense_convolutions_enclose_exact_values() {
+    let mut rng = Rng(0x5EED_C0A7);
+    let tables = [
+        Tm::var(0, 3, 4).with_lifted_weight(2).param(0, 7),
+        Tm::var(0, 2, 4).with_lifted_weight(3).param(0, 5),
+        Tm::var(0, 4, 3),
+        Tm::var(0, 2, 5),
+    ];
+    let mut checked = 0usize;
+    for (tk, base) in tables.iter().enumerate() {
+        let exps: Vec<Vec<u32>> = (0..base.n_terms()).map(|i| exponents(base, i)).collect();
+        let n = base.n_vars();
+        for case in 0..24 {
+            let i = 1 + rng.below(5) as usize;
+            // Coefficient k at order max(2, order + 1 - k) (or the full order).
+            let joint = rng.below(2) == 0;
+            let series = |rng: &mut Rng| {
+                (0..=i)
+                    .map(|k| {
+                        let (m, c, r) = dense_model(rng, base, &exps);
+                        let o = if joint && k >= 1 {
+                            (base.order() + 1).saturating_sub(k as u32).max(2)
+                        } else {
+                            base.order()
+                        };
+                        (m.with_order(o), c, r)
+                    })
+                    .collect::<Vec<_>>()
+            };
+            let sa = series(&mut rng);
+            let sb = series(&mut rng);
+            let a: Vec<Tm> = sa.iter().map(|x| x.0.clone()).collect();
+            let b: Vec<Tm> = sb.iter().map(|x| x.0.clone()).collect();
+            let cap = (0..=i)
+                .map(|j| a[j].trunc_order().min(b[i - j].trunc_order()))
+                .min()
+                .unwrap();
+            let p = Tm::conv_capped(&a, &b, 0, i, cap);
+            assert!(p.order() <= cap);
+            let mut one = a[0].mul_capped(&b[i], cap);
+            for j in 1..=i {
+                one += a[j].mul_capped(&b[i - j], cap);
+            }
+            let (w, w1) = (p.rem().width(), one.rem().width());
+            assert!(
+                w <= w1 * (1.0 + 1e-9)
+                    + 1e-12 * {
+                        let b = p.bound();
+                        b.lo.abs().max(b.hi.abs()).max(1.0)
+                    },
+                "table {tk}, case {case}: remainder {w} against {w1} one by one"
+            );
+            let bound = p.bound();
+            for _ in 0..4 {
+                let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
+                let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+                let mut v = BigRational::zero();
+                for j in 0..=i {
+                    // The exact functions the models enclose: the dense polynomials
+                    // and a point of their remainders (lowering keeps the function).
+                    let (_, ca, ra) = &sa[j];
+                    let (_, cb, rb) = &sb[i - j];
+                    let va = exact_poly(ca, &exps, &xq) + q(point_in(&mut rng, ra));
+                    let vb = exact_poly(cb, &exps, &xq) + q(point_in(&mut rng, rb));
+                    v += va * vb;
+                }
+                let at = p.eval_at(&xi);
+                assert!(
+                    contains_exact(&at, &v),
+                    "table {tk}, case {case}, i {i}, cap {cap}: exact {} not in {at:?}",
+                    v.to_f64().unwrap_or(f64::NAN)
+                );
+                assert!(contains_exact(&bound, &v), "table {tk}, case {case}: bound");
+                checked += 1;
+            }
+        }
+    }
+    assert_eq!(checked, 4 * 24 * 4);
+}
+
 /// Elementary functions of dense models on mixed-degree tables (the six-state cell's
 /// kind, 3 weight-1 and 4 lifted parameters of weight 2 at order 4) and classic ones
 /// meet the libm values at random points: their Horner products run at the order each

@@ -378,7 +378,7 @@ fn advance<S: Scalar>(
                 // `S::cst(v) / a`: a constant numerator.
                 Op::CDiv(v, a) => {
                     if konst[a] {
-                        S::cst(v) / r(a)[0].clone()
+                        S::cst(v).div_by_ref(&r(a)[0])
                     } else {
                         let num = if i == 0 { S::cst(v) } else { zero.clone() };
                         let cap = quot_cap(&num, r(a), &c[k * m..(k + 1) * m], i, 1..i + 1);
@@ -386,12 +386,12 @@ fn advance<S: Scalar>(
                         for j in 1..=i {
                             acc -= r(a)[j].mul_capped(&c[k * m + i - j], cap);
                         }
-                        acc / r(a)[0].clone()
+                        acc.div_by_ref(&r(a)[0])
                     }
                 }
                 Op::Bin(f, a, b) => match f {
-                    Bin2::Add => r(a)[i].clone() + r(b)[i].clone(),
-                    Bin2::Sub => r(a)[i].clone() - r(b)[i].clone(),
+                    Bin2::Add => r(a)[i].add_by_ref(&r(b)[i]),
+                    Bin2::Sub => r(a)[i].sub_by_ref(&r(b)[i]),
                     Bin2::Mul => {
                         if konst[a] {
                             r(b)[i].mul_by_ref(&r(a)[0])
@@ -403,14 +403,14 @@ fn advance<S: Scalar>(
                     }
                     Bin2::Div => {
                         if konst[b] {
-                            r(a)[i].clone() / r(b)[0].clone()
+                            r(a)[i].clone().div_by_ref(&r(b)[0])
                         } else {
                             let mut acc = r(a)[i].clone();
                             let cap = quot_cap(&acc, r(b), &c[k * m..(k + 1) * m], i, 1..i + 1);
                             for j in 1..=i {
                                 acc -= r(b)[j].mul_capped(&c[k * m + i - j], cap);
                             }
-                            acc / r(b)[0].clone()
+                            acc.div_by_ref(&r(b)[0])
                         }
                     }
                     // Constants only (refused above otherwise): i = 0.
@@ -455,7 +455,7 @@ fn advance<S: Scalar>(
                                     * r(a)[i - j].clone()
                                     * (j as f64 / i as f64);
                             }
-                            acc / r(a)[0].clone()
+                            acc.div_by_ref(&r(a)[0])
                         }
                     }
                     Un::Sin | Un::Cos if twin[k] != usize::MAX => {
