@@ -2342,7 +2342,7 @@ impl Scalar for Tm {
         Tm::mul_ref(self, o)
     }
     /// The products summed into one vector with one rounding-error bound
-    /// ([`Tm::sum_of_products`]) where every operand has an order of its own and
+    /// (`Tm::sum_of_products`) where every operand has an order of its own and
     /// parameters; otherwise one by one, as the default.
     fn conv_capped(a: &[Tm], b: &[Tm], lo: usize, i: usize, cap: u32) -> Tm {
         let ops = || (lo..=i).flat_map(|j| [&a[j], &b[i - j]]);

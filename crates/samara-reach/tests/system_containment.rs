@@ -791,10 +791,21 @@ fn six_state_cell_on_long_steps_keeps_its_time_limit() {
             wall <= limit + 1.0,
             "--timeout {limit}: {wall:.2} s ({failure})"
         );
-        assert!(
-            failure.contains("time budget"),
-            "--timeout {limit}: {failure}"
-        );
+        // A run that finishes within its limit keeps the promise too (since round 51's
+        // cheaper arithmetic the cell reaches the horizon in about 4.7 s of a debug
+        // build): then its sub-box must have reached the horizon, else the budget must
+        // be what stopped it.
+        if r.leaves[0].failure.is_none() {
+            assert!(
+                r.leaves[0].instants.len() > sys.steps(),
+                "--timeout {limit}: neither stopped by the budget nor at the horizon"
+            );
+        } else {
+            assert!(
+                failure.contains("time budget"),
+                "--timeout {limit}: {failure}"
+            );
+        }
     }
 }
 
