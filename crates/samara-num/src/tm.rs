@@ -691,6 +691,39 @@ impl fmt::Debug for Tm {
     }
 }
 
+/// The kept values that debug builds recheck against a fresh computation
+/// ([`recheck_now`]): one counter each, so that one check's calls do not shift another's.
+#[cfg(debug_assertions)]
+#[derive(Clone, Copy)]
+enum Recheck {
+    /// [`Tm::check_kept_extent`].
+    Extent,
+    /// [`Tm::check_kept_lowered`].
+    Lowered,
+    /// [`Tm::check_kept_drops`].
+    Drops,
+    /// [`Tm::check_kept_wsums`].
+    Wsums,
+}
+
+/// Debug builds: whether this call of the check `which` recomputes its kept value (one
+/// call in 16 per thread: the 16th, 32nd, ...), so that a stale cache fails the tests
+/// that reach it while the tests' cost stays near the release build's (which has no
+/// checks: its bits do not depend on this).
+#[cfg(debug_assertions)]
+fn recheck_now(which: Recheck) -> bool {
+    thread_local! {
+        static CALLS: std::cell::Cell<[u32; 4]> = const { std::cell::Cell::new([0; 4]) };
+    }
+    CALLS.with(|c| {
+        let mut calls = c.get();
+        let n = calls[which as usize].wrapping_add(1);
+        calls[which as usize] = n;
+        c.set(calls);
+        n.is_multiple_of(16)
+    })
+}
+
 /// How the monomials of `from` land on `to` (which of them `to` has, at which index,
 /// and which it lacks: past its weighted order), for tables with `from.n <= to.n` (the
 /// extra parameters appended).
@@ -1094,15 +1127,7 @@ impl Tm {
     /// six-state cell; `bench/reach/cell_cost.md`).
     #[cfg(debug_assertions)]
     fn check_kept_extent(&self, kept: [f64; 2], start: usize) {
-        thread_local! {
-            static READS: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
-        }
-        let n = READS.with(|r| {
-            let n = r.get().wrapping_add(1);
-            r.set(n);
-            n
-        });
-        if n.is_multiple_of(16) {
+        if recheck_now(Recheck::Extent) {
             let fresh = self.extent_from(start);
             assert!(
                 fresh[0].to_bits() == kept[0].to_bits() && fresh[1].to_bits() == kept[1].to_bits(),
@@ -1532,15 +1557,7 @@ impl Tm {
     /// bit for bit (coefficients, remainder, lower bound).
     #[cfg(debug_assertions)]
     fn check_kept_lowered(&self, kept: &Tm) {
-        thread_local! {
-            static USES: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
-        }
-        let n = USES.with(|r| {
-            let n = r.get().wrapping_add(1);
-            r.set(n);
-            n
-        });
-        if n.is_multiple_of(16) {
+        if recheck_now(Recheck::Lowered) {
             let map = conversion(self.t, kept.t);
             let mut c = vec![0.0; kept.t.len()];
             for &(i, j) in &map.kept {
@@ -1592,15 +1609,7 @@ impl Tm {
     /// bit for bit (as [`Tm::check_kept_extent`] for the polynomial's range).
     #[cfg(debug_assertions)]
     fn check_kept_drops(&self, kept: [f64; 2], map: &Conversion) {
-        thread_local! {
-            static USES: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
-        }
-        let n = USES.with(|r| {
-            let n = r.get().wrapping_add(1);
-            r.set(n);
-            n
-        });
-        if n.is_multiple_of(16) {
+        if recheck_now(Recheck::Drops) {
             let fresh = self.dropped_extent(map);
             assert!(
                 fresh[0].to_bits() == kept[0].to_bits() && fresh[1].to_bits() == kept[1].to_bits(),
@@ -1841,15 +1850,7 @@ impl Tm {
     /// for bit (but the constant's entry, which the reader takes from `c_0`).
     #[cfg(debug_assertions)]
     fn check_kept_wsums(&self, kept: &[WSum]) {
-        thread_local! {
-            static READS: std::cell::Cell<u32> = const { std::cell::Cell::new(0) };
-        }
-        let n = READS.with(|r| {
-            let n = r.get().wrapping_add(1);
-            r.set(n);
-            n
-        });
-        if n.is_multiple_of(16) {
+        if recheck_now(Recheck::Wsums) {
             let fresh = self.wsums_fresh();
             let same = fresh.len() == kept.len()
                 && fresh
