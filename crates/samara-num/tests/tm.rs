@@ -45,6 +45,12 @@ impl Rng {
             _ => self.range(-1.0, 1.0),
         }
     }
+    /// A point of `n` parameters ([`Rng::param`] each), as floats and as exact rationals.
+    fn point(&mut self, n: usize) -> (Vec<f64>, Vec<BigRational>) {
+        let xi: Vec<f64> = (0..n).map(|_| self.param()).collect();
+        let xq = xi.iter().map(|&x| q(x)).collect();
+        (xi, xq)
+    }
 }
 
 fn q(x: f64) -> BigRational {
@@ -255,8 +261,7 @@ fn encloses_at_points(e: &Expr, t: &Tm, rng: &mut Rng, n: usize, case: usize) ->
     let b = t.bound();
     assert!(!b.lo.is_nan() && !b.hi.is_nan(), "NaN bound: {e:?}");
     for _ in 0..6 {
-        let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-        let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+        let (xi, xq) = rng.point(n);
         let v = e.exact(&xq);
         let at = t.eval_at(&xi);
         assert!(
@@ -358,8 +363,7 @@ fn mixed_degree_arithmetic_encloses_exact_rational_values() {
             .map(|k| (rng.below(4) != 0).then_some(nv - 1 - k))
             .collect();
         let r = t.reparam(&map, nv);
-        let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-        let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+        let (xi, xq) = rng.point(n);
         let mut yi = vec![0.0; nv];
         for (k, m) in map.iter().enumerate() {
             if let Some(j) = m {
@@ -433,8 +437,7 @@ fn reparameterised_models_keep_every_value() {
         assert_eq!(w.len(), nv);
         assert!(w.iter().all(|v| *v >= 0.0), "case {case}: weights {w:?}");
         for _ in 0..6 {
-            let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-            let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+            let (xi, xq) = rng.point(n);
             let v = e.exact(&xq);
             let mut yi = vec![0.0; n_new];
             for (k, m) in map.iter().enumerate() {
@@ -690,8 +693,7 @@ fn elementary_functions_enclose_libm_values() {
                 "{name} case {case}: not finite {ftm:?} of {gt:?}"
             );
             for _ in 0..4 {
-                let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-                let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+                let (xi, xq) = rng.point(n);
                 let y = g.exact(&xq);
                 let r = reference(ff, &y);
                 let at = ftm.eval_at(&xi);
@@ -994,8 +996,7 @@ fn models_rebuilt_from_their_terms_keep_every_value() {
         let r = t.from_terms(t.coef(0), &terms).with_rem(t.rem());
         assert!(r.same_basis(&t));
         for _ in 0..5 {
-            let xi: Vec<f64> = (0..t.n_vars().max(n)).map(|_| rng.param()).collect();
-            let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+            let (xi, xq) = rng.point(t.n_vars().max(n));
             let v = e.exact(&xq);
             assert!(
                 contains_exact(&r.eval_at(&xi), &v),
@@ -1087,8 +1088,7 @@ fn order_changes_keep_every_value() {
         let coef: Vec<f64> = (0..n).map(|_| rng.range(-0.2, 0.2)).collect();
         let den = Expr::Affine(1.5 + rng.unit(), coef, order);
         let quot = low.clone() / den.tm();
-        let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-        let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+        let (xi, xq) = rng.point(n);
         let v = e.exact(&xq) / den.exact(&xq);
         let at = quot.eval_at(&xi);
         assert!(
@@ -1242,6 +1242,23 @@ fn exponents(t: &Tm, i: usize) -> Vec<u32> {
         .collect()
 }
 
+/// The exponents of every monomial of `t`'s table ([`exponents`]), by index.
+fn all_exponents(t: &Tm) -> Vec<Vec<u32>> {
+    (0..t.n_terms()).map(|i| exponents(t, i)).collect()
+}
+
+/// The tables of the dense-model tests: a mixed-degree one as the six-state cell's (3
+/// weight-1 and 4 lifted parameters of weight 2 at order 4), one with 2 and 3 of
+/// weight 3, and classic ones in 4 parameters at order 3 and 2 at order 5.
+fn dense_tables() -> [Tm; 4] {
+    [
+        Tm::var(0, 3, 4).with_lifted_weight(2).param(0, 7),
+        Tm::var(0, 2, 4).with_lifted_weight(3).param(0, 5),
+        Tm::var(0, 4, 3),
+        Tm::var(0, 2, 5),
+    ]
+}
+
 /// A model with every monomial of `base`'s table set (mixed magnitudes, some zero)
 /// and a random remainder, and its exact function: the coefficients, the exponents
 /// and the remainder's chosen point.
@@ -1262,6 +1279,19 @@ fn dense_model(rng: &mut Rng, base: &Tm, exps: &[Vec<u32>]) -> (Tm, Vec<f64>, In
         }
     };
     (base.from_terms(c[0], &terms).with_rem(rem), c, rem)
+}
+
+/// The exact function a dense model ([`dense_model`]) encloses at the point `xq`: its
+/// polynomial (coefficients `c`, exponents `exps`) plus a point of its remainder `rem`
+/// chosen at random.
+fn exact_at(
+    rng: &mut Rng,
+    c: &[f64],
+    exps: &[Vec<u32>],
+    xq: &[BigRational],
+    rem: &Interval,
+) -> BigRational {
+    exact_poly(c, exps, xq) + q(point_in(rng, rem))
 }
 
 fn exact_poly(c: &[f64], exps: &[Vec<u32>], xq: &[BigRational]) -> BigRational {
@@ -1291,15 +1321,10 @@ fn exact_poly(c: &[f64], exps: &[Vec<u32>], xq: &[BigRational]) -> BigRational {
 #[test]
 fn dense_products_enclose_exact_values() {
     let mut rng = Rng(0x5EED_DE45);
-    let tables = [
-        Tm::var(0, 3, 4).with_lifted_weight(2).param(0, 7),
-        Tm::var(0, 2, 4).with_lifted_weight(3).param(0, 5),
-        Tm::var(0, 4, 3),
-        Tm::var(0, 2, 5),
-    ];
+    let tables = dense_tables();
     let mut checked = 0usize;
     for (tk, base) in tables.iter().enumerate() {
-        let exps: Vec<Vec<u32>> = (0..base.n_terms()).map(|i| exponents(base, i)).collect();
+        let exps = all_exponents(base);
         let n = base.n_vars();
         for case in 0..60 {
             let (a, ca, ra) = dense_model(&mut rng, base, &exps);
@@ -1313,10 +1338,9 @@ fn dense_products_enclose_exact_values() {
             assert!(p.order() <= cap);
             let bound = p.bound();
             for _ in 0..4 {
-                let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-                let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
-                let va = exact_poly(&ca, &exps, &xq) + q(point_in(&mut rng, &ra));
-                let vb = exact_poly(&cb, &exps, &xq) + q(point_in(&mut rng, &rb));
+                let (xi, xq) = rng.point(n);
+                let va = exact_at(&mut rng, &ca, &exps, &xq, &ra);
+                let vb = exact_at(&mut rng, &cb, &exps, &xq, &rb);
                 let v = va * vb;
                 let at = p.eval_at(&xi);
                 assert!(
@@ -1342,15 +1366,10 @@ fn dense_products_enclose_exact_values() {
 #[test]
 fn dense_convolutions_enclose_exact_values() {
     let mut rng = Rng(0x5EED_C0A7);
-    let tables = [
-        Tm::var(0, 3, 4).with_lifted_weight(2).param(0, 7),
-        Tm::var(0, 2, 4).with_lifted_weight(3).param(0, 5),
-        Tm::var(0, 4, 3),
-        Tm::var(0, 2, 5),
-    ];
+    let tables = dense_tables();
     let mut checked = 0usize;
     for (tk, base) in tables.iter().enumerate() {
-        let exps: Vec<Vec<u32>> = (0..base.n_terms()).map(|i| exponents(base, i)).collect();
+        let exps = all_exponents(base);
         let n = base.n_vars();
         for case in 0..24 {
             let i = 1 + rng.below(5) as usize;
@@ -1394,16 +1413,15 @@ fn dense_convolutions_enclose_exact_values() {
             );
             let bound = p.bound();
             for _ in 0..4 {
-                let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-                let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+                let (xi, xq) = rng.point(n);
                 let mut v = BigRational::zero();
                 for j in 0..=i {
                     // The exact functions the models enclose: the dense polynomials
                     // and a point of their remainders (lowering keeps the function).
                     let (_, ca, ra) = &sa[j];
                     let (_, cb, rb) = &sb[i - j];
-                    let va = exact_poly(ca, &exps, &xq) + q(point_in(&mut rng, ra));
-                    let vb = exact_poly(cb, &exps, &xq) + q(point_in(&mut rng, rb));
+                    let va = exact_at(&mut rng, ca, &exps, &xq, ra);
+                    let vb = exact_at(&mut rng, cb, &exps, &xq, rb);
                     v += va * vb;
                 }
                 let at = p.eval_at(&xi);
@@ -1436,7 +1454,7 @@ fn elementary_functions_of_dense_models_meet_libm_values() {
     ];
     let mut checks = 0usize;
     for (tk, base) in tables.iter().enumerate() {
-        let exps: Vec<Vec<u32>> = (0..base.n_terms()).map(|i| exponents(base, i)).collect();
+        let exps = all_exponents(base);
         let n = base.n_vars();
         for case in 0..40 {
             for ((name, ft, ff), lo, hi) in funs() {
@@ -1460,8 +1478,7 @@ fn elementary_functions_of_dense_models_meet_libm_values() {
                     "table {tk}, {name} case {case}: not finite"
                 );
                 for _ in 0..4 {
-                    let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-                    let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
+                    let (xi, xq) = rng.point(n);
                     let y = exact_poly(&cd, &exps, &xq) + q(dr);
                     let want = reference(ff, &y);
                     let at = fg.eval_at(&xi);
@@ -1489,15 +1506,10 @@ fn elementary_functions_of_dense_models_meet_libm_values() {
 #[test]
 fn sums_scalings_and_ranges_of_dense_models_enclose_exact_values() {
     let mut rng = Rng(0x5EED_5A4E);
-    let tables = [
-        Tm::var(0, 3, 4).with_lifted_weight(2).param(0, 7),
-        Tm::var(0, 2, 4).with_lifted_weight(3).param(0, 5),
-        Tm::var(0, 4, 3),
-        Tm::var(0, 2, 5),
-    ];
+    let tables = dense_tables();
     let mut checked = 0usize;
     for (tk, base) in tables.iter().enumerate() {
-        let exps: Vec<Vec<u32>> = (0..base.n_terms()).map(|i| exponents(base, i)).collect();
+        let exps = all_exponents(base);
         let n = base.n_vars();
         let even: Vec<bool> = (0..base.n_terms()).map(|i| base.term_even(i)).collect();
         for case in 0..80 {
@@ -1547,10 +1559,9 @@ fn sums_scalings_and_ranges_of_dense_models_enclose_exact_values() {
                 ("quotient", a.clone() / if s == 0.0 { 3.0 } else { s }),
             ];
             for _ in 0..3 {
-                let xi: Vec<f64> = (0..n).map(|_| rng.param()).collect();
-                let xq: Vec<BigRational> = xi.iter().map(|&x| q(x)).collect();
-                let va = exact_poly(&ca, &exps, &xq) + q(point_in(&mut rng, &ra));
-                let vb = exact_poly(&cb, &exps, &xq) + q(point_in(&mut rng, &rb));
+                let (xi, xq) = rng.point(n);
+                let va = exact_at(&mut rng, &ca, &exps, &xq, &ra);
+                let vb = exact_at(&mut rng, &cb, &exps, &xq, &rb);
                 let d = if s == 0.0 { 3.0 } else { s };
                 let exact = [&va + &vb, &va - &vb, &va * q(s), &va / q(d)];
                 for ((name, r), v) in results.iter().zip(&exact) {
