@@ -119,7 +119,9 @@ def confirm_with_onnxruntime(onnx_path, vnnlib_path, x):
     s = ort.InferenceSession(str(onnx_path), providers=["CPUExecutionProvider"])
     inp = s.get_inputs()[0]
     shape = [d if isinstance(d, int) else 1 for d in inp.shape]
-    y = s.run(None, {inp.name: np.array(x, dtype=np.float32).reshape(shape)})[0].ravel()
+    # The network's own input type: float32, or float64 (nn4sys's networks).
+    dtype = np.float64 if inp.type == "tensor(double)" else np.float32
+    y = s.run(None, {inp.name: np.array(x, dtype=dtype).reshape(shape)})[0].ravel()
     env = {f"X_{i}": float(v) for i, v in enumerate(x)}
     env.update({f"Y_{j}": float(v) for j, v in enumerate(y)})
     return property_holds_at(Path(vnnlib_path).read_text(), env), [float(v) for v in y]

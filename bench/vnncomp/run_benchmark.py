@@ -118,9 +118,15 @@ def main():
     key_of = {}  # (onnx, vnnlib) as samara reports them -> paths inside the benchmark
     for onnx, vnnlib, tmo in rows:
         src = (bench / onnx).resolve()
+        # The key of the row: its network's path without `.gz`, as `rel_key` gives the
+        # peers' (nn4sys's CSV names `nets/X.onnx.gz`, the results `nets/X.onnx`).
+        okey = os.path.normpath(onnx)
+        okey = okey[:-3] if okey.endswith(".gz") else okey
+        if not src.exists() and onnx.endswith(".gz") and (bench / okey).exists():
+            src = (bench / okey).resolve()  # the snapshot holds it unpacked
         if not src.exists() and not Path(str(src) + ".gz").exists():
             # A network whose blob the fetched snapshot lacks: a row, not run.
-            absent.append((os.path.normpath(onnx), os.path.normpath(vnnlib)))
+            absent.append((okey, os.path.normpath(vnnlib)))
             continue
         if not src.exists():
             dst = tmp / os.path.normpath(onnx).replace(os.sep, "__")
@@ -130,7 +136,7 @@ def main():
             src = dst
         prop = str((bench / vnnlib).resolve())
         sel.append((str(src), prop, tmo))
-        key_of[(str(src), prop)] = (os.path.normpath(onnx), os.path.normpath(vnnlib))
+        key_of[(str(src), prop)] = (okey, os.path.normpath(vnnlib))
     # One `samara vnncomp` run per network, so that a network samara refuses (an
     # operator or a size it does not take) stays in the table as rows marked `error`,
     # with the refusal quoted below it, instead of stopping the whole benchmark.
