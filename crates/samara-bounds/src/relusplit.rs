@@ -139,7 +139,7 @@ pub(crate) struct Tree<'a> {
     /// either: on VNN-COMP 2021 oval21 `cifar_wide_kw` img19 (one thread, 60 s, about
     /// 19 CPU-s each), the first path's bound was -0.025 at depth 20 and nothing below
     /// the first quarter of the tree closed (leaves at depth 49); scoring only chords,
-    /// -0.012 at depth 20, leaves at depth 27, and 1.5e-3 of the tree closed in the same
+    /// -0.007 to -0.013 at depth 20, leaves at depth 27, and 1.5e-3 of the tree closed in the same
     /// CPU time; at the full 720 s (2 threads, load 6-9) img19 was proved in 5,289 nodes,
     /// 115.7 CPU-s (a timeout before, 429 CPU-s; VeriNet 38 s).
     pub(crate) intercept: bool,
@@ -788,7 +788,9 @@ const FSB_CANDIDATES: usize = 8;
 /// [`Tree::intercept`]. On oval21 `cifar_wide_kw` img19 (one thread, 60 s, about 19
 /// CPU-s each), the share of the tree closed past its first quarter was 2.8e-4 with 1
 /// (BaBSR alone), 1.5e-3 with 4, 5.8e-4 with 8 and 3.2e-4 with 16 (16, 32 and 64 chose
-/// the same neurons along the first path: the extra candidates only cost).
+/// the same neurons along the first path: the extra candidates only cost). On
+/// `cifar_base_kw` img4631 (90 s, about 29 CPU-s each) 2 closed 0.219 of the tree, 4
+/// 0.190 and 8 0.157, but on img19 2 closed a third of what 4 did (3.8e-4 to 1.2e-3).
 const FSB_INTERCEPT_CANDIDATES: usize = 4;
 
 /// Examine a batch of nodes in parallel.
