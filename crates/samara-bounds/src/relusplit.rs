@@ -25,7 +25,10 @@
 //! (u - l)` (BaBSR's intercept score, Bunel et al., JMLR 2020), the one whose worse
 //! child has the highest f64 bound with the node's slopes and multipliers and the new
 //! phase's multiplier a child starts from (the choice only steers the search; every
-//! child is bounded rigorously). On deep dense networks the first nodes branch in the
+//! child is bounded rigorously). On convolutional networks only the neurons the bound
+//! passes by their chord (a negative coefficient) are candidates, the best
+//! [`FSB_INTERCEPT_CANDIDATES`] of them ([`Tree::intercept`]: on oval21 the others'
+//! splits hardly moved a bound). On deep dense networks the first nodes branch in the
 //! early layers instead, whose splits tighten the later layers' re-bounds ([`Deep`]).
 //! A child's new multiplier starts where its parent's lower relaxation of the neuron
 //! was, so its bound starts at its parent's. Nodes go depth first (the frontier stays
@@ -126,6 +129,20 @@ pub(crate) struct Tree<'a> {
     /// negative (see [`examine`]). For boxes with few inputs, where the LP is small
     /// (networks with one hidden layer, VNN-COMP 2024 safenlp: 30 inputs).
     pub(crate) lp_bounds: bool,
+    /// Branch only on neurons some bound passes by its chord (a negative pull-back
+    /// coefficient, BaBSR's intercept score proper, as alpha-beta-CROWN's branching
+    /// scores them), comparing [`FSB_INTERCEPT_CANDIDATES`] of them; on every unstable
+    /// neuron when there are none. For convolutional networks (those with
+    /// [`symbolic::Sparse`] rows). A neuron passed by its lower line `alpha z` scores
+    /// exactly its parent's bound under filtered smart branching (see [`split_beta`]),
+    /// and on oval21 those splits hardly moved the bound after the node's Adam steps
+    /// either: on VNN-COMP 2021 oval21 `cifar_wide_kw` img19 (one thread, 60 s, about
+    /// 19 CPU-s each), the first path's bound was -0.025 at depth 20 and nothing below
+    /// the first quarter of the tree closed (leaves at depth 49); scoring only chords,
+    /// -0.007 to -0.013 at depth 20, leaves at depth 27, and 1.5e-3 of the tree closed in the same
+    /// CPU time; at the full 720 s (2 threads, load 6-9) img19 was proved in 5,289 nodes,
+    /// 115.7 CPU-s (a timeout before, 429 CPU-s; VeriNet 38 s).
+    pub(crate) intercept: bool,
     /// Branch in the early layers first, for deep dense networks ([`Deep`]).
     pub(crate) deep: Option<Deep>,
     /// The slopes of the root's alpha-CROWN intermediate bounds: with them, each node
@@ -482,7 +499,6 @@ pub(crate) fn examine(
     }
     // BaBSR's intercept score over the unstable neurons; the widest one when the
     // pull-back does not see any (every coefficient 0).
-    let mut pick: Option<(f64, usize, usize)> = None;
     let mut widest: Option<(f64, usize, usize)> = None;
     // In the last ReLU layer, a neuron with a positive coefficient is passed by its
     // lower relaxation `max(0, z)`'s best line; at the optimal slopes and multipliers
@@ -501,41 +517,56 @@ pub(crate) fn examine(
                 .enumerate()
                 .any(|(j, l)| maps[j].1 && l.iter().any(|b| relu::unstable(b.0, b.1)))
         });
-    let signed = |j: usize, t: usize| {
+    // With `chords_only` (see [`Tree::intercept`]) a positive coefficient scores 0.
+    let signed = |j: usize, t: usize, chords_only: bool| {
         let v = nu[j + 1][t];
         if let Some(k) = early {
             match j < k {
                 true => v.abs().max(f64::MIN_POSITIVE),
                 false => 0.0,
             }
-        } else if tree.lp_bounds && j == last && v > 0.0 {
+        } else if (chords_only || tree.lp_bounds && j == last) && v > 0.0 {
             0.0
         } else {
             v.abs()
         }
     };
+    // The scored neurons, best first: with [`Tree::intercept`] those passed by their
+    // chord, and all of them when there are none.
+    let scored = |chords_only: bool| {
+        let mut cands: Vec<(f64, usize, usize)> = Vec::new();
+        for (j, layer) in pre.iter().enumerate() {
+            if !maps[j].1 {
+                continue;
+            }
+            for (t, &(l, u)) in layer.iter().enumerate() {
+                if relu::unstable(l, u) {
+                    let sc = signed(j, t, chords_only) * relu::gap(l, u);
+                    if sc > 0.0 {
+                        cands.push((sc, j, t));
+                    }
+                }
+            }
+        }
+        cands.sort_by(|a, b| b.0.total_cmp(&a.0));
+        cands
+    };
+    let mut cands = scored(tree.intercept);
+    if cands.is_empty() && tree.intercept {
+        cands = scored(false);
+    }
     for (j, layer) in pre.iter().enumerate() {
         if !maps[j].1 {
             continue;
         }
         for (t, &(l, u)) in layer.iter().enumerate() {
-            if !relu::unstable(l, u) {
-                continue;
-            }
             let gap = relu::gap(l, u);
-            let sc = signed(j, t) * gap;
-            if pick.is_none_or(|p| sc > p.0) {
-                pick = Some((sc, j, t));
-            }
-            if widest.is_none_or(|p| gap > p.0) {
+            if relu::unstable(l, u) && widest.is_none_or(|p| gap > p.0) {
                 widest = Some((gap, j, t));
             }
         }
     }
-    let mut choice = match pick {
-        Some(p) if p.0 > 0.0 => Some(p),
-        _ => widest,
-    };
+    let mut choice = cands.first().copied().or(widest);
     // Filtered smart branching (De Palma et al., ICLR 2021): of the best-scored
     // neurons, the one whose worse child has the highest bound, each child's bound the
     // driving constraint's pull-back with the neuron's phase fixed, from the slopes and
@@ -544,55 +575,42 @@ pub(crate) fn examine(
     // the parent's bound (its split alone gains nothing before the multipliers move):
     // on oval21 base img5303 (x0.05) the tree closed 79 nodes instead of 179 when the
     // children's multipliers were scored as 0.
-    let fsb = FSB_CANDIDATES;
-    if fsb > 1 {
-        let mut cands: Vec<(f64, usize, usize)> = Vec::new();
-        for (j, layer) in pre.iter().enumerate() {
-            if !maps[j].1 {
-                continue;
+    let fsb = if tree.intercept {
+        FSB_INTERCEPT_CANDIDATES
+    } else {
+        FSB_CANDIDATES
+    };
+    cands.truncate(fsb);
+    if cands.len() > 1 {
+        let obj = &cases[dci].constraints[dk].obj;
+        let mut scratch = pre.clone();
+        let mut beta = dwarm.beta.clone();
+        let mut best: Option<(f64, usize, usize)> = None;
+        for &(_, j, t) in &cands {
+            let (l, u) = pre[j][t];
+            let mut worse = f64::INFINITY;
+            for on in [false, true] {
+                scratch[j][t] = if on { (0.0, u) } else { (l, 0.0) };
+                beta[j][t] = split_beta(&dwarm.alpha, &nu, j, t, on);
+                let v = symbolic::value_only(
+                    maps,
+                    &scratch,
+                    obj,
+                    lo,
+                    hi,
+                    &dwarm.alpha,
+                    Some(&beta),
+                    sp,
+                );
+                worse = worse.min(v);
             }
-            for (t, &(l, u)) in layer.iter().enumerate() {
-                if relu::unstable(l, u) {
-                    let sc = signed(j, t) * relu::gap(l, u);
-                    if sc > 0.0 {
-                        cands.push((sc, j, t));
-                    }
-                }
+            scratch[j][t] = (l, u);
+            beta[j][t] = dwarm.beta[j][t];
+            if best.is_none_or(|b| worse > b.0) {
+                best = Some((worse, j, t));
             }
         }
-        cands.sort_by(|a, b| b.0.total_cmp(&a.0));
-        cands.truncate(fsb);
-        if cands.len() > 1 {
-            let obj = &cases[dci].constraints[dk].obj;
-            let mut scratch = pre.clone();
-            let mut beta = dwarm.beta.clone();
-            let mut best: Option<(f64, usize, usize)> = None;
-            for &(_, j, t) in &cands {
-                let (l, u) = pre[j][t];
-                let mut worse = f64::INFINITY;
-                for on in [false, true] {
-                    scratch[j][t] = if on { (0.0, u) } else { (l, 0.0) };
-                    beta[j][t] = split_beta(&dwarm.alpha, &nu, j, t, on);
-                    let v = symbolic::value_only(
-                        maps,
-                        &scratch,
-                        obj,
-                        lo,
-                        hi,
-                        &dwarm.alpha,
-                        Some(&beta),
-                        sp,
-                    );
-                    worse = worse.min(v);
-                }
-                scratch[j][t] = (l, u);
-                beta[j][t] = dwarm.beta[j][t];
-                if best.is_none_or(|b| worse > b.0) {
-                    best = Some((worse, j, t));
-                }
-            }
-            choice = best.or(choice);
-        }
+        choice = best.or(choice);
     }
     let Some((_, j, t)) = choice else {
         return exact_node(tree, &pre, &node, &still, deadline);
@@ -766,6 +784,15 @@ fn split_beta(alpha: &[Vec<f64>], nu: &[Vec<f64>], j: usize, t: usize, on: bool)
 /// two f64 pull-backs, a few percent of a node's bounds on oval21's networks).
 const FSB_CANDIDATES: usize = 8;
 
+/// How many of the best-scored neurons filtered smart branching compares with
+/// [`Tree::intercept`]. On oval21 `cifar_wide_kw` img19 (one thread, 60 s, about 19
+/// CPU-s each), the share of the tree closed past its first quarter was 2.8e-4 with 1
+/// (BaBSR alone), 1.5e-3 with 4, 5.8e-4 with 8 and 3.2e-4 with 16 (16, 32 and 64 chose
+/// the same neurons along the first path: the extra candidates only cost). On
+/// `cifar_base_kw` img4631 (90 s, about 29 CPU-s each) 2 closed 0.219 of the tree, 4
+/// 0.190 and 8 0.157, but on img19 2 closed a third of what 4 did (3.8e-4 to 1.2e-3).
+const FSB_INTERCEPT_CANDIDATES: usize = 4;
+
 /// Examine a batch of nodes in parallel.
 pub(crate) fn examine_batch(
     tree: &Tree,
@@ -784,7 +811,12 @@ pub(crate) fn examine_batch(
         let kind = |o: &NodeOut| match o {
             NodeOut::Closed => "closed".to_string(),
             NodeOut::Found(..) => "found".to_string(),
-            NodeOut::Split(ch) => format!("d{}:{:.4}", ch[0].depth, ch[0].key),
+            NodeOut::Split(ch) => format!(
+                "d{}:{:.4}@{}",
+                ch[0].depth,
+                ch[0].key,
+                ch[0].splits.last().map_or(0, |s| s.0)
+            ),
             NodeOut::Stuck => "stuck".to_string(),
             NodeOut::Late => "late".to_string(),
         };
@@ -797,7 +829,7 @@ pub(crate) fn examine_batch(
             }
         }
         eprintln!(
-            "relu split batch: {n} nodes in {:.3} s: closed share {:.3e}: {ks}",
+            "relu split batch: {n} nodes in {:.3} s: closed share {:.9e}: {ks}",
             t0.elapsed().as_secs_f64(),
             *share
         );
@@ -1123,5 +1155,100 @@ mod tests {
         eprintln!("{checked} points, LP gained {gained}, its multipliers {beta_gained}");
         assert!(checked > 50_000, "{checked}");
         assert!(gained > 3, "the LP never gained: {gained}");
+    }
+
+    /// The whole ReLU-splitting tree with [`Tree::intercept`] branching (chord neurons
+    /// only) and without: on random 3-hidden-layer networks and boxes, a tree that closes
+    /// every node has no point among 20,000 sampled ones of the box where the case
+    /// holds, a point either reports is in the box and satisfies the case at the
+    /// network's f64 output, and the two branchings never disagree (one closed, the
+    /// other a point); the trials include both verdicts.
+    #[test]
+    fn intercept_branching_trees_are_sound_and_agree() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(53);
+        let (mut proved, mut found) = (0, 0);
+        for trial in 0..40 {
+            let n = 2 + trial % 3;
+            let maps = random_maps(&mut rng, &[n, 8, 8, 6, 2]);
+            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..0.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.3..1.5)).collect();
+            let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
+            let mut pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
+            pre.truncate(maps.len() - 1);
+            let case = Case {
+                lo: lo.clone(),
+                hi: hi.clone(),
+                constraints: vec![crate::query::OutputConstraint {
+                    obj: Objective {
+                        c: vec![1.0, -1.0],
+                        d: rng.gen_range(-1.5..1.5),
+                    },
+                    strict: false,
+                }],
+            };
+            let cases = std::slice::from_ref(&case);
+            let mut verdicts = Vec::new();
+            for intercept in [false, true] {
+                let tree = Tree {
+                    maps: &maps,
+                    cases,
+                    pre: &pre,
+                    lo: &lo,
+                    hi: &hi,
+                    root_iters: 10,
+                    iters: 5,
+                    lp_bounds: false,
+                    intercept,
+                    deep: None,
+                    pre_slopes: None,
+                    lp_depth: None,
+                    closed_share: std::sync::Mutex::new(0.0),
+                };
+                let mut heap = std::collections::BinaryHeap::from([root(vec![0])]);
+                let mut verdict = Some(true);
+                let mut nodes = 0;
+                while let Some(node) = heap.pop() {
+                    nodes += 1;
+                    if nodes > 4_000 {
+                        verdict = None;
+                        break;
+                    }
+                    match examine(&tree, node, None, None) {
+                        NodeOut::Closed => {}
+                        NodeOut::Split(ch) => heap.extend(ch),
+                        NodeOut::Found(_, x) => {
+                            let y = forward(&maps, &x, None);
+                            assert!(satisfies(&case.constraints, &y), "trial {trial}");
+                            assert!((0..n).all(|k| lo[k] <= x[k] && x[k] <= hi[k]));
+                            verdict = Some(false);
+                            break;
+                        }
+                        NodeOut::Stuck | NodeOut::Late => {
+                            verdict = None;
+                            break;
+                        }
+                    }
+                }
+                if verdict == Some(true) {
+                    for _ in 0..20_000 {
+                        let x: Vec<f64> = (0..n).map(|k| rng.gen_range(lo[k]..=hi[k])).collect();
+                        let y = forward(&maps, &x, None);
+                        let v = case.constraints[0].obj.d + y[0] - y[1];
+                        assert!(
+                            v > 0.0,
+                            "trial {trial} (intercept {intercept}): {v} at {x:?}"
+                        );
+                    }
+                }
+                verdicts.push(verdict);
+            }
+            if let [Some(a), Some(b)] = verdicts[..] {
+                assert_eq!(a, b, "trial {trial}: the branchings disagree");
+            }
+            proved += (verdicts[1] == Some(true)) as usize;
+            found += (verdicts[1] == Some(false)) as usize;
+        }
+        eprintln!("{proved} proved, {found} points");
+        assert!(proved >= 5 && found >= 5, "{proved} proved, {found} points");
     }
 }

@@ -1235,6 +1235,7 @@ fn solve_relu(
             root_iters: RELU_ROOT_ITERS,
             iters: RELU_NODE_ITERS,
             lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
+            intercept: symbolic::Sparse::applies(maps, st.lo.len()),
             deep,
             pre_slopes: node_slopes.then_some(&slopes),
             lp_depth: deep
