@@ -1216,7 +1216,7 @@ fn solve_relu(
         // Dense deep networks only: their early-layer branching gains through the
         // later layers' re-bounds ([`crate::relusplit::Deep`]).
         let node_slopes = RELU_NODE_SLOPES && deep.is_some();
-        let slopes = symbolic::alpha_pre_with(
+        let mut slopes = symbolic::alpha_pre_with(
             maps,
             &mut pre,
             &st.lo,
@@ -1226,6 +1226,52 @@ fn solve_relu(
             node_slopes,
             pre_deadline,
         );
+        // Deep dense networks: the early layers' neurons no attack sees change sign are
+        // proved stable by small trees of their own ([`crate::refine`]), within a third
+        // of the time left, and the later layers re-bounded over them.
+        if deep.is_some() {
+            let (split, nodes) = refine_knobs();
+            let t = Instant::now();
+            let left = deadline.map(|d| d.saturating_duration_since(t));
+            let refine_deadline = left.map(|l| t + l / 3);
+            let relus = pre.len();
+            let half = if split == 0 { relus / 2 } else { split };
+            let mut rs = Vec::new();
+            for range in [1..=half, half + 1..=relus - 1] {
+                let r = crate::refine::stabilise(
+                    maps,
+                    &mut pre,
+                    &st.lo,
+                    &st.hi,
+                    range,
+                    nodes,
+                    refine_deadline,
+                );
+                rs.push(r);
+                let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
+                let again = left.map(|l| Instant::now() + l / 4);
+                slopes = symbolic::alpha_pre_with(
+                    maps,
+                    &mut pre,
+                    &st.lo,
+                    &st.hi,
+                    RELU_PRE_ITERS,
+                    RELU_PRE_ASCENT,
+                    node_slopes,
+                    again,
+                );
+            }
+            if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+                eprintln!(
+                    "refine: {:?} in {:.2} s, then {:?} unstable",
+                    rs,
+                    t.elapsed().as_secs_f64(),
+                    pre.iter()
+                        .map(|l| l.iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count())
+                        .collect::<Vec<_>>()
+                );
+            }
+        }
         let tree = relusplit::Tree {
             maps,
             cases,
@@ -1327,6 +1373,14 @@ fn deep_split(maps: &[(Affine, bool)], inputs: usize) -> Option<crate::relusplit
         depth: DEEP_EARLY_DEPTH,
         layers: relus / 2,
     })
+}
+
+fn refine_knobs() -> (usize, u64) {
+    let v = std::env::var("SAMARA_REFINE").unwrap_or_default();
+    let mut it = v.split(',');
+    let a = it.next().and_then(|s| s.parse().ok()).unwrap_or(0);
+    let b = it.next().and_then(|s| s.parse().ok()).unwrap_or(200);
+    (a, b)
 }
 
 /// ReLU layers from which [`deep_split`] applies (mnistfc's 256x4 and 256x6; 256x2's
