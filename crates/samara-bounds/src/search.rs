@@ -1216,62 +1216,65 @@ fn solve_relu(
         // Dense deep networks only: their early-layer branching gains through the
         // later layers' re-bounds ([`crate::relusplit::Deep`]).
         let node_slopes = RELU_NODE_SLOPES && deep.is_some();
-        let mut slopes = symbolic::alpha_pre_with(
-            maps,
-            &mut pre,
-            &st.lo,
-            &st.hi,
-            RELU_PRE_ITERS,
-            RELU_PRE_ASCENT,
-            node_slopes,
-            pre_deadline,
-        );
-        // Deep dense networks: the early layers' neurons no attack sees change sign are
-        // proved stable by small trees of their own ([`crate::refine`]), within a third
-        // of the time left, and the later layers re-bounded over them.
-        if deep.is_some() {
-            let (split, nodes) = refine_knobs();
-            let t = Instant::now();
-            let left = deadline.map(|d| d.saturating_duration_since(t));
-            let refine_deadline = left.map(|l| t + l / 3);
-            let relus = pre.len();
-            let half = if split == 0 { relus / 2 } else { split };
-            let mut rs = Vec::new();
-            for range in [1..=half, half + 1..=relus - 1] {
-                let r = crate::refine::stabilise(
-                    maps,
-                    &mut pre,
-                    &st.lo,
-                    &st.hi,
-                    range,
-                    nodes,
-                    refine_deadline,
-                );
-                rs.push(r);
-                let left = deadline.map(|d| d.saturating_duration_since(Instant::now()));
-                let again = left.map(|l| Instant::now() + l / 4);
-                slopes = symbolic::alpha_pre_with(
-                    maps,
-                    &mut pre,
-                    &st.lo,
-                    &st.hi,
-                    RELU_PRE_ITERS,
-                    RELU_PRE_ASCENT,
-                    node_slopes,
-                    again,
-                );
+        let slopes = match deep {
+            // Deep dense networks: layer by layer, alpha-CROWN's bounds, then the
+            // neurons no attack sees change sign proved stable by small trees of their
+            // own ([`crate::refine`]) before the next layer is bounded over them; the
+            // trees within a third of the time left.
+            Some(_) => {
+                let (_, nodes) = refine_knobs();
+                let t = Instant::now();
+                let left = deadline.map(|d| d.saturating_duration_since(t));
+                let refine_deadline = left.map(|l| t + l / 3);
+                let mut slopes: symbolic::PreSlopes =
+                    pre.iter().map(|l| vec![[None, None]; l.len()]).collect();
+                let mut rs = Vec::new();
+                for k in 1..pre.len() {
+                    let got = symbolic::alpha_pre_layers(
+                        maps,
+                        &mut pre,
+                        &st.lo,
+                        &st.hi,
+                        k..k + 1,
+                        RELU_PRE_ITERS,
+                        RELU_PRE_ASCENT,
+                        node_slopes,
+                        pre_deadline,
+                    );
+                    slopes[k] = got[k].clone();
+                    rs.push(crate::refine::stabilise(
+                        maps,
+                        &mut pre,
+                        &st.lo,
+                        &st.hi,
+                        k..=k,
+                        nodes,
+                        refine_deadline,
+                    ));
+                }
+                if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+                    eprintln!(
+                        "refine: {:?} in {:.2} s, then {:?} unstable",
+                        rs,
+                        t.elapsed().as_secs_f64(),
+                        pre.iter()
+                            .map(|l| l.iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count())
+                            .collect::<Vec<_>>()
+                    );
+                }
+                slopes
             }
-            if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
-                eprintln!(
-                    "refine: {:?} in {:.2} s, then {:?} unstable",
-                    rs,
-                    t.elapsed().as_secs_f64(),
-                    pre.iter()
-                        .map(|l| l.iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count())
-                        .collect::<Vec<_>>()
-                );
-            }
-        }
+            None => symbolic::alpha_pre_with(
+                maps,
+                &mut pre,
+                &st.lo,
+                &st.hi,
+                RELU_PRE_ITERS,
+                RELU_PRE_ASCENT,
+                node_slopes,
+                pre_deadline,
+            ),
+        };
         let tree = relusplit::Tree {
             maps,
             cases,
