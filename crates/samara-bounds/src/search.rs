@@ -1216,81 +1216,16 @@ fn solve_relu(
         // Dense deep networks only: their early-layer branching gains through the
         // later layers' re-bounds ([`crate::relusplit::Deep`]).
         let node_slopes = RELU_NODE_SLOPES && deep.is_some();
-        let slopes = match deep {
-            // Deep dense networks: layer by layer, alpha-CROWN's bounds, then the
-            // neurons no attack sees change sign proved stable by small trees of their
-            // own ([`crate::refine`]) before the next layer is bounded over them; the
-            // trees within a third of the time left.
-            Some(_) => {
-                let (_, nodes) = refine_knobs();
-                let t = Instant::now();
-                let left = deadline.map(|d| d.saturating_duration_since(t));
-                let refine_deadline = left.map(|l| t + l / 3);
-                let mut slopes: symbolic::PreSlopes =
-                    pre.iter().map(|l| vec![[None, None]; l.len()]).collect();
-                let mut rs = Vec::new();
-                for k in 1..pre.len() {
-                    let got = symbolic::alpha_pre_layers(
-                        maps,
-                        &mut pre,
-                        &st.lo,
-                        &st.hi,
-                        k..k + 1,
-                        RELU_PRE_ITERS,
-                        RELU_PRE_ASCENT,
-                        node_slopes,
-                        pre_deadline,
-                    );
-                    slopes[k] = got[k].clone();
-                    rs.push(crate::refine::stabilise(
-                        maps,
-                        &mut pre,
-                        &st.lo,
-                        &st.hi,
-                        k..=k,
-                        nodes,
-                        refine_deadline,
-                    ));
-                }
-                if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
-                    eprintln!(
-                        "refine: {:?} in {:.2} s, then {:?} unstable",
-                        rs,
-                        t.elapsed().as_secs_f64(),
-                        pre.iter()
-                            .map(|l| l.iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count())
-                            .collect::<Vec<_>>()
-                    );
-                }
-                slopes
-            }
-            None => symbolic::alpha_pre_with(
-                maps,
-                &mut pre,
-                &st.lo,
-                &st.hi,
-                RELU_PRE_ITERS,
-                RELU_PRE_ASCENT,
-                node_slopes,
-                pre_deadline,
-            ),
-        };
-        let tree = relusplit::Tree {
+        let mut slopes = symbolic::alpha_pre_with(
             maps,
-            cases,
-            pre: &pre,
-            lo: &st.lo,
-            hi: &st.hi,
-            root_iters: RELU_ROOT_ITERS,
-            iters: RELU_NODE_ITERS,
-            lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
-            deep,
-            pre_slopes: node_slopes.then_some(&slopes),
-            lp_depth: deep
-                .filter(|_| st.lo.len() <= relusplit::EXACT_LP_INPUTS)
-                .map(|_| DEEP_LP_DEPTH),
-            closed_share: std::sync::Mutex::new(0.0),
-        };
+            &mut pre,
+            &st.lo,
+            &st.hi,
+            RELU_PRE_ITERS,
+            RELU_PRE_ASCENT,
+            node_slopes,
+            pre_deadline,
+        );
         let open: Vec<usize> = st.left.iter().map(|l| l.0).collect();
         if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
             let un = crate::phases::unstable(maps, &st.pre).len();
@@ -1322,38 +1257,73 @@ fn solve_relu(
         let mut heap: std::collections::BinaryHeap<_> =
             open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
         let batch = (2 * rayon::current_num_threads()).max(2);
-        while !heap.is_empty() {
-            if out_of_time() {
-                PROF[P_CLOSED].fetch_add(closed, AtOrd::Relaxed);
-                return (Outcome::Unknown(StopReason::Timeout), stats);
-            }
-            if s.max_pieces > 0 && stats.pieces >= s.max_pieces {
-                return (Outcome::Unknown(StopReason::PieceLimit), stats);
-            }
-            batches += 1;
-            if let Some(found) =
-                bursts.run(maps, cases, s, t0, batches, closed, &mut stats, deadline)
-            {
-                return (found, stats);
-            }
-            let take = batch.min(heap.len());
-            let nodes: Vec<_> = (0..take).filter_map(|_| heap.pop()).collect();
-            stats.pieces += nodes.len() as u64;
-            for r in relusplit::examine_batch(&tree, nodes, deadline) {
-                match r {
-                    NodeOut::Closed => closed += 1,
-                    NodeOut::Found(ci, x) => {
-                        FOUND_BY.store(7, AtOrd::Relaxed);
-                        return (violated(ci, x), stats);
+        // Deep dense networks: a tree that does not close within
+        // [`REFINE_AFTER_BATCHES`] batches starts again over refined bounds
+        // ([`refine_root`]); the nodes it closed are counted once more.
+        let mut refined = deep.is_none();
+        loop {
+            let tree = relusplit::Tree {
+                maps,
+                cases,
+                pre: &pre,
+                lo: &st.lo,
+                hi: &st.hi,
+                root_iters: RELU_ROOT_ITERS,
+                iters: RELU_NODE_ITERS,
+                lp_bounds: st.lo.len() < RELU_SPLIT_INPUTS,
+                deep,
+                pre_slopes: node_slopes.then_some(&slopes),
+                lp_depth: deep
+                    .filter(|_| st.lo.len() <= relusplit::EXACT_LP_INPUTS)
+                    .map(|_| DEEP_LP_DEPTH),
+                closed_share: std::sync::Mutex::new(0.0),
+            };
+            let cap = if refined {
+                u64::MAX
+            } else {
+                REFINE_AFTER_BATCHES
+            };
+            let mut phase_batches = 0u64;
+            while !heap.is_empty() && phase_batches < cap {
+                if out_of_time() {
+                    PROF[P_CLOSED].fetch_add(closed, AtOrd::Relaxed);
+                    return (Outcome::Unknown(StopReason::Timeout), stats);
+                }
+                if s.max_pieces > 0 && stats.pieces >= s.max_pieces {
+                    return (Outcome::Unknown(StopReason::PieceLimit), stats);
+                }
+                batches += 1;
+                phase_batches += 1;
+                if let Some(found) =
+                    bursts.run(maps, cases, s, t0, batches, closed, &mut stats, deadline)
+                {
+                    return (found, stats);
+                }
+                let take = batch.min(heap.len());
+                let nodes: Vec<_> = (0..take).filter_map(|_| heap.pop()).collect();
+                stats.pieces += nodes.len() as u64;
+                for r in relusplit::examine_batch(&tree, nodes, deadline) {
+                    match r {
+                        NodeOut::Closed => closed += 1,
+                        NodeOut::Found(ci, x) => {
+                            FOUND_BY.store(7, AtOrd::Relaxed);
+                            return (violated(ci, x), stats);
+                        }
+                        NodeOut::Split(ch) => {
+                            PROF[P_MAXDEPTH].fetch_max(ch[0].depth() as u64, AtOrd::Relaxed);
+                            heap.extend(ch)
+                        }
+                        NodeOut::Stuck => stuck = true,
+                        NodeOut::Late => return (Outcome::Unknown(StopReason::Timeout), stats),
                     }
-                    NodeOut::Split(ch) => {
-                        PROF[P_MAXDEPTH].fetch_max(ch[0].depth() as u64, AtOrd::Relaxed);
-                        heap.extend(ch)
-                    }
-                    NodeOut::Stuck => stuck = true,
-                    NodeOut::Late => return (Outcome::Unknown(StopReason::Timeout), stats),
                 }
             }
+            if heap.is_empty() || refined {
+                break;
+            }
+            refined = true;
+            slopes = refine_root(maps, &mut pre, &st.lo, &st.hi, node_slopes, deadline);
+            heap = open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
         }
     }
     PROF[P_CLOSED].fetch_add(closed, AtOrd::Relaxed);
@@ -1376,6 +1346,68 @@ fn deep_split(maps: &[(Affine, bool)], inputs: usize) -> Option<crate::relusplit
         depth: DEEP_EARLY_DEPTH,
         layers: relus / 2,
     })
+}
+
+/// Batches of a deep dense network's tree over alpha-CROWN's root bounds before
+/// [`refine_root`] refines them and the tree starts again.
+const REFINE_AFTER_BATCHES: u64 = 50;
+
+/// The root bounds of ReLU splitting on deep dense networks, refined: layer by layer,
+/// alpha-CROWN's bounds of the layer (within a quarter of the time left), then the
+/// neurons no attack sees change sign proved stable by small trees of their own
+/// ([`crate::refine::stabilise`]) before the next layer is bounded over them; the trees
+/// within a third of the time left. Returns the slopes of the bounds (with
+/// `keep_slopes`, see [`symbolic::alpha_pre_with`]).
+fn refine_root(
+    maps: &[(Affine, bool)],
+    pre: &mut [Vec<(f64, f64)>],
+    lo: &[f64],
+    hi: &[f64],
+    keep_slopes: bool,
+    deadline: Option<Instant>,
+) -> symbolic::PreSlopes {
+    let (_, nodes) = refine_knobs();
+    let t = Instant::now();
+    let left = deadline.map(|d| d.saturating_duration_since(t));
+    let refine_deadline = left.map(|l| t + l / 3);
+    let mut slopes: symbolic::PreSlopes = pre.iter().map(|l| vec![[None, None]; l.len()]).collect();
+    let mut rs = Vec::new();
+    for k in 1..pre.len() {
+        let now = Instant::now();
+        let alpha_deadline = deadline.map(|d| now + d.saturating_duration_since(now) / 4);
+        let got = symbolic::alpha_pre_layers(
+            maps,
+            pre,
+            lo,
+            hi,
+            k..k + 1,
+            RELU_PRE_ITERS,
+            RELU_PRE_ASCENT,
+            keep_slopes,
+            alpha_deadline,
+        );
+        slopes[k] = got[k].clone();
+        rs.push(crate::refine::stabilise(
+            maps,
+            pre,
+            lo,
+            hi,
+            k..=k,
+            nodes,
+            refine_deadline,
+        ));
+    }
+    if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+        eprintln!(
+            "refine: {:?} in {:.2} s, then {:?} unstable",
+            rs,
+            t.elapsed().as_secs_f64(),
+            pre.iter()
+                .map(|l| l.iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count())
+                .collect::<Vec<_>>()
+        );
+    }
+    slopes
 }
 
 fn refine_knobs() -> (usize, u64) {
