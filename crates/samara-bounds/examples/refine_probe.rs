@@ -2,7 +2,9 @@
 //! leave unstable on one mnistfc instance, and how many of those a projected-gradient
 //! search shows to take both signs on the box (the rest are what an exact per-neuron
 //! refinement could still fix). `cargo run --release -p samara-bounds --example
-//! refine_probe -- NET.onnx PROP.vnnlib`.
+//! refine_probe -- NET.onnx PROP.vnnlib [n15|a15|n60|a60] [LAYERS]`; with
+//! `REFINE=LAST,NODES[,SECOND]` also runs [`samara_bounds::refine::stabilise`] on maps
+//! `1..=LAST` (then `LAST+1..=SECOND`), each followed by alpha-CROWN again.
 
 use samara_bounds::pwl::PwlNet;
 use samara_bounds::symbolic::{self, Ascent};
@@ -82,10 +84,6 @@ fn pgd(maps: &[(Affine, bool)], k: usize, i: usize, sign: f64, lo: &[f64], hi: &
     best
 }
 
-fn it2(_a: Ascent) -> usize {
-    15
-}
-
 fn count(pre: &[Vec<(f64, f64)>]) -> Vec<usize> {
     pre.iter()
         .map(|l| l.iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count())
@@ -112,13 +110,13 @@ fn main() {
     let which = args.get(3).map(|s| s.as_str()).unwrap_or("n15");
     let t = Instant::now();
     let mut pre = crown.clone();
-    let (it, asc) = match which {
+    let (iters, asc) = match which {
         "a15" => (15, Ascent::Adam(0.3)),
         "a60" => (60, Ascent::Adam(0.3)),
         "n60" => (60, Ascent::Normalised),
         _ => (15, Ascent::Normalised),
     };
-    symbolic::alpha_pre_with(maps, &mut pre, &lo, &hi, it, asc, false, None);
+    symbolic::alpha_pre_with(maps, &mut pre, &lo, &hi, iters, asc, false, None);
     println!(
         "{which} {:?} in {:.1} s",
         count(&pre),
@@ -141,7 +139,7 @@ fn main() {
             count(&pre)
         );
         let t = Instant::now();
-        symbolic::alpha_pre_with(maps, &mut pre, &lo, &hi, it2(asc), asc, false, None);
+        symbolic::alpha_pre_with(maps, &mut pre, &lo, &hi, iters, asc, false, None);
         println!(
             "alpha again {:?} in {:.1} s",
             count(&pre),
@@ -165,7 +163,7 @@ fn main() {
                 count(&pre)
             );
             let t = Instant::now();
-            symbolic::alpha_pre_with(maps, &mut pre, &lo, &hi, it2(asc), asc, false, None);
+            symbolic::alpha_pre_with(maps, &mut pre, &lo, &hi, iters, asc, false, None);
             println!(
                 "alpha again {:?} in {:.1} s",
                 count(&pre),
@@ -174,9 +172,9 @@ fn main() {
         }
     }
     let layers: usize = args.get(4).map(|s| s.parse().unwrap()).unwrap_or(3);
-    for k in 0..pre.len().min(layers) {
-        let un: Vec<usize> = (0..pre[k].len())
-            .filter(|&i| pre[k][i].0 < 0.0 && pre[k][i].1 > 0.0)
+    for (k, layer) in pre.iter().enumerate().take(layers) {
+        let un: Vec<usize> = (0..layer.len())
+            .filter(|&i| layer[i].0 < 0.0 && layer[i].1 > 0.0)
             .collect();
         let mut both = 0;
         let mut gl = Vec::new();
@@ -186,7 +184,7 @@ fn main() {
             if mn < 0.0 && mx > 0.0 {
                 both += 1;
             } else {
-                let (l, u) = pre[k][i];
+                let (l, u) = layer[i];
                 gl.push(if mn >= 0.0 {
                     format!("+{:.2}/{:.2}", l, mn)
                 } else {
