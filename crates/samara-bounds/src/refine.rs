@@ -9,7 +9,7 @@
 //! in place of the MILP solver: the neuron's bound is an optimisation over the earlier
 //! layers' phases, decided by splitting them.
 //!
-//! Soundness: each tree is [`crate::relusplit`]'s (beta-CROWN bounds, rigorous
+//! Soundness: each tree is `relusplit`'s (beta-CROWN bounds, rigorous
 //! rounding) over bounds of the earlier layers valid on the box, so a closed tree is a
 //! proof, and a bound only ever moves to `0` from the side the tree closed. An open tree
 //! (node limit, deadline, or a point found) changes nothing. The attack only chooses
