@@ -59,6 +59,7 @@ pub mod optimise;
 pub mod phases;
 pub mod pwl;
 mod query;
+pub mod refine;
 mod relusplit;
 pub mod rules;
 pub mod search;

@@ -1512,13 +1512,32 @@ pub fn alpha_pre_with(
     keep_slopes: bool,
     deadline: Option<std::time::Instant>,
 ) -> PreSlopes {
+    let all = 1..pre.len();
+    alpha_pre_layers(maps, pre, lo, hi, all, iters, ascent, keep_slopes, deadline)
+}
+
+/// [`alpha_pre_with`] on the maps `layers` only (those before them are taken as they
+/// are): for a caller that refines each layer's bounds in its own way before the next
+/// one is bounded ([`crate::refine`]).
+#[allow(clippy::too_many_arguments)]
+pub fn alpha_pre_layers(
+    maps: &[(Affine, bool)],
+    pre: &mut [Vec<(f64, f64)>],
+    lo: &[f64],
+    hi: &[f64],
+    layers: std::ops::Range<usize>,
+    iters: usize,
+    ascent: Ascent,
+    keep_slopes: bool,
+    deadline: Option<std::time::Instant>,
+) -> PreSlopes {
     use rayon::prelude::*;
     let mut slopes: PreSlopes = pre.iter().map(|l| vec![[None, None]; l.len()]).collect();
     let sp = Sparse::of(maps, lo.len());
     let sp = sp.as_ref();
     let profile = std::env::var_os("SAMARA_SEARCH_PROFILE").is_some();
     let t0 = std::time::Instant::now();
-    for k in 1..pre.len() {
+    for k in layers.start.max(1)..layers.end.min(pre.len()) {
         if profile {
             let un = pre[k].iter().filter(|b| b.0 < 0.0 && b.1 > 0.0).count();
             eprintln!(
