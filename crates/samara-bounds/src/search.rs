@@ -15,7 +15,8 @@
 //! look-ahead (every input halved, both halves bounded cheaply by the piece's own CROWN
 //! functions minimised over each half, the best [`Settings::look_refine`] splits bounded
 //! again by full CROWN; the split that leaves the least to prove for the most promising
-//! case wins), by smear `|coefficient| *
+//! case wins; with one input, the only split, its halves bounded by the forward symbolic
+//! pass instead of CROWN), by smear `|coefficient| *
 //! width` (ReluVal, Wang et al., USENIX Security 2018) when the look-ahead stalls. A
 //! piece that at most [`Settings::phase_max_unstable`] ReLUs cross is first handed to
 //! ReLU-phase splitting ([`crate::phases`]), which decides it exactly unless its node
