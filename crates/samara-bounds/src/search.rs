@@ -1110,9 +1110,9 @@ impl Bursts {
     /// (oval21's deep network, 2-6 ms a step on a loaded machine) every burst's 60 steps
     /// took 5-7 times its 0.044 s. The first burst, and every burst on small networks
     /// (microseconds a step: collins_rul_cnn's `if_then` point is found by the first
-    /// burst's 8,000 steps) or few inputs, keep `s.steps`, as does the first attack
+    /// burst's 8,000 steps) keep `s.steps`, as does the first attack on many inputs
     /// before the search, which finds the points of the `sat` instances of verivital and
-    /// oval21. PGD given fewer steps takes longer ones (its step shrinks over the steps
+    /// oval21 (on few inputs the first burst is sized by the first attack's cost, below). PGD given fewer steps takes longer ones (its step shrinks over the steps
     /// given; Madry et al., ICLR 2018).
     ///
     /// On few inputs the same rule, from the last burst's (or the first attack's) cost of
