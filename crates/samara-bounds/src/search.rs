@@ -15,7 +15,8 @@
 //! look-ahead (every input halved, both halves bounded cheaply by the piece's own CROWN
 //! functions minimised over each half, the best [`Settings::look_refine`] splits bounded
 //! again by full CROWN; the split that leaves the least to prove for the most promising
-//! case wins), by smear `|coefficient| *
+//! case wins; with one input, the only split, its halves bounded by the forward symbolic
+//! pass instead of CROWN), by smear `|coefficient| *
 //! width` (ReluVal, Wang et al., USENIX Security 2018) when the look-ahead stalls. A
 //! piece that at most [`Settings::phase_max_unstable`] ReLUs cross is first handed to
 //! ReLU-phase splitting ([`crate::phases`]), which decides it exactly unless its node
@@ -359,7 +360,14 @@ fn attack_all(
     let taken = res.iter().map(|r| r.1).sum::<u64>();
     stats.attack_steps += taken;
     let wall = t0.elapsed().as_secs_f64();
-    let cost = (taken > 0).then(|| wall * jobs.len() as f64 / taken as f64);
+    // The jobs that ran side by side: all of them on many inputs (a box's workers are one
+    // per thread); on few inputs (one job per case, often more cases than threads) at
+    // most one per thread, so the cost is a step's own, whatever the number of cases.
+    let side_by_side = match joint {
+        true => jobs.len(),
+        false => jobs.len().min(rayon::current_num_threads().max(1)),
+    };
+    let cost = (taken > 0).then(|| wall * side_by_side as f64 / taken as f64);
     if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
         eprintln!(
             "attack {round}: {} jobs, {steps} steps a start, {seconds:.3} s each, {taken} steps in {:.3} s{}",
@@ -894,6 +902,7 @@ fn examine(
     // `refine` best of those splits again with full CROWN bounds of both halves (their
     // earlier layers' relaxations tightened too), which decide among them; the chosen
     // halves keep their bounds, so they are not computed again.
+    let only_full = refine > 0 && lo.len() == 1;
     let trial = |t: usize, full: bool| -> Option<Try> {
         // One trial bounds two halves by full CROWN: on a wide network with many
         // inputs the whole look-ahead takes minutes, so each trial checks the clock.
@@ -923,7 +932,23 @@ fn examine(
                     if hl.is_empty() {
                         return (a, b, cheap, None, hl);
                     }
-                    let (p, l) = piece_bounds_lin(maps, a, b, Some(&cheap), deadline);
+                    let (p, l) = match only_full {
+                        // With one input a half's box is an interval: the forward
+                        // symbolic pass (linear functions of the one input, ReluVal's
+                        // symbolic intervals, Wang et al. 2018) within the parent's bounds
+                        // costs two forward passes, against one backward pass per
+                        // unstable neuron for CROWN. On nn4sys's normal_1000 (row 61) it
+                        // split the same 73 pieces to the same depth 23 with a tenth of
+                        // the look-ahead's time. No linear functions are kept: the next
+                        // look-ahead starts from these bounds as they are.
+                        true => {
+                            let p = symbolic::hidden_pre_until(maps, a, b, Some(&cheap), deadline);
+                            let l: symbolic::PreLinear =
+                                p.iter().map(|layer| vec![None; layer.len()]).collect();
+                            (p, l)
+                        }
+                        false => piece_bounds_lin(maps, a, b, Some(&cheap), deadline),
+                    };
                     let hl = open_bounds(maps, cases, &open, &p, a, b, 0, deadline);
                     (a, b, p, Some(Arc::new(l)), hl)
                 } else {
@@ -956,11 +981,14 @@ fn examine(
         // the least in total wins, so closing one half outright counts fully.
         Some((-total + 1e-12 * (hi[t] - lo[t]), halves, t, full))
     };
+    // With one input (nn4sys) there is one split: its cheap score would only rank it
+    // against itself before the full bounds replace it, so it goes straight to the full
+    // bounds (the same choice and halves, one cheap pass over the open cases fewer).
     let mut tries: Vec<Try> = (0..lo.len())
         .into_par_iter()
-        .filter_map(|t| trial(t, false))
+        .filter_map(|t| trial(t, only_full))
         .collect();
-    if refine > 0 && !tries.is_empty() {
+    if refine > 0 && !only_full && !tries.is_empty() {
         tries.sort_by(|a, b| b.0.total_cmp(&a.0));
         let k = refine.min(tries.len());
         let refined: Vec<Option<Try>> = tries[..k].par_iter().map(|tr| trial(tr.2, true)).collect();
@@ -1059,7 +1087,13 @@ struct Bursts {
     count: u64,
     /// Wall seconds of one gradient step of one attack job in the last burst.
     step_cost: Option<f64>,
+    /// The first case of the next burst when a burst attacks only some of the cases.
+    next: usize,
 }
+
+/// Cases per thread up to which the long first burst (ten times
+/// [`Settings::attack_seconds`] a case) is not shared among the cases ([`Bursts::run`]).
+const BURST_FULL_CASES: f64 = 4.0;
 
 impl Bursts {
     fn new() -> Self {
@@ -1067,6 +1101,7 @@ impl Bursts {
             last: Instant::now(),
             count: 0,
             step_cost: None,
+            next: 0,
         }
     }
 
@@ -1077,13 +1112,19 @@ impl Bursts {
     /// (oval21's deep network, 2-6 ms a step on a loaded machine) every burst's 60 steps
     /// took 5-7 times its 0.044 s. The first burst, and every burst on small networks
     /// (microseconds a step: collins_rul_cnn's `if_then` point is found by the first
-    /// burst's 8,000 steps) or few inputs, keep `s.steps`, as does the first attack
+    /// burst's 8,000 steps) keep `s.steps`, as does the first attack on many inputs
     /// before the search, which finds the points of the `sat` instances of verivital and
-    /// oval21. PGD given fewer steps takes longer ones (its step shrinks over the steps
+    /// oval21 (on few inputs the first burst is sized by the first attack's cost, below). PGD given fewer steps takes longer ones (its step shrinks over the steps
     /// given; Madry et al., ICLR 2018).
+    ///
+    /// On few inputs the same rule, from the last burst's (or the first attack's) cost of
+    /// a step of one job: a step of ACAS Xu's networks takes microseconds, so a burst's
+    /// budget buys `s.steps` and nothing changes; on nn4sys's large networks (37 million
+    /// weights) a step took 3.9 ms, and each of the 50 cases' one start of 60 steps made
+    /// every burst 10-12 s on one core whatever its budget (0.002 s a case).
     fn steps(&self, cases: &[Case], s: &Settings, per_case: f64) -> usize {
         match (cases.first(), self.step_cost) {
-            (Some(c), Some(cost)) if c.lo.len() >= SIGN_STEP_INPUTS && cost > 0.0 => {
+            (Some(_), Some(cost)) if cost > 0.0 => {
                 let buys = (per_case / cost).min(s.steps as f64) as usize;
                 buys.clamp(BURST_MIN_STEPS.min(s.steps), s.steps.max(1))
             }
@@ -1116,8 +1157,13 @@ impl Bursts {
         // 10, halves closed by the look-ahead included): the search is then making no
         // headway, which is typical of a query with points (ACAS Xu properties 7 and 8),
         // where the attack is the faster way to one.
+        // On few inputs, beyond `BURST_FULL_CASES` cases per thread its budget is shared
+        // like the others' (ACAS Xu's properties have at most 4 cases; nn4sys's 50 made
+        // it 25 s of one core). Cases over one box (images) are attacked together.
+        let few = cases.first().is_some_and(|c| c.lo.len() < SIGN_STEP_INPUTS);
         if self.count == 0 && closed * 10 < stats.pieces {
-            per_case = 10.0 * s.attack_seconds;
+            let shared = if few { BURST_FULL_CASES * share } else { 1.0 };
+            per_case = 10.0 * s.attack_seconds * shared.min(1.0);
         } else if closed * 2 >= stats.pieces {
             // A search that closes at least every second piece examined is on its way to
             // a proof or to its point (the pieces' candidates and local attacks find
@@ -1126,7 +1172,35 @@ impl Bursts {
         }
         self.count += 1;
         let steps = self.steps(cases, s, per_case);
-        let (found, cost) = attack_all(maps, cases, s, round, per_case, steps, stats, deadline);
+        // Every attacked case runs one start in full, so a burst takes at least its cases'
+        // share of a thread times one start: when that exceeds the burst's budget (the
+        // wall time its cases' `per_case` seconds take on the threads), only as many cases
+        // as the budget buys are attacked (at least one per thread), the next burst going
+        // on from there, so that bursts stay their share of the search.
+        let threads = rayon::current_num_threads().max(1);
+        let n = cases.len();
+        let take = match self.step_cost {
+            Some(cost) if few && cost > 0.0 && n > threads => {
+                let wall = per_case * n.div_ceil(threads) as f64;
+                let rounds = (wall / (cost * steps as f64)).floor().max(1.0);
+                ((rounds as usize).saturating_mul(threads)).min(n)
+            }
+            _ => n,
+        };
+        let from = if take < n { self.next % n } else { 0 };
+        let to = (from + take).min(n);
+        self.next = to % n.max(1);
+        let (found, cost) = attack_all(
+            maps,
+            &cases[from..to],
+            s,
+            round,
+            per_case,
+            steps,
+            stats,
+            deadline,
+        );
+        let found = found.map(|(ci, x)| (from + ci, x));
         self.step_cost = cost.or(self.step_cost);
         self.last = Instant::now();
         found.map(|(ci, x)| {
@@ -1501,8 +1575,28 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
         true => s.attack_seconds.min(FEW_INPUTS_FIRST_ATTACK),
         false => s.attack_seconds,
     };
-    if let (Some((ci, x)), _) = attack_all(maps, cases, s, 0, first, s.steps, &mut stats, deadline)
-    {
+    // On few inputs a start runs `s.steps` in full however short the budget, so the
+    // steps are what the budget buys at the cost of a step, three forward passes (the
+    // fastest of three timed), between `BURST_MIN_STEPS` and `s.steps`: on ACAS Xu a
+    // pass takes microseconds and nothing changes; on nn4sys's large networks (37
+    // million weights) the 50 cases' 60 steps each took 11.6 s of one core at 12 s limits.
+    let steps = match (few_inputs, cases.first()) {
+        (true, Some(c)) => {
+            let centre: Vec<f64> = c.lo.iter().zip(&c.hi).map(|(a, b)| 0.5 * (a + b)).collect();
+            let pass = (0..3)
+                .map(|_| {
+                    let t = Instant::now();
+                    std::hint::black_box(forward(maps, &centre, None));
+                    t.elapsed().as_secs_f64()
+                })
+                .fold(f64::INFINITY, f64::min);
+            let buys = first / (3.0 * pass).max(1e-12);
+            (buys.min(s.steps as f64) as usize).clamp(BURST_MIN_STEPS.min(s.steps), s.steps.max(1))
+        }
+        _ => s.steps,
+    };
+    let (found, first_cost) = attack_all(maps, cases, s, 0, first, steps, &mut stats, deadline);
+    if let Some((ci, x)) = found {
         let y = forward(maps, &x, None);
         FOUND_BY.store(1, AtOrd::Relaxed);
         return (Outcome::Violated(CasePoint { case: ci, x, y }), stats);
@@ -1535,6 +1629,9 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
     let deadline = s.timeout.deadline_from(t0);
     let mut batches = 0u64;
     let mut bursts = Bursts::new();
+    // The bursts on few inputs are sized by the first attack's cost of a step
+    // ([`Bursts::steps`]).
+    bursts.step_cost = first_cost.filter(|_| few_inputs);
     let mut closed = 0u64;
     while !heap.is_empty() {
         if out_of_time(&t0) {

@@ -4,6 +4,7 @@
 //! FILE::` runs one. `every_test_file_is_built` fails for a file left out.
 
 mod linset;
+mod one_input;
 mod rounding;
 mod smooth_fold;
 mod soundness;
