@@ -275,7 +275,7 @@ fn broken_phases(
 mod tests {
     use super::*;
     use crate::query::OutputConstraint;
-    use crate::testnet::{pre_activations, random_maps};
+    use crate::testnet::{pre_activations, random_maps, region_vertices};
     use rand::{Rng, SeedableRng};
 
     /// A node driven to every neuron stable: from the box's CROWN bounds, the first
@@ -386,45 +386,10 @@ mod tests {
                     .map(|(c, f)| c * (f[0] * x[0] + f[1] * x[1] + f[2]))
                     .sum::<f64>()
         };
-        let inside = |x: [f64; 2]| {
-            let tol = 1e-9;
-            (0..2).all(|k| x[k] >= lo[k] - tol && x[k] <= hi[k] + tol)
-                && lines.iter().all(|(f, on)| {
-                    let v = f[0] * x[0] + f[1] * x[1] + f[2];
-                    let s = 1e-9 * (1.0 + f[0].abs() + f[1].abs() + f[2].abs());
-                    if *on {
-                        v >= -s
-                    } else {
-                        v <= s
-                    }
-                })
-        };
-        let mut all: Vec<[f64; 3]> = vec![
-            [1.0, 0.0, -lo[0]],
-            [1.0, 0.0, -hi[0]],
-            [0.0, 1.0, -lo[1]],
-            [0.0, 1.0, -hi[1]],
-        ];
-        all.extend(lines.iter().map(|l| l.0));
-        let mut best: Option<f64> = None;
-        for p in 0..all.len() {
-            for q in p + 1..all.len() {
-                let (a, b) = (all[p], all[q]);
-                let det = a[0] * b[1] - a[1] * b[0];
-                if det.abs() < 1e-12 {
-                    continue;
-                }
-                let x = [
-                    (-a[2] * b[1] + b[2] * a[1]) / det,
-                    (-a[0] * b[2] + b[0] * a[2]) / det,
-                ];
-                if inside(x) {
-                    let v = g(x);
-                    best = Some(best.map_or(v, |b: f64| b.min(v)));
-                }
-            }
-        }
-        best
+        region_vertices(lo, hi, &lines, 1e-9, 1e-9)
+            .into_iter()
+            .map(g)
+            .reduce(f64::min)
     }
 
     /// On random 2-input networks with 2-3 hidden layers and nodes driven to every

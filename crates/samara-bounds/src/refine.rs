@@ -252,7 +252,7 @@ fn value_grad(sub: &[(Affine, bool)], i: usize, x: &[f64]) -> (f64, Vec<f64>) {
 mod tests {
     use super::*;
     use crate::symbolic;
-    use crate::testnet::{pre_activations, random_maps};
+    use crate::testnet::{pre_activations, random_maps, region_vertices};
     use rand::{Rng, SeedableRng};
 
     /// The exact minimum and maximum of every pre-activation of maps `1..` over the box
@@ -302,42 +302,7 @@ mod tests {
                 }
                 cur = z;
             }
-            let inside = |x: [f64; 2]| {
-                (0..2).all(|k| x[k] >= lo[k] - 1e-12 && x[k] <= hi[k] + 1e-12)
-                    && lines.iter().all(|(f, on)| {
-                        let v = f[0] * x[0] + f[1] * x[1] + f[2];
-                        let s = 1e-10 * (1.0 + f[0].abs() + f[1].abs() + f[2].abs());
-                        if *on {
-                            v >= -s
-                        } else {
-                            v <= s
-                        }
-                    })
-            };
-            let mut all: Vec<[f64; 3]> = vec![
-                [1.0, 0.0, -lo[0]],
-                [1.0, 0.0, -hi[0]],
-                [0.0, 1.0, -lo[1]],
-                [0.0, 1.0, -hi[1]],
-            ];
-            all.extend(lines.iter().map(|l| l.0));
-            let mut verts = Vec::new();
-            for p in 0..all.len() {
-                for q in p + 1..all.len() {
-                    let (a, b) = (all[p], all[q]);
-                    let det = a[0] * b[1] - a[1] * b[0];
-                    if det.abs() < 1e-12 {
-                        continue;
-                    }
-                    let x = [
-                        (-a[2] * b[1] + b[2] * a[1]) / det,
-                        (-a[0] * b[2] + b[0] * a[2]) / det,
-                    ];
-                    if inside(x) {
-                        verts.push(x);
-                    }
-                }
-            }
+            let verts = region_vertices(lo, hi, &lines, 1e-12, 1e-10);
             // A neuron of map k depends only on the pattern of maps before k: the
             // pattern's later bits only cut the region, so every region of the earlier
             // maps' pattern is covered by the union over the later bits.

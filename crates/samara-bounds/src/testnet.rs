@@ -36,3 +36,54 @@ pub(crate) fn pre_activations(maps: &[(Affine, bool)], x: &[f64]) -> Vec<Vec<f64
     }
     out
 }
+
+/// The vertices of the 2-input polygon `{x in [lo, hi] : f(x) >= 0 for each line (f,
+/// true), f(x) <= 0 for each (f, false)}`, `f(x) = f[0] x0 + f[1] x1 + f[2]`: every
+/// intersection of two of its lines or box sides that satisfies them all, within
+/// `box_tol` of the box and `line_tol (1 + |f|_1)` of each line. The tests' independent
+/// exact computation (a linear function's extremes over the polygon are at vertices).
+pub(crate) fn region_vertices(
+    lo: &[f64],
+    hi: &[f64],
+    lines: &[([f64; 3], bool)],
+    box_tol: f64,
+    line_tol: f64,
+) -> Vec<[f64; 2]> {
+    let inside = |x: [f64; 2]| {
+        (0..2).all(|k| x[k] >= lo[k] - box_tol && x[k] <= hi[k] + box_tol)
+            && lines.iter().all(|(f, on)| {
+                let v = f[0] * x[0] + f[1] * x[1] + f[2];
+                let s = line_tol * (1.0 + f[0].abs() + f[1].abs() + f[2].abs());
+                if *on {
+                    v >= -s
+                } else {
+                    v <= s
+                }
+            })
+    };
+    let mut all: Vec<[f64; 3]> = vec![
+        [1.0, 0.0, -lo[0]],
+        [1.0, 0.0, -hi[0]],
+        [0.0, 1.0, -lo[1]],
+        [0.0, 1.0, -hi[1]],
+    ];
+    all.extend(lines.iter().map(|l| l.0));
+    let mut verts = Vec::new();
+    for p in 0..all.len() {
+        for q in p + 1..all.len() {
+            let (a, b) = (all[p], all[q]);
+            let det = a[0] * b[1] - a[1] * b[0];
+            if det.abs() < 1e-12 {
+                continue;
+            }
+            let x = [
+                (-a[2] * b[1] + b[2] * a[1]) / det,
+                (-a[0] * b[2] + b[0] * a[2]) / det,
+            ];
+            if inside(x) {
+                verts.push(x);
+            }
+        }
+    }
+    verts
+}
