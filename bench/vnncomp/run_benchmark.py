@@ -235,7 +235,7 @@ def main():
         ok += good
         if not good:
             w(f"- NOT CONFIRMED by onnxruntime: {k}")
-    w(f"\n`sat` counterexamples confirmed by onnxruntime (float32, whole property): {ok}/{len(sats)}\n")
+    w(f"\n`sat` counterexamples confirmed by onnxruntime (in the network's own input type, float32 or float64; whole property): {ok}/{len(sats)}\n")
     text = "\n".join(out) + "\n"
     if a.md:
         Path(a.md).write_text(text)
