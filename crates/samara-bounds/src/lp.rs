@@ -529,6 +529,52 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
 
+    /// A random box of `n` inputs: lower ends in [-2, 0], widths in [0.01, 3].
+    fn random_box(rng: &mut rand_chacha::ChaCha8Rng, n: usize) -> (Vec<f64>, Vec<f64>) {
+        let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..0.0)).collect();
+        let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.01..3.0)).collect();
+        (lo, hi)
+    }
+
+    /// `m` random rows `d_p + a_p . x <= 0` over `n` inputs: `a` in [-1, 1], `d` in
+    /// [-1, d_hi).
+    fn random_rows(
+        rng: &mut rand_chacha::ChaCha8Rng,
+        n: usize,
+        m: usize,
+        d_hi: f64,
+    ) -> (Vec<Vec<f64>>, Vec<f64>) {
+        let a: Vec<Vec<f64>> = (0..m)
+            .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
+            .collect();
+        let d: Vec<f64> = (0..m).map(|_| rng.gen_range(-1.0..d_hi)).collect();
+        (a, d)
+    }
+
+    /// The weak-duality bound of multipliers `lam`: the minimum over the box of the
+    /// Lagrangian `c . x + sum_p lam_p (d_p + a_p . x)` (f64, for comparisons only).
+    fn dual_bound(
+        c: &[f64],
+        a: &[Vec<f64>],
+        d: &[f64],
+        lo: &[f64],
+        hi: &[f64],
+        lam: &[f64],
+    ) -> f64 {
+        let coef: Vec<f64> = (0..c.len())
+            .map(|t| c[t] + (0..a.len()).map(|p| lam[p] * a[p][t]).sum::<f64>())
+            .collect();
+        (0..a.len()).map(|p| lam[p] * d[p]).sum::<f64>()
+            + (0..c.len())
+                .map(|t| (coef[t] * lo[t]).min(coef[t] * hi[t]))
+                .sum::<f64>()
+    }
+
+    /// Whether `x` satisfies every row `d_p + a_p . x <= 0`.
+    fn feasible(a: &[Vec<f64>], d: &[f64], x: &[f64]) -> bool {
+        (0..a.len()).all(|p| d[p] + a[p].iter().zip(x).map(|(u, v)| u * v).sum::<f64>() <= 0.0)
+    }
+
     /// Brute force: the max over functions on a fine grid of the box (an upper bound of
     /// the min-max), and the min over lambda on a grid of the simplex of the exact inner
     /// minimum over the box's corners (a lower bound, by weak duality).
@@ -599,30 +645,18 @@ mod tests {
         for trial in 0..200 {
             let n = 1 + trial % 3;
             let m = 1 + trial % 5;
-            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..0.0)).collect();
-            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.01..3.0)).collect();
+            let (lo, hi) = random_box(&mut rng, n);
             let c: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
-            let a: Vec<Vec<f64>> = (0..m)
-                .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
-                .collect();
-            let d: Vec<f64> = (0..m).map(|_| rng.gen_range(-1.0..0.5)).collect();
+            let (a, d) = random_rows(&mut rng, n, m, 0.5);
             let refs: Vec<&[f64]> = a.iter().map(|r| &r[..]).collect();
             let lam = min_linear_duals(&c, &refs, &d, &lo, &hi).expect("solved");
             assert!(lam.iter().all(|l| *l >= 0.0 && l.is_finite()));
             // The Lagrangian's minimum over the box (a lower bound by weak duality).
-            let coef: Vec<f64> = (0..n)
-                .map(|t| c[t] + (0..m).map(|p| lam[p] * a[p][t]).sum::<f64>())
-                .collect();
-            let lb = (0..m).map(|p| lam[p] * d[p]).sum::<f64>()
-                + (0..n)
-                    .map(|t| (coef[t] * lo[t]).min(coef[t] * hi[t]))
-                    .sum::<f64>();
+            let lb = dual_bound(&c, &a, &d, &lo, &hi, &lam);
             let mut best = f64::INFINITY;
             for _ in 0..4000 {
                 let x: Vec<f64> = (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
-                let feas = (0..m)
-                    .all(|p| d[p] + a[p].iter().zip(&x).map(|(u, v)| u * v).sum::<f64>() <= 0.0);
-                if feas {
+                if feasible(&a, &d, &x) {
                     let v = c.iter().zip(&x).map(|(u, v)| u * v).sum::<f64>();
                     assert!(v >= lb - 1e-9, "trial {trial}: sample {v} below bound {lb}");
                     best = best.min(v);
@@ -647,28 +681,13 @@ mod tests {
         for trial in 0..300 {
             let n = 1 + trial % 5;
             let m = 1 + trial % 14;
-            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..0.0)).collect();
-            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.01..3.0)).collect();
-            let a: Vec<Vec<f64>> = (0..m)
-                .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
-                .collect();
-            let d: Vec<f64> = (0..m).map(|_| rng.gen_range(-1.0..0.3)).collect();
+            let (lo, hi) = random_box(&mut rng, n);
+            let (a, d) = random_rows(&mut rng, n, m, 0.3);
             let refs: Vec<&[f64]> = a.iter().map(|r| &r[..]).collect();
-            let bound = |c: &[f64], lam: &[f64]| {
-                let coef: Vec<f64> = (0..n)
-                    .map(|t| c[t] + (0..m).map(|p| lam[p] * a[p][t]).sum::<f64>())
-                    .collect();
-                (0..m).map(|p| lam[p] * d[p]).sum::<f64>()
-                    + (0..n)
-                        .map(|t| (coef[t] * lo[t]).min(coef[t] * hi[t]))
-                        .sum::<f64>()
-            };
+            let bound = |c: &[f64], lam: &[f64]| dual_bound(c, &a, &d, &lo, &hi, lam);
             let samples: Vec<Vec<f64>> = (0..2000)
                 .map(|_| (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect())
-                .filter(|x: &Vec<f64>| {
-                    (0..m)
-                        .all(|p| d[p] + a[p].iter().zip(x).map(|(u, v)| u * v).sum::<f64>() <= 0.0)
-                })
+                .filter(|x: &Vec<f64>| feasible(&a, &d, x))
                 .collect();
             let mut warm = MinLinearSolver::new(&refs, &d, &lo, &hi).expect("finite rows");
             for _ in 0..8 {
@@ -703,23 +722,11 @@ mod tests {
         for trial in 0..300 {
             let n = 1 + trial % 6;
             let m = 1 + trial % 10;
-            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..0.0)).collect();
-            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.01..3.0)).collect();
+            let (lo, hi) = random_box(&mut rng, n);
             let c: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
-            let a: Vec<Vec<f64>> = (0..m)
-                .map(|_| (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect())
-                .collect();
-            let d: Vec<f64> = (0..m).map(|_| rng.gen_range(-1.0..0.3)).collect();
+            let (a, d) = random_rows(&mut rng, n, m, 0.3);
             let refs: Vec<&[f64]> = a.iter().map(|r| &r[..]).collect();
-            let bound = |lam: &[f64]| {
-                let coef: Vec<f64> = (0..n)
-                    .map(|t| c[t] + (0..m).map(|p| lam[p] * a[p][t]).sum::<f64>())
-                    .collect();
-                (0..m).map(|p| lam[p] * d[p]).sum::<f64>()
-                    + (0..n)
-                        .map(|t| (coef[t] * lo[t]).min(coef[t] * hi[t]))
-                        .sum::<f64>()
-            };
+            let bound = |lam: &[f64]| dual_bound(&c, &a, &d, &lo, &hi, lam);
             let r = min_linear_from_corner(&c, &refs, &d, &lo, &hi, None).expect("solved");
             let cold = min_linear(&c, &refs, &d, &lo, &hi).expect("cold");
             assert_eq!(r.feasible, cold.feasible, "trial {trial}");
@@ -740,9 +747,7 @@ mod tests {
             }
             for _ in 0..2000 {
                 let x: Vec<f64> = (0..n).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
-                let feas = (0..m)
-                    .all(|p| d[p] + a[p].iter().zip(&x).map(|(u, v)| u * v).sum::<f64>() <= 0.0);
-                if feas {
+                if feasible(&a, &d, &x) {
                     let v = c.iter().zip(&x).map(|(u, v)| u * v).sum::<f64>();
                     assert!(v >= b - 1e-9, "trial {trial}: sample {v} below {b}");
                 }
