@@ -275,7 +275,7 @@ fn broken_phases(
 mod tests {
     use super::*;
     use crate::query::OutputConstraint;
-    use crate::testnet::{pre_activations, random_maps, region_vertices};
+    use crate::testnet::{affine_of_2d, pre_activations, random_maps, region_vertices};
     use rand::{Rng, SeedableRng};
 
     /// A node driven to every neuron stable: from the box's CROWN bounds, the first
@@ -348,16 +348,7 @@ mod tests {
         let mut lines: Vec<([f64; 3], bool)> = Vec::new(); // (z, active)
         let mut out = Vec::new();
         for (j, (m, r)) in maps.iter().enumerate() {
-            let mut z = vec![[0.0; 3]; m.out];
-            for (i, zi) in z.iter_mut().enumerate() {
-                zi[2] = m.b[i];
-                for (k, ck) in cur.iter().enumerate() {
-                    let w = m.weight(i, k);
-                    for e in 0..3 {
-                        zi[e] += w * ck[e];
-                    }
-                }
-            }
+            let mut z = affine_of_2d(m, &cur);
             if *r {
                 for (t, zt) in z.iter_mut().enumerate() {
                     let (l, u) = pre[j][t];

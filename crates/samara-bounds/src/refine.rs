@@ -252,7 +252,7 @@ fn value_grad(sub: &[(Affine, bool)], i: usize, x: &[f64]) -> (f64, Vec<f64>) {
 mod tests {
     use super::*;
     use crate::symbolic;
-    use crate::testnet::{pre_activations, random_maps, region_vertices};
+    use crate::testnet::{affine_of_2d, pre_activations, random_maps, region_vertices};
     use rand::{Rng, SeedableRng};
 
     /// The exact minimum and maximum of every pre-activation of maps `1..` over the box
@@ -280,16 +280,7 @@ mod tests {
             let mut lines: Vec<([f64; 3], bool)> = Vec::new();
             let mut zs: Vec<Vec<[f64; 3]>> = Vec::new();
             for (j, (m, r)) in maps.iter().enumerate() {
-                let mut z = vec![[0.0; 3]; m.out];
-                for (i, zi) in z.iter_mut().enumerate() {
-                    zi[2] = m.b[i];
-                    for (k, ck) in cur.iter().enumerate() {
-                        let w = m.weight(i, k);
-                        for e in 0..3 {
-                            zi[e] += w * ck[e];
-                        }
-                    }
-                }
+                let mut z = affine_of_2d(m, &cur);
                 zs.push(z.clone());
                 if *r {
                     for (t, zt) in z.iter_mut().enumerate() {

@@ -87,3 +87,20 @@ pub(crate) fn region_vertices(
     }
     verts
 }
+
+/// The affine map `m` applied to functions of a 2-input `x`, each `(a0, a1, b)` for
+/// `a0 x0 + a1 x1 + b`: the pre-activations of `m` as such functions, given its inputs'.
+/// The tests' exact references follow a network along one activation pattern with it.
+pub(crate) fn affine_of_2d(m: &Affine, cur: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let mut z = vec![[0.0; 3]; m.out];
+    for (i, zi) in z.iter_mut().enumerate() {
+        zi[2] = m.b[i];
+        for (k, ck) in cur.iter().enumerate() {
+            let w = m.weight(i, k);
+            for e in 0..3 {
+                zi[e] += w * ck[e];
+            }
+        }
+    }
+    z
+}
