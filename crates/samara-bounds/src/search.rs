@@ -1333,10 +1333,24 @@ fn solve_relu(
         let mut heap: std::collections::BinaryHeap<_> =
             open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
         let batch = (2 * rayon::current_num_threads()).max(2);
-        // Deep dense networks: a tree that does not close within
-        // [`REFINE_AFTER_BATCHES`] batches starts again over refined bounds
-        // ([`refine_root`]); the nodes it closed are counted once more.
-        let mut refined = deep.is_none();
+        // Deep dense networks: when every open case's bound at the whole box is below
+        // [`REFINE_AT_ONCE_BOUND`], the root bounds are refined before any tree
+        // ([`refine_root`]); otherwise a tree that does not close within
+        // [`REFINE_AFTER_BATCHES`] batches starts again over refined bounds (the nodes
+        // it closed are counted once more).
+        let far = deep.is_some() && st.left.iter().all(|l| l.1.lb < REFINE_AT_ONCE_BOUND);
+        let mut refined = deep.is_none() || far;
+        if far {
+            slopes = refine_root(
+                maps,
+                &mut pre,
+                &st.lo,
+                &st.hi,
+                node_slopes,
+                REFINE_AT_ONCE_SHARE,
+                deadline,
+            );
+        }
         loop {
             let tree = relusplit::Tree {
                 maps,
@@ -1405,7 +1419,15 @@ fn solve_relu(
                 break;
             }
             refined = true;
-            slopes = refine_root(maps, &mut pre, &st.lo, &st.hi, node_slopes, deadline);
+            slopes = refine_root(
+                maps,
+                &mut pre,
+                &st.lo,
+                &st.hi,
+                node_slopes,
+                REFINE_LATE_SHARE,
+                deadline,
+            );
             heap = open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
         }
     }
@@ -1441,6 +1463,22 @@ const REFINE_AFTER_BATCHES: u64 = 50;
 /// 6.4 s of main's plain tree, and took 29.1 s and 14.2 s with the refinement after 50
 /// batches alone (2026-11-28, i52-m).
 const REFINE_AFTER_SHARE: f64 = 0.4;
+/// The share of the time left that [`refine_root`]'s trees may spend when the tree
+/// stopped for them.
+const REFINE_LATE_SHARE: f64 = 1.0 / 3.0;
+
+/// Deep dense networks whose open cases are all bounded below this at the whole box
+/// (alpha-CROWN) refine the root bounds before any tree, within
+/// [`REFINE_AT_ONCE_SHARE`] of the time left: the rows the plain tree closes start
+/// near 0 (VNN-COMP 2021 mnistfc `256x4` prop_13_0.03 -3.2..-4.3, prop_0_0.03
+/// -3.6..-4.5, prop_5_0.03 -1.1..-1.5; 2022 mnist_fc `256x4` prop_3_0.05 -0.6..-1.0),
+/// while `256x6` prop_3_0.05, which only the refinement closes, starts at -242..-292
+/// (and the open `256x4` prop_0_0.05 at -17..-21, `256x6` prop_9_0.03 near -1000),
+/// 2026-11-28, i53-m.
+const REFINE_AT_ONCE_BOUND: f64 = -10.0;
+/// The share of the time left that [`refine_root`]'s trees may spend when they come
+/// first: the tree over alpha-CROWN's bounds of such rows gains nothing meanwhile.
+const REFINE_AT_ONCE_SHARE: f64 = 0.75;
 
 /// Nodes of each neuron's tree in [`refine_root`] ([`crate::refine::stabilise`]). On
 /// mnist_fc `256x6` prop_3_0.05 (VeriNet unsat in 23 s; a timeout at 300 s here before)
@@ -1454,7 +1492,7 @@ const REFINE_NODES: u64 = 200;
 /// alpha-CROWN's bounds of the layer (within a quarter of the time left), then the
 /// neurons no attack sees change sign proved stable by small trees of their own
 /// ([`crate::refine::stabilise`]) before the next layer is bounded over them; the trees
-/// within a third of the time left. Returns the slopes of the bounds (with
+/// within `share` of the time left. Returns the slopes of the bounds (with
 /// `keep_slopes`, see [`symbolic::alpha_pre_with`]).
 fn refine_root(
     maps: &[(Affine, bool)],
@@ -1462,11 +1500,12 @@ fn refine_root(
     lo: &[f64],
     hi: &[f64],
     keep_slopes: bool,
+    share: f64,
     deadline: Option<Instant>,
 ) -> symbolic::PreSlopes {
     let t = Instant::now();
     let left = deadline.map(|d| d.saturating_duration_since(t));
-    let refine_deadline = left.map(|l| t + l / 3);
+    let refine_deadline = left.map(|l| t + l.mul_f64(share));
     let mut slopes: symbolic::PreSlopes = pre.iter().map(|l| vec![[None, None]; l.len()]).collect();
     let mut rs = Vec::new();
     for k in 1..pre.len() {
@@ -1484,6 +1523,17 @@ fn refine_root(
             alpha_deadline,
         );
         slopes[k] = got[k].clone();
+        // Each layer but the last within half the refinement's time left: the later
+        // layers, nearly stable once bounded over the earlier ones' proofs, are cheap
+        // and decisive.
+        let now = Instant::now();
+        let layer_deadline = refine_deadline.map(|d| {
+            if k + 1 < pre.len() {
+                now + d.saturating_duration_since(now) / 2
+            } else {
+                d
+            }
+        });
         rs.push(crate::refine::stabilise(
             maps,
             pre,
@@ -1491,8 +1541,15 @@ fn refine_root(
             hi,
             k..=k,
             REFINE_NODES,
-            refine_deadline,
+            layer_deadline,
         ));
+        if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+            eprintln!(
+                "refine layer {k}: {:?} after {:.2} s",
+                rs.last().map(|r| &r.layers),
+                t.elapsed().as_secs_f64()
+            );
+        }
     }
     if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
         eprintln!(
