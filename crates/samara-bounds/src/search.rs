@@ -31,7 +31,8 @@
 //! (`crate::relusplit`), one tree per open case, after the intermediate bounds are
 //! tightened once by alpha-CROWN ([`symbolic::alpha_pre_with`]); on deep dense networks
 //! whose tree stays open, they are refined layer by layer by proving neurons stable with
-//! small trees of their own ([`crate::refine`]) and the tree starts again.
+//! small trees of their own ([`crate::refine`]) and the tree starts again (after a few
+//! batches when every case's bound at the whole box is far below 0).
 
 use crate::query::{combination_certifies, forward};
 pub use crate::query::{satisfies, Case, OutputConstraint};
@@ -1333,24 +1334,13 @@ fn solve_relu(
         let mut heap: std::collections::BinaryHeap<_> =
             open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
         let batch = (2 * rayon::current_num_threads()).max(2);
-        // Deep dense networks: when every open case's bound at the whole box is below
-        // [`REFINE_AT_ONCE_BOUND`], the root bounds are refined before any tree
-        // ([`refine_root`]); otherwise a tree that does not close within
-        // [`REFINE_AFTER_BATCHES`] batches starts again over refined bounds (the nodes
-        // it closed are counted once more).
-        let far = deep.is_some() && st.left.iter().all(|l| l.1.lb < REFINE_AT_ONCE_BOUND);
-        let mut refined = deep.is_none() || far;
-        if far {
-            slopes = refine_root(
-                maps,
-                &mut pre,
-                &st.lo,
-                &st.hi,
-                node_slopes,
-                REFINE_AT_ONCE_SHARE,
-                deadline,
-            );
-        }
+        // Deep dense networks: a tree that does not close within [`REFINE_AFTER_BATCHES`]
+        // batches (and [`REFINE_AFTER_SHARE`] of the time) starts again over refined
+        // bounds ([`refine_root`]; the nodes it closed are counted once more); within
+        // [`REFINE_FAR_AFTER_BATCHES`] when every open case's bound at the whole box is
+        // below [`REFINE_FAR_BOUND`].
+        let far = deep.is_some() && st.left.iter().all(|l| l.1.lb < REFINE_FAR_BOUND);
+        let mut refined = deep.is_none();
         loop {
             let tree = relusplit::Tree {
                 maps,
@@ -1370,16 +1360,21 @@ fn solve_relu(
                 closed_share: std::sync::Mutex::new(0.0),
             };
             // The plain tree stops for the refinement after REFINE_AFTER_BATCHES
-            // batches and REFINE_AFTER_SHARE of the time left at its start.
+            // batches and REFINE_AFTER_SHARE of the time left at its start (far:
+            // REFINE_FAR_AFTER_BATCHES batches).
             let start = Instant::now();
-            let refine_at = deadline.map(|d| {
+            let refine_at = deadline.filter(|_| !far).map(|d| {
                 start
                     + d.saturating_duration_since(start)
                         .mul_f64(REFINE_AFTER_SHARE)
             });
-            let go_on = |b: u64| {
-                refined || b < REFINE_AFTER_BATCHES || refine_at.is_some_and(|t| Instant::now() < t)
+            let after = if far {
+                REFINE_FAR_AFTER_BATCHES
+            } else {
+                REFINE_AFTER_BATCHES
             };
+            let go_on =
+                |b: u64| refined || b < after || refine_at.is_some_and(|t| Instant::now() < t);
             let mut phase_batches = 0u64;
             while !heap.is_empty() && go_on(phase_batches) {
                 if out_of_time() {
@@ -1419,15 +1414,12 @@ fn solve_relu(
                 break;
             }
             refined = true;
-            slopes = refine_root(
-                maps,
-                &mut pre,
-                &st.lo,
-                &st.hi,
-                node_slopes,
-                REFINE_LATE_SHARE,
-                deadline,
-            );
+            let share = if far {
+                REFINE_FAR_SHARE
+            } else {
+                REFINE_LATE_SHARE
+            };
+            slopes = refine_root(maps, &mut pre, &st.lo, &st.hi, node_slopes, share, deadline);
             heap = open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
         }
     }
@@ -1468,17 +1460,21 @@ const REFINE_AFTER_SHARE: f64 = 0.4;
 const REFINE_LATE_SHARE: f64 = 1.0 / 3.0;
 
 /// Deep dense networks whose open cases are all bounded below this at the whole box
-/// (alpha-CROWN) refine the root bounds before any tree, within
-/// [`REFINE_AT_ONCE_SHARE`] of the time left: the rows the plain tree closes start
+/// (alpha-CROWN) refine the root bounds after [`REFINE_FAR_AFTER_BATCHES`] batches,
+/// within [`REFINE_FAR_SHARE`] of the time left: the rows the plain tree closes start
 /// near 0 (VNN-COMP 2021 mnistfc `256x4` prop_13_0.03 -3.2..-4.3, prop_0_0.03
 /// -3.6..-4.5, prop_5_0.03 -1.1..-1.5; 2022 mnist_fc `256x4` prop_3_0.05 -0.6..-1.0),
 /// while `256x6` prop_3_0.05, which only the refinement closes, starts at -242..-292
 /// (and the open `256x4` prop_0_0.05 at -17..-21, `256x6` prop_9_0.03 near -1000),
 /// 2026-11-28, i53-m.
-const REFINE_AT_ONCE_BOUND: f64 = -10.0;
-/// The share of the time left that [`refine_root`]'s trees may spend when they come
-/// first: the tree over alpha-CROWN's bounds of such rows gains nothing meanwhile.
-const REFINE_AT_ONCE_SHARE: f64 = 0.75;
+const REFINE_FAR_BOUND: f64 = -10.0;
+/// Batches of the plain tree before the refinement of such rows: its first nodes' points
+/// (2021 mnistfc `256x6` prop_3_0.05 is sat at the tree's ninth node, 9.1 s at load 8;
+/// 25.1 s when the refinement came first, of its 30 s at x0.1).
+const REFINE_FAR_AFTER_BATCHES: u64 = 5;
+/// The share of the time left that [`refine_root`]'s trees may spend on such rows: their
+/// plain tree gains nothing meanwhile.
+const REFINE_FAR_SHARE: f64 = 0.75;
 
 /// Nodes of each neuron's tree in [`refine_root`] ([`crate::refine::stabilise`]). On
 /// mnist_fc `256x6` prop_3_0.05 (VeriNet unsat in 23 s; a timeout at 300 s here before)
