@@ -165,12 +165,17 @@ pub(crate) struct Tree<'a> {
 /// Henriksen & Lomuscio, IJCAI 2021), which the score from the output bound's
 /// pull-back does not see: by that score the search split only the last ReLU layer,
 /// the one after which nothing is re-bounded. So nodes with fewer than `depth` phases
-/// fixed branch only in maps `..layers` while those have unstable neurons (by the same
-/// scores and filtered smart branching, restricted to them). The bounds are unchanged
-/// (only the choice of neuron is). On VNN-COMP 2022 mnist_fc `256x4` prop_3_0.05, one
-/// split of map 0 left 48 of the last layer's 73 neurons unstable, and the query was
-/// proved in 1.2 CPU-s (it timed out at 300 s before, 2,000+ nodes a minute down to
-/// depth 131 and nodes with every unstable neuron fixed still open).
+/// fixed branch only in the earliest of maps `..layers` that has unstable neurons (by
+/// the same scores and filtered smart branching, restricted to it): a split there
+/// reaches the most layers (DEEPSPLIT's indirect effect grows with the layers after the
+/// neuron). The bounds are unchanged (only the choice of neuron is). On VNN-COMP 2022
+/// mnist_fc `256x4` prop_3_0.05, one split of map 0 left 48 of the last layer's 73
+/// neurons unstable, and the query was proved in 1.2 CPU-s (it timed out at 300 s
+/// before, 2,000+ nodes a minute down to depth 131 and nodes with every unstable neuron
+/// fixed still open). On `256x6` prop_9_0.03 the choice among maps 0-2 by the output
+/// bound's score split map 2 first, and seven early splits left the bound at -298 (from
+/// -298); six splits of map 0 took it to -134..-168 (with the root's slopes at the
+/// nodes, [`Tree::pre_slopes`]; 2026-11-28, branch i53-d).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Deep {
     /// Nodes with fewer phases fixed branch early.
@@ -505,23 +510,20 @@ pub(crate) fn examine(
     // (the LP's, Salman et al. 2019) splitting it leaves one child's bound at its
     // parent's, so with `lp_bounds` only the negative ones (chords) are scored.
     let last = pre.len().saturating_sub(1);
-    // On deep dense networks, the first nodes branch in the early layers while those
-    // have unstable neurons (see [`Deep`]); any unstable neuron there scores above 0.
-    let early = tree
-        .deep
-        .filter(|d| node.depth < d.depth)
-        .map(|d| d.layers)
-        .filter(|&k| {
-            pre.iter()
-                .take(k)
-                .enumerate()
-                .any(|(j, l)| maps[j].1 && l.iter().any(|b| relu::unstable(b.0, b.1)))
-        });
+    // On deep dense networks, the first nodes branch in the earliest ReLU layer of the
+    // early ones that has unstable neurons (see [`Deep`]); any unstable neuron there
+    // scores above 0.
+    let early = tree.deep.filter(|d| node.depth < d.depth).and_then(|d| {
+        pre.iter()
+            .take(d.layers)
+            .enumerate()
+            .position(|(j, l)| maps[j].1 && l.iter().any(|b| relu::unstable(b.0, b.1)))
+    });
     // With `chords_only` (see [`Tree::intercept`]) a positive coefficient scores 0.
     let signed = |j: usize, t: usize, chords_only: bool| {
         let v = nu[j + 1][t];
         if let Some(k) = early {
-            match j < k {
+            match j == k {
                 true => v.abs().max(f64::MIN_POSITIVE),
                 false => 0.0,
             }
@@ -1250,5 +1252,121 @@ mod tests {
         }
         eprintln!("{proved} proved, {found} points");
         assert!(proved >= 5 && found >= 5, "{proved} proved, {found} points");
+    }
+    /// Early-layer branching on deep networks ([`Deep`], the earliest early ReLU layer
+    /// with unstable neurons first) with each node's later layers re-bounded by the
+    /// root's alpha-CROWN slopes too ([`Tree::pre_slopes`]), against the plain tree
+    /// (output-bound branching, CROWN re-bounds only): on random 4-hidden-layer networks
+    /// and boxes, the root splits a neuron of the earliest ReLU layer with unstable
+    /// neurons; a tree that closes every node has no point among 20,000 sampled ones of
+    /// the box where the case holds, a point either reports is in the box and satisfies
+    /// the case at the network's f64 output, and the two trees never disagree; the
+    /// trials include both verdicts.
+    #[test]
+    fn deep_branching_with_the_roots_slopes_is_sound_and_agrees() {
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(54);
+        let (mut proved, mut found, mut early) = (0, 0, 0);
+        for trial in 0..40 {
+            let n = 2 + trial % 3;
+            let maps = random_maps(&mut rng, &[n, 8, 8, 8, 6, 2]);
+            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..0.0)).collect();
+            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.3..1.5)).collect();
+            let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
+            let mut pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
+            let slopes = symbolic::alpha_pre_with(
+                &maps,
+                &mut pre,
+                &lo,
+                &hi,
+                8,
+                symbolic::Ascent::Normalised,
+                true,
+                None,
+            );
+            let case = Case {
+                lo: lo.clone(),
+                hi: hi.clone(),
+                constraints: vec![crate::query::OutputConstraint {
+                    obj: Objective {
+                        c: vec![1.0, -1.0],
+                        d: rng.gen_range(-1.5..1.5),
+                    },
+                    strict: false,
+                }],
+            };
+            let cases = std::slice::from_ref(&case);
+            let first = (0..2).find(|&j| pre[j].iter().any(|b| relu::unstable(b.0, b.1)));
+            let mut verdicts = Vec::new();
+            for deep in [false, true] {
+                let tree = Tree {
+                    maps: &maps,
+                    cases,
+                    pre: &pre,
+                    lo: &lo,
+                    hi: &hi,
+                    root_iters: 10,
+                    iters: 5,
+                    lp_bounds: false,
+                    intercept: false,
+                    deep: deep.then_some(Deep {
+                        depth: 6,
+                        layers: 2,
+                    }),
+                    pre_slopes: deep.then_some(&slopes),
+                    lp_depth: None,
+                    closed_share: std::sync::Mutex::new(0.0),
+                };
+                let mut heap = std::collections::BinaryHeap::from([root(vec![0])]);
+                let mut verdict = Some(true);
+                let mut nodes = 0;
+                while let Some(node) = heap.pop() {
+                    nodes += 1;
+                    if nodes > 4_000 {
+                        verdict = None;
+                        break;
+                    }
+                    match examine(&tree, node, None, None) {
+                        NodeOut::Closed => {}
+                        NodeOut::Split(ch) => {
+                            if let (true, 1, Some(f)) = (deep, nodes, first) {
+                                assert_eq!(ch[0].splits[0].0, f, "trial {trial}");
+                                early += 1;
+                            }
+                            heap.extend(ch)
+                        }
+                        NodeOut::Found(_, x) => {
+                            let y = forward(&maps, &x, None);
+                            assert!(satisfies(&case.constraints, &y), "trial {trial}");
+                            assert!((0..n).all(|k| lo[k] <= x[k] && x[k] <= hi[k]));
+                            verdict = Some(false);
+                            break;
+                        }
+                        NodeOut::Stuck | NodeOut::Late => {
+                            verdict = None;
+                            break;
+                        }
+                    }
+                }
+                if verdict == Some(true) {
+                    for _ in 0..20_000 {
+                        let x: Vec<f64> = (0..n).map(|k| rng.gen_range(lo[k]..=hi[k])).collect();
+                        let y = forward(&maps, &x, None);
+                        let v = case.constraints[0].obj.d + y[0] - y[1];
+                        assert!(v > 0.0, "trial {trial} (deep {deep}): {v} at {x:?}");
+                    }
+                }
+                verdicts.push(verdict);
+            }
+            if let [Some(a), Some(b)] = verdicts[..] {
+                assert_eq!(a, b, "trial {trial}: the branchings disagree");
+            }
+            proved += (verdicts[1] == Some(true)) as usize;
+            found += (verdicts[1] == Some(false)) as usize;
+        }
+        eprintln!("{proved} proved, {found} points, {early} early root splits");
+        assert!(
+            proved >= 5 && found >= 5 && early >= 5,
+            "{proved} proved, {found} points, {early} early root splits"
+        );
     }
 }

@@ -1433,7 +1433,8 @@ fn solve_relu(
 
 /// The early-layer branching of ReLU splitting ([`crate::relusplit::Deep`]) on dense
 /// networks (no map sparse enough for [`symbolic::Sparse`]) with at least
-/// [`DEEP_RELU_LAYERS`] ReLU layers: the first half of them are the early ones.
+/// [`DEEP_RELU_LAYERS`] ReLU layers: the first half of them are the early ones, and the
+/// earliest of those with unstable neurons is split first.
 fn deep_split(maps: &[(Affine, bool)], inputs: usize) -> Option<crate::relusplit::Deep> {
     let relus = maps.iter().filter(|m| m.1).count();
     if relus < DEEP_RELU_LAYERS || symbolic::Sparse::applies(maps, inputs) {
@@ -1567,7 +1568,13 @@ const DEEP_RELU_LAYERS: usize = 3;
 /// Nodes of ReLU splitting with fewer phases fixed branch in the early layers (on
 /// mnist_fc `256x4` prop_3_0.05 depth 6 proves it in 1.1 CPU-s; 10, with alpha-CROWN
 /// re-bounds of the later layers per node, in 5.7, and those re-bounds alone cost 5x).
-const DEEP_EARLY_DEPTH: u32 = 6;
+/// With the root's slopes at the nodes ([`RELU_NODE_SLOPES`]) and the earliest layer
+/// first, on `256x6` prop_9_0.03 (2026-11-28, branch i53-d, load 9, 300 s, about 99
+/// CPU-s each) the map-0 splits took the first path's bound to about -3 by depth 12 and
+/// left it there: depth 12 had closed 7e-9 of the tree over the refined root at the
+/// end, depth 20 2e-5 (closed nodes from depth 17 on; 2e-5 at 90 s already, 5e-16 with
+/// depth 12).
+const DEEP_EARLY_DEPTH: u32 = 20;
 
 /// Nodes of ReLU splitting on deep dense networks with at least this many phases fixed
 /// also bound each open constraint by the LP over their phases' rows and hand its
@@ -1601,11 +1608,18 @@ const RELU_PRE_ITERS: usize = 15;
 /// (so the exact LP of [`crate::exact`] was never reached): both stay off.
 const RELU_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Normalised;
 /// Whether nodes of deep dense networks re-bound their later layers with the root's
-/// intermediate slopes too ([`symbolic::rebound_with_slopes`]). With Adam's root bounds
-/// this took `256x6` prop_3_0.05's first path from -14.7 to -1.2 in 7 early splits
-/// (-7.8 without), but with either optimiser it lost `256x4` prop_3_0.05 (over 2,800
-/// nodes at 40 s; 74 without): off until the branching uses it.
-const RELU_NODE_SLOPES: bool = false;
+/// intermediate slopes too ([`symbolic::rebound_with_slopes`]), after CROWN: the root's
+/// alpha-CROWN bounds are far tighter than a node's CROWN re-bound (on mnist_fc `256x6`
+/// prop_9_0.03 the last ReLU layer's mean width is 117 against CROWN's 477), so without
+/// the slopes an early split reaches the later layers only where CROWN happens to beat
+/// them. On that row (2026-11-28, branch i53-d, load 9, 90 s, no root refinement), with
+/// the early splits in map 0 ([`deep_split`]), the first path's bound went from -298 to
+/// -83..-134 at depth 12 with CROWN alone and to -17..-0.2 with the slopes, for 0.15-0.3
+/// CPU-s a node more. Round 50 had it off: with the early splits chosen among the first
+/// half of the layers by the output bound's score, it lost `256x4` prop_3_0.05 (over
+/// 2,800 nodes at 40 s; 74 without); with the map-0 splits that row is proved in 1.8
+/// CPU-s.
+const RELU_NODE_SLOPES: bool = true;
 
 /// The first attack's budget per case on boxes of fewer than [`SIGN_STEP_INPUTS`] inputs
 /// (ACAS Xu), at most (seconds). Measured on the 47 `sat` instances of VNN-COMP 2021
