@@ -173,9 +173,9 @@ pub(crate) struct Tree<'a> {
 /// neurons unstable, and the query was proved in 1.2 CPU-s (it timed out at 300 s
 /// before, 2,000+ nodes a minute down to depth 131 and nodes with every unstable neuron
 /// fixed still open). On `256x6` prop_9_0.03 the choice among maps 0-2 by the output
-/// bound's score split map 2 first, and seven early splits left the bound at -298 (from
-/// -298); six splits of map 0 took it to -134..-168 (with the root's slopes at the
-/// nodes, [`Tree::pre_slopes`]; 2026-11-28, branch i53-d).
+/// bound's score split map 2 first, and after seven early splits the bound was still
+/// -298, where it started; six splits of map 0 took it to -134..-168 (with the root's
+/// slopes at the nodes, [`Tree::pre_slopes`]; 2026-11-28, branch i53-d).
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Deep {
     /// Nodes with fewer phases fixed branch early.
@@ -1253,6 +1253,7 @@ mod tests {
         eprintln!("{proved} proved, {found} points");
         assert!(proved >= 5 && found >= 5, "{proved} proved, {found} points");
     }
+
     /// Early-layer branching on deep networks ([`Deep`], the earliest early ReLU layer
     /// with unstable neurons first) with each node's later layers re-bounded by the
     /// root's alpha-CROWN slopes too ([`Tree::pre_slopes`]), against the plain tree
