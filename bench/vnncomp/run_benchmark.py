@@ -53,6 +53,13 @@ def rel_key(path, bench_name):
     return None
 
 
+def ordinal(n):
+    """`2nd`, `3rd`, `5th`, `21st`: the table's text for `--every n`."""
+    if n % 100 in (11, 12, 13):
+        return f"{n}th"
+    return str(n) + {1: "st", 2: "nd", 3: "rd"}.get(n % 10, "th")
+
+
 def read_peers(results_dir, bench_name, year="2021"):
     """Each tool's verdict and time per (network, property), keyed by the files' paths
     inside the benchmark folder and by their names: the 2021 layout (one CSV per tool,
@@ -185,7 +192,7 @@ def main():
     w = out.append
     w(f"## {name}: samara beside the VNN-COMP {a.year} tools\n")
     w(f"{len(ours)} instances of `{insts[0].name}`" + (f" (networks matching `{a.match}`)" if a.match else "")
-      + (f" (every {a.every}th)" if a.every > 1 else "") + (f" (first {a.limit})" if a.limit else "")
+      + (f" (every {ordinal(a.every)})" if a.every > 1 else "") + (f" (first {a.limit})" if a.limit else "")
       + f"; competition timeouts x {a.timeout_scale}; this machine ({os.cpu_count()} cores, shared); "
       f"wall {wall:.0f} s. Tools' verdicts and times: VNN-COMP {a.year} (AWS hardware per tool).\n")
     w("| network | property | samara | s | " + " | ".join(names) + " |")
