@@ -1413,7 +1413,7 @@ mod tests {
     /// (the box's points where every phase holds); the warmed layers are narrower in
     /// total than the plain re-bound's in most trials.
     #[test]
-    fn warm_rebound_holds_on_the_nodes_set_and_is_within_the_plain_one() {
+    fn warm_rebound_holds_on_the_nodes_set_within_its_crown_bounds() {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(55);
         let (mut checked, mut tighter, mut trials) = (0usize, 0usize, 0usize);
         for trial in 0..30 {
