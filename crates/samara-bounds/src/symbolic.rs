@@ -1469,6 +1469,132 @@ pub fn rebound_with_slopes(
     }
 }
 
+/// [`rebound_with_slopes`] that, in the maps from `warm_from` on, also moves each
+/// bound's slopes by `iters` steps of alpha-CROWN warm-started from the root's
+/// ([`alpha_lower_warm`]; auto_LiRPA's branches likewise re-optimise the intermediate
+/// slopes they inherit, Xu et al., ICLR 2021), the neurons of a layer in parallel. Each
+/// bound is the rigorous pull-back at the best slopes met (the root's among them), so
+/// never looser than [`rebound_with_slopes`]'s; it only replaces a looser one.
+#[allow(clippy::too_many_arguments)]
+pub fn rebound_with_slopes_warm(
+    maps: &[(Affine, bool)],
+    pre: &mut [Vec<(f64, f64)>],
+    lo: &[f64],
+    hi: &[f64],
+    from: usize,
+    slopes: &PreSlopes,
+    warm_from: usize,
+    iters: usize,
+    deadline: Option<std::time::Instant>,
+) {
+    use rayon::prelude::*;
+    let sp = Sparse::of(maps, lo.len());
+    let sp = sp.as_ref();
+    for k in from.max(1)..pre.len().min(slopes.len()) {
+        if !maps[k].1 {
+            continue;
+        }
+        if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+            return;
+        }
+        let out = maps[k].0.out;
+        let its = if k >= warm_from { iters } else { 0 };
+        let (before, rest) = pre.split_at_mut(k);
+        let before: &[Vec<(f64, f64)>] = before;
+        let layer = &mut rest[0];
+        let jobs: Vec<(usize, usize)> = (0..out)
+            .filter(|&i| relu::unstable(layer[i].0, layer[i].1))
+            .flat_map(|i| [(i, 0usize), (i, 1)])
+            .filter(|&(i, side)| slopes[k].get(i).is_some_and(|s| s[side].is_some()))
+            .collect();
+        let new: Vec<(usize, usize, f64)> = jobs
+            .par_iter()
+            .map(|&(i, side)| {
+                if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                    // Past the deadline the bound stays (a limit is a promise).
+                    return (i, side, f64::NEG_INFINITY);
+                }
+                let alpha = slopes[k][i][side].as_ref().expect("filtered");
+                let mut c = vec![0.0; out];
+                c[i] = if side == 0 { 1.0 } else { -1.0 };
+                let obj = Objective { c, d: 0.0 };
+                let v =
+                    alpha_lower_warm(&maps[..=k], before, &obj, lo, hi, alpha, its, deadline, sp);
+                (i, side, v)
+            })
+            .collect();
+        for (i, side, v) in new {
+            let b = &mut layer[i];
+            if side == 0 {
+                b.0 = b.0.max(v);
+            } else {
+                b.1 = b.1.min(-v);
+            }
+        }
+    }
+}
+
+/// The lower bound over the box of objective `obj` by the backward pull-back at the
+/// best of the slopes met in `iters` normalised steps of alpha-CROWN started from
+/// `start` (warm, so with small steps), `start`'s own pull-back among them. Only the
+/// slopes come from the f64 gradient; the value returned is the rigorous pull-back's.
+#[allow(clippy::too_many_arguments)]
+fn alpha_lower_warm(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    obj: &Objective,
+    lo: &[f64],
+    hi: &[f64],
+    start: &[Vec<f64>],
+    iters: usize,
+    deadline: Option<std::time::Instant>,
+    sp: Option<&Sparse>,
+) -> f64 {
+    let rigorous = |a: &[Vec<f64>]| {
+        backward_lower_sp(maps, pre, obj, lo, hi, Some(a), None, sp).min_over(lo, hi)
+    };
+    let late = || deadline.is_some_and(|d| std::time::Instant::now() >= d);
+    if iters == 0 {
+        return rigorous(start);
+    }
+    let mut alpha = start.to_vec();
+    let mut best_v = f64::NEG_INFINITY;
+    let mut best_a = alpha.clone();
+    for it in 0..=iters {
+        if late() {
+            break;
+        }
+        let (v, grad) = alpha_value_grad(maps, pre, obj, lo, hi, &alpha, sp);
+        if v > best_v {
+            best_v = v;
+            best_a = alpha.clone();
+        }
+        if it == iters {
+            break;
+        }
+        let gmax = grad.iter().flatten().fold(0.0f64, |m, g| m.max(g.abs()));
+        if gmax == 0.0 {
+            break;
+        }
+        let eta = WARM_STEP / (1.0 + it as f64 * 0.3);
+        for (a, g) in alpha.iter_mut().zip(&grad) {
+            for (ai, gi) in a.iter_mut().zip(g) {
+                *ai = relu::alpha_range(*ai + eta * gi / gmax);
+            }
+        }
+    }
+    let v = rigorous(&best_a);
+    if best_a.as_slice() == start {
+        v
+    } else {
+        v.max(rigorous(start))
+    }
+}
+
+/// The first step of [`alpha_lower_warm`] (the root's first step is 0.5: warm slopes
+/// are near their best already).
+const WARM_STEP: f64 = 0.25;
+
 /// Tighten the pre-activation bounds `pre` (sound on the box) of every ReLU map after the
 /// first by alpha-CROWN, each unstable neuron's lower and upper bound its own objective
 /// with its own slopes ([`alpha_lower_until`] on the chain up to its map, `iters` steps),
