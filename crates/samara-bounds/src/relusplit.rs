@@ -289,25 +289,6 @@ fn optimise(
     (f, Warm { alpha, beta }, best.nu)
 }
 
-/// alpha-CROWN steps, warm-started from the root's slopes ([`Tree::pre_slopes`]), of
-/// each re-bounded intermediate bound of the last [`WARM_LAYERS`] layers at nodes with
-/// at most [`WARM_DEPTH`] phases fixed ([`symbolic::rebound_with_slopes_warm`]; 0: the
-/// root's slopes' single pull-back, [`symbolic::rebound_with_slopes`]). Off: on VNN-COMP
-/// 2022 mnist_fc `256x6` prop_9_0.03 one step on the last two layers took the first
-/// path's bound at depth 5 from -194..-8 to -135..-2.5 (three steps on three layers, at
-/// depth 4: -208..-55 to -150..-6), but for 2-3 times the time per node (7-8 with three
-/// steps on three layers), and at 300 s (load 6-9, about 40 CPU-s each, the same
-/// minutes as main's binary) the tree after the root refinement reached depth 3 where
-/// main's reached depth 14 (-13); on `256x4` prop_0_0.05 it closed 3.9e-3 of the tree
-/// (one node at depth 8) against main's 1.7e-7, neither decided (2026-11-28, branch
-/// i53-e; bench/vnncomp/results_mnistfc.md).
-const WARM_ITERS: usize = 0;
-/// The layers (counted from the last intermediate one) whose bounds take the steps of
-/// [`WARM_ITERS`].
-const WARM_LAYERS: usize = 2;
-/// Nodes with at most this many phases fixed take the steps of [`WARM_ITERS`].
-const WARM_DEPTH: u32 = 20;
-
 /// Bound one node: close its cases, look for a point at each bound's minimising corner,
 /// or split the best-scored unstable neuron.
 pub(crate) fn examine(
@@ -348,22 +329,7 @@ pub(crate) fn examine(
         if j + 1 < pre.len() {
             pre = symbolic::crown_pre_from_sp(maps, lo, hi, &pre, j + 1, deadline, sp);
             if let Some(slopes) = tree.pre_slopes {
-                if node.depth <= WARM_DEPTH && WARM_ITERS != 0 {
-                    let warm_from = pre.len().saturating_sub(WARM_LAYERS);
-                    symbolic::rebound_with_slopes_warm(
-                        maps,
-                        &mut pre,
-                        lo,
-                        hi,
-                        j + 1,
-                        slopes,
-                        warm_from,
-                        WARM_ITERS,
-                        deadline,
-                    );
-                } else {
-                    symbolic::rebound_with_slopes(maps, &mut pre, lo, hi, j + 1, slopes, deadline);
-                }
+                symbolic::rebound_with_slopes(maps, &mut pre, lo, hi, j + 1, slopes, deadline);
             }
             if pre.iter().flatten().any(|&(l, u)| l > u) {
                 return NodeOut::Closed;
@@ -1402,96 +1368,6 @@ mod tests {
         assert!(
             proved >= 5 && found >= 5 && early >= 5,
             "{proved} proved, {found} points, {early} early root splits"
-        );
-    }
-
-    /// The warm-started alpha-CROWN re-bound of a node's later layers
-    /// ([`symbolic::rebound_with_slopes_warm`]) against the root's slopes' single pull-back
-    /// ([`symbolic::rebound_with_slopes`]): on random 5-hidden-layer networks and boxes,
-    /// with up to three phases of the first ReLU layer fixed, every bound is within the
-    /// node's CROWN bounds and holds at each of 5,000 sampled points of the node's set
-    /// (the box's points where every phase holds); the warmed layers are narrower in
-    /// total than the plain re-bound's in most trials.
-    #[test]
-    fn warm_rebound_holds_on_the_nodes_set_within_its_crown_bounds() {
-        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(55);
-        let (mut checked, mut tighter, mut trials) = (0usize, 0usize, 0usize);
-        for trial in 0..30 {
-            let n = 2 + trial % 3;
-            let maps = random_maps(&mut rng, &[n, 8, 8, 8, 8, 6, 2]);
-            let lo: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..0.0)).collect();
-            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.3..1.5)).collect();
-            let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
-            let mut pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
-            let slopes = symbolic::alpha_pre_with(
-                &maps,
-                &mut pre,
-                &lo,
-                &hi,
-                8,
-                symbolic::Ascent::Normalised,
-                true,
-                None,
-            );
-            let un: Vec<usize> = (0..8)
-                .filter(|&t| relu::unstable(pre[0][t].0, pre[0][t].1))
-                .collect();
-            if un.is_empty() {
-                continue;
-            }
-            let splits: Vec<(usize, usize, bool)> = un
-                .iter()
-                .take(1 + trial % 3)
-                .map(|&t| (0, t, rng.gen_bool(0.5)))
-                .collect();
-            let mut clamped = pre.clone();
-            for &(j, t, on) in &splits {
-                let b = &mut clamped[j][t];
-                if on {
-                    b.0 = b.0.max(0.0);
-                } else {
-                    b.1 = b.1.min(0.0);
-                }
-            }
-            let crown = symbolic::crown_pre_from_sp(&maps, &lo, &hi, &clamped, 1, None, None);
-            let mut plain = crown.clone();
-            symbolic::rebound_with_slopes(&maps, &mut plain, &lo, &hi, 1, &slopes, None);
-            let mut warm = crown.clone();
-            symbolic::rebound_with_slopes_warm(&maps, &mut warm, &lo, &hi, 1, &slopes, 2, 4, None);
-            trials += 1;
-            for (k, (w, c)) in warm.iter().zip(&crown).enumerate() {
-                for (t, (&(wl, wu), &(cl, cu))) in w.iter().zip(c).enumerate() {
-                    assert!(wl >= cl && wu <= cu, "trial {trial}: z[{k}][{t}] loosened");
-                }
-            }
-            // A layer's width summed: with fixed slopes, tighter bounds before a layer
-            // need not tighten it (a chord over a narrower interval can be lower off
-            // it), so the warm bounds are compared, not ordered.
-            let width =
-                |b: &[Vec<(f64, f64)>]| b[2..].iter().flatten().map(|x| x.1 - x.0).sum::<f64>();
-            tighter += (width(&warm) < width(&plain)) as usize;
-            for _ in 0..5_000 {
-                let x: Vec<f64> = (0..n).map(|k| rng.gen_range(lo[k]..=hi[k])).collect();
-                let z = pre_activations(&maps, &x);
-                if !splits.iter().all(|&(j, t, on)| (z[j][t] >= 0.0) == on) {
-                    continue;
-                }
-                for (k, w) in warm.iter().enumerate() {
-                    for (t, &(l, u)) in w.iter().enumerate() {
-                        let v = z[k][t];
-                        assert!(
-                            l <= v && v <= u,
-                            "trial {trial}: z[{k}][{t}] = {v} outside [{l}, {u}]"
-                        );
-                    }
-                }
-                checked += 1;
-            }
-        }
-        eprintln!("{trials} trials, {tighter} tighter, {checked} points");
-        assert!(
-            checked > 10_000 && 2 * tighter > trials,
-            "{trials} trials, {tighter} tighter, {checked} points"
         );
     }
 }
