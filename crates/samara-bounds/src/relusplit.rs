@@ -1177,17 +1177,7 @@ mod tests {
             let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
             let mut pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
             pre.truncate(maps.len() - 1);
-            let case = Case {
-                lo: lo.clone(),
-                hi: hi.clone(),
-                constraints: vec![crate::query::OutputConstraint {
-                    obj: Objective {
-                        c: vec![1.0, -1.0],
-                        d: rng.gen_range(-1.5..1.5),
-                    },
-                    strict: false,
-                }],
-            };
+            let case = two_output_case(&mut rng, &lo, &hi);
             let cases = std::slice::from_ref(&case);
             let mut verdicts = Vec::new();
             for intercept in [false, true] {
@@ -1206,41 +1196,14 @@ mod tests {
                     lp_depth: None,
                     closed_share: std::sync::Mutex::new(0.0),
                 };
-                let mut heap = std::collections::BinaryHeap::from([root(vec![0])]);
-                let mut verdict = Some(true);
-                let mut nodes = 0;
-                while let Some(node) = heap.pop() {
-                    nodes += 1;
-                    if nodes > 4_000 {
-                        verdict = None;
-                        break;
-                    }
-                    match examine(&tree, node, None, None) {
-                        NodeOut::Closed => {}
-                        NodeOut::Split(ch) => heap.extend(ch),
-                        NodeOut::Found(_, x) => {
-                            let y = forward(&maps, &x, None);
-                            assert!(satisfies(&case.constraints, &y), "trial {trial}");
-                            assert!((0..n).all(|k| lo[k] <= x[k] && x[k] <= hi[k]));
-                            verdict = Some(false);
-                            break;
-                        }
-                        NodeOut::Stuck | NodeOut::Late => {
-                            verdict = None;
-                            break;
-                        }
-                    }
-                }
+                let verdict = walk(&tree, &case, trial, |_, _| {});
                 if verdict == Some(true) {
-                    for _ in 0..20_000 {
-                        let x: Vec<f64> = (0..n).map(|k| rng.gen_range(lo[k]..=hi[k])).collect();
-                        let y = forward(&maps, &x, None);
-                        let v = case.constraints[0].obj.d + y[0] - y[1];
-                        assert!(
-                            v > 0.0,
-                            "trial {trial} (intercept {intercept}): {v} at {x:?}"
-                        );
-                    }
+                    no_sampled_point(
+                        &mut rng,
+                        &maps,
+                        &case,
+                        &format!("trial {trial} (intercept {intercept})"),
+                    );
                 }
                 verdicts.push(verdict);
             }
@@ -1252,6 +1215,74 @@ mod tests {
         }
         eprintln!("{proved} proved, {found} points");
         assert!(proved >= 5 && found >= 5, "{proved} proved, {found} points");
+    }
+
+    /// The case `d + y0 - y1 <= 0` over the box `[lo, hi]`, `d` drawn in `[-1.5, 1.5)`.
+    fn two_output_case(rng: &mut rand_chacha::ChaCha8Rng, lo: &[f64], hi: &[f64]) -> Case {
+        Case {
+            lo: lo.to_vec(),
+            hi: hi.to_vec(),
+            constraints: vec![crate::query::OutputConstraint {
+                obj: Objective {
+                    c: vec![1.0, -1.0],
+                    d: rng.gen_range(-1.5..1.5),
+                },
+                strict: false,
+            }],
+        }
+    }
+
+    /// A tree of the one case from its root, deepest node first, up to 4,000 nodes:
+    /// `Some(true)` when every node closed, `Some(false)` at a point (asserted in the box
+    /// and satisfying the case at the network's f64 output), `None` past the node limit
+    /// or stuck. `on_split` sees the count of nodes examined and each split's children.
+    fn walk(
+        tree: &Tree,
+        case: &Case,
+        trial: usize,
+        mut on_split: impl FnMut(usize, &[Node]),
+    ) -> Option<bool> {
+        let mut heap = std::collections::BinaryHeap::from([root(vec![0])]);
+        let mut nodes = 0;
+        while let Some(node) = heap.pop() {
+            nodes += 1;
+            if nodes > 4_000 {
+                return None;
+            }
+            match examine(tree, node, None, None) {
+                NodeOut::Closed => {}
+                NodeOut::Split(ch) => {
+                    on_split(nodes, &ch);
+                    heap.extend(ch)
+                }
+                NodeOut::Found(_, x) => {
+                    let y = forward(tree.maps, &x, None);
+                    assert!(satisfies(&case.constraints, &y), "trial {trial}");
+                    assert!((0..x.len()).all(|k| case.lo[k] <= x[k] && x[k] <= case.hi[k]));
+                    return Some(false);
+                }
+                NodeOut::Stuck | NodeOut::Late => return None,
+            }
+        }
+        Some(true)
+    }
+
+    /// No point of 20,000 drawn uniformly in the case's box satisfies it (`d + y0 - y1 >
+    /// 0` at each): the check of a closed tree against the network itself.
+    fn no_sampled_point(
+        rng: &mut rand_chacha::ChaCha8Rng,
+        maps: &[(Affine, bool)],
+        case: &Case,
+        what: &str,
+    ) {
+        for _ in 0..20_000 {
+            let x: Vec<f64> = (0..case.lo.len())
+                .map(|k| rng.gen_range(case.lo[k]..=case.hi[k]))
+                .collect();
+            let y = forward(maps, &x, None);
+            let v = case.constraints[0].obj.d + y[0] - y[1];
+            assert!(v > 0.0, "{what}: {v} at {x:?}");
+        }
     }
 
     /// Early-layer branching on deep networks ([`Deep`], the earliest early ReLU layer
@@ -1284,17 +1315,7 @@ mod tests {
                 true,
                 None,
             );
-            let case = Case {
-                lo: lo.clone(),
-                hi: hi.clone(),
-                constraints: vec![crate::query::OutputConstraint {
-                    obj: Objective {
-                        c: vec![1.0, -1.0],
-                        d: rng.gen_range(-1.5..1.5),
-                    },
-                    strict: false,
-                }],
-            };
+            let case = two_output_case(&mut rng, &lo, &hi);
             let cases = std::slice::from_ref(&case);
             let first = (0..2).find(|&j| pre[j].iter().any(|b| relu::unstable(b.0, b.1)));
             let mut verdicts = Vec::new();
@@ -1317,44 +1338,19 @@ mod tests {
                     lp_depth: None,
                     closed_share: std::sync::Mutex::new(0.0),
                 };
-                let mut heap = std::collections::BinaryHeap::from([root(vec![0])]);
-                let mut verdict = Some(true);
-                let mut nodes = 0;
-                while let Some(node) = heap.pop() {
-                    nodes += 1;
-                    if nodes > 4_000 {
-                        verdict = None;
-                        break;
+                let verdict = walk(&tree, &case, trial, |nodes, ch| {
+                    if let (true, 1, Some(f)) = (deep, nodes, first) {
+                        assert_eq!(ch[0].splits[0].0, f, "trial {trial}");
+                        early += 1;
                     }
-                    match examine(&tree, node, None, None) {
-                        NodeOut::Closed => {}
-                        NodeOut::Split(ch) => {
-                            if let (true, 1, Some(f)) = (deep, nodes, first) {
-                                assert_eq!(ch[0].splits[0].0, f, "trial {trial}");
-                                early += 1;
-                            }
-                            heap.extend(ch)
-                        }
-                        NodeOut::Found(_, x) => {
-                            let y = forward(&maps, &x, None);
-                            assert!(satisfies(&case.constraints, &y), "trial {trial}");
-                            assert!((0..n).all(|k| lo[k] <= x[k] && x[k] <= hi[k]));
-                            verdict = Some(false);
-                            break;
-                        }
-                        NodeOut::Stuck | NodeOut::Late => {
-                            verdict = None;
-                            break;
-                        }
-                    }
-                }
+                });
                 if verdict == Some(true) {
-                    for _ in 0..20_000 {
-                        let x: Vec<f64> = (0..n).map(|k| rng.gen_range(lo[k]..=hi[k])).collect();
-                        let y = forward(&maps, &x, None);
-                        let v = case.constraints[0].obj.d + y[0] - y[1];
-                        assert!(v > 0.0, "trial {trial} (deep {deep}): {v} at {x:?}");
-                    }
+                    no_sampled_point(
+                        &mut rng,
+                        &maps,
+                        &case,
+                        &format!("trial {trial} (deep {deep})"),
+                    );
                 }
                 verdicts.push(verdict);
             }
