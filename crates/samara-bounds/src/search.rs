@@ -1315,13 +1315,15 @@ fn solve_relu(
         // Dense deep networks only: their early-layer branching gains through the
         // later layers' re-bounds ([`crate::relusplit::Deep`]).
         let node_slopes = RELU_NODE_SLOPES && deep.is_some();
+        let far = deep.is_some() && st.left.iter().all(|l| l.1.lb < REFINE_FAR_BOUND);
+        let ascent = if far { FAR_PRE_ASCENT } else { RELU_PRE_ASCENT };
         let mut slopes = symbolic::alpha_pre_with(
             maps,
             &mut pre,
             &st.lo,
             &st.hi,
             RELU_PRE_ITERS,
-            RELU_PRE_ASCENT,
+            ascent,
             node_slopes,
             pre_deadline,
         );
@@ -1361,7 +1363,6 @@ fn solve_relu(
         // bounds ([`refine_root`]; the nodes it closed are counted once more); within
         // [`REFINE_FAR_AFTER_BATCHES`] when every open case's bound at the whole box is
         // below [`REFINE_FAR_BOUND`].
-        let far = deep.is_some() && st.left.iter().all(|l| l.1.lb < REFINE_FAR_BOUND);
         let mut refined = deep.is_none();
         loop {
             let tree = relusplit::Tree {
@@ -1441,7 +1442,16 @@ fn solve_relu(
             } else {
                 REFINE_LATE_SHARE
             };
-            slopes = refine_root(maps, &mut pre, &st.lo, &st.hi, node_slopes, share, deadline);
+            slopes = refine_root(
+                maps,
+                &mut pre,
+                &st.lo,
+                &st.hi,
+                node_slopes,
+                ascent,
+                share,
+                deadline,
+            );
             heap = open.iter().map(|&ci| relusplit::root(vec![ci])).collect();
         }
     }
@@ -1506,12 +1516,46 @@ const REFINE_FAR_SHARE: f64 = 0.75;
 /// in 20.7 CPU-s, 30.6 s wall. With 50 nodes `256x4` prop_3_0.05's last layer kept 24
 /// neurons unstable instead of 10 (2026-11-28, i52-m).
 const REFINE_NODES: u64 = 200;
+/// The most nodes of each neuron's tree, when [`refine_root`] has
+/// [`REFINE_NODES_MAX_SECONDS`] or more: at the full VNN-COMP limits (300 s) the
+/// refinement with 200 nodes ended after 18-42 s of the 225 it may spend, and the
+/// trees it left open were the ones 1,000 nodes close. On VNN-COMP 2022 mnist_fc
+/// (`verify-vnnlib --timeout 300 --threads 1`, 2026-11-28, i54-x) `256x4` prop_13_0.05's
+/// last ReLU layer kept 210 of 236 neurons unstable with 200 nodes and 30 with 1,000,
+/// and the row was proved in 135.8 s (a timeout at 300 s with 200; VeriNet 20 s);
+/// prop_5_0.05, 39 -> 12 unstable, proved in 57.9 s (VeriNet 43 s).
+const REFINE_NODES_MAX: u64 = 1000;
+/// The refinement time from which each tree gets [`REFINE_NODES_MAX`] nodes; below it
+/// the limit shrinks in proportion, to [`REFINE_NODES`] at the least (the x0.1 limits'
+/// 20 s or so keep 200: `256x6` prop_3_0.05 closes in 17.5 s with them).
+const REFINE_NODES_MAX_SECONDS: f64 = 120.0;
+
+/// Nodes of each tree of [`crate::refine::tighten`], which moves the bounds of the neurons
+/// a layer's [`crate::refine::stabilise`] left unstable halfway to an attack's extremes,
+/// before the next layer is bounded. Narrower first layers stabilise the later ones: on
+/// VNN-COMP 2022 mnist_fc `256x6` prop_8_0.05 (VeriNet unsat in 80 s) the sixth ReLU
+/// layer kept 244 of 250 neurons unstable without it and 3 of 153 with it, and the row was
+/// proved in 96.1 s; prop_9_0.03 (VeriNet 51 s) 256 -> 12 unstable, proved in 128.4 s
+/// (both timeouts at 300 s before; `verify-vnnlib --timeout 300 --threads 1`,
+/// 2026-11-28, i54-x).
+const TIGHTEN_NODES: u64 = 30;
+
+/// Nodes of each neuron's tree in a refinement that may take `budget` (none: no
+/// limit): [`REFINE_NODES`] to [`REFINE_NODES_MAX`] in proportion to the time.
+fn refine_nodes(budget: Option<std::time::Duration>) -> u64 {
+    let Some(b) = budget else {
+        return REFINE_NODES_MAX;
+    };
+    let share = (b.as_secs_f64() / REFINE_NODES_MAX_SECONDS).min(1.0);
+    ((REFINE_NODES_MAX as f64 * share) as u64).clamp(REFINE_NODES, REFINE_NODES_MAX)
+}
 
 /// The root bounds of ReLU splitting on deep dense networks, refined: layer by layer,
-/// alpha-CROWN's bounds of the layer (within a quarter of the time left), then the
-/// neurons no attack sees change sign proved stable by small trees of their own
-/// ([`crate::refine::stabilise`]) before the next layer is bounded over them; the trees
-/// within `share` of the time left. Returns the slopes of the bounds (with
+/// alpha-CROWN's bounds of the layer (within a quarter of the time left, the slopes
+/// moved by `ascent`), then the neurons no attack sees change sign proved stable by small
+/// trees of their own ([`crate::refine::stabilise`], [`refine_nodes`] nodes each) and the
+/// others' bounds tightened ([`crate::refine::tighten`]) before the next layer is
+/// bounded over them; the trees within `share` of the time left. Returns the slopes of the bounds (with
 /// `keep_slopes`, see [`symbolic::alpha_pre_with`]).
 fn refine_root(
     maps: &[(Affine, bool)],
@@ -1519,12 +1563,14 @@ fn refine_root(
     lo: &[f64],
     hi: &[f64],
     keep_slopes: bool,
+    ascent: symbolic::Ascent,
     share: f64,
     deadline: Option<Instant>,
 ) -> symbolic::PreSlopes {
     let t = Instant::now();
     let left = deadline.map(|d| d.saturating_duration_since(t));
     let refine_deadline = left.map(|l| t + l.mul_f64(share));
+    let nodes = refine_nodes(left.map(|l| l.mul_f64(share)));
     let mut slopes: symbolic::PreSlopes = pre.iter().map(|l| vec![[None, None]; l.len()]).collect();
     let mut rs = Vec::new();
     for k in 1..pre.len() {
@@ -1537,7 +1583,7 @@ fn refine_root(
             hi,
             k..k + 1,
             RELU_PRE_ITERS,
-            RELU_PRE_ASCENT,
+            ascent,
             keep_slopes,
             alpha_deadline,
         );
@@ -1559,10 +1605,12 @@ fn refine_root(
             lo,
             hi,
             k..=k,
-            REFINE_NODES,
+            nodes,
             layer_deadline,
         ));
+        let tg = crate::refine::tighten(maps, pre, lo, hi, k, TIGHTEN_NODES, layer_deadline);
         if std::env::var_os("SAMARA_SEARCH_PROFILE").is_some() {
+            eprintln!("tighten layer {k}: {:?}", tg.layer);
             eprintln!(
                 "refine layer {k}: {:?} after {:.2} s",
                 rs.last().map(|r| &r.layers),
@@ -1627,8 +1675,18 @@ const RELU_PRE_ITERS: usize = 15;
 /// [`DEEP_LP_DEPTH`]: with Adam's root (with or without [`RELU_NODE_SLOPES`]), `256x4`
 /// prop_3_0.05 was still open at 90 s (about 2,000 nodes, 17 CPU-s each), and the
 /// three rows' deep nodes had 100-250 unstable neurons left, none with every one fixed
-/// (so the exact LP of [`crate::exact`] was never reached): both stay off.
+/// (so the exact LP of [`crate::exact`] was never reached): both stay off, but for the
+/// rows far from holding ([`FAR_PRE_ASCENT`]).
 const RELU_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Normalised;
+/// The optimiser of the intermediate bounds, at the root and in [`refine_root`], of deep
+/// dense rows far from holding ([`REFINE_FAR_BOUND`]): Adam's tighter bounds, which cost
+/// the near rows their early splits' gains (see [`RELU_PRE_ASCENT`]), help the far ones,
+/// whose plain tree gains nothing anyway. On VNN-COMP 2022 mnist_fc (`verify-vnnlib
+/// --threads 1`, 2026-11-28, i54-x), at 30 s the share of the trees closed went 3.7e-9 ->
+/// 1.1e-3 on `256x4` prop_0_0.05 and 4.6e-6 -> 6.9e-5 on `256x6` prop_9_0.03; at 300 s
+/// with 1,000-node refinement trees ([`REFINE_NODES_MAX`]) `256x4` prop_5_0.05 was proved
+/// in 57.9 s instead of 67.1 s (prop_13_0.05: 135.8 s, 136.4 s).
+const FAR_PRE_ASCENT: symbolic::Ascent = symbolic::Ascent::Adam(0.3);
 /// Whether nodes of deep dense networks re-bound their later layers with the root's
 /// intermediate slopes too ([`symbolic::rebound_with_slopes`]), after CROWN: the root's
 /// alpha-CROWN bounds are far tighter than a node's CROWN re-bound (on mnist_fc `256x6`
@@ -1767,5 +1825,31 @@ fn solve_inner(maps: &[(Affine, bool)], cases: &[Case], s: &Settings) -> (Outcom
         (Outcome::Unknown(StopReason::Unsplittable), stats)
     } else {
         (Outcome::Proved, stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::time::Duration;
+
+    /// The refinement's trees keep [`REFINE_NODES`] at the x0.1 limits (about 20 s of
+    /// refinement, where `256x6` prop_3_0.05 closes with them), get [`REFINE_NODES_MAX`]
+    /// at the full ones (over two minutes) and without a limit, and never shrink as the
+    /// budget grows.
+    #[test]
+    fn refinement_trees_grow_with_the_budget() {
+        assert_eq!(refine_nodes(Some(Duration::from_secs(20))), REFINE_NODES);
+        assert_eq!(
+            refine_nodes(Some(Duration::from_secs(225))),
+            REFINE_NODES_MAX
+        );
+        assert_eq!(refine_nodes(None), REFINE_NODES_MAX);
+        let mut last = 0;
+        for s in 0..400 {
+            let n = refine_nodes(Some(Duration::from_secs(s)));
+            assert!((REFINE_NODES..=REFINE_NODES_MAX).contains(&n) && n >= last);
+            last = n;
+        }
     }
 }
