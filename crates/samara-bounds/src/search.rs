@@ -1557,6 +1557,7 @@ fn refine_nodes(budget: Option<std::time::Duration>) -> u64 {
 /// others' bounds tightened ([`crate::refine::tighten`]) before the next layer is
 /// bounded over them; the trees within `share` of the time left. Returns the slopes of the bounds (with
 /// `keep_slopes`, see [`symbolic::alpha_pre_with`]).
+#[allow(clippy::too_many_arguments)]
 fn refine_root(
     maps: &[(Affine, bool)],
     pre: &mut [Vec<(f64, f64)>],
