@@ -418,6 +418,73 @@ mod tests {
         out
     }
 
+    /// A random 2-input chain with three ReLU layers (its widths by `trial`), its box, and
+    /// CROWN's pre-activation bounds of every map but the last.
+    #[allow(clippy::type_complexity)]
+    fn draw(
+        rng: &mut rand_chacha::ChaCha8Rng,
+        trial: usize,
+    ) -> (
+        Vec<(Affine, bool)>,
+        Vec<f64>,
+        Vec<f64>,
+        Vec<Vec<(f64, f64)>>,
+    ) {
+        let widths: &[usize] = match trial % 3 {
+            0 => &[2, 5, 5, 4, 2],
+            1 => &[2, 4, 6, 3, 2],
+            _ => &[2, 6, 4, 4, 2],
+        };
+        let maps = random_maps(rng, widths);
+        let lo: Vec<f64> = (0..2).map(|_| rng.gen_range(-1.0..0.0)).collect();
+        let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.5..2.5)).collect();
+        let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
+        let mut pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
+        pre.truncate(maps.len() - 1);
+        (maps, lo, hi, pre)
+    }
+
+    /// Every bound of `pre` contains its neuron's exact range `exact` and the
+    /// pre-activations of 10,000 points drawn from the box (which also check the
+    /// enumeration: no sample beyond its extremes).
+    fn assert_contains(
+        rng: &mut rand_chacha::ChaCha8Rng,
+        trial: usize,
+        maps: &[(Affine, bool)],
+        (lo, hi): (&[f64], &[f64]),
+        pre: &[Vec<(f64, f64)>],
+        exact: &[Vec<(f64, f64)>],
+    ) {
+        for (k, layer) in pre.iter().enumerate() {
+            for (i, &(l, u)) in layer.iter().enumerate() {
+                let (emin, emax) = exact[k][i];
+                assert!(
+                    l <= emin + 1e-9 && emax <= u + 1e-9,
+                    "trial {trial}: map {k} neuron {i}: bounds ({l}, {u}), exact ({emin}, {emax})"
+                );
+            }
+        }
+        for _ in 0..10_000 {
+            let x: Vec<f64> = (0..2).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
+            let z = pre_activations(maps, &x);
+            for (k, layer) in pre.iter().enumerate() {
+                for (i, &(l, u)) in layer.iter().enumerate() {
+                    assert!(
+                        l <= z[k][i] && z[k][i] <= u,
+                        "trial {trial}: map {k} neuron {i}: {} outside ({l}, {u})",
+                        z[k][i]
+                    );
+                    let (emin, emax) = exact[k][i];
+                    assert!(
+                        emin - 1e-9 <= z[k][i] && z[k][i] <= emax + 1e-9,
+                        "trial {trial}: map {k} neuron {i}: exact range missed {}",
+                        z[k][i]
+                    );
+                }
+            }
+        }
+    }
+
     /// On random 2-input chains with three ReLU layers, from CROWN's bounds: every
     /// neuron [`stabilise`] proves active has an exact minimum (by [`exact_ranges`]'s
     /// enumeration of the activation patterns) of at least 0, every one it proves
@@ -429,28 +496,13 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(52);
         let (mut proved, mut tried) = (0usize, 0usize);
         for trial in 0..60 {
-            let widths: &[usize] = match trial % 3 {
-                0 => &[2, 5, 5, 4, 2],
-                1 => &[2, 4, 6, 3, 2],
-                _ => &[2, 6, 4, 4, 2],
-            };
-            let maps = random_maps(&mut rng, widths);
-            let lo: Vec<f64> = (0..2).map(|_| rng.gen_range(-1.0..0.0)).collect();
-            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.5..2.5)).collect();
-            let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
-            let mut pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
-            pre.truncate(maps.len() - 1);
+            let (maps, lo, hi, mut pre) = draw(&mut rng, trial);
             let before = pre.clone();
             let last = pre.len() - 1;
             let r = stabilise(&maps, &mut pre, &lo, &hi, 1..=last, 200, None);
             let exact = exact_ranges(&maps, &lo, &hi);
             for (k, layer) in pre.iter().enumerate() {
                 for (i, &(l, u)) in layer.iter().enumerate() {
-                    let (emin, emax) = exact[k][i];
-                    assert!(
-                        l <= emin + 1e-9 && emax <= u + 1e-9,
-                        "trial {trial}: map {k} neuron {i}: bounds ({l}, {u}), exact ({emin}, {emax})"
-                    );
                     let (l0, u0) = before[k][i];
                     if l0 < 0.0 && u0 > 0.0 {
                         tried += 1;
@@ -460,26 +512,7 @@ mod tests {
                     }
                 }
             }
-            for _ in 0..10_000 {
-                let x: Vec<f64> = (0..2).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
-                let z = pre_activations(&maps, &x);
-                for (k, layer) in pre.iter().enumerate() {
-                    for (i, &(l, u)) in layer.iter().enumerate() {
-                        assert!(
-                            l <= z[k][i] && z[k][i] <= u,
-                            "trial {trial}: map {k} neuron {i}: {} outside ({l}, {u})",
-                            z[k][i]
-                        );
-                        // The enumeration is checked too: no sample beyond its extremes.
-                        let (emin, emax) = exact[k][i];
-                        assert!(
-                            emin - 1e-9 <= z[k][i] && z[k][i] <= emax + 1e-9,
-                            "trial {trial}: map {k} neuron {i}: exact range missed {}",
-                            z[k][i]
-                        );
-                    }
-                }
-            }
+            assert_contains(&mut rng, trial, &maps, (&lo, &hi), &pre, &exact);
             let counted: usize = r.layers.iter().map(|l| l.3).sum();
             assert!(counted <= tried);
         }
@@ -496,45 +529,14 @@ mod tests {
         let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(54);
         let (mut moved, mut tried) = (0usize, 0usize);
         for trial in 0..60 {
-            let widths: &[usize] = match trial % 3 {
-                0 => &[2, 5, 5, 4, 2],
-                1 => &[2, 4, 6, 3, 2],
-                _ => &[2, 6, 4, 4, 2],
-            };
-            let maps = random_maps(&mut rng, widths);
-            let lo: Vec<f64> = (0..2).map(|_| rng.gen_range(-1.0..0.0)).collect();
-            let hi: Vec<f64> = lo.iter().map(|l| l + rng.gen_range(0.5..2.5)).collect();
-            let fwd = symbolic::hidden_pre(&maps, &lo, &hi, None);
-            let mut pre = symbolic::crown_pre(&maps, &lo, &hi, Some(&fwd));
-            pre.truncate(maps.len() - 1);
+            let (maps, lo, hi, mut pre) = draw(&mut rng, trial);
             for k in 1..pre.len() {
                 let t = tighten(&maps, &mut pre, &lo, &hi, k, 50, None);
                 tried += t.layer.2;
                 moved += t.layer.3;
             }
             let exact = exact_ranges(&maps, &lo, &hi);
-            for (k, layer) in pre.iter().enumerate() {
-                for (i, &(l, u)) in layer.iter().enumerate() {
-                    let (emin, emax) = exact[k][i];
-                    assert!(
-                        l <= emin + 1e-9 && emax <= u + 1e-9,
-                        "trial {trial}: map {k} neuron {i}: bounds ({l}, {u}), exact ({emin}, {emax})"
-                    );
-                }
-            }
-            for _ in 0..10_000 {
-                let x: Vec<f64> = (0..2).map(|t| rng.gen_range(lo[t]..=hi[t])).collect();
-                let z = pre_activations(&maps, &x);
-                for (k, layer) in pre.iter().enumerate() {
-                    for (i, &(l, u)) in layer.iter().enumerate() {
-                        assert!(
-                            l <= z[k][i] && z[k][i] <= u,
-                            "trial {trial}: map {k} neuron {i}: {} outside ({l}, {u})",
-                            z[k][i]
-                        );
-                    }
-                }
-            }
+            assert_contains(&mut rng, trial, &maps, (&lo, &hi), &pre, &exact);
         }
         eprintln!("tightened {moved} of {tried} bounds tried");
         assert!(
