@@ -57,12 +57,7 @@ pub fn stabilise(
         if !maps[k].1 || deadline.is_some_and(|d| Instant::now() >= d) {
             continue;
         }
-        let unstable: Vec<usize> = (0..pre[k].len())
-            .filter(|&i| pre[k][i].0 < 0.0 && pre[k][i].1 > 0.0)
-            .collect();
-        // The chain up to map k, its last map without its ReLU: z_k is the output.
-        let mut sub: Vec<(Affine, bool)> = maps[..=k].to_vec();
-        sub[k].1 = false;
+        let (unstable, sub) = chain_to(maps, pre, k);
         let sub = &sub[..];
         let before = &pre[..k];
         // (neuron, try to prove z > 0 = no point with z < 0)
@@ -131,6 +126,21 @@ pub fn stabilise(
     out
 }
 
+/// The unstable neurons of map `k` in `pre`, and the chain of maps up to `k` with the
+/// last one's ReLU dropped, whose outputs are map `k`'s pre-activations `z`.
+fn chain_to(
+    maps: &[(Affine, bool)],
+    pre: &[Vec<(f64, f64)>],
+    k: usize,
+) -> (Vec<usize>, Vec<(Affine, bool)>) {
+    let unstable = (0..pre[k].len())
+        .filter(|&i| pre[k][i].0 < 0.0 && pre[k][i].1 > 0.0)
+        .collect();
+    let mut sub: Vec<(Affine, bool)> = maps[..=k].to_vec();
+    sub[k].1 = false;
+    (unstable, sub)
+}
+
 /// What [`tighten`] did on one ReLU layer: neurons unstable, bounds tried, bounds moved,
 /// tree nodes examined.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -161,11 +171,7 @@ pub fn tighten(
     if k == 0 || k >= pre.len() || !maps[k].1 || deadline.is_some_and(|d| Instant::now() >= d) {
         return out;
     }
-    let unstable: Vec<usize> = (0..pre[k].len())
-        .filter(|&i| pre[k][i].0 < 0.0 && pre[k][i].1 > 0.0)
-        .collect();
-    let mut sub: Vec<(Affine, bool)> = maps[..=k].to_vec();
-    sub[k].1 = false;
+    let (unstable, sub) = chain_to(maps, pre, k);
     let sub = &sub[..];
     let before = &pre[..k];
     // (neuron, above, target, gap): each side's target halfway between its bound and
