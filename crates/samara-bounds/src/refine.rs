@@ -9,9 +9,14 @@
 //! in place of the MILP solver: the neuron's bound is an optimisation over the earlier
 //! layers' phases, decided by splitting them.
 //!
+//! The neurons left unstable then have their bounds tightened the same way ([`tighten`]):
+//! a tree asks whether `z_i < c` has a point for a `c` halfway between the bound and what an
+//! attack reaches, and a closed tree moves the bound to `c` (the bound tightening of MILP
+//! solvers), so that the later layers, bounded over the narrower ones, become stable.
+//!
 //! Soundness: each tree is `relusplit`'s (beta-CROWN bounds, rigorous
 //! rounding) over bounds of the earlier layers valid on the box, so a closed tree is a
-//! proof, and a bound only ever moves to `0` from the side the tree closed. An open tree
+//! proof, and a bound only ever moves to `0` (or `c`) from the side the tree closed. An open tree
 //! (node limit, deadline, or a point found) changes nothing. The attack only chooses
 //! which neurons are tried.
 //!
