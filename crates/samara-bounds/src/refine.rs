@@ -172,9 +172,8 @@ pub fn tighten(
     node_limit: u64,
     deadline: Option<Instant>,
 ) -> Tightened {
-    let mut out = Tightened::default();
     if k == 0 || k >= pre.len() || !maps[k].1 || deadline.is_some_and(|d| Instant::now() >= d) {
-        return out;
+        return Tightened::default();
     }
     let (unstable, sub) = chain_to(maps, pre, k);
     let sub = &sub[..];
@@ -227,8 +226,9 @@ pub fn tighten(
             b.1 = b.1.min(at);
         }
     }
-    out.layer = (k, unstable.len(), tried, moved.len(), nodes);
-    out
+    Tightened {
+        layer: (k, unstable.len(), tried, moved.len(), nodes),
+    }
 }
 
 /// Whether a ReLU-splitting tree over `sub` (whose last map's output `i` is `z`) closes

@@ -1555,8 +1555,8 @@ fn refine_nodes(budget: Option<std::time::Duration>) -> u64 {
 /// moved by `ascent`), then the neurons no attack sees change sign proved stable by small
 /// trees of their own ([`crate::refine::stabilise`], [`refine_nodes`] nodes each) and the
 /// others' bounds tightened ([`crate::refine::tighten`]) before the next layer is
-/// bounded over them; the trees within `share` of the time left. Returns the slopes of the bounds (with
-/// `keep_slopes`, see [`symbolic::alpha_pre_with`]).
+/// bounded over them; the trees within `share` of the time left. Returns the slopes of
+/// the bounds (with `keep_slopes`, see [`symbolic::alpha_pre_with`]).
 #[allow(clippy::too_many_arguments)]
 fn refine_root(
     maps: &[(Affine, bool)],
@@ -1569,9 +1569,9 @@ fn refine_root(
     deadline: Option<Instant>,
 ) -> symbolic::PreSlopes {
     let t = Instant::now();
-    let left = deadline.map(|d| d.saturating_duration_since(t));
-    let refine_deadline = left.map(|l| t + l.mul_f64(share));
-    let nodes = refine_nodes(left.map(|l| l.mul_f64(share)));
+    let budget = deadline.map(|d| d.saturating_duration_since(t).mul_f64(share));
+    let refine_deadline = budget.map(|b| t + b);
+    let nodes = refine_nodes(budget);
     let mut slopes: symbolic::PreSlopes = pre.iter().map(|l| vec![[None, None]; l.len()]).collect();
     let mut rs = Vec::new();
     for k in 1..pre.len() {
